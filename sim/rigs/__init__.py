@@ -1,0 +1,1 @@
+"""Rig presets (TOML files), shipped as the package data ``rigsim.rigs``."""

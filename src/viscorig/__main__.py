@@ -1,0 +1,5 @@
+"""Allow ``python -m viscorig``."""
+
+from viscorig.cli import main
+
+raise SystemExit(main())
