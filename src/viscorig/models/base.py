@@ -1,0 +1,502 @@
+"""The composable model framework: parameters, terms, the registry and the evaluation pipeline.
+
+A model predicts the FRFs the rig measures (accelerances ``ẍ_s/F_e`` and ``ẍ_v/F_v``, as stored
+in the campaign file) from closed-form frequency-domain physics. It is a sum of *terms*, in the
+manner of lmfit composite models: each term is a small class with named parameters (name, unit,
+bounds, default), and terms combine with ``+``. Exactly one term is a *modulus term* (it gives
+the complex stiffness ``K*`` of the specimens); any number of *effect terms* modify the chain.
+
+Evaluation pipeline (a term takes part in a stage by overriding that stage's method):
+
+1. ``modulus(ctx, p)``: ``K*(ω)`` from the one modulus term.
+2. ``modify_modulus(ctx, p, kstar)``: modifiers of ``K*`` (amplitude, drift), in spec order.
+3. ``disc_stiffness(ctx, p)``: additions to the disc's dynamic stiffness
+   ``D_v = K* − ω² M_v (+ Σ additions)`` (a fixture mode, for example).
+4. ``couple(ctx, p, d_table, d_disc)``: receptances from the table's dynamic stiffness
+   ``D_t = K_s − ω² M_s + iω C_s`` and ``D_v``. The default is the rigid link of physics.md,
+   ``X_s/F_e = 1/(D_t + D_v)`` and ``X_v/F_v = 1/D_v``; at most one term (``load_cell``)
+   replaces it.
+5. ``measure(ctx, p, frfs)``: changes to the measured accelerances (a sensor delay), in order.
+
+``p`` is always a mapping from the term's *local* parameter names (``f_n``) to values; the model
+maps them to global names (``f_n_1``) so a term never sees suffixes.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from viscorig.errors import InputError
+
+#: The FRFs a model can predict: name -> what is measured (accelerance, m/s²/N).
+FRF_NAMES: dict[str, str] = {
+    "table": "accelerance_table, ẍ_s/F_e",
+    "support": "accelerance_support, ẍ_v/F_v",
+}
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One named model parameter.
+
+    Attributes
+    ----------
+    name
+        Local name (``K_v``, ``f_n``); the model may add a suffix ``_1``, ``_2``.
+    unit
+        SI unit as text (``"N/m"``, ``"kg"``, ``"s"``, ``""`` for dimensionless).
+    lower, upper
+        Bounds the fitter respects.
+    default
+        Value used as a start when nothing better is known.
+    log
+        The parameter is strictly positive and is fitted as ``log(value)``: equal relative
+        steps, and the scale of the parameter does not matter.
+    description
+        One line for humans.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    default: float
+    log: bool = True
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.lower < self.upper:
+            raise ValueError(f"parameter {self.name}: lower bound must be below upper bound")
+        if self.log and self.lower <= 0.0:
+            raise ValueError(f"parameter {self.name}: a log parameter needs a positive lower bound")
+        if not self.lower <= self.default <= self.upper:
+            raise ValueError(f"parameter {self.name}: default outside its bounds")
+
+    def renamed(self, name: str) -> Parameter:
+        """The same parameter under another (suffixed) name."""
+        return Parameter(
+            name, self.unit, self.lower, self.upper, self.default, self.log, self.description
+        )
+
+    def clip(self, value: float) -> float:
+        """``value`` moved just inside the bounds (a start must be strictly feasible)."""
+        span = self.upper / self.lower if self.log else self.upper - self.lower
+        if self.log:
+            margin = min(1e-6, math.log(span) * 1e-9)
+            return float(np.clip(value, self.lower * (1 + margin), self.upper * (1 - margin)))
+        margin = span * 1e-9
+        return float(np.clip(value, self.lower + margin, self.upper - margin))
+
+
+@dataclass(frozen=True)
+class Context:
+    """What a model needs besides its parameters: the measurement points.
+
+    Attributes
+    ----------
+    frequency_hz
+        Frequency of each point (Hz).
+    time_s
+        Seconds since the run's start at each point, or ``None`` (for drift effects).
+    reference_amplitude
+        The vibration amplitude achieved at each point (m/s², peak), or ``None``
+        (for amplitude effects).
+    """
+
+    frequency_hz: NDArray[np.float64]
+    time_s: NDArray[np.float64] | None = None
+    reference_amplitude: NDArray[np.float64] | None = None
+    omega: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        frequency = np.atleast_1d(np.asarray(self.frequency_hz, dtype=float))
+        object.__setattr__(self, "frequency_hz", frequency)
+        for name in ("time_s", "reference_amplitude"):
+            value = getattr(self, name)
+            if value is not None:
+                value = np.atleast_1d(np.asarray(value, dtype=float))
+                if value.shape != frequency.shape:
+                    raise ValueError(f"{name} must have one value per frequency point")
+                object.__setattr__(self, name, value)
+        object.__setattr__(self, "omega", 2.0 * np.pi * frequency)
+
+    def subset(self, index: ArrayLike) -> Context:
+        """The context at the selected points."""
+        return Context(
+            self.frequency_hz[index],
+            None if self.time_s is None else self.time_s[index],
+            None if self.reference_amplitude is None else self.reference_amplitude[index],
+        )
+
+
+class Term:
+    """Base of every model term.
+
+    A subclass sets :attr:`keyword` (its name in spec strings), declares its parameters in
+    :meth:`parameters`, and overrides the stage methods it takes part in. Register it with
+    :func:`register_term` so that :func:`parse_spec` knows it.
+
+    Class attributes
+    ----------------
+    keyword
+        Name in spec strings (``"fixture"``).
+    kind
+        ``"modulus"`` for a ``K*`` term (exactly one per model), ``"effect"`` otherwise.
+    requires
+        Context fields the term needs (``"time_s"``, ``"reference_amplitude"``).
+    """
+
+    keyword: ClassVar[str] = ""
+    kind: ClassVar[str] = "effect"
+    requires: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, argument: float | None = None) -> None:
+        if argument is not None:
+            raise InputError(f"term '{self.keyword}' takes no argument", "model spec")
+        self.argument = argument
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_argument(cls, text: str | None) -> Term:
+        """Build the term from the text inside its parentheses in a spec (``None`` if none)."""
+        if text is None:
+            return cls()
+        try:
+            value = float(text)
+        except ValueError:
+            raise InputError(
+                f"term '{cls.keyword}' needs a number in parentheses, got '{text}'", "model spec"
+            ) from None
+        return cls(value)
+
+    @property
+    def spec(self) -> str:
+        """Canonical spec text of this term (``fixture(58)``)."""
+        if self.argument is None:
+            return self.keyword
+        return f"{self.keyword}({_format_number(self.argument)})"
+
+    def sort_key(self) -> tuple[Any, ...]:
+        """Order of terms of the same keyword in the canonical spec."""
+        return (self.argument if self.argument is not None else -math.inf,)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        """The term's parameters, with local names."""
+        return ()
+
+    def candidates(self) -> list[Term] | None:
+        """Concrete variants to choose from when the spec leaves a choice open (``maxwell``
+        without an order); ``None`` when the term is already concrete. The fitter fits every
+        variant and keeps the one with the lowest BIC."""
+        return None
+
+    def initial(self, ctx: Context, values: Mapping[str, float]) -> dict[str, float]:
+        """Start values of the term's parameters (local names). ``values`` holds the start of
+        everything else (global names). The default is each parameter's default."""
+        return {parameter.name: parameter.default for parameter in self.parameters()}
+
+    # -- pipeline stages (override those the term takes part in) ------------------------------
+    def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        """Stage 1, modulus terms only: ``K*(ω)`` in N/m."""
+        raise NotImplementedError
+
+    def modify_modulus(
+        self, ctx: Context, p: Mapping[str, float], kstar: NDArray[np.complex128]
+    ) -> NDArray[np.complex128]:
+        """Stage 2: return ``K*`` modified (amplitude or time dependence)."""
+        raise NotImplementedError
+
+    def disc_stiffness(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        """Stage 3: dynamic stiffness (N/m) added to the disc's ``D_v``."""
+        raise NotImplementedError
+
+    def couple(
+        self,
+        ctx: Context,
+        p: Mapping[str, float],
+        d_table: NDArray[np.complex128],
+        d_disc: NDArray[np.complex128],
+    ) -> dict[str, NDArray[np.complex128]]:
+        """Stage 4: receptances ``{"table": X_s/F_e, "support": X_v/F_v}`` (m/N)."""
+        raise NotImplementedError
+
+    def measure(
+        self, ctx: Context, p: Mapping[str, float], frfs: dict[str, NDArray[np.complex128]]
+    ) -> dict[str, NDArray[np.complex128]]:
+        """Stage 5: return the measured accelerances changed by the measuring chain."""
+        raise NotImplementedError
+
+    def takes_part_in(self, stage: str) -> bool:
+        """The term overrides the stage method ``stage``."""
+        return getattr(type(self), stage) is not getattr(Term, stage)
+
+    # -- composition --------------------------------------------------------------------------
+    def __add__(self, other: Term | Model) -> Model:
+        return Model([self]) + other
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.spec}>"
+
+
+class ModulusTerm(Term):
+    """Base of the ``K*`` terms.
+
+    Besides :meth:`Term.modulus`, a modulus term provides :meth:`start`, a start of its
+    parameters and of the disc mass ``M_v`` from an estimate of the disc's dynamic stiffness
+    ``D_v = K* − ω² M_v`` (which is linear in ``M_v``), so that no fit ever needs a user guess.
+    """
+
+    kind: ClassVar[str] = "modulus"
+    #: The specimens hold a disc of mass ``M_v`` (False only for the bare table).
+    has_disc: ClassVar[bool] = True
+
+    def start(
+        self,
+        omega: NDArray[np.float64],
+        d_disc: NDArray[np.complex128],
+        weight: NDArray[np.float64],
+    ) -> dict[str, float]:
+        """Start values (local names, plus ``M_v``) from ``D_v`` samples and their weights."""
+        raise NotImplementedError
+
+
+TERMS: dict[str, type[Term]] = {}
+"""The registry: spec keyword -> term class. Filled by :func:`register_term`."""
+
+
+def register_term(cls: type[Term]) -> type[Term]:
+    """Class decorator that makes a term known to :func:`parse_spec` under ``cls.keyword``."""
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", cls.keyword):
+        raise ValueError(f"term keyword {cls.keyword!r} must be lower-case letters, digits, _")
+    if cls.keyword in TERMS and TERMS[cls.keyword] is not cls:
+        raise ValueError(f"term keyword {cls.keyword!r} is already registered")
+    TERMS[cls.keyword] = cls
+    return cls
+
+
+#: The table suspension, part of every model; fixed when a specimen run is identified.
+TABLE_PARAMETERS = (
+    Parameter("M_s", "kg", 1e-3, 1e4, 3.4, description="moving mass of the table"),
+    Parameter("K_s", "N/m", 1e-3, 1e10, 5e4, description="suspension stiffness of the table"),
+    Parameter("C_s", "N·s/m", 1e-6, 1e6, 5.0, description="suspension damping of the table"),
+)
+DISC_MASS = Parameter(
+    "M_v", "kg", 1e-6, 1e3, 0.25, description="disc mass plus a third of the specimens' mass"
+)
+
+
+class Model:
+    """A sum of terms with exactly one modulus term, predicting the rig's FRFs.
+
+    Parameters are, in order: the table's ``M_s K_s C_s``, the modulus term's, the disc mass
+    ``M_v`` (unless the bare table), then each effect term's in canonical order, suffixed
+    ``_1``, ``_2``… when a keyword appears more than once.
+    """
+
+    def __init__(self, terms: Sequence[Term]) -> None:
+        moduli = [term for term in terms if term.kind == "modulus"]
+        if len(moduli) > 1:
+            names = ", ".join(term.spec for term in moduli)
+            raise InputError(f"a model has exactly one K* term, got {names}", "model spec")
+        self.terms: tuple[Term, ...] = tuple(terms)
+        self.modulus_term: ModulusTerm | None = moduli[0] if moduli else None  # type: ignore[assignment]
+        order = {keyword: index for index, keyword in enumerate(TERMS)}
+        self.effects: tuple[Term, ...] = tuple(
+            sorted(
+                (term for term in terms if term.kind != "modulus"),
+                key=lambda term: (order.get(term.keyword, len(order)), term.sort_key()),
+            )
+        )
+        couplers = [term for term in self.effects if term.takes_part_in("couple")]
+        if len(couplers) > 1:
+            raise InputError("a model has at most one coupling term (load_cell)", "model spec")
+        self._coupler = couplers[0] if couplers else None
+        self._names: dict[int, dict[str, str]] = {}
+        parameters = list(TABLE_PARAMETERS)
+        if self.modulus_term is not None:
+            parameters += self._claim(self.modulus_term, "")
+            if self.modulus_term.has_disc:
+                parameters.append(DISC_MASS)
+        counts: dict[str, int] = {}
+        for term in self.effects:
+            counts[term.keyword] = counts.get(term.keyword, 0) + 1
+        seen: dict[str, int] = {}
+        for term in self.effects:
+            seen[term.keyword] = seen.get(term.keyword, 0) + 1
+            suffix = f"_{seen[term.keyword]}" if counts[term.keyword] > 1 else ""
+            parameters += self._claim(term, suffix)
+        names = [parameter.name for parameter in parameters]
+        duplicated = sorted({name for name in names if names.count(name) > 1})
+        if duplicated:
+            raise InputError(f"parameter names clash: {', '.join(duplicated)}", "model spec")
+        self.parameters: tuple[Parameter, ...] = tuple(parameters)
+        self.by_name: dict[str, Parameter] = {p.name: p for p in parameters}
+        self._stage_terms = {
+            stage: [t for t in self.effects if t.takes_part_in(stage)]
+            for stage in ("modify_modulus", "disc_stiffness", "measure")
+        }
+
+    def _claim(self, term: Term, suffix: str) -> list[Parameter]:
+        local = term.parameters()
+        self._names[id(term)] = {p.name: p.name + suffix for p in local}
+        return [p.renamed(p.name + suffix) for p in local]
+
+    # -- description --------------------------------------------------------------------------
+    @property
+    def spec(self) -> str:
+        """Canonical spec string: the K* term, then effects in registry order."""
+        parts = [self.modulus_term.spec] if self.modulus_term else []
+        return "+".join(parts + [term.spec for term in self.effects])
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Global parameter names, in order."""
+        return tuple(parameter.name for parameter in self.parameters)
+
+    @property
+    def frfs(self) -> tuple[str, ...]:
+        """Names of the FRFs this model predicts."""
+        if self.modulus_term is None or not self.modulus_term.has_disc:
+            return ("table",)
+        return ("table", "support")
+
+    @property
+    def requires(self) -> tuple[str, ...]:
+        """Context fields the model needs besides frequency."""
+        return tuple(sorted({field for term in self.terms for field in term.requires}))
+
+    @property
+    def is_open(self) -> bool:
+        """A term leaves a choice to the fitter (``maxwell`` without an order)."""
+        return any(term.candidates() is not None for term in self.terms)
+
+    def local_names(self, term: Term) -> dict[str, str]:
+        """Local -> global parameter names of one of the model's terms."""
+        return dict(self._names[id(term)])
+
+    def defaults(self) -> dict[str, float]:
+        """Every parameter at its default value."""
+        return {parameter.name: parameter.default for parameter in self.parameters}
+
+    def candidates(self) -> list[Model]:
+        """Concrete models to choose from (one, unless a term leaves a choice open)."""
+        variants: list[list[Term]] = [[]]
+        for term in self.terms:
+            options = term.candidates() or [term]
+            variants = [[*done, option] for done in variants for option in options]
+        return [Model(terms) for terms in variants]
+
+    def local_values(self, term: Term, values: Mapping[str, float]) -> dict[str, float]:
+        """The values of one term's parameters under its local names."""
+        return {local: values[name] for local, name in self._names[id(term)].items()}
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def kstar(self, ctx: Context, values: Mapping[str, float]) -> NDArray[np.complex128]:
+        """``K*(ω)`` after the modifiers (stages 1 and 2), N/m."""
+        if self.modulus_term is None:
+            return np.zeros(ctx.omega.shape, dtype=complex)
+        kstar = np.asarray(
+            self.modulus_term.modulus(ctx, self.local_values(self.modulus_term, values)),
+            dtype=complex,
+        )
+        for term in self._stage_terms["modify_modulus"]:
+            kstar = term.modify_modulus(ctx, self.local_values(term, values), kstar)
+        return kstar
+
+    def disc_dynamic_stiffness(
+        self, ctx: Context, values: Mapping[str, float]
+    ) -> NDArray[np.complex128]:
+        """``D_v = K* − ω² M_v + additions`` (stages 1 to 3), N/m."""
+        d_disc = self.kstar(ctx, values)
+        if self.modulus_term is not None and self.modulus_term.has_disc:
+            d_disc = d_disc - ctx.omega**2 * values["M_v"]
+        for term in self._stage_terms["disc_stiffness"]:
+            d_disc = d_disc + term.disc_stiffness(ctx, self.local_values(term, values))
+        return d_disc
+
+    def predict(
+        self, ctx: Context, values: Mapping[str, float]
+    ) -> dict[str, NDArray[np.complex128]]:
+        """Predicted accelerances ``{"table": ẍ_s/F_e, "support": ẍ_v/F_v}`` in m/s²/N.
+
+        ``values`` maps every global parameter name to its value (see :meth:`defaults`).
+        """
+        if self.is_open:
+            raise InputError(f"'{self.spec}' leaves a choice open; fit it first", "model spec")
+        w = ctx.omega
+        d_disc = self.disc_dynamic_stiffness(ctx, values)
+        d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+        if self._coupler is not None:
+            receptance = self._coupler.couple(
+                ctx, self.local_values(self._coupler, values), d_table, d_disc
+            )
+        else:
+            receptance = {"table": 1.0 / (d_table + d_disc)}
+            if "support" in self.frfs:
+                receptance["support"] = 1.0 / d_disc
+        frfs = {name: -(w**2) * receptance[name] for name in self.frfs}
+        for term in self._stage_terms["measure"]:
+            frfs = term.measure(ctx, self.local_values(term, values), frfs)
+        return frfs
+
+    # -- composition --------------------------------------------------------------------------
+    def __add__(self, other: Term | Model) -> Model:
+        if isinstance(other, Model):
+            return Model(self.terms + other.terms)
+        if isinstance(other, Term):
+            return Model((*self.terms, other))
+        return NotImplemented
+
+    def __iter__(self) -> Iterator[Term]:
+        return iter(self.terms)
+
+    def __repr__(self) -> str:
+        return f"<Model {self.spec}>"
+
+
+_TERM_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\(\s*([^()]*?)\s*\))?\s*$")
+
+
+def parse_spec(spec: str) -> Model:
+    """Build a model from a spec string such as ``"maxwell(3)+load_cell+fixture(58)"``.
+
+    Raises
+    ------
+    InputError
+        Unknown term, malformed term, no or several K* terms.
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise InputError("empty model spec", "model spec")
+    terms: list[Term] = []
+    for part in spec.split("+"):
+        match = _TERM_PATTERN.match(part)
+        if match is None:
+            raise InputError(f"malformed term '{part.strip()}' in '{spec}'", "model spec")
+        keyword, argument = match.group(1).lower(), match.group(2)
+        if keyword not in TERMS:
+            known = ", ".join(sorted(TERMS))
+            raise InputError(f"unknown term '{keyword}' in '{spec}' (known: {known})", "model spec")
+        terms.append(TERMS[keyword].from_argument(argument or None))
+    model = Model(terms)
+    if model.modulus_term is None:
+        moduli = ", ".join(k for k, cls in TERMS.items() if cls.kind == "modulus")
+        raise InputError(f"'{spec}' has no K* term (one of: {moduli})", "model spec")
+    return model
+
+
+def _format_number(value: float) -> str:
+    """Shortest text of a number that reads back to the same value (58.0 -> '58')."""
+    return f"{int(value)}" if float(value).is_integer() else repr(float(value))
+
+
+def stage_methods() -> tuple[str, ...]:
+    """Names of the pipeline stage methods, in evaluation order."""
+    return ("modulus", "modify_modulus", "disc_stiffness", "couple", "measure")
+

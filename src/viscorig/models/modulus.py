@@ -1,0 +1,238 @@
+"""The K* terms: bare table, Voigt, generalized Maxwell, fractional Zener.
+
+Each term gives the specimens' complex stiffness ``K*(ω)`` (physics.md, "Models of K*") and a
+start of its parameters that needs no user guess: ``D_v = K* − ω² M_v`` is linear in the
+stiffness-like parameters and in ``M_v`` once the relaxation times (Maxwell) or ``τ, α``
+(fractional) are fixed, so a linear or non-negative least-squares solve gives the start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import nnls
+
+from viscorig.errors import InputError
+from viscorig.models.base import Context, ModulusTerm, Parameter, Term, register_term
+
+#: Highest Maxwell order the fitter tries when the spec leaves the order open.
+MAXWELL_MAX_ORDER = 5
+
+
+def _stack(columns: NDArray[np.complex128], target: NDArray[np.complex128], weight: NDArray):
+    """Real system ``A x ≈ b`` from complex columns, rows weighted, columns scaled to unit norm."""
+    a = np.concatenate([columns.real, columns.imag]) * np.concatenate([weight, weight])[:, None]
+    b = np.concatenate([target.real, target.imag]) * np.concatenate([weight, weight])
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    return a / scale, b, scale
+
+
+@register_term
+class TableOnly(ModulusTerm):
+    """The bare table, no specimen: ``K* = 0`` and no disc (fits ``M_s K_s C_s``)."""
+
+    keyword = "table"
+    has_disc = False
+
+    def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        return np.zeros(ctx.omega.shape, dtype=complex)
+
+    def start(self, omega, d_disc, weight) -> dict[str, float]:
+        return {}
+
+
+@register_term
+class Voigt(ModulusTerm):
+    """Voigt: ``K* = K_v + iω C_v`` (with the disc mass ``M_v``, three parameters)."""
+
+    keyword = "voigt"
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter("K_v", "N/m", 1e-3, 1e10, 1e5, description="specimen stiffness"),
+            Parameter("C_v", "N·s/m", 1e-6, 1e6, 100.0, description="specimen damping"),
+        )
+
+    def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        return p["K_v"] + 1j * ctx.omega * p["C_v"]
+
+    def start(self, omega, d_disc, weight) -> dict[str, float]:
+        columns = np.stack([np.ones_like(omega), 1j * omega, -(omega**2)], axis=1).astype(complex)
+        a, b, scale = _stack(columns, d_disc, weight)
+        k_v, c_v, m_v = np.linalg.lstsq(a, b, rcond=None)[0] / scale
+        return {"K_v": k_v, "C_v": c_v, "M_v": m_v}
+
+
+@register_term
+class Maxwell(ModulusTerm):
+    """Generalized Maxwell, Eq. (10): ``K* = K_0 + Σ iω K_i C_i / (K_i + iω C_i)``.
+
+    ``maxwell(N)`` has ``N`` arms; plain ``maxwell`` leaves the order to the fitter, which tries
+    1..:data:`MAXWELL_MAX_ORDER` arms and keeps the lowest BIC. Parameters ``K_0, K_1..K_N,
+    C_1..C_N`` and the disc mass ``M_v`` (needed for both FRFs; Eq. (5) uses it too).
+    """
+
+    keyword = "maxwell"
+
+    def __init__(self, argument: float | None = None) -> None:
+        if argument is not None and (argument != int(argument) or not 1 <= argument <= 20):
+            raise InputError(
+                f"maxwell(N) needs a whole number of arms 1..20, got {argument}", "model spec"
+            )
+        self.argument = None if argument is None else int(argument)
+
+    @property
+    def order(self) -> int | None:
+        """Number of arms, ``None`` while open."""
+        return self.argument
+
+    def candidates(self) -> list[Term] | None:
+        if self.order is not None:
+            return None
+        return [Maxwell(n) for n in range(1, MAXWELL_MAX_ORDER + 1)]
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        if self.order is None:  # open: the fitter expands it through candidates()
+            return ()
+        stiffness = [
+            Parameter(f"K_{i}", "N/m", 1e-3, 1e11, 1e4, description=f"stiffness of arm {i}")
+            for i in range(1, self.order + 1)
+        ]
+        damping = [
+            Parameter(f"C_{i}", "N·s/m", 1e-8, 1e8, 10.0, description=f"damping of arm {i}")
+            for i in range(1, self.order + 1)
+        ]
+        return (
+            Parameter("K_0", "N/m", 1e-3, 1e10, 1e5, description="static stiffness"),
+            *stiffness,
+            *damping,
+        )
+
+    def arms(self, p: Mapping[str, float]) -> tuple[NDArray, NDArray]:
+        """Arm stiffnesses and damping coefficients as arrays."""
+        n = self.order or 0
+        k = np.array([p[f"K_{i}"] for i in range(1, n + 1)])
+        c = np.array([p[f"C_{i}"] for i in range(1, n + 1)])
+        return k, c
+
+    def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        k, c = self.arms(p)
+        iwt = 1j * ctx.omega[:, None] * (c / k)[None, :]
+        return p["K_0"] + (k[None, :] * iwt / (1.0 + iwt)).sum(axis=1)
+
+    def start(self, omega, d_disc, weight) -> dict[str, float]:
+        taus, gains, k_0, m_v = prony_nnls(omega, d_disc, weight)
+        log_tau = list(np.log(taus))
+        gain = list(gains)
+        n = self.order or 1
+        while len(gain) > n:  # merge the two closest neighbours, keeping total stiffness
+            j = int(np.argmin(np.diff(log_tau)))
+            total = gain[j] + gain[j + 1]
+            log_tau[j] = (gain[j] * log_tau[j] + gain[j + 1] * log_tau[j + 1]) / total
+            gain[j] = total
+            del log_tau[j + 1], gain[j + 1]
+        if not gain:
+            centre = -np.log(np.sqrt(omega.min() * omega.max()))
+            log_tau, gain = [centre], [max(k_0, 1.0) * 0.05]
+        while len(gain) < n:  # split the strongest arm a factor 3 either way
+            j = int(np.argmax(gain))
+            log_tau[j : j + 1] = [log_tau[j] - np.log(3.0), log_tau[j] + np.log(3.0)]
+            gain[j : j + 1] = [gain[j] / 2, gain[j] / 2]
+        order = np.argsort(log_tau)
+        values = {"K_0": k_0, "M_v": m_v}
+        for i, j in enumerate(order, start=1):
+            values[f"K_{i}"] = gain[j]
+            values[f"C_{i}"] = gain[j] * np.exp(log_tau[j])
+        return values
+
+
+def prony_nnls(
+    omega: NDArray[np.float64],
+    d_disc: NDArray[np.complex128],
+    weight: NDArray[np.float64],
+    per_decade: int = 8,
+) -> tuple[NDArray, NDArray, float, float]:
+    """Non-negative Prony series of ``D_v = K_0 + Σ g_j iωτ_j/(1+iωτ_j) − ω² M_v``.
+
+    Relaxation times on a log grid two decades beyond the band on each side; ``K_0, g_j, M_v``
+    all non-negative (NNLS). Neighbouring active grid points are merged into one arm
+    (stiffness-weighted mean of ``log τ``).
+
+    Returns
+    -------
+    taus, gains, k_0, m_v
+        Relaxation times (s) and stiffnesses (N/m) of the merged arms, static stiffness, disc mass.
+    """
+    lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
+    grid = np.logspace(np.log10(lo), np.log10(hi), int(np.log10(hi / lo) * per_decade) + 1)
+    iwt = 1j * omega[:, None] * grid[None, :]
+    columns = np.concatenate(
+        [np.ones((omega.size, 1)), iwt / (1 + iwt), -(omega[:, None] ** 2)], axis=1
+    ).astype(complex)
+    a, b, scale = _stack(columns, d_disc, weight)
+    x = nnls(a, b, maxiter=50 * a.shape[1])[0] / scale
+    k_0, gains, m_v = x[0], x[1:-1], x[-1]
+    active = gains > 0
+    taus, merged = [], []
+    j = 0
+    while j < grid.size:
+        if not active[j]:
+            j += 1
+            continue
+        run = j
+        while run < grid.size and active[run]:
+            run += 1
+        g = gains[j:run]
+        merged.append(g.sum())
+        taus.append(np.exp(np.sum(g * np.log(grid[j:run])) / g.sum()))
+        j = run
+    return np.array(taus), np.array(merged), float(k_0), float(m_v)
+
+
+@register_term
+class Fractional(ModulusTerm):
+    """Fractional Zener: ``K* = (K_0 + K_inf (iωτ)^α) / (1 + (iωτ)^α)``, four parameters."""
+
+    keyword = "fractional"
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter("K_0", "N/m", 1e-3, 1e10, 1e5, description="static (relaxed) stiffness"),
+            Parameter("K_inf", "N/m", 1e-3, 1e12, 1e6, description="glassy (unrelaxed) stiffness"),
+            Parameter("tau", "s", 1e-9, 1e3, 1e-3, description="relaxation time"),
+            Parameter(
+                "alpha", "", 0.01, 1.0, 0.5, log=False, description="fractional derivative order"
+            ),
+        )
+
+    def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        s = (1j * ctx.omega * p["tau"]) ** p["alpha"]
+        return (p["K_0"] + p["K_inf"] * s) / (1.0 + s)
+
+    def start(self, omega, d_disc, weight) -> dict[str, float]:
+        """Grid over ``τ, α``; for each, ``(1+s) D_v = K_0 + K_inf s − ω² M_v (1+s)`` is linear."""
+        best: tuple[float, dict[str, float]] | None = None
+        lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
+        for tau in np.logspace(np.log10(lo), np.log10(hi), 25):
+            for alpha in (0.15, 0.3, 0.45, 0.6, 0.75, 0.9):
+                s = (1j * omega * tau) ** alpha
+                columns = np.stack([np.ones_like(s), s, -(omega**2) * (1 + s)], axis=1)
+                w = weight / np.abs(1 + s)
+                a, b, scale = _stack(columns, d_disc * (1 + s), w)
+                x, *_ = np.linalg.lstsq(a, b, rcond=None)
+                x = x / scale
+                if np.any(x <= 0):
+                    continue
+                cost = float(np.sum((a @ (x * scale) - b) ** 2))
+                if best is None or cost < best[0]:
+                    best = (cost, {"K_0": x[0], "K_inf": x[1], "tau": tau, "alpha": alpha,
+                                   "M_v": x[2]})
+        if best is None:  # no grid point with positive stiffnesses: fall back to a Voigt start
+            voigt = Voigt().start(omega, d_disc, weight)
+            tau = 1.0 / np.sqrt(omega.min() * omega.max())
+            return {"K_0": voigt["K_v"], "K_inf": 10 * abs(voigt["K_v"]), "tau": tau,
+                    "alpha": 0.5, "M_v": voigt["M_v"]}
+        return best[1]
