@@ -1,0 +1,993 @@
+"""The Agilent (HP) 35670A in swept-sine mode: settings, one call per measurement, data.
+
+Facts used here come from ``shared/docs/35670a.md``; those marked *inferred* there are gathered
+in :class:`Quirks` so they can be checked on hardware and changed in one place.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .blocks import (
+    check_values,
+    decode_ascii,
+    decode_real,
+    interleaved_to_complex,
+    split_definite_block,
+)
+from .channel import InputChannel
+from .connection import Connection
+from .errors import (
+    InstrumentTimeout,
+    MalformedReply,
+    MeasurementAborted,
+    MissingOption,
+    SCPIError,
+    SettingOutOfRange,
+    WrongInstrument,
+)
+from .properties import (
+    boolean,
+    control,
+    integer_range,
+    measurement,
+    number_text,
+    on_off_text,
+    one_of,
+    parse_bool,
+    parse_float,
+    parse_int,
+    setting,
+    strict_range,
+)
+
+#: Most points in one swept-sine sweep.
+MAX_POINTS = 801
+#: Highest frequency with two channels, and with the four-channel option (Hz).
+MAX_FREQUENCY_HZ = 51200.0
+MAX_FREQUENCY_FOUR_CHANNELS_HZ = 25600.0
+#: Highest source level (volts peak).
+MAX_SOURCE_VPK = 5.0
+#: ``*ESR?`` bits: operation complete, and the four error bits (query, device, execution, command).
+ESR_OPERATION_COMPLETE = 1
+ESR_ERRORS = 4 | 8 | 16 | 32
+#: ``STAT:OPER:COND?`` bits.
+OPERATION_SETTLING, OPERATION_RANGING, OPERATION_MEASURING = 2, 4, 16
+
+
+class Quirks:
+    """Instrument behaviour that the driver relies on but the manual leaves open (inferred).
+
+    Every item here is our reading, to verify on a real 35670A (``tests/test_hardware_35670a.py``
+    checks the first two).
+    """
+
+    #: ``FORM REAL`` blocks are big-endian (no byte-order command exists).
+    REAL_BIG_ENDIAN = True
+    #: ``SYST:ERR?`` answers ``+0,"No error"`` when the queue is empty (SCPI standard).
+    NO_ERROR_CODE = 0
+    #: Error queue depth: 5 entries plus the overflow entry; more reads than this means a fault.
+    ERROR_QUEUE_READS = 8
+    #: After a sweep, changing ``CALCn:FEED`` shows other data of the same measurement (the
+    #: variance and linear spectra are read that way, through trace A and register D1).
+    FEED_CHANGE_KEEPS_DATA = True
+    #: A real-valued trace (normalized variance) may come as N values or as N (real, 0) pairs.
+    REAL_TRACE_MAY_BE_PAIRED = True
+    #: The analyser rejects a start above the stop frequency, so the order of writing them matters.
+    START_BELOW_STOP = True
+
+
+@dataclass(frozen=True)
+class SweepProgress:
+    """State of a running measurement, passed to the progress callback.
+
+    Attributes
+    ----------
+    elapsed_s
+        Seconds since the measurement started (pauses included).
+    expected_s
+        Settle and integration time of the whole segment from the settings (a lower bound).
+    paused
+        The measurement is paused.
+    settling, ranging, measuring
+        Bits of ``STAT:OPER:COND?`` at this poll.
+    """
+
+    elapsed_s: float
+    expected_s: float
+    paused: bool
+    settling: bool
+    ranging: bool
+    measuring: bool
+
+
+@dataclass(frozen=True)
+class SweepSegment:
+    """Everything the analyser gives for one measured sub-band (or set of manual points).
+
+    Attributes
+    ----------
+    frequency_hz
+        The analyser's own frequency axis (``TRAC:X?``), never computed.
+    frf_21
+        Frequency response channel 2 / channel 1, complex, in channel 2's engineering unit per
+        channel 1's (with the paper's wiring: table accelerance, (m/s²)/N).
+    frf_43
+        Channel 4 / channel 3 (support accelerance, (m/s²)/N), or ``None`` with two channels.
+    amplitude_eu
+        Channel number -> magnitude of its linear spectrum at each point, in that channel's
+        engineering unit (``eu_labels``), as the analyser scales it (peak in swept sine,
+        inferred).
+    variance
+        Channel number -> the analyser's normalized variance of that channel at each point
+        (dimensionless).
+    eu_labels
+        Channel number -> engineering-unit label sent to the analyser (``"N"``, ``"M/S2"``).
+    overload_channels, half_range_channels
+        Channels whose input exceeded its range (or half of it) at any point of this segment
+        (``STAT:QUES:VOLT:EVEN?`` latches over the sweep, so it is known per segment only).
+    started_at_s, finished_at_s
+        Wall-clock times (``time.time()``) at the start and end of the measurement.
+
+    Notes
+    -----
+    The source level used at each point is not readable from the 35670A in swept sine (no
+    command for it in the programming guide), so it is not part of a segment.
+    """
+
+    frequency_hz: np.ndarray
+    frf_21: np.ndarray
+    frf_43: np.ndarray | None
+    amplitude_eu: Mapping[int, np.ndarray]
+    variance: Mapping[int, np.ndarray]
+    eu_labels: Mapping[int, str]
+    overload_channels: tuple[int, ...]
+    half_range_channels: tuple[int, ...]
+    started_at_s: float
+    finished_at_s: float
+    extras: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.frequency_hz.size)
+
+    @property
+    def variance_21(self) -> np.ndarray | None:
+        """Normalized variance of ``frf_21``: channel 1 and 2 variances added (first order)."""
+        return self._ratio_variance(2, 1)
+
+    @property
+    def variance_43(self) -> np.ndarray | None:
+        """Normalized variance of ``frf_43``: channel 3 and 4 variances added (first order)."""
+        return self._ratio_variance(4, 3)
+
+    def _ratio_variance(self, numerator: int, denominator: int) -> np.ndarray | None:
+        if numerator in self.variance and denominator in self.variance:
+            return self.variance[numerator] + self.variance[denominator]
+        return None
+
+
+def _frequency(value: object, analyser: Agilent35670A) -> float:
+    limit = analyser.max_frequency_hz
+    return strict_range(0.0, limit, "Hz", low_inclusive=False)(value, analyser)
+
+
+def _time_text(unit: str) -> Callable[[float], str]:
+    return lambda value: f"{number_text(value)} {unit}"
+
+
+def _data_format(value: object, analyser: object) -> str:
+    text = str(value).strip().upper().replace(" ", "")
+    if text in {"ASC", "REAL,32", "REAL,64"}:
+        return text
+    if text.startswith("ASC,") and text[4:].isdigit() and 3 <= int(text[4:]) <= 12:
+        return text
+    raise SettingOutOfRange(f"{value!r} is not ASC, ASC,3..12, REAL,32 or REAL,64")
+
+
+def _reference_channel(value: object, analyser: object) -> int:
+    return integer_range(1, 4, "channel")(value, analyser)
+
+
+def _parse_channel(reply: str) -> int:
+    text = reply.strip().strip('"').upper()
+    if text.startswith("INP") and text[3:].isdigit():
+        return int(text[3:])
+    raise MalformedReply(f"expected INP1..INP4, got {reply!r}")
+
+
+def _parse_keyword(reply: str) -> str:
+    return reply.strip().strip('"').upper()
+
+
+class Agilent35670A:
+    """Agilent (HP) 35670A dynamic signal analyser, swept-sine subset.
+
+    Open with :meth:`open` (any pyvisa resource string). Settings are attributes: assigning one
+    validates it against the manual's range (nothing is sent if it is out of range), writes it
+    and checks the error queue, raising :class:`SCPIError` if the analyser refused it.
+
+    Parameters
+    ----------
+    connection
+        An open :class:`Connection`.
+    """
+
+    label = "35670A"
+    placeholders: Mapping[str, object] = {}
+
+    # -- mode and sweep ------------------------------------------------------------------------
+    instrument_mode = control(
+        "INST:SEL {value}",
+        "INST:SEL?",
+        """Measurement mode: ``"SINE"`` (swept sine, option 1D2) or ``"FFT"`` (power-up mode).""",
+        validator=one_of(("SINE", "FFT")),
+        parse=_parse_keyword,
+    )
+    start_frequency_hz = control(
+        "FREQ:STAR {value} HZ",
+        "FREQ:STAR?",
+        """Sweep start frequency in Hz, above 0 and up to 51.2 kHz (25.6 kHz with four
+        channels); the analyser rounds it to 15.625 mHz.""",
+        validator=_frequency,
+        to_text=number_text,
+        parse=parse_float,
+    )
+    stop_frequency_hz = control(
+        "FREQ:STOP {value} HZ",
+        "FREQ:STOP?",
+        """Sweep stop frequency in Hz, same range as :attr:`start_frequency_hz`.""",
+        validator=_frequency,
+        to_text=number_text,
+        parse=parse_float,
+    )
+    manual_frequency_hz = control(
+        "FREQ:MAN {value} HZ",
+        "FREQ:MAN?",
+        """Frequency measured in manual sweep mode, in Hz (same range as the start).""",
+        validator=_frequency,
+        to_text=number_text,
+        parse=parse_float,
+    )
+    resolution_hz = setting(
+        "FREQ:RES {value} HZ",
+        """Linear sweep resolution in Hz (point spacing), above 0 up to 51.2 kHz; LIN only.""",
+        validator=strict_range(0.0, MAX_FREQUENCY_HZ, "Hz", low_inclusive=False),
+    )
+    points_per_sweep = setting(
+        "FREQ:RES {value} PNT/SWP",
+        """Points per sweep, 2 to 801 (preset 101).""",
+        validator=integer_range(2, MAX_POINTS, "points"),
+        to_text=str,
+    )
+    auto_resolution = control(
+        "FREQ:RES:AUTO {value}",
+        "FREQ:RES:AUTO?",
+        """Auto resolution (bool); must be off for a fixed grid such as 0.25 Hz.""",
+        validator=boolean,
+        to_text=on_off_text,
+        parse=parse_bool,
+    )
+    settle_cycles = setting(
+        "SWE:STIM {value}",
+        """Settle time after each frequency change, in cycles of the source, 0 to 1e6.""",
+        validator=strict_range(0.0, 1e6, "cycles"),
+        to_text=_time_text("CYCLE"),
+    )
+    settle_s = setting(
+        "SWE:STIM {value}",
+        """Settle time after each frequency change, in seconds, 0 to 1e5.""",
+        validator=strict_range(0.0, 1e5, "s"),
+        to_text=_time_text("S"),
+    )
+    integrate_cycles = setting(
+        "SWE:DWEL {value}",
+        """Integration (dwell) time per point in cycles, 1 to 1e6 (and at least 250 µs).""",
+        validator=strict_range(1.0, 1e6, "cycles"),
+        to_text=_time_text("CYCLE"),
+    )
+    integrate_s = setting(
+        "SWE:DWEL {value}",
+        """Integration (dwell) time per point in seconds, 250 µs to 1e5 s.""",
+        validator=strict_range(250e-6, 1e5, "s"),
+        to_text=_time_text("S"),
+    )
+    spacing = control(
+        "SWE:SPAC {value}",
+        "SWE:SPAC?",
+        """Point spacing: ``"LIN"`` or ``"LOG"`` (preset LIN).""",
+        validator=one_of(("LIN", "LOG")),
+        parse=_parse_keyword,
+    )
+    direction = control(
+        "SWE:DIR {value}",
+        "SWE:DIR?",
+        """Sweep direction: ``"UP"`` or ``"DOWN"`` (preset UP).""",
+        validator=one_of(("UP", "DOWN")),
+        parse=_parse_keyword,
+    )
+    sweep_mode = control(
+        "SWE:MODE {value}",
+        "SWE:MODE?",
+        """``"AUTO"`` sweeps start to stop; ``"MAN"`` measures only :attr:`manual_frequency_hz`.""",
+        validator=one_of(("AUTO", "MAN")),
+        parse=_parse_keyword,
+    )
+    reference_pairing = control(
+        "REF {value}",
+        "REF?",
+        """``"PAIR"``: channel 1 is the reference of 2 and channel 3 of 4; ``"SING"``: channel 1
+        is the reference of all.""",
+        validator=one_of(("PAIR", "SING")),
+        parse=_parse_keyword,
+    )
+    data_format = control(
+        "FORM {value}",
+        "FORM?",
+        """Data format of trace queries: ``"REAL,64"`` (default here), ``"REAL,32"``, ``"ASC"``
+        or ``"ASC,<3..12 digits>"``.""",
+        validator=_data_format,
+        parse=_parse_keyword,
+    )
+
+    # -- source and auto level -----------------------------------------------------------------
+    source_enabled = control(
+        "OUTP {value}",
+        "OUTP?",
+        """Source output on (bool). Refused (nothing sent) until :attr:`source_limit_vpk` has been
+        set on this connection.""",
+        validator=lambda value, analyser: analyser._check_source_switch(boolean(value, analyser)),
+        to_text=on_off_text,
+        parse=parse_bool,
+    )
+    source_level_vpk = setting(
+        "SOUR:VOLT {value} VPK",
+        """Source level in volts peak, 0 to 5 Vpk (with auto level: the starting level). A 0 V
+        level pauses the measurement with error -221.""",
+        validator=strict_range(0.0, MAX_SOURCE_VPK, "Vpk"),
+        to_text=number_text,
+    )
+    source_limit_vpk = setting(
+        "SOUR:VOLT:LIM {value} VPK",
+        """Highest source level the auto-level controller may use, volts peak, above 0 up to
+        5 Vpk (preset 2 Vpk).""",
+        validator=strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False),
+        to_text=number_text,
+    )
+    auto_level = control(
+        "SOUR:VOLT:AUTO {value}",
+        "SOUR:VOLT:AUTO?",
+        """Auto level (bool): adjust the source so the reference channel holds the reference
+        level.""",
+        validator=boolean,
+        to_text=on_off_text,
+        parse=parse_bool,
+    )
+    auto_level_channel = control(
+        "SOUR:VOLT:REF:CHAN INP{value}",
+        "SOUR:VOLT:REF:CHAN?",
+        """Channel (1..4) the auto-level controller holds at the reference level (preset 2).""",
+        validator=_reference_channel,
+        parse=_parse_channel,
+    )
+    auto_level_reference_eu = setting(
+        "SOUR:VOLT:REF {value} EU",
+        """Auto-level reference level in the reference channel's engineering unit (peak),
+        above 0 up to 1e6.""",
+        validator=strict_range(0.0, 1e6, "EU", low_inclusive=False),
+        to_text=number_text,
+    )
+    auto_level_reference_vpk = setting(
+        "SOUR:VOLT:REF {value} VPK",
+        """Auto-level reference level in volts peak at the reference input, above 0 up to
+        31.7 Vpk (the +27 dBVrms range).""",
+        validator=strict_range(0.0, 31.7, "Vpk", low_inclusive=False),
+        to_text=number_text,
+    )
+    auto_level_tolerance_db = setting(
+        "SOUR:VOLT:REF:TOL {value}",
+        """Auto-level tolerance in dB, 0.1 to 20 dB (preset 2 dB).""",
+        validator=strict_range(0.1, 20.0, "dB"),
+        to_text=number_text,
+    )
+    input_limit = setting(
+        "SOUR:VOLT:LIM:INP {value}",
+        """Auto-level input limit: the controller keeps the limited input below this level
+        (the manual gives no unit; the analyser reads it in the channel's unit, inferred).
+        Above 0 up to 1e6.""",
+        validator=strict_range(0.0, 1e6, "", low_inclusive=False),
+        to_text=number_text,
+    )
+    source_slew_v_per_s = setting(
+        "SOUR:VOLT:SLEW {value}",
+        """Auto-level slew rate of the source, volts per second, above 0 up to 1000 V/s.""",
+        validator=strict_range(0.0, 1000.0, "V/s", low_inclusive=False),
+        to_text=number_text,
+    )
+
+    # -- read-only -----------------------------------------------------------------------------
+    identity = measurement("*IDN?", """``*IDN?`` reply (names a 35670A).""")
+    operation_condition = measurement(
+        "STAT:OPER:COND?",
+        """``STAT:OPER:COND?``: 2 settling, 4 ranging, 16 measuring.""",
+        parse=parse_int,
+    )
+
+    # -----------------------------------------------------------------------------------------
+    def __init__(self, connection: Connection) -> None:
+        self.connection = connection
+        self.sent: dict[str, object] = {}
+        self.channels = tuple(InputChannel(self, number) for number in range(1, 5))
+        self._options: frozenset[str] | None = None
+        self._abort = threading.Event()
+        self._paused_since: float | None = None
+        self._paused_total_s = 0.0
+
+    @classmethod
+    def open(
+        cls,
+        resource: str,
+        *,
+        adapter: str | None = None,
+        gpib_address: int = 11,
+        timeout_s: float = 5.0,
+        backend: str | None = None,
+    ) -> Agilent35670A:
+        """Connect to a 35670A and check it is one (see :class:`Connection` for the arguments).
+
+        Raises
+        ------
+        ConnectionLost
+            The resource cannot be opened.
+        WrongInstrument
+            ``*IDN?`` does not name a 35670A.
+        """
+        connection = Connection(
+            resource, adapter=adapter, gpib_address=gpib_address, timeout_s=timeout_s,
+            backend=backend,
+        )
+        analyser = cls(connection)
+        try:
+            analyser.identify()
+        except BaseException:
+            connection.close()
+            raise
+        return analyser
+
+    def close(self) -> None:
+        """Close the connection."""
+        self.connection.close()
+
+    def __enter__(self) -> Agilent35670A:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def resource(self) -> str:
+        """VISA resource string of the analyser."""
+        return self.connection.resource_name
+
+    def channel(self, number: int) -> InputChannel:
+        """Input channel 1..4."""
+        if number not in (1, 2, 3, 4):
+            raise SettingOutOfRange(f"channel {number!r} is not 1..4")
+        return self.channels[number - 1]
+
+    # -- messages and errors -------------------------------------------------------------------
+    def write(self, command: str) -> None:
+        """Send a command as is (no error check)."""
+        self.connection.write(command)
+
+    def ask(self, command: str) -> str:
+        """Send a query and return its reply (retried once only if idempotent)."""
+        return self.connection.query(command)
+
+    def configure(self, command: str) -> None:
+        """Send a configuration command, then read the error queue and raise if it held any."""
+        self.connection.write(command)
+        self.check_errors(command)
+
+    def read_errors(self) -> list[tuple[int, str]]:
+        """Read ``SYST:ERR?`` until it answers no error; return the ``(code, text)`` entries."""
+        entries: list[tuple[int, str]] = []
+        for _ in range(Quirks.ERROR_QUEUE_READS):
+            reply = self.connection.query("SYST:ERR?")
+            code, text = _parse_error(reply, self.resource)
+            if code == Quirks.NO_ERROR_CODE:
+                return entries
+            entries.append((code, text))
+        raise MalformedReply(
+            f"SYST:ERR? still reports errors after {Quirks.ERROR_QUEUE_READS} reads "
+            f"(queue depth is 5): {entries}",
+            self.resource,
+        )
+
+    def check_errors(self, after: str | None = None) -> None:
+        """Raise :class:`SCPIError` (first error, the others attached) if the queue is not empty."""
+        entries = self.read_errors()
+        if entries:
+            (code, text), *others = entries
+            raise SCPIError(code, text, after, self.resource, tuple(others))
+
+    # -- identity and options ------------------------------------------------------------------
+    def identify(self) -> str:
+        """Return ``*IDN?``, checking that it names a 35670A."""
+        reply = self.identity
+        if "35670A" not in reply.upper():
+            raise WrongInstrument(f"*IDN? answered {reply!r}, which is not a 35670A", self.resource)
+        return reply
+
+    @property
+    def options(self) -> frozenset[str]:
+        """Installed option codes from ``*OPT?`` (read once per connection)."""
+        if self._options is None:
+            reply = self.ask("*OPT?").strip().strip('"')
+            self._options = frozenset(
+                code.strip().strip('"').upper() for code in reply.split(",") if code.strip()
+            )
+        return self._options
+
+    def require_options(self, four_channels: bool = True) -> None:
+        """Check for option 1D2 (swept sine) and, if ``four_channels``, AY6.
+
+        Raises
+        ------
+        MissingOption
+            Naming each missing option and what it is for.
+        """
+        needed = {"1D2": "swept-sine measurements"}
+        if four_channels:
+            needed["AY6"] = "channels 3 and 4"
+        missing = tuple(code for code in needed if code not in self.options)
+        if missing:
+            what = "; ".join(f"option {code} ({needed[code]}) is not installed" for code in missing)
+            installed = ", ".join(sorted(self.options)) or "none"
+            raise MissingOption(f"{what}; *OPT? lists: {installed}", missing, self.resource)
+
+    @property
+    def max_frequency_hz(self) -> float:
+        """Upper frequency limit: 25.6 kHz once option AY6 is known installed, else 51.2 kHz."""
+        if self._options is not None and "AY6" in self._options:
+            return MAX_FREQUENCY_FOUR_CHANNELS_HZ
+        return MAX_FREQUENCY_HZ
+
+    def _check_source_switch(self, on: bool) -> bool:
+        if on and "source_limit_vpk" not in self.sent:
+            raise SettingOutOfRange(
+                "the source limit (source_limit_vpk) must be set before the source is switched on"
+            )
+        return on
+
+    # -- the paper's test in one call ----------------------------------------------------------
+    def configure_swept_sine(
+        self,
+        *,
+        sensitivities_v_per_eu: Mapping[int, float],
+        level_m_per_s2: float,
+        source_limit_vpk: float,
+        force_limit_n: float | None = None,
+        reference_channel: int = 4,
+        four_channels: bool = True,
+        resolution_hz: float = 0.25,
+        settle_cycles: float = 100.0,
+        integrate_cycles: float = 100.0,
+        direction: str = "UP",
+        tolerance_db: float = 2.0,
+        start_level_vpk: float = 0.1,
+        force_channel: int = 1,
+        data_format: str = "REAL,64",
+    ) -> None:
+        """Set up the paper's swept-sine test; the source is left off.
+
+        Swept-sine mode, channels 1..4 on with ``REF PAIR`` (1 → 2, 3 → 4), engineering units
+        (channels 1 and 3 force in N, 2 and 4 acceleration in m/s²), autorange, a linear grid of
+        ``resolution_hz`` with auto resolution off, settle and integration in cycles, auto level
+        holding ``reference_channel`` at ``level_m_per_s2`` within ``tolerance_db``, the source
+        limit, and optionally an input limit on the force channel for the shaker. Each step is
+        validated before anything is sent and the error queue is checked after each.
+
+        Parameters
+        ----------
+        sensitivities_v_per_eu
+            Channel -> transducer sensitivity: V/N for channels 1 and 3, V/(m/s²) for 2 and 4.
+        level_m_per_s2
+            Reference acceleration amplitude (peak) held by the controller, m/s².
+        source_limit_vpk
+            Highest source level, volts peak (≤ 5); set before the source can be switched on.
+        force_limit_n
+            Shaker force limit (peak, N) applied as the auto-level input limit on
+            ``force_channel``; ``None`` for none.
+        reference_channel
+            Auto-level reference channel (4: the disc; 2 on a bare-table run).
+        four_channels
+            Use channels 3 and 4 (needs option AY6); else channels 1 and 2 only.
+        resolution_hz, settle_cycles, integrate_cycles, direction, tolerance_db
+            Sweep grid (Hz), settle and integration (cycles), ``"UP"``/``"DOWN"``, auto-level
+            tolerance (dB).
+        start_level_vpk
+            Source level the controller starts from (Vpk, ≤ ``source_limit_vpk``).
+        force_channel
+            Channel of the excitation force (1 with the paper's wiring).
+        data_format
+            ``"REAL,64"``, falling back to ASCII if the analyser refuses it.
+        """
+        channels = (1, 2, 3, 4) if four_channels else (1, 2)
+        missing = [ch for ch in channels if ch not in sensitivities_v_per_eu]
+        if missing:
+            raise SettingOutOfRange(f"no transducer sensitivity given for channel(s) {missing}")
+        if reference_channel not in channels:
+            raise SettingOutOfRange(f"reference channel {reference_channel} is not in use")
+        strict_range(0.0, 1e6, "m/s²", low_inclusive=False)(level_m_per_s2, self)
+        strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
+        if not 0.0 < start_level_vpk <= source_limit_vpk:
+            raise SettingOutOfRange(
+                f"start level {start_level_vpk:g} Vpk must be above 0 and at most the source "
+                f"limit {source_limit_vpk:g} Vpk"
+            )
+
+        self.identify()
+        self.require_options(four_channels)
+        self.source_enabled = False
+        self.instrument_mode = "SINE"
+        self.set_data_format(data_format)
+        for number in (2, 3, 4):
+            if number in channels:
+                self.channel(number).enabled = True
+            elif "AY6" in self.options:
+                self.channel(number).enabled = False
+        if four_channels:
+            self.reference_pairing = "PAIR"
+        for number in channels:
+            label = "N" if number in (1, 3) else "M/S2"
+            channel = self.channel(number)
+            channel.set_engineering_units(label, sensitivities_v_per_eu[number])
+            channel.autorange = True
+        self.sweep_mode = "AUTO"
+        self.spacing = "LIN"
+        self.direction = direction
+        self.auto_resolution = False
+        self.resolution_hz = resolution_hz
+        self.settle_cycles = settle_cycles
+        self.integrate_cycles = integrate_cycles
+        # the limit always goes first: the source must never run without it
+        self.source_limit_vpk = source_limit_vpk
+        self.source_level_vpk = start_level_vpk
+        self.auto_level_channel = reference_channel
+        self.auto_level_reference_eu = level_m_per_s2
+        self.auto_level_tolerance_db = tolerance_db
+        if force_limit_n is not None:
+            self.input_limit = force_limit_n
+            self.sent["input_limit_channel"] = force_channel
+        self.auto_level = True
+        self.sent["channels"] = channels
+
+    def set_data_format(self, data_format: str = "REAL,64") -> str:
+        """Select the data format; if the analyser refuses ``REAL``, fall back to ``ASC,12``.
+
+        Returns the format in use.
+        """
+        try:
+            self.data_format = data_format
+        except SCPIError:
+            if not data_format.upper().startswith("REAL"):
+                raise
+            self.data_format = "ASC,12"
+        return str(self.sent["data_format"])
+
+    # -- running -------------------------------------------------------------------------------
+    def measure(
+        self,
+        start_hz: float,
+        stop_hz: float,
+        *,
+        progress: Callable[[SweepProgress], None] | None = None,
+        timeout_s: float | None = None,
+        poll_interval_s: float = 0.2,
+        switch_source_off: bool = True,
+    ) -> SweepSegment:
+        """Measure the sub-band ``start_hz`` .. ``stop_hz`` on the configured grid.
+
+        Sets start and stop, switches the source on, starts (``ABOR;:INIT:IMM``), waits by
+        polling ``*ESR?`` (never blocking past the VISA timeout), then reads both frequency
+        responses, the linear spectra and normalized variances of the channels in use, their
+        frequency axis, and the overload latches.
+
+        Parameters
+        ----------
+        start_hz, stop_hz
+            Band in Hz; ``(stop - start) / resolution + 1`` must be at most 801 points.
+        progress
+            Called at each poll with a :class:`SweepProgress`; it may call :meth:`pause`,
+            :meth:`resume` or :meth:`abort`.
+        timeout_s
+            Overall deadline in seconds (pauses excluded); default twice the settle and
+            integration time from the settings plus 30 s.
+        poll_interval_s
+            Seconds between polls.
+        switch_source_off
+            Switch the source off when the segment ends (also after an error or abort).
+
+        Raises
+        ------
+        MeasurementAborted, InstrumentTimeout, SCPIError, MalformedReply
+        """
+        resolution = self.sent.get("resolution_hz")
+        if resolution is None:
+            raise SettingOutOfRange("set resolution_hz (or call configure_swept_sine) first")
+        start = _frequency(start_hz, self)
+        stop = _frequency(stop_hz, self)
+        if stop <= start:
+            raise SettingOutOfRange(f"stop {stop:g} Hz must be above start {start:g} Hz")
+        points = round((stop - start) / float(resolution)) + 1
+        if points > MAX_POINTS:
+            raise SettingOutOfRange(
+                f"{start:g}..{stop:g} Hz at {resolution:g} Hz is {points} points; "
+                f"at most {MAX_POINTS} per sweep"
+            )
+        self.sweep_mode = "AUTO"
+        self._set_band(start, stop)
+        self.resolution_hz = resolution
+        grid = start + float(resolution) * np.arange(points)
+        return self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
+
+    def measure_point(
+        self,
+        frequency_hz: float,
+        *,
+        progress: Callable[[SweepProgress], None] | None = None,
+        timeout_s: float | None = None,
+        poll_interval_s: float = 0.2,
+        switch_source_off: bool = True,
+    ) -> SweepSegment:
+        """Measure one frequency in manual sweep mode (``SWE:MODE MAN``, ``FREQ:MAN``).
+
+        The point is picked from the traces by the analyser's own frequency axis (the entry
+        nearest ``frequency_hz``); arguments as in :meth:`measure`.
+        """
+        frequency = _frequency(frequency_hz, self)
+        self.sweep_mode = "MAN"
+        self.manual_frequency_hz = frequency
+        segment = self._run(
+            np.array([frequency]), None, progress, timeout_s, poll_interval_s, switch_source_off
+        )
+        index = int(np.argmin(np.abs(segment.frequency_hz - frequency)))
+        pick = slice(index, index + 1)
+        return SweepSegment(
+            frequency_hz=segment.frequency_hz[pick],
+            frf_21=segment.frf_21[pick],
+            frf_43=None if segment.frf_43 is None else segment.frf_43[pick],
+            amplitude_eu={ch: values[pick] for ch, values in segment.amplitude_eu.items()},
+            variance={ch: values[pick] for ch, values in segment.variance.items()},
+            eu_labels=segment.eu_labels,
+            overload_channels=segment.overload_channels,
+            half_range_channels=segment.half_range_channels,
+            started_at_s=segment.started_at_s,
+            finished_at_s=segment.finished_at_s,
+        )
+
+    def _set_band(self, start: float, stop: float) -> None:
+        # Quirks.START_BELOW_STOP: write them in the order that keeps start < stop throughout
+        current_stop = self.sent.get("stop_frequency_hz")
+        if current_stop is None:
+            current_stop = self.stop_frequency_hz
+        if start >= float(current_stop):
+            self.stop_frequency_hz = stop
+            self.start_frequency_hz = start
+        else:
+            self.start_frequency_hz = start
+            self.stop_frequency_hz = stop
+
+    def _run(
+        self,
+        grid_hz: np.ndarray,
+        points: int | None,
+        progress: Callable[[SweepProgress], None] | None,
+        timeout_s: float | None,
+        poll_interval_s: float,
+        switch_source_off: bool,
+    ) -> SweepSegment:
+        expected_s = self.expected_duration_s(grid_hz)
+        deadline_s = 2.0 * expected_s + 30.0 if timeout_s is None else float(timeout_s)
+        self._abort.clear()
+        self._paused_since = None
+        self._paused_total_s = 0.0
+        self.ask("STAT:QUES:VOLT:EVEN?")  # reading clears the latches of the previous segment
+        self.ask("*ESR?")  # and the event status register
+        try:
+            self.source_enabled = True
+            started = time.time()
+            self.write("ABOR;:INIT:IMM;*OPC")
+            self._wait(started, expected_s, deadline_s, progress, poll_interval_s)
+            finished = time.time()
+            return self._read_segment(points, started, finished)
+        finally:
+            if switch_source_off:
+                # no error-queue check here: it must not hide the fault that ended the segment
+                self.write("OUTP OFF")
+                self.sent["source_enabled"] = False
+
+    def _wait(
+        self,
+        started: float,
+        expected_s: float,
+        deadline_s: float,
+        progress: Callable[[SweepProgress], None] | None,
+        poll_interval_s: float,
+    ) -> None:
+        while True:
+            if self._abort.is_set():
+                raise MeasurementAborted("the measurement was aborted", self.resource)
+            status = parse_int(self.ask("*ESR?"))
+            if status & ESR_ERRORS:
+                self.check_errors("ABOR;:INIT:IMM;*OPC")
+                raise SCPIError(0, f"*ESR? reported errors (ESR={status}) with an empty queue",
+                                "*ESR?", self.resource)
+            if status & ESR_OPERATION_COMPLETE:
+                return
+            now = time.time()
+            paused_s = self._paused_total_s + (
+                now - self._paused_since if self._paused_since is not None else 0.0
+            )
+            if now - started - paused_s > deadline_s:
+                self.write("ABOR")
+                raise InstrumentTimeout(
+                    f"the measurement did not complete within {deadline_s:g} s "
+                    f"(expected {expected_s:.1f} s of settle and integration); aborted",
+                    self.resource,
+                )
+            if progress is not None:
+                condition = self.operation_condition
+                progress(
+                    SweepProgress(
+                        elapsed_s=now - started,
+                        expected_s=expected_s,
+                        paused=self._paused_since is not None,
+                        settling=bool(condition & OPERATION_SETTLING),
+                        ranging=bool(condition & OPERATION_RANGING),
+                        measuring=bool(condition & OPERATION_MEASURING),
+                    )
+                )
+            if not self._abort.is_set():
+                time.sleep(poll_interval_s)
+
+    def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
+        """Settle plus integration time of the given points from the settings sent (seconds)."""
+        frequencies = np.asarray(list(grid_hz), dtype=float)
+        total = 0.0
+        for cycles_name, seconds_name in (
+            ("settle_cycles", "settle_s"),
+            ("integrate_cycles", "integrate_s"),
+        ):
+            if cycles_name in self.sent:
+                total += float(np.sum(float(self.sent[cycles_name]) / frequencies))
+            elif seconds_name in self.sent:
+                total += float(self.sent[seconds_name]) * frequencies.size
+        return total
+
+    def pause(self) -> None:
+        """Pause the running measurement (``INIT:CONT OFF``); the deadline stops counting."""
+        self.write("INIT:CONT OFF")
+        if self._paused_since is None:
+            self._paused_since = time.time()
+
+    def resume(self) -> None:
+        """Resume a paused measurement (``INIT:CONT ON``)."""
+        self.write("INIT:CONT ON")
+        if self._paused_since is not None:
+            self._paused_total_s += time.time() - self._paused_since
+            self._paused_since = None
+
+    def abort(self) -> None:
+        """Stop the measurement (``ABOR``) and switch the source off; a waiting
+        :meth:`measure` raises :class:`MeasurementAborted`."""
+        self._abort.set()
+        self.write("ABOR;:OUTP OFF")
+
+    # -- data ----------------------------------------------------------------------------------
+    def _read_segment(self, points: int | None, started: float, finished: float) -> SweepSegment:
+        channels = tuple(self.sent.get("channels", (1, 2, 3, 4)))
+        frequency_hz, frf_21 = self.read_trace("XFR:POW:RAT 2,1", points, with_axis=True)
+        count = frequency_hz.size
+        frf_43 = None
+        if 3 in channels and 4 in channels:
+            frf_43 = self.read_trace("XFR:POW:RAT 4,3", count)[1]
+        amplitude = {ch: np.abs(self.read_trace(f"XFR:POW:LIN {ch}", count)[1]) for ch in channels}
+        variance = {
+            ch: self.read_trace(f"XFR:POW:VAR {ch}", count, real=True)[1] for ch in channels
+        }
+        overload, half_range = self.read_overload()
+        labels = {
+            ch: str(self.channel(ch).sent.get("transducer_label", "V")) for ch in channels
+        }
+        return SweepSegment(
+            frequency_hz=frequency_hz,
+            frf_21=frf_21,
+            frf_43=frf_43,
+            amplitude_eu=amplitude,
+            variance=variance,
+            eu_labels=labels,
+            overload_channels=overload,
+            half_range_channels=half_range,
+            started_at_s=started,
+            finished_at_s=finished,
+        )
+
+    def read_trace(
+        self,
+        feed: str,
+        points: int | None = None,
+        *,
+        real: bool = False,
+        with_axis: bool = False,
+    ) -> tuple[np.ndarray | None, np.ndarray]:
+        """Feed trace A with ``feed`` and read it untransformed through register D1.
+
+        Parameters
+        ----------
+        feed
+            A swept-sine feed: ``"XFR:POW:RAT 2,1"``, ``"XFR:POW:LIN n"``, ``"XFR:POW:VAR n"``.
+        points
+            Expected number of points (``None``: any, then the axis or data decide).
+        real
+            The quantity is real (variance); else complex, read as (real, imag) pairs.
+        with_axis
+            Also read the frequency axis (``TRAC:X? D1``), in Hz.
+
+        Returns
+        -------
+        (frequency_hz or None, values)
+        """
+        self.configure(f"CALC1:FEED '{feed}';*WAI")
+        self.configure("TRAC:DATA D1,TRAC1")
+        axis = None
+        if with_axis:
+            axis = check_values(self.read_values("TRAC:X? D1"), "TRAC:X? D1", points)
+            points = axis.size
+        raw = self.read_values("TRAC:DATA? D1")
+        what = f"TRAC:DATA? D1 ({feed})"
+        if real:
+            if Quirks.REAL_TRACE_MAY_BE_PAIRED and points is not None and raw.size == 2 * points:
+                raw = raw[0::2]
+            return axis, check_values(raw, what, points)
+        return axis, interleaved_to_complex(raw, what, points)
+
+    def read_values(self, query: str) -> np.ndarray:
+        """Send a data query and decode its reply in the data format in use."""
+        data_format = str(self.sent.get("data_format", "ASC"))
+        if data_format.startswith("REAL"):
+            message = self.connection.query_block(query)
+            bits = int(data_format.split(",")[1])
+            try:
+                return decode_real(split_definite_block(message), bits, Quirks.REAL_BIG_ENDIAN)
+            except MalformedReply as error:
+                raise MalformedReply(f"{query!r}: {error.detail}", self.resource) from None
+        try:
+            return decode_ascii(self.ask(query))
+        except MalformedReply as error:
+            raise MalformedReply(f"{query!r}: {error.detail}", self.resource) from None
+
+    def read_overload(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """Read and clear ``STAT:QUES:VOLT:EVEN?``: (overloaded channels, half-range channels)."""
+        bits = parse_int(self.ask("STAT:QUES:VOLT:EVEN?"))
+        overload = tuple(ch for ch in range(1, 5) if bits & (1 << (ch - 1)))
+        half_range = tuple(ch for ch in range(1, 5) if bits & (1 << (ch + 7)))
+        return overload, half_range
+
+
+def _parse_error(reply: str, resource: str) -> tuple[int, str]:
+    code_text, _, text = reply.partition(",")
+    try:
+        code = int(code_text.strip())
+    except ValueError:
+        raise MalformedReply(f"SYST:ERR? answered {reply!r}, not <code>,\"<text>\"",
+                             resource) from None
+    return code, text.strip().strip('"')
+
+
+__all__ = ["Agilent35670A", "Quirks", "SweepProgress", "SweepSegment"]

@@ -1,0 +1,211 @@
+"""A scripted SCPI endpoint on loopback that records what it receives.
+
+For protocol tests and benchmarks of the driver: it listens on ``127.0.0.1`` (port chosen by the
+OS), records every message the driver sends, and answers queries from a script of canned replies.
+It speaks either a raw SCPI socket (``TCPIP::127.0.0.1::<port>::SOCKET``) or the Prologix
+GPIB-Ethernet protocol (``PRLGX-TCPIP::127.0.0.1::<port>::INTFC`` then ``GPIB0::11::INSTR``):
+``++`` commands configure the adapter and are recorded apart, ESC escapes are removed, and a reply
+is sent only on ``++read``. The driver talks to it through pyvisa-py's real socket code, as it
+would to hardware; it simulates nothing of the analyser beyond the script.
+
+Replies are looked up by the whole message (after upper-casing): a ``str`` (sent with a line
+feed), ``bytes`` (sent as they are), a list of those (one per query, the last repeated), or a
+callable taking the message and returning one of those or ``None`` (no reply). ``SYST:ERR?``
+pops :attr:`ScriptedSCPIServer.errors` and answers ``+0,"No error"`` when it is empty.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+from collections.abc import Callable
+from typing import Any
+
+Reply = str | bytes | list | Callable[[str], Any] | None
+
+NO_ERROR = '+0,"No error"'
+
+
+class ScriptedSCPIServer:
+    """A recording SCPI server with canned replies, as a context manager.
+
+    Parameters
+    ----------
+    replies
+        Message (upper case, without terminator) to reply; see the module docstring.
+    prologix
+        Speak the Prologix GPIB-Ethernet protocol instead of a raw SCPI socket.
+    gpib_address
+        GPIB address the Prologix side answers for.
+    board
+        VISA board number used in :attr:`resource` and :attr:`adapter` (Prologix only). Two
+        Prologix servers used at the same time need different boards, because pyvisa-py keys
+        its Prologix interfaces by board.
+    """
+
+    def __init__(
+        self,
+        replies: dict[str, Reply] | None = None,
+        *,
+        prologix: bool = False,
+        gpib_address: int = 11,
+        board: int = 0,
+    ) -> None:
+        self.replies: dict[str, Reply] = {k.upper(): v for k, v in (replies or {}).items()}
+        self.prologix = prologix
+        self.gpib_address = gpib_address
+        self.board = board
+        self.received: list[str] = []
+        self.adapter_commands: list[str] = []
+        self.errors: list[str] = []
+        self.drop_next_connection_on: str | None = None
+        self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self._listener.bind(("127.0.0.1", 0))
+        self._listener.listen(4)
+        self.port = self._listener.getsockname()[1]
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._lock = threading.Lock()
+
+    # -- addresses ---------------------------------------------------------------------------
+    @property
+    def resource(self) -> str:
+        """The VISA resource string of the (simulated) instrument."""
+        if self.prologix:
+            return f"GPIB{self.board}::{self.gpib_address}::INSTR"
+        return f"TCPIP::127.0.0.1::{self.port}::SOCKET"
+
+    @property
+    def adapter(self) -> str | None:
+        """The Prologix interface resource to open first, or ``None`` for a raw socket."""
+        if self.prologix:
+            return f"PRLGX-TCPIP{self.board}::127.0.0.1::{self.port}::INTFC"
+        return None
+
+    def commands(self) -> list[str]:
+        """Every command received, messages split at ``;`` (the order is kept)."""
+        return [part for message in self.received for part in message.split(";")]
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def __enter__(self) -> ScriptedSCPIServer:
+        thread = threading.Thread(target=self._accept_loop, daemon=True)
+        thread.start()
+        self._threads.append(thread)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop listening and end every connection."""
+        self._stop.set()
+        self._listener.close()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+
+    def _accept_loop(self) -> None:
+        self._listener.settimeout(0.05)
+        while not self._stop.is_set():
+            try:
+                connection, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            thread = threading.Thread(target=self._serve, args=(connection,), daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    # -- protocol ----------------------------------------------------------------------------
+    def _serve(self, connection: socket.socket) -> None:
+        connection.settimeout(0.05)
+        buffer = bytearray()
+        pending: list[bytes] = []  # Prologix: replies waiting for ++read
+        with connection:
+            while not self._stop.is_set():
+                try:
+                    chunk = connection.recv(65536)
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return
+                if not chunk:
+                    return
+                buffer.extend(chunk)
+                for raw in self._split_messages(buffer):
+                    if self.prologix and raw.startswith(b"++"):
+                        command = raw.decode("ascii").strip()
+                        self.adapter_commands.append(command)
+                        if command.startswith("++read") and pending:
+                            connection.sendall(pending.pop(0))
+                        continue
+                    message = raw.decode("ascii").strip()
+                    self.received.append(message)
+                    if self.drop_next_connection_on and message.upper() == (
+                        self.drop_next_connection_on
+                    ):
+                        self.drop_next_connection_on = None
+                        return
+                    reply = self._reply_to(message)
+                    if reply is None:
+                        continue
+                    if self.prologix:
+                        pending[:] = [reply]  # the analyser holds one response message
+                    else:
+                        connection.sendall(reply)
+
+    def _split_messages(self, buffer: bytearray) -> list[bytes]:
+        """Cut complete messages out of the buffer; in Prologix mode remove ESC escapes."""
+        messages = []
+        while True:
+            end = _unescaped_newline(buffer) if self.prologix else buffer.find(b"\n")
+            if end < 0:
+                return messages
+            raw = bytes(buffer[:end])
+            del buffer[: end + 1]
+            if self.prologix and not raw.startswith(b"++"):
+                raw = _unescape(raw)
+            messages.append(raw.rstrip(b"\r"))
+
+    def _reply_to(self, message: str) -> bytes | None:
+        key = message.upper()
+        if key == "SYST:ERR?" and key not in self.replies:
+            with self._lock:
+                text = self.errors.pop(0) if self.errors else NO_ERROR
+            return text.encode("ascii") + b"\n"
+        reply: Any = self.replies.get(key)
+        if isinstance(reply, list):
+            reply = reply.pop(0) if len(reply) > 1 else reply[0]
+        if callable(reply):
+            reply = reply(message)
+        if reply is None:
+            return None
+        if isinstance(reply, str):
+            return reply.encode("ascii") + b"\n"
+        return bytes(reply)
+
+
+def _unescaped_newline(buffer: bytearray) -> int:
+    index = 0
+    while index < len(buffer):
+        byte = buffer[index]
+        if byte == 0x1B:
+            index += 2
+            continue
+        if byte == 0x0A:
+            return index
+        index += 1
+    return -1
+
+
+def _unescape(raw: bytes) -> bytes:
+    out = bytearray()
+    escaped = False
+    for byte in raw:
+        if byte == 0x1B and not escaped:
+            escaped = True
+            continue
+        escaped = False
+        out.append(byte)
+    return bytes(out)
