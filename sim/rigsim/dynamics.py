@@ -1,0 +1,214 @@
+"""Linear state-space model of the rig and its exact modal solution.
+
+The rig is a set of point masses (nodes) joined by spring-dampers, plus the Maxwell arms of the
+specimens, each carrying its arm force as a state:
+
+- table ``s``: mass ``M_s``, suspension ``K_s, C_s`` to the frame (or ground), shaker force
+  ``F_e`` on it (and ``-F_e`` on the frame, which carries the shaker body);
+- disc ``v``: mass ``M_v``, load cell ``K_c`` to the table (with a rigid link, ``v`` *is* ``s``:
+  the degree of freedom is removed exactly and the disc mass is added to the table);
+- device: static spring, dashpot and Maxwell arms between disc and frame, all scaled by the
+  modulus factor (drift, amplitude dependence);
+- fixture modes: masses on spring-dampers attached to the disc;
+- frame ``g`` (optional): mass on its isolators to ground.
+
+State ``z = [x (nodes), v (nodes), f (arm forces)]``, ``ż = A z + b F_e``. Output rows give the
+four channels in engineering units (N, m/s², N, m/s²) as ``y = C z + d F_e``, and the displacement
+across the specimens ``x_v - x_g``.
+
+With the eigen-decomposition ``A = V Λ V⁻¹`` everything the measurement needs is elementwise in
+the modal coordinates ``q = V⁻¹ z``; see :class:`ModalSystem`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigsim.materials import state_model
+from rigsim.rigfile import Rig
+
+__all__ = ["CHANNEL_NAMES", "ModalSystem", "StateSpace", "build_state_space"]
+
+CHANNEL_NAMES = ("excitation_force", "table_acceleration", "device_force", "disc_acceleration")
+
+#: Condition number of the eigenvector matrix beyond which the modal solution is not trusted.
+MAX_EIGENVECTOR_CONDITION = 1e10
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """``ż = A z + b F_e``; channels ``y = C z + d F_e``; ``x_v - x_g = r z``."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    d: np.ndarray
+    relative_displacement: np.ndarray
+
+
+def build_state_space(rig: Rig, modulus_scale: float = 1.0) -> StateSpace:
+    """State-space matrices of a rig, with K* multiplied by ``modulus_scale``."""
+    names = ["table"]
+    has_device = rig.device is not None
+    rigid_link = rig.load_cell is None
+    if has_device and not rigid_link:
+        names.append("disc")
+    disc = names.index("disc") if "disc" in names else 0
+    fixture_nodes = []
+    for index in range(len(rig.fixtures)):
+        fixture_nodes.append(len(names))
+        names.append(f"fixture{index}")
+    frame = None
+    if rig.frame is not None:
+        frame = len(names)
+        names.append("frame")
+    n = len(names)
+
+    mass = np.zeros(n)
+    stiffness = np.zeros((n, n))
+    damping = np.zeros((n, n))
+
+    def connect(i: int, j: int | None, k: float, c: float) -> None:
+        """Spring-damper between node i and node j (None: ground)."""
+        for matrix, value in ((stiffness, k), (damping, c)):
+            matrix[i, i] += value
+            if j is not None:
+                matrix[j, j] += value
+                matrix[i, j] -= value
+                matrix[j, i] -= value
+
+    table = rig.table
+    mass[0] += table.mass_kg
+    connect(0, frame, table.stiffness_n_per_m, table.damping_ns_per_m)
+
+    arm_k = np.zeros(0)
+    arm_c = np.zeros(0)
+    device_k = device_c = 0.0
+    if rig.device is not None:
+        mass[disc] += rig.device.mass_kg
+        if not rigid_link:
+            connect(0, disc, rig.load_cell.stiffness_n_per_m, 0.0)
+        material = state_model(rig.device.material)
+        device_k = modulus_scale * material.static_stiffness_n_per_m
+        device_c = modulus_scale * material.damping_ns_per_m
+        arm_k = modulus_scale * material.arm_stiffness_n_per_m
+        arm_c = modulus_scale * material.arm_damping_ns_per_m
+        connect(disc, frame, device_k, device_c)
+    fixture_k = []
+    fixture_c = []
+    for node, mode in zip(fixture_nodes, rig.fixtures, strict=True):
+        w_n = 2.0 * np.pi * mode.frequency_hz
+        k_f = mode.mass_kg * w_n**2
+        c_f = 2.0 * mode.damping_ratio * mode.mass_kg * w_n
+        mass[node] += mode.mass_kg
+        connect(node, disc, k_f, c_f)
+        fixture_k.append(k_f)
+        fixture_c.append(c_f)
+    if frame is not None:
+        w_g = 2.0 * np.pi * rig.frame.frequency_hz
+        mass[frame] += rig.frame.mass_kg
+        connect(frame, None, rig.frame.mass_kg * w_g**2, 2 * rig.frame.damping_ratio *
+                rig.frame.mass_kg * w_g)
+
+    n_arms = arm_k.size
+    size = 2 * n + n_arms
+    a = np.zeros((size, size))
+    b = np.zeros(size)
+    inv_mass = 1.0 / mass
+    a[:n, n : 2 * n] = np.eye(n)
+    a[n : 2 * n, :n] = -inv_mass[:, None] * stiffness
+    a[n : 2 * n, n : 2 * n] = -inv_mass[:, None] * damping
+    # Arm i pulls the disc back with its force f_i and pushes the frame with it.
+    arm_rows = np.arange(2 * n, size)
+    if n_arms:
+        a[n + disc, arm_rows] -= inv_mass[disc]
+        if frame is not None:
+            a[n + frame, arm_rows] += inv_mass[frame]
+        a[arm_rows, n + disc] = arm_k
+        if frame is not None:
+            a[arm_rows, n + frame] = -arm_k
+        a[arm_rows, arm_rows] = -arm_k / arm_c
+    b[n] = inv_mass[0]
+    if frame is not None:
+        b[n + frame] = -inv_mass[frame]
+
+    c = np.zeros((4, size))
+    d = np.zeros(4)
+    d[0] = 1.0  # the force transducer reads the shaker force
+    c[1] = a[n]
+    d[1] = b[n]
+    relative = np.zeros(size)
+    if rig.device is not None:
+        c[3] = a[n + disc]
+        d[3] = b[n + disc]
+        # F_v = M_v a_v - (forces of the device and fixtures on the disc); for a finite load
+        # cell this equals K_c (x_s - x_v), for a rigid link it is the force the link carries.
+        on_disc = np.zeros(size)
+        on_disc[disc] -= device_k
+        on_disc[n + disc] -= device_c
+        if frame is not None:
+            on_disc[frame] += device_k
+            on_disc[n + frame] += device_c
+        on_disc[arm_rows] -= 1.0
+        for node, k_f, c_f in zip(fixture_nodes, fixture_k, fixture_c, strict=True):
+            on_disc[node] += k_f
+            on_disc[disc] -= k_f
+            on_disc[n + node] += c_f
+            on_disc[n + disc] -= c_f
+        c[2] = rig.device.mass_kg * c[3] - on_disc
+        d[2] = rig.device.mass_kg * d[3]
+        relative[disc] = 1.0
+        if frame is not None:
+            relative[frame] = -1.0
+    return StateSpace(a=a, b=b, c=c, d=d, relative_displacement=relative)
+
+
+class ModalSystem:
+    """Eigen-decomposition of a :class:`StateSpace` and the closed forms built on it.
+
+    For a source force ``F(τ) = Re(F̂ e^{iωτ})`` (τ from the start of a point):
+
+    - steady state, modal: ``q_ss(τ) = ½ (p⁺ F̂ e^{iωτ} + p⁻ conj(F̂) e^{-iωτ})`` with
+      ``p± = b̃ / (±iω - λ)``, ``b̃ = V⁻¹ b``;
+    - solution: ``q(τ) = q_ss(τ) + e^{λτ} (q(0) - q_ss(0))`` elementwise;
+    - channel phasor (steady) ``H(ω) F̂`` with ``H = C̃ p⁺ + d``, ``C̃ = C V``.
+    """
+
+    def __init__(self, space: StateSpace) -> None:
+        self.space = space
+        eigenvalues, vectors = np.linalg.eig(space.a)
+        condition = np.linalg.cond(vectors)
+        if not np.isfinite(condition) or condition > MAX_EIGENVECTOR_CONDITION:
+            raise ValueError(
+                f"rig model is (nearly) defective: eigenvector condition {condition:.3g}"
+            )
+        self.eigenvalues = eigenvalues
+        self.vectors = vectors
+        self.inverse = np.linalg.inv(vectors)
+        self.b_modal = self.inverse @ space.b
+        self.c_modal = space.c @ vectors
+        self.relative_modal = space.relative_displacement @ vectors
+
+    def to_modal(self, state: np.ndarray) -> np.ndarray:
+        """Modal coordinates of a real state."""
+        return self.inverse @ state
+
+    def to_state(self, modal: np.ndarray) -> np.ndarray:
+        """Real state of modal coordinates."""
+        return (self.vectors @ modal).real
+
+    def frequency_response(self, omega: np.ndarray) -> np.ndarray:
+        """Channel phasors per newton of source force, shape ``(points, 4)``."""
+        p_plus = self.b_modal / (1j * omega[:, None] - self.eigenvalues)
+        return p_plus @ self.c_modal.T + self.space.d
+
+    def relative_response(self, omega: np.ndarray) -> np.ndarray:
+        """Displacement phasor across the specimens per newton, shape ``(points,)``."""
+        p_plus = self.b_modal / (1j * omega[:, None] - self.eigenvalues)
+        return p_plus @ self.relative_modal
+
+    def free_decay(self, state: np.ndarray, duration_s: float) -> np.ndarray:
+        """State after ``duration_s`` with no source."""
+        return self.to_state(np.exp(self.eigenvalues * duration_s) * self.to_modal(state))
