@@ -499,4 +499,3 @@ def _format_number(value: float) -> str:
 def stage_methods() -> tuple[str, ...]:
     """Names of the pipeline stage methods, in evaluation order."""
     return ("modulus", "modify_modulus", "disc_stiffness", "couple", "measure")
-

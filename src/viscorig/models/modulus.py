@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import nnls
+from scipy.optimize import least_squares, nnls
 
 from viscorig.errors import InputError
 from viscorig.models.base import Context, ModulusTerm, Parameter, Term, register_term
@@ -125,8 +125,11 @@ class Maxwell(ModulusTerm):
 
     def start(self, omega, d_disc, weight) -> dict[str, float]:
         taus, gains, k_0, m_v = prony_nnls(omega, d_disc, weight)
-        log_tau = list(np.log(taus))
-        gain = list(gains)
+        # An arm relaxing far below the band acts as a spring there: fold it into K_0.
+        spring = taus > 30.0 / omega.min()
+        k_0 += float(gains[spring].sum())
+        log_tau = list(np.log(taus[~spring]))
+        gain = list(gains[~spring])
         n = self.order or 1
         while len(gain) > n:  # merge the two closest neighbours, keeping total stiffness
             j = int(np.argmin(np.diff(log_tau)))
@@ -141,12 +144,48 @@ class Maxwell(ModulusTerm):
             j = int(np.argmax(gain))
             log_tau[j : j + 1] = [log_tau[j] - np.log(3.0), log_tau[j] + np.log(3.0)]
             gain[j : j + 1] = [gain[j] / 2, gain[j] / 2]
-        order = np.argsort(log_tau)
+        log_tau_array, k_0, gains_array, m_v = _refine_relaxation_times(
+            omega, d_disc, weight, np.sort(np.array(log_tau))
+        )
         values = {"K_0": k_0, "M_v": m_v}
-        for i, j in enumerate(order, start=1):
-            values[f"K_{i}"] = gain[j]
-            values[f"C_{i}"] = gain[j] * np.exp(log_tau[j])
+        for i, (lt, g) in enumerate(zip(log_tau_array, gains_array, strict=True), start=1):
+            values[f"K_{i}"] = g
+            values[f"C_{i}"] = g * np.exp(lt)
         return values
+
+
+def _refine_relaxation_times(
+    omega: NDArray[np.float64],
+    d_disc: NDArray[np.complex128],
+    weight: NDArray[np.float64],
+    log_tau: NDArray[np.float64],
+) -> tuple[NDArray, float, NDArray, float]:
+    """Variable projection: adjust ``log τ_i``, solving ``K_0, K_i, M_v`` linearly at each step.
+
+    Keeps the NNLS/merge result if the refined one has a negative stiffness or mass.
+    """
+    lo, hi = np.log(0.01 / omega.max()), np.log(100.0 / omega.min())
+
+    def solve(lt: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        iwt = 1j * omega[:, None] * np.exp(lt)[None, :]
+        columns = np.concatenate(
+            [np.ones((omega.size, 1)), iwt / (1 + iwt), -(omega[:, None] ** 2)], axis=1
+        )
+        a, b, scale = _stack(columns, d_disc, weight)
+        x = np.linalg.lstsq(a, b, rcond=None)[0]
+        return x / scale, a @ x - b
+
+    start = np.clip(log_tau, lo + 1e-6, hi - 1e-6)
+    with np.errstate(all="ignore"):
+        refined = least_squares(
+            lambda lt: solve(lt)[1], start, bounds=(lo, hi), ftol=1e-8, xtol=1e-8, max_nfev=200
+        ).x
+    x, _ = solve(refined)
+    if np.any(x < 0):
+        refined = start
+        x, _ = solve(refined)
+        x = np.maximum(x, 0.0)
+    return refined, float(x[0]), x[1:-1], float(x[-1])
 
 
 def prony_nnls(
@@ -228,11 +267,18 @@ class Fractional(ModulusTerm):
                     continue
                 cost = float(np.sum((a @ (x * scale) - b) ** 2))
                 if best is None or cost < best[0]:
-                    best = (cost, {"K_0": x[0], "K_inf": x[1], "tau": tau, "alpha": alpha,
-                                   "M_v": x[2]})
+                    best = (
+                        cost,
+                        {"K_0": x[0], "K_inf": x[1], "tau": tau, "alpha": alpha, "M_v": x[2]},
+                    )
         if best is None:  # no grid point with positive stiffnesses: fall back to a Voigt start
             voigt = Voigt().start(omega, d_disc, weight)
             tau = 1.0 / np.sqrt(omega.min() * omega.max())
-            return {"K_0": voigt["K_v"], "K_inf": 10 * abs(voigt["K_v"]), "tau": tau,
-                    "alpha": 0.5, "M_v": voigt["M_v"]}
+            return {
+                "K_0": voigt["K_v"],
+                "K_inf": 10 * abs(voigt["K_v"]),
+                "tau": tau,
+                "alpha": 0.5,
+                "M_v": voigt["M_v"],
+            }
         return best[1]

@@ -1,0 +1,118 @@
+"""Plain-array container for the FRFs of one run, independent of the campaign storage."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from viscorig.errors import InputError
+from viscorig.models import FRF_NAMES, Context
+
+#: Fewest frequency points a fit accepts in its band.
+MIN_POINTS = 8
+
+
+def _complex_or_none(values: ArrayLike | None) -> NDArray[np.complex128] | None:
+    if values is None:
+        return None
+    array = np.atleast_1d(np.asarray(values, dtype=complex))
+    return None if np.all(np.isnan(array)) else array
+
+
+@dataclass(frozen=True)
+class FrfData:
+    """The measured FRFs of one run, as plain arrays.
+
+    Attributes
+    ----------
+    frequency_hz
+        Frequency of each point (Hz).
+    table
+        Accelerance ``ẍ_s/F_e`` (m/s²/N), or ``None``.
+    support
+        Accelerance ``ẍ_v/F_v`` (m/s²/N), or ``None`` (bare table: all NaN becomes ``None``).
+    time_s
+        Seconds since the run's start at each point, or ``None``.
+    reference_amplitude
+        Achieved reference acceleration amplitude at each point (m/s²), or ``None``.
+    name
+        Where the data comes from (run name), used in error messages.
+    """
+
+    frequency_hz: NDArray[np.float64]
+    table: NDArray[np.complex128] | None = None
+    support: NDArray[np.complex128] | None = None
+    time_s: NDArray[np.float64] | None = None
+    reference_amplitude: NDArray[np.float64] | None = None
+    name: str = "data"
+
+    def __post_init__(self) -> None:
+        frequency = np.atleast_1d(np.asarray(self.frequency_hz, dtype=float))
+        object.__setattr__(self, "frequency_hz", frequency)
+        object.__setattr__(self, "table", _complex_or_none(self.table))
+        object.__setattr__(self, "support", _complex_or_none(self.support))
+        for field in ("time_s", "reference_amplitude"):
+            value = getattr(self, field)
+            if value is not None:
+                object.__setattr__(self, field, np.atleast_1d(np.asarray(value, dtype=float)))
+        for field in ("table", "support", "time_s", "reference_amplitude"):
+            value = getattr(self, field)
+            if value is not None and value.shape != frequency.shape:
+                raise InputError(
+                    f"{field} has {value.size} points but frequency_hz has {frequency.size}",
+                    self.name,
+                )
+        if np.any(~np.isfinite(frequency)) or np.any(frequency <= 0):
+            raise InputError("frequency_hz must be finite and positive", self.name)
+
+    @property
+    def available(self) -> tuple[str, ...]:
+        """Names of the FRFs present (``"table"``, ``"support"``)."""
+        return tuple(name for name in FRF_NAMES if getattr(self, name) is not None)
+
+    def frf(self, name: str) -> NDArray[np.complex128]:
+        """One FRF by name; :class:`InputError` if the run does not have it."""
+        if name not in FRF_NAMES:
+            raise InputError(f"unknown FRF '{name}' (known: {', '.join(FRF_NAMES)})", self.name)
+        value = getattr(self, name)
+        if value is None:
+            raise InputError(f"has no {FRF_NAMES[name]} (bare table run?)", self.name)
+        return value
+
+    def context(self) -> Context:
+        """The model context at these points."""
+        return Context(self.frequency_hz, self.time_s, self.reference_amplitude)
+
+    def select(self, index: ArrayLike) -> FrfData:
+        """The data at the selected points."""
+        pick = {
+            field: None if getattr(self, field) is None else getattr(self, field)[index]
+            for field in ("table", "support", "time_s", "reference_amplitude")
+        }
+        return replace(self, frequency_hz=self.frequency_hz[index], **pick)
+
+    def in_band(self, band_hz: tuple[float, float] | None) -> FrfData:
+        """The points with ``lo ≤ f ≤ hi`` (all points when ``band_hz`` is ``None``)."""
+        if band_hz is None:
+            return self
+        lo, hi = band_hz
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo < hi):
+            raise InputError(f"band {lo}:{hi} Hz must have 0 ≤ LO < HI", self.name)
+        return self.select((self.frequency_hz >= lo) & (self.frequency_hz <= hi))
+
+    def checked(self, frfs: tuple[str, ...], band_hz: tuple[float, float] | None) -> FrfData:
+        """Data in the band, after checking it can be fitted: enough points, no NaN."""
+        data = self.in_band(band_hz)
+        where = f"{self.name}, band {band_hz[0]:g}:{band_hz[1]:g} Hz" if band_hz else self.name
+        if data.frequency_hz.size < MIN_POINTS:
+            raise InputError(
+                f"{data.frequency_hz.size} points, a fit needs at least {MIN_POINTS}", where
+            )
+        for name in frfs:
+            values = data.frf(name)
+            bad = int(np.count_nonzero(~np.isfinite(values) | (values == 0)))
+            if bad:
+                raise InputError(f"{FRF_NAMES[name]} has {bad} NaN or zero values", where)
+        return data
