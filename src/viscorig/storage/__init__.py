@@ -1,0 +1,34 @@
+"""The campaign file (HDF5, shared/docs/data-format.md): write while measuring, read to analyse.
+
+Every change is an atomic commit, so a writer killed at any instant leaves a file that opens
+with every committed segment intact (:mod:`viscorig.storage.atomic`).
+"""
+
+from viscorig.storage.campaign import Campaign
+from viscorig.storage.flags import (
+    FLAG_NAMES,
+    FORCE_ABOVE_SHAKER_LIMIT,
+    INPUT_OVERLOAD,
+    LEVEL_NOT_REACHED,
+    SOURCE_AT_LIMIT,
+    PointFlag,
+    count_flags,
+)
+from viscorig.storage.records import Fit, FitParameter, Run, RunMetadata, RunSettings, Segment
+
+__all__ = [
+    "FLAG_NAMES",
+    "FORCE_ABOVE_SHAKER_LIMIT",
+    "INPUT_OVERLOAD",
+    "LEVEL_NOT_REACHED",
+    "SOURCE_AT_LIMIT",
+    "Campaign",
+    "Fit",
+    "FitParameter",
+    "PointFlag",
+    "Run",
+    "RunMetadata",
+    "RunSettings",
+    "Segment",
+    "count_flags",
+]

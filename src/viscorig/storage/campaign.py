@@ -1,0 +1,440 @@
+"""The campaign file: create it, record runs segment by segment, read runs, store fits.
+
+The layout is the public contract of ``shared/docs/data-format.md``. Every change is one atomic
+commit (see :mod:`viscorig.storage.atomic`), so the file is closed between commits and a writer
+killed at any instant leaves every committed segment intact and no partial one. Readers open
+the file only for the duration of one call, so they always see one committed state.
+
+Additions to the contract, both readable by any HDF5 tool:
+
+- ``/setup``: scalar UTF-8 string datasets ``sequence_toml`` (the sequence text the campaign
+  ran) and, when a station file was used, ``station_toml``; attributes ``sequence_file`` and
+  ``station_file`` name the original files. ``resume`` needs nothing but the campaign file.
+- Fit ids are four-digit counters per run (``0001``, ``0002``, ...); each parameter is a scalar
+  float64 dataset holding the value, with attributes ``stderr`` and ``units``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+from collections.abc import Iterator, Mapping
+from dataclasses import asdict
+from datetime import UTC, datetime
+from pathlib import Path
+from types import TracebackType
+from typing import Self
+
+import h5py
+import numpy as np
+
+from viscorig import __version__
+from viscorig.errors import InputError
+from viscorig.storage import layout, reading
+from viscorig.storage.atomic import atomic_commit
+from viscorig.storage.records import Fit, Run, RunSettings, Segment
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}$")
+
+
+def utc_now() -> str:
+    """The current time as ISO 8601 UTC, to the second (``2024-05-01T12:00:00Z``)."""
+    return datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
+
+
+def check_name(name: str, what: str) -> str:
+    """A run or parameter name usable as an HDF5 object name."""
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise InputError(
+            f"{name!r} is not a valid name (letters, digits, '.', '_', '+', '-'; at most 64)", what
+        )
+    return name
+
+
+class Campaign:
+    """One campaign file, read-only (``mode="r"``) or appendable (``mode="a"``).
+
+    Use :meth:`open` for an existing file and :meth:`create` for a new one; both work as context
+    managers. No HDF5 handle is held between calls.
+
+    Examples
+    --------
+    >>> with Campaign.open("paper.h5") as campaign:          # doctest: +SKIP
+    ...     run = campaign.run("soft-0")
+    ...     k_star = run.dynamic_stiffness_support()
+    """
+
+    def __init__(self, path: Path, mode: str, durable: bool) -> None:
+        self.path = path
+        self.mode = mode
+        self.durable = durable
+
+    # -- opening ---------------------------------------------------------------------------
+
+    @classmethod
+    def open(cls, path: str | Path, mode: str = "r", *, durable: bool = True) -> Self:
+        """Open an existing campaign file.
+
+        Parameters
+        ----------
+        path
+            The campaign file.
+        mode
+            ``"r"`` (read only) or ``"a"`` (runs, segments and fits may be added).
+        durable
+            ``fsync`` every commit (see :func:`viscorig.storage.atomic.atomic_commit`).
+
+        Raises
+        ------
+        InputError
+            The file is missing, not HDF5, damaged, or not a viscorig format 1 campaign.
+        """
+        if mode not in ("r", "a"):
+            raise ValueError(f"mode must be 'r' or 'a', not {mode!r}")
+        campaign = cls(Path(path), mode, durable)
+        with campaign._reading() as h5:
+            reading.check_root(h5, campaign.path)
+        return campaign
+
+    @classmethod
+    def create(
+        cls,
+        path: str | Path,
+        *,
+        sequence_text: str,
+        sequence_file: str = "",
+        station_text: str | None = None,
+        station_file: str = "",
+        rig: Mapping[str, float | int] | None = None,
+        durable: bool = True,
+    ) -> Self:
+        """Create a new campaign file (never overwrites one) and return it in mode ``"a"``.
+
+        Parameters
+        ----------
+        path
+            The new file.
+        sequence_text, sequence_file
+            The sequence TOML the campaign runs, and the name of the file it came from.
+        station_text, station_file
+            The station TOML, if a station file is used (``None`` for the simulated rig).
+        rig
+            ``/rig`` attributes (all optional): table_mass_kg, table_stiffness_n_per_m,
+            table_damping_ns_per_m, specimen_diameter_m, specimen_height_m, specimen_count,
+            geometry_factor_m.
+
+        Raises
+        ------
+        InputError
+            The file exists, its folder is not writable, or a rig attribute is unknown.
+        """
+        rig_attributes = _checked_rig(dict(rig or {}), str(path))
+        campaign = cls(Path(path), "a", durable)
+        try:
+            with atomic_commit(campaign.path, create=True, durable=durable) as h5:
+                h5.attrs["format"] = layout.FORMAT_NAME
+                h5.attrs["format_version"] = np.int64(layout.FORMAT_VERSION)
+                h5.attrs["created"] = utc_now()
+                h5.attrs["software"] = f"viscorig {__version__}"
+                rig_group = h5.create_group(layout.RIG_GROUP)
+                for key, value in rig_attributes.items():
+                    rig_group.attrs[key] = value
+                h5.create_group(layout.RUNS_GROUP, track_order=True)
+                setup = h5.create_group(layout.SETUP_GROUP)
+                text = h5py.string_dtype("utf-8")
+                setup.create_dataset(layout.SEQUENCE_TEXT, data=sequence_text, dtype=text)
+                setup.attrs["sequence_file"] = sequence_file
+                if station_text is not None:
+                    setup.create_dataset(layout.STATION_TEXT, data=station_text, dtype=text)
+                setup.attrs["station_file"] = station_file
+        except FileExistsError:
+            raise InputError("file exists; campaigns are never overwritten", str(path)) from None
+        except OSError as error:
+            raise InputError(f"cannot create the campaign file ({error})", str(path)) from None
+        return campaign
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Nothing to release (no handle is held); kept for symmetry with files."""
+
+    # -- reading ---------------------------------------------------------------------------
+
+    def _reading(self) -> contextlib.AbstractContextManager[h5py.File]:
+        return reading.open_for_reading(self.path)
+
+    @property
+    def attributes(self) -> dict[str, object]:
+        """The root attributes: format, format_version, created, software."""
+        with self._reading() as h5, reading.guarded(self.path, "/"):
+            return {key: reading._decode(value) for key, value in h5.attrs.items()}
+
+    @property
+    def rig(self) -> dict[str, float | int]:
+        """The ``/rig`` attributes that are set."""
+        with self._reading() as h5:
+            return reading.read_rig(h5, self.path)
+
+    @property
+    def run_names(self) -> list[str]:
+        """Names of the runs, in the order they were started."""
+        with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}"):
+            return list(h5[layout.RUNS_GROUP].keys())
+
+    def run(self, name: str) -> Run:
+        """Read run ``name`` whole (metadata and every dataset).
+
+        Raises
+        ------
+        InputError
+            No such run, or the run is damaged or not in the layout.
+        """
+        with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}/{name}"):
+            return reading.read_run(h5, name, self.path)
+
+    def runs(self) -> Iterator[Run]:
+        """Every run, in the order they were started."""
+        for name in self.run_names:
+            yield self.run(name)
+
+    def fits(self, run_name: str) -> list[Fit]:
+        """The fits stored for a run, oldest first."""
+        where = f"/{layout.RUNS_GROUP}/{run_name}/{layout.FITS_GROUP}"
+        with self._reading() as h5, reading.guarded(self.path, where):
+            return reading.read_fits(h5, run_name, self.path)
+
+    def _setup_text(self, dataset: str) -> str | None:
+        where = f"/{layout.SETUP_GROUP}/{dataset}"
+        with self._reading() as h5, reading.guarded(self.path, where):
+            item = h5.get(where)
+            if item is None:
+                return None
+            text = isinstance(item, h5py.Dataset) and item.shape == () and item.dtype.kind in "OS"
+            if not text:
+                raise InputError("not a text dataset", f"{self.path}: {where}")
+            return str(reading._decode(item[()]))
+
+    @property
+    def sequence_text(self) -> str | None:
+        """The sequence TOML the campaign was run with (None if the file has none)."""
+        return self._setup_text(layout.SEQUENCE_TEXT)
+
+    @property
+    def station_text(self) -> str | None:
+        """The station TOML the campaign was run with (None for the simulated rig)."""
+        return self._setup_text(layout.STATION_TEXT)
+
+    @property
+    def setup_files(self) -> dict[str, str]:
+        """Names of the files the sequence and station texts came from."""
+        with self._reading() as h5, reading.guarded(self.path, f"/{layout.SETUP_GROUP}"):
+            group = h5.get(layout.SETUP_GROUP)
+            if not isinstance(group, h5py.Group):
+                return {}
+            return {key: str(reading._decode(value)) for key, value in group.attrs.items()}
+
+    # -- writing ---------------------------------------------------------------------------
+
+    @contextlib.contextmanager
+    def _commit(self) -> Iterator[h5py.File]:
+        """One atomic commit; file-system failures become InputErrors naming the file."""
+        if self.mode != "a":
+            raise InputError("opened read-only; open with mode='a' to change it", str(self.path))
+        with self._reading() as h5:  # never build on a file that is not a campaign
+            reading.check_root(h5, self.path)
+        try:
+            with atomic_commit(self.path, durable=self.durable) as h5:
+                yield h5
+        except OSError as error:
+            raise InputError(f"cannot write the campaign file ({error})", str(self.path)) from None
+
+    def start_run(self, name: str, settings: RunSettings) -> None:
+        """Create ``/runs/<name>`` with status "running" and empty datasets.
+
+        Raises
+        ------
+        InputError
+            The name is not valid or a run of that name exists (use :meth:`resume_run`).
+        """
+        check_name(name, f"{self.path}: run name")
+        attributes = _settings_attributes(settings)
+        with self._commit() as h5:
+            runs = h5[layout.RUNS_GROUP]
+            if name in runs:
+                raise InputError("run exists", f"{self.path}: /{layout.RUNS_GROUP}/{name}")
+            group = runs.create_group(name)
+            group.attrs.update(attributes)
+            group.attrs["status"] = "running"
+            group.attrs["started"] = utc_now()
+            group.attrs["finished"] = ""
+            for spec in layout.REQUIRED_DATASETS:
+                _create_column(group, spec.name, _STORED_DTYPES[spec.kind], spec.units)
+
+    def append_segment(self, run_name: str, segment: Segment) -> int:
+        """Append a segment's points to a running run in one atomic commit.
+
+        Returns
+        -------
+        int
+            The number of points the run holds after the commit.
+
+        Raises
+        ------
+        ValueError
+            The segment's arrays are inconsistent, or its set of datasets differs from the run's.
+        InputError
+            No such run, or the run is not "running".
+        """
+        columns = segment.columns()
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            status = reading.read_choice(group, "status", self.path, layout.RUN_STATUSES)
+            if status != "running":
+                raise InputError(f"run is {status}; only a running run takes points",
+                                 f"{self.path}: {group.name}")
+            points = group["frequency_hz"].shape[0]
+            present = {key for key, item in group.items() if isinstance(item, h5py.Dataset)}
+            if points and set(columns) != present:
+                raise ValueError(
+                    f"segment datasets {sorted(columns)} differ from the run's {sorted(present)}"
+                )
+            for key, (values, units) in columns.items():
+                if key not in group:
+                    spec = layout.KNOWN_DATASETS.get(key)
+                    _create_column(group, key, values.dtype,
+                                   spec.units if spec else units or "1")
+                dataset = group[key]
+                dataset.resize((points + len(values),))
+                dataset[points:] = values
+            return points + len(columns["frequency_hz"][0])
+
+    def finish_run(self, run_name: str, status: str = "complete") -> None:
+        """Mark a run "complete" or "aborted" and stamp ``finished``."""
+        if status not in ("complete", "aborted"):
+            raise ValueError(f"status must be 'complete' or 'aborted', not {status!r}")
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            group.attrs["status"] = status
+            group.attrs["finished"] = utc_now()
+
+    def resume_run(self, run_name: str) -> int:
+        """Set a run back to "running" (``finished`` = "") to continue it; return its points."""
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            group.attrs["status"] = "running"
+            group.attrs["finished"] = ""
+            return int(group["frequency_hz"].shape[0])
+
+    def set_rig(self, **attributes: float | int) -> None:
+        """Set ``/rig`` attributes (e.g. table parameters identified from the bare-table run)."""
+        checked = _checked_rig(attributes, str(self.path))
+        with self._commit() as h5:
+            group = h5.require_group(layout.RIG_GROUP)
+            for key, value in checked.items():
+                group.attrs[key] = value
+
+    def add_fit(
+        self,
+        run_name: str,
+        *,
+        model: str,
+        band_hz: tuple[float, float],
+        rms_error: float,
+        noise_floor: float,
+        parameters: Mapping[str, tuple[float, float, str]],
+    ) -> str:
+        """Store an identification result under ``/runs/<run>/fits/<id>``.
+
+        Parameters
+        ----------
+        run_name
+            The run fitted.
+        model
+            Model spec string (design.md), e.g. ``"voigt"``.
+        band_hz
+            (lo, hi) band fitted, Hz.
+        rms_error, noise_floor
+            Error measures of design.md (dimensionless).
+        parameters
+            name -> (value, stderr, unit); stderr NaN when unknown.
+
+        Returns
+        -------
+        str
+            The new fit's id.
+        """
+        where = f"{self.path}: fit of {run_name}"
+        lo, hi = (float(value) for value in band_hz)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo < hi", where)
+        if not isinstance(model, str) or not model.strip():
+            raise InputError("model spec is empty", where)
+        checked = {}
+        for key, (value, stderr, unit) in parameters.items():
+            check_name(key, f"{where}: parameter")
+            checked[key] = (float(value), float(stderr), str(unit))
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            fits = group.require_group(layout.FITS_GROUP)
+            numbers = [int(key) for key in fits if key.isdigit()]
+            fit_id = f"{max(numbers, default=0) + 1:04d}"
+            fit = fits.create_group(fit_id)
+            fit.attrs["model"] = model
+            fit.attrs["band_hz"] = np.array([lo, hi])
+            fit.attrs["rms_error"] = float(rms_error)
+            fit.attrs["noise_floor"] = float(noise_floor)
+            fit.attrs["created"] = utc_now()
+            for key, (value, stderr, unit) in checked.items():
+                dataset = fit.create_dataset(key, data=np.float64(value))
+                dataset.attrs["stderr"] = stderr
+                dataset.attrs["units"] = unit
+            return fit_id
+
+
+_STORED_DTYPES = {"float": np.float64, "complex": np.complex128, "flags": np.uint16}
+
+
+def _create_column(group: h5py.Group, name: str, dtype: object, units: str) -> None:
+    dataset = group.create_dataset(
+        name, shape=(0,), maxshape=(None,), chunks=(layout.CHUNK_POINTS,), dtype=dtype
+    )
+    dataset.attrs["units"] = units
+
+
+def _settings_attributes(settings: RunSettings) -> dict[str, object]:
+    values = asdict(settings)
+    values = {key: values[key] for key in RunSettings.__dataclass_fields__}
+    if values["direction"] not in layout.DIRECTIONS:
+        raise ValueError(f"direction must be 'up' or 'down', not {values['direction']!r}")
+    for key in ("settle_cycles", "integrate_cycles"):
+        values[key] = np.int64(values[key])
+    for key in ("level_m_per_s2", "resolution_hz", "hardness_shore_a", "preload_strain",
+                "temperature_c"):
+        values[key] = np.float64(values[key])
+    values["simulated"] = np.bool_(values["simulated"])
+    for key in ("specimen", "instrument", "resource"):
+        values[key] = str(values[key])
+    return values
+
+
+def _checked_rig(rig: dict[str, object], where: str) -> dict[str, object]:
+    checked: dict[str, object] = {}
+    for key, value in rig.items():
+        if key in layout.RIG_FLOAT_ATTRIBUTES:
+            checked[key] = np.float64(value)
+        elif key in layout.RIG_INT_ATTRIBUTES:
+            checked[key] = np.int64(value)
+        else:
+            known = ", ".join((*layout.RIG_FLOAT_ATTRIBUTES, *layout.RIG_INT_ATTRIBUTES))
+            raise InputError(f"unknown /rig attribute {key!r} (known: {known})", where)
+    return checked

@@ -1,0 +1,208 @@
+"""What a campaign file holds, as plain Python objects: run metadata, segments, runs, fits."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from viscorig import frf
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunSettings:
+    """What the runner knows when it starts a run: specimen, sweep settings and instrument.
+
+    Every field is an attribute of ``/runs/<name>`` (data-format.md), in SI units.
+    """
+
+    specimen: str
+    """Free text; ``"none"`` for the bare table."""
+    level_m_per_s2: float
+    """Reference acceleration amplitude (peak) held by the controller, m/s²."""
+    direction: str
+    """``"up"`` or ``"down"``."""
+    settle_cycles: int
+    integrate_cycles: int
+    resolution_hz: float
+    hardness_shore_a: float = math.nan
+    preload_strain: float = 0.0
+    """Static normal strain of the specimens: 0 without preload, 0.104 for the paper's 10 %."""
+    temperature_c: float = math.nan
+    instrument: str = ""
+    """The analyser's ``*IDN?`` answer."""
+    resource: str = ""
+    """The VISA resource string."""
+    simulated: bool = False
+    """True when a simulated rig produced the data."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunMetadata(RunSettings):
+    """Every attribute of a stored run: its settings plus its lifecycle state."""
+
+    status: str = "running"
+    """``"running"``, ``"complete"`` or ``"aborted"``."""
+    started: str = ""
+    """ISO 8601 UTC."""
+    finished: str = ""
+    """ISO 8601 UTC, ``""`` while running."""
+
+    @property
+    def settings(self) -> RunSettings:
+        """The settings part, e.g. to start a run like this one."""
+        names = [item.name for item in fields(RunSettings)]
+        return RunSettings(**{name: getattr(self, name) for name in names})
+
+
+def _column(values: ArrayLike | None, dtype: type, name: str) -> NDArray | None:
+    if values is None:
+        return None
+    array = np.atleast_1d(np.asarray(values, dtype=dtype))
+    if array.ndim != 1:
+        raise ValueError(f"segment {name} must be 1-D, got shape {array.shape}")
+    return array
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Points measured in one go, appended to a run in one commit.
+
+    All arrays have one value per point, in SI units (see data-format.md). ``variance_table``,
+    ``variance_support`` and ``extra`` (name -> (values, units)) are optional; a run keeps the
+    set of datasets its first segment had.
+
+    Raises
+    ------
+    ValueError
+        Arrays of different lengths, not 1-D, no point, or a non-finite frequency.
+    """
+
+    frequency_hz: ArrayLike
+    time_s: ArrayLike
+    accelerance_table: ArrayLike
+    accelerance_support: ArrayLike
+    reference_amplitude: ArrayLike
+    source_amplitude: ArrayLike
+    force_amplitude: ArrayLike
+    flags: ArrayLike
+    variance_table: ArrayLike | None = None
+    variance_support: ArrayLike | None = None
+    extra: Mapping[str, tuple[ArrayLike, str]] = field(default_factory=dict)
+
+    def columns(self) -> dict[str, tuple[NDArray, str | None]]:
+        """Dataset name -> (values as stored, units or None for the layout's own units)."""
+        kinds = {
+            "frequency_hz": np.float64,
+            "time_s": np.float64,
+            "accelerance_table": np.complex128,
+            "accelerance_support": np.complex128,
+            "reference_amplitude": np.float64,
+            "source_amplitude": np.float64,
+            "force_amplitude": np.float64,
+            "flags": np.int64,
+            "variance_table": np.float64,
+            "variance_support": np.float64,
+        }
+        result: dict[str, tuple[NDArray, str | None]] = {}
+        for name, dtype in kinds.items():
+            array = _column(getattr(self, name), dtype, name)
+            if array is not None:
+                result[name] = (array, None)
+        flags = result["flags"][0]
+        if np.any((flags < 0) | (flags > 0xFFFF)):
+            raise ValueError("segment flags must fit in 16 bits")
+        result["flags"] = (flags.astype(np.uint16), None)
+        for name, (values, units) in self.extra.items():
+            if name in result or not name or "/" in name:
+                raise ValueError(f"segment extra dataset name {name!r} is not allowed")
+            array = _column(values, np.float64 if not np.iscomplexobj(values) else complex, name)
+            result[name] = (array, str(units))
+        lengths = {name: len(values) for name, (values, _) in result.items()}
+        if len(set(lengths.values())) != 1:
+            raise ValueError(f"segment arrays differ in length: {lengths}")
+        if lengths["frequency_hz"] == 0:
+            raise ValueError("a segment holds at least one point")
+        if not np.all(np.isfinite(result["frequency_hz"][0])):
+            raise ValueError("segment frequencies must be finite")
+        return result
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    """One identified parameter."""
+
+    value: float
+    stderr: float
+    """Standard error, NaN when unknown."""
+    unit: str
+
+
+@dataclass(frozen=True)
+class Fit:
+    """An identification result stored under ``/runs/<run>/fits/<id>``."""
+
+    id: str
+    run: str
+    model: str
+    """Model spec string, e.g. ``"maxwell(3)+load_cell"``."""
+    band_hz: tuple[float, float]
+    rms_error: float
+    noise_floor: float
+    created: str
+    parameters: dict[str, FitParameter]
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """One sweep run read from a campaign file; arrays are read-only numpy arrays.
+
+    Accelerances are what the analyser measured; receptance and dynamic stiffness are derived
+    with :mod:`viscorig.frf`.
+    """
+
+    name: str
+    metadata: RunMetadata
+    frequency_hz: NDArray[np.float64]
+    time_s: NDArray[np.float64]
+    accelerance_table: NDArray[np.complex128]
+    """ẍ_s / F_e, m/s²/N."""
+    accelerance_support: NDArray[np.complex128]
+    """ẍ_v / F_v, m/s²/N (NaN on a bare-table run)."""
+    reference_amplitude: NDArray[np.float64]
+    source_amplitude: NDArray[np.float64]
+    force_amplitude: NDArray[np.float64]
+    flags: NDArray[np.uint16]
+    variance_table: NDArray[np.float64] | None = None
+    variance_support: NDArray[np.float64] | None = None
+    extra: dict[str, tuple[NDArray, str]] = field(default_factory=dict)
+    """Other per-point datasets an instrument added: name -> (values, units)."""
+
+    @property
+    def points(self) -> int:
+        """Number of points measured so far."""
+        return int(self.frequency_hz.size)
+
+    def receptance_table(self) -> NDArray[np.complex128]:
+        """X_s / F_e in m/N."""
+        return frf.accelerance_to_receptance(self.frequency_hz, self.accelerance_table)
+
+    def receptance_support(self) -> NDArray[np.complex128]:
+        """X_v / F_v in m/N."""
+        return frf.accelerance_to_receptance(self.frequency_hz, self.accelerance_support)
+
+    def dynamic_stiffness_table(self) -> NDArray[np.complex128]:
+        """F_e / X_s in N/m."""
+        return frf.accelerance_to_dynamic_stiffness(self.frequency_hz, self.accelerance_table)
+
+    def dynamic_stiffness_support(self) -> NDArray[np.complex128]:
+        """F_v / X_v in N/m (Eq. 5: K* = F_v/X_v + ω² M_v)."""
+        return frf.accelerance_to_dynamic_stiffness(self.frequency_hz, self.accelerance_support)
+
+    def flagged(self, flag: int | None = None) -> NDArray[np.bool_]:
+        """Mask of points carrying ``flag`` (any flag when ``None``)."""
+        flags = self.flags.astype(np.int64)
+        return flags != 0 if flag is None else (flags & int(flag)) != 0

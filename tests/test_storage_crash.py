@@ -1,0 +1,98 @@
+"""A writer killed with SIGKILL at random instants leaves whole segments only.
+
+Each kill starts a fresh writer process that creates a campaign, starts a run and appends
+segments of known content as fast as it can (so most instants fall inside a commit); the test
+kills it after a random delay, then checks that the file is absent (killed before the first
+commit) or opens with a whole number of segments, in order, none partial, none twice.
+"""
+
+from __future__ import annotations
+
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from viscorig.storage import Campaign
+from viscorig.storage.atomic import staging_path
+
+KILLS = 24
+
+WRITER = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    from viscorig.storage import Campaign, RunSettings, Segment
+
+    path = sys.argv[1]
+    print("ready", flush=True)
+    campaign = Campaign.create(path, sequence_text="name = 'kill'", durable=True)
+    campaign.start_run("kill", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
+                       settle_cycles=1, integrate_cycles=1, resolution_hz=0.25))
+    for index in range(10_000):
+        size = 1 + (index * 7) % 23
+        frequency = 1000.0 * index + np.arange(size)
+        campaign.append_segment("kill", Segment(
+            frequency, frequency, frequency * (1 + 1j), frequency * 1j, frequency, frequency,
+            frequency, np.full(size, index % 16)))
+    """
+)
+
+
+def segment_size(index: int) -> int:
+    return 1 + (index * 7) % 23
+
+
+def check_whole_segments(path: Path) -> int:
+    """Number of whole segments in the file; fails on a partial or repeated one."""
+    with Campaign.open(path) as campaign:
+        if campaign.run_names == []:
+            return 0
+        run = campaign.run("kill")
+    expected = [1000.0 * index + np.arange(segment_size(index)) for index in range(10_000)]
+    count, total = 0, 0
+    while total < run.points:
+        total += segment_size(count)
+        count += 1
+    assert total == run.points, f"{run.points} points is not a whole number of segments"
+    frequency = np.concatenate(expected[:count]) if count else np.empty(0)
+    np.testing.assert_array_equal(run.frequency_hz, frequency)
+    np.testing.assert_array_equal(run.accelerance_table, frequency * (1 + 1j))
+    np.testing.assert_array_equal(run.force_amplitude, frequency)
+    sizes = [segment_size(index) for index in range(count)]
+    np.testing.assert_array_equal(run.flags, np.repeat(np.arange(count) % 16, sizes))
+    assert run.metadata.status == "running"
+    return count
+
+
+@pytest.mark.slow
+def test_sigkill_at_random_instants_keeps_whole_segments(tmp_path: Path) -> None:
+    rng = random.Random(20240501)
+    committed, during_commit, before_first = [], 0, 0
+    for kill in range(KILLS):
+        path = tmp_path / f"kill-{kill}.h5"
+        writer = subprocess.Popen(
+            [sys.executable, "-c", WRITER, str(path)], stdout=subprocess.PIPE, text=True
+        )
+        assert writer.stdout is not None and writer.stdout.readline().strip() == "ready"
+        time.sleep(rng.uniform(0.0, 0.4))
+        writer.send_signal(signal.SIGKILL)
+        writer.wait(timeout=10)
+        assert writer.returncode == -signal.SIGKILL, "the writer ended before it was killed"
+        during_commit += staging_path(path).exists()
+        if not path.exists():
+            before_first += 1
+            continue
+        committed.append(check_whole_segments(path))
+    print(
+        f"\n{KILLS} kills: {before_first} before the file existed, {during_commit} inside a "
+        f"commit; whole segments found per file: min {min(committed)}, max {max(committed)}"
+    )
+    assert during_commit >= KILLS // 4, "too few kills landed inside a commit to mean much"
+    assert max(committed) > 5
