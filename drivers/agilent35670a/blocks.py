@@ -45,7 +45,8 @@ def split_definite_block(message: bytes) -> bytes:
     start = 2 + digits
     payload = message[start : start + length]
     if len(payload) != length:
-        raise MalformedReply(f"block declares {length} bytes but holds {len(payload)}")
+        held = len(message) - start - (1 if message.endswith(b"\n") else 0)
+        raise MalformedReply(f"block declares {length} bytes but holds {held}")
     trailer = message[start + length :]
     if trailer not in (b"", b"\n", b"\r\n"):
         raise MalformedReply(
@@ -123,7 +124,7 @@ def check_values(values: np.ndarray, what: str, points: int | None = None) -> np
     if bad.any():
         index = int(np.flatnonzero(bad)[0])
         raise MalformedReply(
-            f"{what}: value {index} is {values[index]!r} (not a number); "
+            f"{what}: value {index} is {float(values[index])!r} (not a number); "
             f"{int(bad.sum())} of {values.size} values are invalid"
         )
     return values

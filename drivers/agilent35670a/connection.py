@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+import socket
 import threading
 
 import pyvisa
@@ -71,6 +72,20 @@ IDEMPOTENT_QUERIES = frozenset(
 PROLOGIX_READ_TIMEOUT_MS = 500
 
 _PROLOGIX_INTFC = re.compile(r"^PRLGX-(TCPIP|ASRL)(\d*)::.+::INTFC$", re.IGNORECASE)
+
+
+def _disable_nagle(resource: pyvisa.resources.Resource) -> None:
+    """Send each message at once over a pyvisa-py TCP socket (TCP_NODELAY).
+
+    A command that gets no reply followed by ``SYST:ERR?`` otherwise waits for the peer's
+    delayed acknowledgement (about 40 ms on Linux) before the query leaves. pyvisa-py 0.8.1 wires
+    ``VI_ATTR_TCPIP_NODELAY`` to a setter that raises, so the option is set on its socket. Other
+    backends keep their own behaviour.
+    """
+    session = getattr(resource.visalib, "sessions", {}).get(resource.session)
+    interface = getattr(session, "interface", None)
+    if isinstance(interface, socket.socket):
+        interface.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
 def is_idempotent(query: str) -> bool:
@@ -143,6 +158,7 @@ class Connection:
                 self._adapter = self._manager.open_resource(self.adapter_name)
                 # pyvisa-py reads through the adapter's session: its timeout is the one that acts
                 self._adapter.timeout = self._timeout_s * 1000.0
+                _disable_nagle(self._adapter)
                 self._adapter.write_raw(f"++read_tmo_ms {PROLOGIX_READ_TIMEOUT_MS}\n".encode())
             self._instrument = self._manager.open_resource(self.resource_name)
         except (VisaIOError, OSError, ValueError) as error:
@@ -153,6 +169,8 @@ class Connection:
             raise ConnectionLost(f"cannot open: {error}", self.description) from error
         instrument = self._instrument
         instrument.timeout = self._timeout_s * 1000.0
+        if self.is_socket:
+            _disable_nagle(instrument)
         instrument.write_termination = "\n"
         try:
             instrument.read_termination = "\n"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import socket
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -83,8 +84,16 @@ class ScriptedSCPIServer:
             return f"PRLGX-TCPIP{self.board}::127.0.0.1::{self.port}::INTFC"
         return None
 
-    def commands(self) -> list[str]:
-        """Every command received, messages split at ``;`` (the order is kept)."""
+    def commands(self, quiet_s: float = 0.05) -> list[str]:
+        """Every command received, messages split at ``;`` (the order is kept).
+
+        Waits until nothing new has arrived for ``quiet_s`` seconds, so a command written just
+        before (with no reply to wait for) is in the list.
+        """
+        count = -1
+        while count != len(self.received):
+            count = len(self.received)
+            time.sleep(quiet_s)
         return [part for message in self.received for part in message.split(";")]
 
     # -- lifecycle ---------------------------------------------------------------------------
