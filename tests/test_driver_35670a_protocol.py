@@ -260,7 +260,7 @@ def test_configure_swept_sine_sends_the_papers_setup_in_a_safe_order() -> None:
             "SOUR:VOLT:REF:CHAN INP4",
             "SOUR:VOLT:REF 2 EU",
             "SOUR:VOLT:REF:TOL 2",
-            "SOUR:VOLT:LIM:INP 40",
+            "SOUR:VOLT:LIM:INP 40 EU",
             "SOUR:VOLT:AUTO ON",
         ]
 

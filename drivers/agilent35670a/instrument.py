@@ -394,12 +394,19 @@ class Agilent35670A:
         validator=strict_range(0.1, 20.0, "dB"),
         to_text=number_text,
     )
-    input_limit = setting(
-        "SOUR:VOLT:LIM:INP {value}",
-        """Auto-level input limit: the controller keeps the limited input below this level
-        (the manual gives no unit; the analyser reads it in the channel's unit, inferred).
-        Above 0 up to 1e6.""",
-        validator=strict_range(0.0, 1e6, "", low_inclusive=False),
+    input_limit_eu = setting(
+        "SOUR:VOLT:LIM:INP {value} EU",
+        """Auto-level input limit in the limited channel's engineering unit (peak), above 0 up
+        to 1e6: the controller keeps that input below it (the shaker force limit on channel 1).
+        The manual names no unit or channel command; ``EU`` as for the reference level, and the
+        limited channel is the analyser's preset (channel 1, inferred).""",
+        validator=strict_range(0.0, 1e6, "EU", low_inclusive=False),
+        to_text=number_text,
+    )
+    input_limit_vpk = setting(
+        "SOUR:VOLT:LIM:INP {value} VPK",
+        """Auto-level input limit in volts peak at the limited input, above 0 up to 31.7 Vpk.""",
+        validator=strict_range(0.0, 31.7, "Vpk", low_inclusive=False),
         to_text=number_text,
     )
     source_slew_v_per_s = setting(
@@ -580,7 +587,6 @@ class Agilent35670A:
         direction: str = "UP",
         tolerance_db: float = 2.0,
         start_level_vpk: float = 0.1,
-        force_channel: int = 1,
         data_format: str = "REAL,64",
     ) -> None:
         """Set up the paper's swept-sine test; the source is left off.
@@ -601,8 +607,8 @@ class Agilent35670A:
         source_limit_vpk
             Highest source level, volts peak (≤ 5); set before the source can be switched on.
         force_limit_n
-            Shaker force limit (peak, N) applied as the auto-level input limit on
-            ``force_channel``; ``None`` for none.
+            Shaker force limit (peak, N) applied as the auto-level input limit, which acts on
+            channel 1, the excitation force (inferred); ``None`` for none.
         reference_channel
             Auto-level reference channel (4: the disc; 2 on a bare-table run).
         four_channels
@@ -612,8 +618,6 @@ class Agilent35670A:
             tolerance (dB).
         start_level_vpk
             Source level the controller starts from (Vpk, ≤ ``source_limit_vpk``).
-        force_channel
-            Channel of the excitation force (1 with the paper's wiring).
         data_format
             ``"REAL,64"``, falling back to ASCII if the analyser refuses it.
         """
@@ -662,8 +666,7 @@ class Agilent35670A:
         self.auto_level_reference_eu = level_m_per_s2
         self.auto_level_tolerance_db = tolerance_db
         if force_limit_n is not None:
-            self.input_limit = force_limit_n
-            self.sent["input_limit_channel"] = force_channel
+            self.input_limit_eu = force_limit_n
         self.auto_level = True
         self.sent["channels"] = channels
 
