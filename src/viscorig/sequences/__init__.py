@@ -1,0 +1,63 @@
+"""Test sequences and station files (TOML): typed, validated steps and lab descriptions.
+
+A sequence is a list of small steps (prompt, wait, sweep, identify_table) with defaults at the
+top; a station file says what is attached to the analyser. Both are checked field by field, and
+every problem is one :class:`viscorig.errors.InputError` naming the file and the field.
+"""
+
+from viscorig.sequences.levels import parse_level
+from viscorig.sequences.segments import (
+    ANALYSER_MAX_POINTS,
+    DEFAULT_SEGMENT_S,
+    plan_segments,
+    point_count,
+    point_durations_s,
+    resume_index,
+    sweep_frequencies,
+    time_left_s,
+)
+from viscorig.sequences.sequence import load_sequence, parse_sequence
+from viscorig.sequences.station import (
+    Channels,
+    Sensitivities,
+    SpecimenGeometry,
+    Station,
+    TableParameters,
+    load_station,
+    parse_station,
+)
+from viscorig.sequences.steps import (
+    IdentifyTableStep,
+    PromptStep,
+    Sequence,
+    Step,
+    SweepStep,
+    WaitStep,
+)
+
+__all__ = [
+    "ANALYSER_MAX_POINTS",
+    "DEFAULT_SEGMENT_S",
+    "Channels",
+    "IdentifyTableStep",
+    "PromptStep",
+    "Sensitivities",
+    "Sequence",
+    "SpecimenGeometry",
+    "Station",
+    "Step",
+    "SweepStep",
+    "TableParameters",
+    "WaitStep",
+    "load_sequence",
+    "load_station",
+    "parse_level",
+    "parse_sequence",
+    "parse_station",
+    "plan_segments",
+    "point_count",
+    "point_durations_s",
+    "resume_index",
+    "sweep_frequencies",
+    "time_left_s",
+]

@@ -1,0 +1,134 @@
+"""The steps of a test sequence: small, typed, validated, composed into a list.
+
+A sequence (:class:`Sequence`) is a list of steps run in order, in the manner of Bluesky
+plans: each step does one thing. The runner interprets them; these classes only describe.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.sequences import segments
+
+
+@dataclass(frozen=True)
+class PromptStep:
+    """Ask the operator to do something (mount specimens, set preload) and wait for Enter.
+
+    ``simulated_rig`` names the simulated rig preset (``sim/rigs/<name>.toml``) that stands
+    for the rig after this step; it is ignored on real hardware.
+    """
+
+    message: str
+    simulated_rig: str | None = None
+
+
+@dataclass(frozen=True)
+class WaitStep:
+    """Wait a fixed time (thermal settling after mounting, for example)."""
+
+    seconds: float
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class SweepStep:
+    """Measure one run: a stepped-sine sweep at constant reference acceleration.
+
+    Frequencies in Hz, level in m/s² peak; ``level`` keeps the text as written.
+    """
+
+    run: str
+    specimen: str
+    """Free text; ``"none"`` for the bare table."""
+    band_hz: tuple[float, float]
+    resolution_hz: float
+    settle_cycles: int
+    integrate_cycles: int
+    level_m_per_s2: float
+    level: str
+    tolerance_db: float
+    """Auto-level tolerance around the level (analyser: 0.1-20 dB)."""
+    direction: str
+    hardness_shore_a: float = math.nan
+    preload_strain: float = 0.0
+    temperature_c: float = math.nan
+    segment_s: float = segments.DEFAULT_SEGMENT_S
+    """Longest test time between two commits of the run."""
+    segment_points: int = segments.ANALYSER_MAX_POINTS
+    """Most points per segment (one analyser sweep; at most 801)."""
+
+    @property
+    def bare_table(self) -> bool:
+        """True for a run without damper (specimen "none")."""
+        return self.specimen == "none"
+
+    @property
+    def points(self) -> int:
+        """Number of frequency points of the whole run."""
+        return segments.point_count(self.band_hz, self.resolution_hz)
+
+    def frequencies_hz(self) -> NDArray[np.float64]:
+        """Frequencies in measurement order."""
+        return segments.sweep_frequencies(self.band_hz, self.resolution_hz, self.direction)
+
+    def segments(self, overhead_s_per_point: float = 0.0) -> list[slice]:
+        """The run's segments as slices of :meth:`frequencies_hz`."""
+        return segments.plan_segments(
+            self.frequencies_hz(), self.settle_cycles, self.integrate_cycles,
+            max_segment_s=self.segment_s, max_points=self.segment_points,
+            overhead_s_per_point=overhead_s_per_point,
+        )
+
+    def duration_s(self, overhead_s_per_point: float = 0.0) -> float:
+        """Test time of the whole run, s."""
+        return segments.time_left_s(self.frequencies_hz(), 0, self.settle_cycles,
+                                    self.integrate_cycles, overhead_s_per_point)
+
+
+@dataclass(frozen=True)
+class IdentifyTableStep:
+    """Identify the table's M_s, K_s, C_s from a bare-table run (optionally in a band)."""
+
+    run: str
+    band_hz: tuple[float, float] | None = None
+
+
+Step = PromptStep | WaitStep | SweepStep | IdentifyTableStep
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A parsed, validated test sequence."""
+
+    name: str
+    description: str
+    steps: tuple[Step, ...]
+    source: str = ""
+    """The file it was read from (for messages)."""
+
+    @property
+    def sweeps(self) -> tuple[SweepStep, ...]:
+        """The sweep steps, in order."""
+        return tuple(step for step in self.steps if isinstance(step, SweepStep))
+
+    @property
+    def run_names(self) -> tuple[str, ...]:
+        """Run names, in order."""
+        return tuple(step.run for step in self.sweeps)
+
+    def sweep(self, run: str) -> SweepStep:
+        """The sweep step of a run."""
+        for step in self.sweeps:
+            if step.run == run:
+                return step
+        raise KeyError(run)
+
+    def duration_s(self, overhead_s_per_point: float = 0.0) -> float:
+        """Test time of every sweep and wait (prompts excluded), s."""
+        waits = sum(step.seconds for step in self.steps if isinstance(step, WaitStep))
+        return waits + sum(step.duration_s(overhead_s_per_point) for step in self.sweeps)
