@@ -1,0 +1,608 @@
+"""Loopback servers for the virtual 35670A: raw SCPI socket, Prologix GPIB-Ethernet, GPIB-USB.
+
+* Raw SCPI socket: ``TCPIP::127.0.0.1::<port>::SOCKET`` (pyvisa-py; use
+  ``read_termination="\\n"`` and ``write_termination="\\n"``). Every line is a program message;
+  responses go out at once.
+* Prologix GPIB-Ethernet: open ``PRLGX-TCPIP::127.0.0.1::<port>::INTFC``, then
+  ``GPIB0::11::INSTR``. Lines starting with ``++`` are adapter commands (``++mode``, ``++auto``,
+  ``++read_tmo_ms``, ``++eos``, ``++eoi``, ``++eot_enable``, ``++eot_char``, ``++addr``,
+  ``++read``, ``++ver``, ``++ifc``, ``++clr``, ``++spoll``, ``++srq``, ``++trg``, ``++loc``,
+  ``++llo``, ``++rst``, ``++savecfg``); other lines, ESC-unescaped, go to the device at
+  ``++addr``. The device's response waits in its output queue until ``++read``, as on GPIB.
+* Prologix GPIB-USB on a pseudo-terminal: ``PRLGX-ASRL::/dev/pts/N::INTFC`` then
+  ``GPIB0::11::INSTR`` (pyvisa-py's pyserial path), POSIX only.
+
+Deliberate differences from the adapter: ``++read`` waits for the device at least
+:data:`READ_TIMEOUT_FLOOR_S` even when ``++read_tmo_ms`` is shorter, so a loaded CI machine does
+not turn into spurious timeouts; ``++eos``/``++eoi`` are stored but every line is delivered as
+one message.
+
+Everything binds 127.0.0.1 unless a host is given.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import select
+import socket
+import sys
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from rigsim.analyser import (
+    DEFAULT_IDN,
+    DEFAULT_OPTIONS,
+    ScpiSession,
+    Simulator,
+    VirtualAnalyser,
+    build_simulator,
+)
+from rigsim.faults import FaultInjector, garble
+
+__all__ = ["READ_TIMEOUT_FLOOR_S", "SimulatedAnalyserServer"]
+
+READ_TIMEOUT_FLOOR_S = 1.0
+_ESC, _CR, _LF, _PLUS = 0x1B, 0x0D, 0x0A, 0x2B
+_QUICKACK = getattr(socket, "TCP_QUICKACK", None)
+
+
+def _configure(sock: socket.socket) -> None:
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+
+def _quickack(sock: socket.socket) -> None:
+    # Linux delays ACKs; the client (Nagle on) then holds its "++read eoi" back up to 40 ms.
+    if _QUICKACK is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
+
+
+# --------------------------------------------------------------------------------------------
+# raw SCPI socket
+
+
+def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInjector) -> None:
+    session = analyser.session()
+    buffer = b""
+    with conn:
+        while True:
+            try:
+                data = conn.recv(65536)
+            except OSError:
+                return
+            if not data:
+                return
+            buffer += data
+            while True:
+                end = buffer.find(b"\n")
+                if end < 0:
+                    break
+                line, buffer = buffer[:end], buffer[end + 1:]
+                text = line.decode("latin-1").rstrip("\r")
+                kinds = faults.take(text)
+                if "drop" in kinds:
+                    with contextlib.suppress(OSError):
+                        conn.shutdown(socket.SHUT_RDWR)
+                    return
+                response = session.execute(text)
+                if response is None or "no_reply" in kinds:
+                    continue
+                if "garble" in kinds:
+                    response = garble(response)
+                try:
+                    conn.sendall(response)
+                except OSError:
+                    return
+
+
+# --------------------------------------------------------------------------------------------
+# GPIB device behind a Prologix adapter
+
+
+class _GpibDevice:
+    """The analyser as seen through GPIB: input messages, one output message, device clear.
+
+    Messages execute on the device's own thread, so the adapter keeps answering ``++spoll``,
+    ``++clr`` and ``++read`` timeouts while the device waits on ``*OPC?``.
+    """
+
+    def __init__(self, analyser: VirtualAnalyser, faults: FaultInjector,
+                 on_drop: Callable[[], None]) -> None:
+        self.analyser = analyser
+        self.faults = faults
+        self.on_drop = on_drop
+        self.session: ScpiSession = analyser.session()
+        self.inbox: queue.Queue[str | None] = queue.Queue()
+        self.cond = threading.Condition()
+        self.output: bytes | None = None
+        self.busy = 0  # messages written and not yet executed
+        self.reply_lost = False
+        self.thread = threading.Thread(target=self._loop, name="35670A-gpib", daemon=True)
+        self.thread.start()
+
+    def write(self, message: str) -> None:
+        with self.cond:
+            if self.output is not None:
+                # a new message while the response is unread (IEEE 488.2: query interrupted)
+                self.output = None
+                self.analyser.push_error(-410, "Query INTERRUPTED")
+            self.busy += 1
+        self.inbox.put(message)
+
+    def read(self, timeout_s: float) -> bytes | None:
+        """Address the device to talk: its response, or ``None`` after ``timeout_s``."""
+        with self.cond:
+            self.cond.wait_for(lambda: self.output is not None or self.busy == 0, timeout_s)
+            output, self.output = self.output, None
+            if output is None and self.busy == 0:
+                if self.reply_lost:
+                    self.reply_lost = False
+                else:  # addressed to talk with nothing to say (IEEE 488.2, inferred for 35670A)
+                    self.analyser.push_error(-420, "Query UNTERMINATED")
+            return output
+
+    def has_output(self) -> bool:
+        with self.cond:
+            return self.output is not None
+
+    def clear(self) -> None:
+        """Selected device clear: input and output queues emptied, ``*OPC?`` waits end."""
+        with self.cond:
+            while True:
+                try:
+                    if self.inbox.get_nowait() is not None:
+                        self.busy -= 1
+                except queue.Empty:
+                    break
+            self.output = None
+        self.session.device_clear()
+
+    def close(self) -> None:
+        self.session.device_clear()
+        self.inbox.put(None)
+
+    def _loop(self) -> None:
+        while True:
+            message = self.inbox.get()
+            if message is None:
+                return
+            kinds = self.faults.take(message)
+            if "drop" in kinds:
+                with self.cond:
+                    self.busy = 0
+                self.on_drop()
+                return
+            response = self.session.execute(message)
+            with self.cond:
+                self.busy = max(0, self.busy - 1)
+                self.reply_lost = False
+                if response is not None:
+                    if "no_reply" in kinds:
+                        self.reply_lost = True
+                    else:
+                        self.output = garble(response) if "garble" in kinds else response
+                self.cond.notify_all()
+
+
+class _PrologixAdapter:
+    """Prologix controller-mode protocol over a byte transport (socket or pseudo-terminal)."""
+
+    def __init__(self, analyser: VirtualAnalyser, faults: FaultInjector, address: int,
+                 send: Callable[[bytes], None], version: str,
+                 on_drop: Callable[[], None]) -> None:
+        self.analyser = analyser
+        self.address = address
+        self.send = send
+        self.version = version
+        self.settings: dict[str, int] = {}
+        self.reset()
+        self.device = _GpibDevice(analyser, faults, on_drop)
+        self.buffer = bytearray()
+
+    def reset(self) -> None:
+        self.settings = {"mode": 1, "auto": 0, "read_tmo_ms": 500, "eos": 0, "eoi": 1,
+                         "eot_enable": 0, "eot_char": 0, "addr": 0}
+
+    def close(self) -> None:
+        self.device.close()
+
+    def feed(self, data: bytes) -> None:
+        """Bytes from the host: split into lines (unescaped CR/LF end a line)."""
+        self.buffer += data
+        while True:
+            line = self._next_line()
+            if line is None:
+                return
+            raw, text = line
+            if not raw:
+                continue
+            if raw.startswith(b"++"):
+                self._command(raw[2:].decode("latin-1").strip())
+            else:
+                self._data(text)
+
+    def _next_line(self) -> tuple[bytes, bytes] | None:
+        buf = self.buffer
+        if _ESC not in buf:
+            positions = [p for p in (buf.find(b"\n"), buf.find(b"\r")) if p >= 0]
+            if not positions:
+                return None
+            end = min(positions)
+            raw = bytes(buf[:end])
+            del buf[: end + 1]
+            return raw, raw
+        text = bytearray()
+        i = 0
+        while i < len(buf):
+            byte = buf[i]
+            if byte == _ESC:
+                if i + 1 >= len(buf):
+                    return None  # the escaped byte has not arrived yet
+                text.append(buf[i + 1])
+                i += 2
+                continue
+            if byte in (_CR, _LF):
+                raw = bytes(buf[:i])
+                del buf[: i + 1]
+                return raw, bytes(text)
+            text.append(byte)
+            i += 1
+        return None
+
+    def _data(self, text: bytes) -> None:
+        if self.settings["addr"] != self.address or self.settings["mode"] != 1:
+            return  # nobody listens at that address
+        self.device.write(text.decode("latin-1"))
+        if self.settings["auto"]:
+            self._read()
+
+    def _read(self) -> None:
+        if self.settings["addr"] != self.address:
+            return
+        timeout = max(self.settings["read_tmo_ms"] / 1000.0, READ_TIMEOUT_FLOOR_S)
+        output = self.device.read(timeout)
+        if output is not None:
+            if self.settings["eot_enable"]:
+                output += bytes([self.settings["eot_char"]])
+            self.send(output)
+
+    def _reply(self, text: str) -> None:
+        self.send(text.encode("latin-1") + b"\r\n")
+
+    def _command(self, line: str) -> None:
+        name, _, arg = line.partition(" ")
+        name, arg = name.lower(), arg.strip()
+        if name == "read":
+            self._read()
+        elif name in self.settings:
+            if not arg:
+                self._reply(str(self.settings[name]))
+                return
+            try:
+                self.settings[name] = int(arg.split()[0])
+            except ValueError:
+                return  # the adapter ignores malformed arguments
+        elif name == "ver":
+            self._reply(self.version)
+        elif name == "clr":
+            if self.settings["addr"] == self.address:
+                self.device.clear()
+        elif name == "spoll":
+            target = int(arg.split()[0]) if arg else self.settings["addr"]
+            if target == self.address:
+                self._reply(str(self.analyser.status_byte(mav=self.device.has_output())))
+        elif name == "srq":
+            self._reply("1" if self.analyser.status_byte() & 64 else "0")
+        elif name == "trg":
+            if self.settings["addr"] == self.address:
+                self.device.write("*TRG")
+        elif name == "rst":
+            self.reset()
+        elif name == "help":
+            self._reply("Simulated Prologix adapter: ++addr ++auto ++clr ++eoi ++eos "
+                        "++eot_enable ++eot_char ++ifc ++llo ++loc ++mode ++read ++read_tmo_ms "
+                        "++rst ++savecfg ++spoll ++srq ++trg ++ver")
+        # ++ifc, ++llo, ++loc, ++savecfg, ++lon, ++status: accepted, nothing to simulate
+
+
+# --------------------------------------------------------------------------------------------
+# the server
+
+
+class SimulatedAnalyserServer:
+    """A virtual 35670A on a simulated rig, served on loopback.
+
+    Parameters
+    ----------
+    rig
+        A ``rigsim.rigfile.Rig``, a rig file path, a preset name, or ``None`` for the preset
+        ``"table"`` (ignored when ``simulator`` or ``analyser`` is given).
+    port
+        Port of the raw SCPI socket (0: the OS picks a free one).
+    prologix
+        Also serve a Prologix GPIB-Ethernet endpoint (on ``prologix_port``), and make
+        :attr:`resource` the GPIB resource behind it.
+    pty
+        Also serve a Prologix GPIB-USB adapter on a pseudo-terminal (POSIX only).
+    pace
+        Simulated seconds per wall second; ``None`` runs as fast as possible.
+    seed
+        Seed of the simulator's noise.
+    host
+        Address to bind (loopback unless told otherwise).
+    gpib_address
+        The analyser's GPIB address behind the Prologix adapters (factory setting 11).
+    options
+        Installed options reported by ``*OPT?``.
+    simulator, analyser
+        Use this rig simulator or this analyser instead of building one.
+
+    Attributes
+    ----------
+    analyser : VirtualAnalyser
+        The instrument (in-process: ``mount``, ``force_overload``, ``push_error``).
+    faults : FaultInjector
+        Faults to inject into the next messages.
+    socket_resource : str
+        ``TCPIP::127.0.0.1::<port>::SOCKET``.
+    prologix_resource : str or None
+        ``PRLGX-TCPIP::127.0.0.1::<port>::INTFC``.
+    pty_resource : str or None
+        ``PRLGX-ASRL::/dev/pts/N::INTFC``.
+    gpib_resource : str
+        ``GPIB0::11::INSTR``: open it after a Prologix interface resource.
+    resource : str
+        What a client opens to talk to the analyser: the GPIB resource when ``prologix`` is set
+        (after :attr:`interface_resource`), the raw socket otherwise.
+    resources : tuple of str
+        The resources to open, in order (``(socket,)`` or ``(prologix interface, GPIB)``).
+    """
+
+    def __init__(
+        self,
+        rig: Any = None,
+        *,
+        port: int = 0,
+        prologix: bool = False,
+        prologix_port: int = 0,
+        pty: bool = False,
+        pace: float | None = None,
+        seed: int | None = None,
+        host: str = "127.0.0.1",
+        gpib_address: int = 11,
+        options: tuple[str, ...] = DEFAULT_OPTIONS,
+        idn: str = DEFAULT_IDN,
+        simulator: Simulator | None = None,
+        analyser: VirtualAnalyser | None = None,
+    ) -> None:
+        if analyser is None:
+            if simulator is None:
+                simulator = build_simulator("table" if rig is None else rig, seed=seed)
+            analyser = VirtualAnalyser(simulator, pace=pace, options=options, idn=idn)
+        self.analyser = analyser
+        self.faults = FaultInjector(analyser)
+        self.host = host
+        self.gpib_address = gpib_address
+        self._port = port
+        self._prologix = prologix
+        self._prologix_port = prologix_port
+        self._pty = pty
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._listeners: list[socket.socket] = []
+        self._connections: set[socket.socket] = set()
+        self._adapters: list[_PrologixAdapter] = []
+        self._lock = threading.Lock()
+        self._pty_fds: tuple[int, ...] | None = None
+        self._wake = os.pipe()
+        self.socket_resource = ""
+        self.prologix_resource: str | None = None
+        self.pty_resource: str | None = None
+        self.gpib_resource = f"GPIB0::{gpib_address}::INSTR"
+        self.started = False
+
+    # ---------------------------------------------------------------- lifecycle
+
+    def start(self) -> SimulatedAnalyserServer:
+        """Bind and start serving (idempotent)."""
+        if self.started:
+            return self
+        self.started = True
+        raw = self._listen(self._port)
+        self.socket_resource = f"TCPIP::{self.host}::{raw.getsockname()[1]}::SOCKET"
+        self._spawn(self._accept_loop, raw, self._serve_raw_connection)
+        if self._prologix:
+            listener = self._listen(self._prologix_port)
+            self.prologix_resource = f"PRLGX-TCPIP::{self.host}::{listener.getsockname()[1]}::INTFC"
+            self._spawn(self._accept_loop, listener, self._serve_prologix_connection)
+        if self._pty:
+            self._start_pty()
+        return self
+
+    def close(self) -> None:
+        """Stop serving, close every connection, stop any sweep."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        os.write(self._wake[1], b"x")
+        for listener in self._listeners:
+            with contextlib.suppress(OSError):
+                listener.close()
+        with self._lock:
+            connections = list(self._connections)
+            adapters = list(self._adapters)
+        for conn in connections:
+            with contextlib.suppress(OSError):
+                conn.shutdown(socket.SHUT_RDWR)
+        for adapter in adapters:
+            adapter.close()
+        self.analyser.close()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        if self._pty_fds is not None:
+            for fd in self._pty_fds:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        for fd in self._wake:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def serve_forever(self) -> None:
+        """Serve until :meth:`close` (or Ctrl-C in the calling thread)."""
+        self.start()
+        while not self._stop.wait(0.5):
+            pass
+
+    def __enter__(self) -> SimulatedAnalyserServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- resources
+
+    @property
+    def interface_resource(self) -> str | None:
+        """The Prologix interface to open before :attr:`gpib_resource` (TCP, else pty)."""
+        return self.prologix_resource or self.pty_resource
+
+    @property
+    def resource(self) -> str:
+        return self.gpib_resource if self._prologix else self.socket_resource
+
+    @property
+    def resources(self) -> tuple[str, ...]:
+        if self._prologix and self.prologix_resource:
+            return (self.prologix_resource, self.gpib_resource)
+        return (self.socket_resource,)
+
+    # ---------------------------------------------------------------- plumbing
+
+    def _spawn(self, target: Callable[..., None], *args: Any) -> None:
+        thread = threading.Thread(target=target, args=args, daemon=True, name="35670A-server")
+        thread.start()
+        self._threads.append(thread)
+
+    def _listen(self, port: int) -> socket.socket:
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((self.host, port))
+        listener.listen(8)
+        self._listeners.append(listener)
+        return listener
+
+    def _accept_loop(self, listener: socket.socket,
+                     serve: Callable[[socket.socket], None]) -> None:
+        while not self._stop.is_set():
+            readable, _, _ = select.select([listener, self._wake[0]], [], [])
+            if self._stop.is_set():
+                return
+            if listener not in readable:
+                continue
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            _configure(conn)
+            with self._lock:
+                self._connections.add(conn)
+            thread = threading.Thread(target=self._serve_connection, args=(serve, conn),
+                                      daemon=True, name="35670A-connection")
+            thread.start()
+
+    def _serve_connection(self, serve: Callable[[socket.socket], None],
+                          conn: socket.socket) -> None:
+        try:
+            serve(conn)
+        finally:
+            with self._lock:
+                self._connections.discard(conn)
+            with contextlib.suppress(OSError):
+                conn.close()
+
+    def _serve_raw_connection(self, conn: socket.socket) -> None:
+        _serve_raw(conn, self.analyser, self.faults)
+
+    def _serve_prologix_connection(self, conn: socket.socket) -> None:
+        dropped = threading.Event()
+
+        def drop() -> None:
+            dropped.set()
+            with contextlib.suppress(OSError):
+                conn.shutdown(socket.SHUT_RDWR)
+
+        def send(data: bytes) -> None:
+            with contextlib.suppress(OSError):
+                conn.sendall(data)
+
+        adapter = _PrologixAdapter(self.analyser, self.faults, self.gpib_address, send,
+                                   "Prologix GPIB-ETHERNET Controller version 01.06.06.00", drop)
+        with self._lock:
+            self._adapters.append(adapter)
+        try:
+            while not dropped.is_set():
+                try:
+                    data = conn.recv(65536)
+                except OSError:
+                    return
+                if not data:
+                    return
+                _quickack(conn)
+                adapter.feed(data)
+        finally:
+            adapter.close()
+            with self._lock:
+                self._adapters.remove(adapter)
+
+    # ---------------------------------------------------------------- pseudo-terminal
+
+    def _start_pty(self) -> None:
+        if sys.platform == "win32":
+            raise OSError("pseudo-terminals need a POSIX system")
+        import termios
+        import tty
+
+        master, slave = os.openpty()
+        tty.setraw(slave, termios.TCSANOW)  # no echo, no line editing: a USB serial port
+        self._pty_fds = (master, slave)  # keep the slave open so the client may reconnect
+        self.pty_resource = f"PRLGX-ASRL::{os.ttyname(slave)}::INTFC"
+
+        def send(data: bytes) -> None:
+            view = memoryview(data)
+            while view:
+                written = os.write(master, view)
+                view = view[written:]
+
+        dropped = threading.Event()
+        unplug = os.pipe()
+
+        def drop() -> None:
+            dropped.set()
+            os.write(unplug[1], b"x")
+
+        adapter = _PrologixAdapter(self.analyser, self.faults, self.gpib_address, send,
+                                   "Prologix GPIB-USB Controller version 6.107", drop)
+        self._adapters.append(adapter)
+
+        def loop() -> None:
+            while not self._stop.is_set() and not dropped.is_set():
+                readable, _, _ = select.select([master, self._wake[0], unplug[0]], [], [])
+                if master not in readable:
+                    continue
+                try:
+                    data = os.read(master, 65536)
+                except OSError:
+                    return
+                if data:
+                    adapter.feed(data)
+            for fd in unplug:
+                os.close(fd)
+            if dropped.is_set():  # the adapter was "unplugged": the port goes away
+                self._pty_fds = (slave,)
+                with contextlib.suppress(OSError):
+                    os.close(master)
+
+        self._spawn(loop)
