@@ -1,0 +1,103 @@
+"""``viscorig identify FILE --run RUN --model SPEC [--band LO:HI] [--frf WHICH] [--json]``.
+
+Fits a model to one run and stores the fit in the campaign file (``--no-store`` to leave the
+file untouched). Without ``--model``, a bare-table run gets ``table`` and a specimen run
+``voigt``. Without ``--frf``, every FRF the model predicts and the run has is fitted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+from viscorig.errors import InputError
+from viscorig.fitting import FitResult
+from viscorig.identify import TableSource, identify_run, store_fit
+from viscorig.storage import Campaign
+
+FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
+
+
+def parse_band(text: str | None) -> tuple[float, float] | None:
+    """``"LO:HI"`` in Hz -> ``(lo, hi)``; :class:`InputError` naming the value when malformed."""
+    if text is None:
+        return None
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        lo, hi = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"'{text}' is not LO:HI in Hz (for example 20:120)", "--band") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise InputError(f"'{text}' needs 0 <= LO < HI", "--band")
+    return lo, hi
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``identify`` command."""
+    parser = subparsers.add_parser(
+        "identify", help="fit a model to one run and store the fit in the file"
+    )
+    parser.add_argument("file", help="campaign file (.h5)")
+    parser.add_argument("--run", required=True, help="run name, e.g. soft-0")
+    parser.add_argument(
+        "--model",
+        default=None,
+        help="model spec, e.g. voigt, maxwell, maxwell(3), fractional "
+        "(default: table for a bare-table run, voigt otherwise)",
+    )
+    parser.add_argument("--band", default=None, help="band fitted, LO:HI in Hz (default: all)")
+    parser.add_argument(
+        "--frf",
+        choices=sorted(FRF_CHOICES),
+        default=None,
+        help="FRFs fitted: table (X_s/F_e), support (X_v/F_v) or both (default: all available)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--no-store", action="store_true", help="do not store the fit")
+    parser.set_defaults(handler=handler)
+
+
+def handler(args: argparse.Namespace) -> int:
+    """Run ``identify``."""
+    band = parse_band(args.band)
+    frfs = FRF_CHOICES[args.frf] if args.frf else None
+    mode = "r" if args.no_store else "a"
+    with Campaign.open(args.file, mode) as campaign:
+        result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs)
+        fit_id = None if args.no_store else store_fit(campaign, args.run, result)
+    if args.json:
+        print(json.dumps(result.to_json(args.run)))
+    else:
+        print(format_result(args.run, result, table, fit_id))
+    return 0
+
+
+def format_result(
+    run: str, result: FitResult, table: TableSource | None, fit_id: str | None
+) -> str:
+    """Human-readable report of one fit."""
+    lines = [
+        f"run {run}: model {result.spec}, {result.band_hz[0]:g}-{result.band_hz[1]:g} Hz, "
+        f"{result.points} points, FRFs {', '.join(result.frfs)}",
+        f"rms_error {result.rms_error:.3e}   noise_floor {result.noise_floor:.3e}"
+        f"   ({result.rms_error / result.noise_floor:.2f} x floor)",
+    ]
+    if table is not None:
+        lines.append(f"table parameters fixed, from {table.source}")
+    width = max(len(name) for name in result.parameters)
+    for name, estimate in result.parameters.items():
+        fixed = name not in result.free
+        error = "fixed" if fixed else f"± {estimate.stderr:.4g}"
+        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<14} {estimate.unit}")
+    if result.candidates:
+        lines.append(
+            "order chosen by BIC among: "
+            + ", ".join(f"{spec} ({bic:.1f})" for spec, bic, _ in result.candidates)
+        )
+    lines += [f"warning: {text}" for text in result.warnings]
+    if fit_id is not None:
+        lines.append(f"stored as fit {fit_id}")
+    return "\n".join(lines)

@@ -1,0 +1,133 @@
+"""Direct estimates (no model fitting): K* from Eq. (4) and (5), E' and η, C_v, Table 2.
+
+Signs and conventions of ``shared/docs/physics.md``: time dependence e^{iωt}, accelerances as
+stored, frequencies in Hz at the interface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
+
+
+def kstar_from_table(
+    frequency_hz: ArrayLike,
+    accelerance_table: ArrayLike,
+    table: dict[str, float],
+    disc_mass_kg: float,
+) -> NDArray[np.complex128]:
+    """Eq. (4) with the table's damping kept: ``K* = F_e/X_s − (K_s − (M_s+M_v) ω² + iω C_s)``.
+
+    Rests on a rigid load cell (``x_s ≈ x_v``); its disagreement with :func:`kstar_from_support`
+    is a diagnostic of that assumption.
+    """
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    z = accelerance_to_dynamic_stiffness(frequency_hz, accelerance_table)
+    return z - (table["K_s"] - (table["M_s"] + disc_mass_kg) * omega**2 + 1j * omega * table["C_s"])
+
+
+def kstar_from_support(
+    frequency_hz: ArrayLike, accelerance_support: ArrayLike, disc_mass_kg: float
+) -> NDArray[np.complex128]:
+    """Eq. (5): ``K* = F_v/X_v + ω² M_v``; exact whatever the load cell's stiffness."""
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    return accelerance_to_dynamic_stiffness(frequency_hz, accelerance_support) + omega**2 * (
+        disc_mass_kg
+    )
+
+
+def storage_modulus(kstar: ArrayLike, theta_m: float) -> NDArray[np.float64]:
+    """Eq. (7)/(8): ``E' = Re K* / θ`` in Pa (θ in metres, :mod:`viscorig.rig`)."""
+    return np.real(np.asarray(kstar, dtype=complex)) / theta_m
+
+
+def loss_factor(kstar: ArrayLike) -> NDArray[np.float64]:
+    """Eq. (7)/(8): ``η = Im K* / Re K*`` (independent of θ)."""
+    kstar = np.asarray(kstar, dtype=complex)
+    return kstar.imag / kstar.real
+
+
+def equivalent_damping(frequency_hz: ArrayLike, kstar: ArrayLike) -> NDArray[np.float64]:
+    """Eq. (12): ``C_v = η θ E'/ω = Im K*/ω`` in N·s/m, the viscous damper equivalent at ω."""
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    return np.imag(np.asarray(kstar, dtype=complex)) / omega
+
+
+@dataclass(frozen=True)
+class SystemProperties:
+    """Table 2 of the paper for one run.
+
+    Attributes
+    ----------
+    natural_frequency_hz
+        ``f_r = √((K_s+K_v)/(M_s+M_v)) / 2π`` of the Voigt system.
+    damping_factor
+        ``ξ = (C_s+C_v) / (2 √((K_s+K_v)(M_s+M_v)))``.
+    bandwidth_hz
+        ``B_r = 2 ξ f_r`` (the paper's formula, valid for light damping).
+    """
+
+    natural_frequency_hz: float
+    damping_factor: float
+    bandwidth_hz: float
+
+
+def system_properties(values: dict[str, float]) -> SystemProperties:
+    """Table 2 quantities from table and Voigt parameters (``M_s K_s C_s K_v C_v M_v``)."""
+    stiffness = values["K_s"] + values["K_v"]
+    mass = values["M_s"] + values["M_v"]
+    damping = values["C_s"] + values["C_v"]
+    f_r = float(np.sqrt(stiffness / mass) / (2 * np.pi))
+    xi = float(damping / (2 * np.sqrt(stiffness * mass)))
+    return SystemProperties(f_r, xi, 2 * xi * f_r)
+
+
+@dataclass(frozen=True)
+class MeasuredResonance:
+    """Resonance read off a measured FRF (receptance magnitude).
+
+    Attributes
+    ----------
+    peak_hz
+        Frequency of the largest ``|X/F|`` (parabolic interpolation on ``log|X/F|``).
+    bandwidth_hz
+        Half-power bandwidth: distance between the frequencies where ``|X/F|`` falls to
+        ``peak/√2`` (linear interpolation), NaN if the band does not hold both.
+    damping_factor
+        ``bandwidth / (2 peak)``.
+    """
+
+    peak_hz: float
+    bandwidth_hz: float
+    damping_factor: float
+
+
+def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> MeasuredResonance:
+    """Peak and half-power bandwidth of ``|X/F|`` measured directly on the FRF."""
+    f = np.asarray(frequency_hz, dtype=float)
+    magnitude = np.abs(accelerance_to_receptance(f, accelerance))
+    i = int(np.nanargmax(magnitude))
+    peak_hz = f[i]
+    peak = magnitude[i]
+    if 0 < i < f.size - 1:  # parabola through log-magnitudes of the three top points
+        y = np.log(magnitude[i - 1 : i + 2])
+        denominator = y[0] - 2 * y[1] + y[2]
+        if denominator < 0:
+            shift = 0.5 * (y[0] - y[2]) / denominator
+            peak_hz = f[i] + shift * 0.5 * (f[i + 1] - f[i - 1])
+            peak = float(np.exp(y[1] - 0.25 * (y[0] - y[2]) * shift))
+    level = peak / np.sqrt(2.0)
+    below = np.nonzero(magnitude[:i] < level)[0]
+    above = np.nonzero(magnitude[i:] < level)[0]
+    if below.size == 0 or above.size == 0:
+        return MeasuredResonance(float(peak_hz), float("nan"), float("nan"))
+    j = below[-1]
+    k = i + above[0]
+    lower = np.interp(level, [magnitude[j], magnitude[j + 1]], [f[j], f[j + 1]])
+    upper = np.interp(level, [magnitude[k], magnitude[k - 1]], [f[k], f[k - 1]])
+    bandwidth = float(upper - lower)
+    return MeasuredResonance(float(peak_hz), bandwidth, bandwidth / (2 * float(peak_hz)))

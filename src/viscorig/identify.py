@@ -1,0 +1,204 @@
+"""Identify runs of a campaign file: the high-level layer between storage and the fitting core.
+
+A specimen run needs the table's ``M_s, K_s, C_s``: they come from a bare-table run of the same
+file (specimen ``"none"``, identified on the fly with the ``table`` model), else from the
+``/rig`` attributes (data-format.md). Points flagged with an input overload are left out (their
+FRF is not a linear measurement); points where the level was not reached are kept, because the
+FRF of a linear rig does not depend on the level.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from viscorig.errors import InputError
+from viscorig.estimates import MeasuredResonance, SystemProperties, measured_resonance
+from viscorig.estimates import system_properties as voigt_system_properties
+from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.models import parse_spec
+from viscorig.rig import RigDescription
+from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
+
+#: The paper's analysis band (physics.md), used by the campaign summary.
+PAPER_BAND_HZ = (20.0, 120.0)
+
+
+def is_bare_table(run: Run) -> bool:
+    """The run has no specimen (``specimen == "none"``)."""
+    return str(run.metadata.specimen).strip().lower() in {"none", ""}
+
+
+def run_data(run: Run) -> FrfData:
+    """A run's FRFs as :class:`FrfData`, without the overloaded points."""
+    keep = ~run.flagged(INPUT_OVERLOAD)
+    support = None if is_bare_table(run) else run.accelerance_support[keep]
+    return FrfData(
+        run.frequency_hz[keep],
+        run.accelerance_table[keep],
+        support,
+        run.time_s[keep],
+        run.reference_amplitude[keep],
+        name=f"run '{run.name}'",
+    )
+
+
+@dataclass(frozen=True)
+class TableSource:
+    """The table parameters used, and where they came from (``"run 'table'"`` or ``"/rig"``)."""
+
+    values: dict[str, float]
+    source: str
+    fit: FitResult | None = None
+
+
+def table_parameters(
+    campaign: Campaign, band_hz: tuple[float, float] | None = None
+) -> TableSource | None:
+    """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``."""
+    for name in campaign.run_names:
+        run = campaign.run(name)
+        if is_bare_table(run) and run.points:
+            data = run_data(run)
+            band = _band_within(data, band_hz)
+            result = fit("table", data, band_hz=band)
+            return TableSource(dict(result.values), f"run '{name}'", result)
+    rig = RigDescription.from_attributes(campaign.rig)
+    if rig.table is not None:
+        return TableSource(rig.table, "/rig")
+    return None
+
+
+def _band_within(data: FrfData, band_hz: tuple[float, float] | None) -> tuple[float, float] | None:
+    """The band clipped to the data's range (``None`` stays ``None``)."""
+    if band_hz is None:
+        return None
+    lo = max(band_hz[0], float(data.frequency_hz.min()))
+    hi = min(band_hz[1], float(data.frequency_hz.max()))
+    return (lo, hi) if lo < hi else band_hz
+
+
+def identify_run(
+    campaign: Campaign,
+    run_name: str,
+    spec: str | None = None,
+    *,
+    band_hz: tuple[float, float] | None = None,
+    frfs: Sequence[str] | None = None,
+    table: TableSource | None = None,
+) -> tuple[FitResult, TableSource | None]:
+    """Fit a model to one run of a campaign.
+
+    Parameters
+    ----------
+    campaign
+        The open campaign.
+    run_name
+        Run to identify.
+    spec
+        Model spec; default ``"table"`` for a bare-table run, ``"voigt"`` otherwise.
+    band_hz
+        Band fitted (default every point).
+    frfs
+        FRFs to fit; default every FRF the model predicts and the run has.
+    table
+        Table parameters to use (default: :func:`table_parameters`).
+
+    Returns
+    -------
+    result, table
+        The fit, and the table parameters it used (``None`` for a bare-table run).
+    """
+    run = campaign.run(run_name)
+    if not run.points:
+        raise InputError("has no measured point", f"run '{run_name}'")
+    bare = is_bare_table(run)
+    spec = spec or ("table" if bare else "voigt")
+    model = parse_spec(spec)
+    data = run_data(run)
+    if bare:
+        if model.modulus_term is None or model.modulus_term.has_disc:
+            raise InputError(
+                f"is a bare-table run (no specimen, no {'accelerance_support'}); "
+                f"model '{model.spec}' needs a specimen: use 'table'",
+                f"run '{run_name}'",
+            )
+        return fit(model, data, frfs=frfs, band_hz=band_hz), None
+    if model.modulus_term is not None and not model.modulus_term.has_disc:
+        raise InputError("has a specimen; the 'table' model is for bare-table runs", run_name)
+    if data.support is None and (frfs is None or "support" in frfs):
+        raise InputError("has no accelerance_support (ẍ_v/F_v)", f"run '{run_name}'")
+    table = table or table_parameters(campaign, band_hz)
+    if table is None:
+        chosen = frfs or model.frfs
+        if "table" in chosen:
+            raise InputError(
+                "the table's M_s, K_s, C_s are unknown: the file has no bare-table run and "
+                "no table_* attributes in /rig; fit the support FRF only (--frf support)",
+                f"run '{run_name}'",
+            )
+        return fit(model, data, frfs=frfs, band_hz=band_hz), None
+    return fit(model, data, frfs=frfs, band_hz=band_hz, fixed=table.values), table
+
+
+def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
+    """Store a fit under ``/runs/<run>/fits/<id>`` and return its id."""
+    return campaign.add_fit(
+        run_name,
+        model=result.spec,
+        band_hz=result.band_hz,
+        rms_error=result.rms_error,
+        noise_floor=result.noise_floor,
+        parameters={name: tuple(e) for name, e in result.parameters.items()},
+    )
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """Table 1 and Table 2 quantities of one run (Voigt on the table FRF, as the paper)."""
+
+    run: str
+    bare: bool
+    fit: FitResult
+    system: SystemProperties | None
+    measured: MeasuredResonance
+
+
+def summarize(
+    campaign: Campaign, band_hz: tuple[float, float] = PAPER_BAND_HZ
+) -> tuple[TableSource | None, list[RunSummary]]:
+    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed."""
+    table = table_parameters(campaign, band_hz)
+    summaries = []
+    for name in campaign.run_names:
+        run = campaign.run(name)
+        if not run.points:
+            continue
+        data = run_data(run)
+        band = _band_within(data, band_hz)
+        if is_bare_table(run):
+            result, _ = identify_run(campaign, name, "table", band_hz=band)
+            system = None
+        else:
+            if table is None:
+                raise InputError(
+                    "Table 1 needs the table's M_s, K_s, C_s: no bare-table run, no /rig values",
+                    str(campaign.path),
+                )
+            result, _ = identify_run(
+                campaign, name, "voigt", band_hz=band, frfs=("table",), table=table
+            )
+            system = voigt_system_properties(result.values)
+        inside = data.in_band(band)
+        summaries.append(
+            RunSummary(
+                name,
+                is_bare_table(run),
+                result,
+                system,
+                measured_resonance(inside.frequency_hz, np.asarray(inside.table)),
+            )
+        )
+    return table, summaries
