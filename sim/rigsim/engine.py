@@ -325,8 +325,13 @@ class RigSimulator:
 
             channel_v[n] = measured
             noise_power = self._noise_power(ranges) * 2.0 / integrate[n]
-            with np.errstate(divide="ignore"):
-                variance[n] = noise_power / np.abs(measured) ** 2
+            magnitude2 = np.abs(measured) ** 2
+            variance[n] = np.where(
+                noise_power == 0.0,
+                0.0,
+                noise_power / np.where(magnitude2 > 0.0, magnitude2, np.inf) * (magnitude2 > 0)
+                + np.where(magnitude2 > 0.0, 0.0, np.inf),
+            )
             range_vpk[n] = ranges
             overload[n] = over
             half_range[n] = half
