@@ -582,6 +582,8 @@ class Agilent35670A:
         reference_channel: int = 4,
         four_channels: bool = True,
         resolution_hz: float = 0.25,
+        start_hz: float = 10.0,
+        stop_hz: float = 60.0,
         settle_cycles: float = 100.0,
         integrate_cycles: float = 100.0,
         direction: str = "UP",
@@ -616,6 +618,10 @@ class Agilent35670A:
         resolution_hz, settle_cycles, integrate_cycles, direction, tolerance_db
             Sweep grid (Hz), settle and integration (cycles), ``"UP"``/``"DOWN"``, auto-level
             tolerance (dB).
+        start_hz, stop_hz
+            First band (Hz), set before the resolution because the analyser refuses a
+            resolution that gives more than 801 points over the band in use; :meth:`measure`
+            sets each segment's own band.
         start_level_vpk
             Source level the controller starts from (Vpk, ≤ ``source_limit_vpk``).
         data_format
@@ -628,6 +634,7 @@ class Agilent35670A:
         if reference_channel not in channels:
             raise SettingOutOfRange(f"reference channel {reference_channel} is not in use")
         strict_range(0.0, 1e6, "m/s²", low_inclusive=False)(level_m_per_s2, self)
+        self._check_band(start_hz, stop_hz, resolution_hz)
         strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
         if not 0.0 < start_level_vpk <= source_limit_vpk:
             raise SettingOutOfRange(
@@ -656,6 +663,7 @@ class Agilent35670A:
         self.spacing = "LIN"
         self.direction = direction
         self.auto_resolution = False
+        self._set_band(start_hz, stop_hz)
         self.resolution_hz = resolution_hz
         self.settle_cycles = settle_cycles
         self.integrate_cycles = integrate_cycles
@@ -723,16 +731,7 @@ class Agilent35670A:
         resolution = self.sent.get("resolution_hz")
         if resolution is None:
             raise SettingOutOfRange("set resolution_hz (or call configure_swept_sine) first")
-        start = _frequency(start_hz, self)
-        stop = _frequency(stop_hz, self)
-        if stop <= start:
-            raise SettingOutOfRange(f"stop {stop:g} Hz must be above start {start:g} Hz")
-        points = round((stop - start) / float(resolution)) + 1
-        if points > MAX_POINTS:
-            raise SettingOutOfRange(
-                f"{start:g}..{stop:g} Hz at {resolution:g} Hz is {points} points; "
-                f"at most {MAX_POINTS} per sweep"
-            )
+        start, stop, points = self._check_band(start_hz, stop_hz, float(resolution))
         self.sweep_mode = "AUTO"
         self._set_band(start, stop)
         self.resolution_hz = resolution
@@ -773,6 +772,22 @@ class Agilent35670A:
             started_at_s=segment.started_at_s,
             finished_at_s=segment.finished_at_s,
         )
+
+    def _check_band(
+        self, start_hz: float, stop_hz: float, resolution_hz: float
+    ) -> tuple[float, float, int]:
+        """Validate a band on a linear grid; return start, stop and the number of points."""
+        start = _frequency(start_hz, self)
+        stop = _frequency(stop_hz, self)
+        if stop <= start:
+            raise SettingOutOfRange(f"stop {stop:g} Hz must be above start {start:g} Hz")
+        points = round((stop - start) / resolution_hz) + 1
+        if points > MAX_POINTS:
+            raise SettingOutOfRange(
+                f"{start:g}..{stop:g} Hz at {resolution_hz:g} Hz is {points} points; "
+                f"at most {MAX_POINTS} per sweep"
+            )
+        return start, stop, points
 
     def _set_band(self, start: float, stop: float) -> None:
         # Quirks.START_BELOW_STOP: write them in the order that keeps start < stop throughout
