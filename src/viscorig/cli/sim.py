@@ -1,0 +1,119 @@
+"""``viscorig sim serve``: the simulated rig and virtual 35670A on loopback.
+
+Prints the VISA resource strings to open with pyvisa-py and serves until Ctrl-C::
+
+    viscorig sim serve --preset soft-0 --prologix --pace 60
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from viscorig.errors import InputError
+
+
+def register(subparsers: Any) -> None:
+    """Add ``sim serve`` to the command line."""
+    sim = subparsers.add_parser("sim", help="simulated rig and analyser",
+                                description="Simulated rig and virtual 35670A analyser.")
+    commands = sim.add_subparsers(title="commands", dest="sim_command", required=True)
+    serve = commands.add_parser(
+        "serve",
+        help="serve the virtual 35670A on loopback",
+        description="Serve a virtual 35670A measuring a simulated rig, as a raw SCPI socket "
+        "(and optionally a Prologix GPIB-Ethernet endpoint and a GPIB-USB pseudo-terminal), "
+        "until Ctrl-C.",
+    )
+    rig = serve.add_mutually_exclusive_group()
+    rig.add_argument("--rig", metavar="RIG.toml", help="rig file to simulate")
+    rig.add_argument("--preset", metavar="NAME",
+                     help="shipped rig preset (table, soft-0, ...; default: table)")
+    serve.add_argument("--port", type=_port, default=0,
+                       help="port of the raw SCPI socket (default: a free port)")
+    serve.add_argument("--prologix", action="store_true",
+                       help="also serve a Prologix GPIB-Ethernet endpoint (analyser at GPIB 11)")
+    serve.add_argument("--prologix-port", type=_port, default=0, metavar="N",
+                       help="port of the Prologix endpoint (default: a free port)")
+    serve.add_argument("--pty", action="store_true",
+                       help="also serve a Prologix GPIB-USB adapter on a pseudo-terminal")
+    serve.add_argument("--pace", type=_positive, default=None, metavar="X",
+                       help="simulated seconds per wall-clock second (default: as fast as "
+                       "possible)")
+    serve.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                       help="address to bind (default: 127.0.0.1, loopback only)")
+    serve.add_argument("--seed", type=int, default=None, help="seed of the sensor noise")
+    serve.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                       help="inject a fault once: KIND[=ARG][@MATCH], KIND one of no_reply, "
+                       "drop, garble, error=CODE[,TEXT], overload=CH[:POINTS]; repeatable")
+    serve.add_argument("--without-option", action="append", default=[], metavar="OPT",
+                       choices=("1D2", "AY6"),
+                       help="leave an option out of *OPT? (1D2 swept sine, AY6 four channels)")
+    serve.set_defaults(handler=serve_command)
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"port must be an integer, got {text!r}") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"port must be 0..65535, got {value}")
+    return value
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def serve_command(args: argparse.Namespace) -> int:
+    """Build the simulated analyser, print its resources, serve until Ctrl-C."""
+    from rigsim.analyser import DEFAULT_OPTIONS
+    from rigsim.faults import FaultSpecError, parse_fault_spec
+    from rigsim.rigfile import RigFileError, load_preset, load_rig
+    from rigsim.server import SimulatedAnalyserServer
+
+    try:
+        rig = load_rig(args.rig) if args.rig else load_preset(args.preset or "table")
+    except RigFileError as error:
+        raise InputError(str(error)) from None
+    try:
+        faults = [parse_fault_spec(spec) for spec in args.fault]
+    except FaultSpecError as error:
+        raise InputError(str(error), "--fault") from None
+    options = tuple(o for o in DEFAULT_OPTIONS if o not in args.without_option)
+    server = SimulatedAnalyserServer(
+        rig, port=args.port, prologix=args.prologix, prologix_port=args.prologix_port,
+        pty=args.pty, pace=args.pace, seed=args.seed, host=args.host, options=options,
+    )
+    try:
+        server.start()
+    except OSError as error:
+        server.close()
+        raise InputError(f"cannot serve on {args.host}: {error.strerror or error}") from None
+    for fault in faults:
+        server.faults.add(fault)
+    name = rig.name or (args.rig if args.rig else args.preset or "table")
+    print(f"virtual 35670A on rig {name}"
+          + ("" if args.pace is None else f", {args.pace:g} simulated s per s"))
+    print(f"raw SCPI socket:  {server.socket_resource}")
+    if server.prologix_resource:
+        print(f"Prologix (TCP):   {server.prologix_resource}  then  {server.gpib_resource}")
+    if server.pty_resource:
+        print(f"Prologix (USB):   {server.pty_resource}  then  {server.gpib_resource}")
+    print("Ctrl-C stops.", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+    print("stopped", file=sys.stderr)
+    return 0
