@@ -215,7 +215,8 @@ def test_auto_level_holds_reference_within_tolerance() -> None:
 
 
 def test_shaker_force_limit_flags_points() -> None:
-    rig = parse_rig(TABLE + DEVICES["voigt"] + "[shaker]\nforce_n_per_v = 50.0\nforce_limit_n = 10.0\n")
+    shaker = "[shaker]\nforce_n_per_v = 50.0\nforce_limit_n = 10.0\n"
+    rig = parse_rig(TABLE + DEVICES["voigt"] + shaker)
     target = 5.0 * ACCEL_V_PER_M_S2  # 5 m/s² at 20 Hz needs about 25 N on this rig
     control = SourceControl(source_vpk=0.05, auto_level=True, reference_channel=4,
                             reference_vpk=target, source_limit_vpk=2.0)
