@@ -1,0 +1,192 @@
+"""Sequence files: steps, defaults, levels with units, and one clear error per problem."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tomlwrite import dumps
+
+from viscorig.errors import InputError
+from viscorig.sequences import (
+    IdentifyTableStep,
+    PromptStep,
+    SweepStep,
+    WaitStep,
+    load_sequence,
+    parse_level,
+    parse_sequence,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def document() -> dict:
+    return {
+        "name": "lab",
+        "defaults": {
+            "band_hz": [20.0, 30.0], "resolution_hz": 0.25, "settle_cycles": 10,
+            "integrate_cycles": 10, "level": "1.4 m/s^2",
+        },
+        "steps": [
+            {"type": "prompt", "message": "Remove the device.", "simulated_rig": "table"},
+            {"type": "sweep", "run": "table", "specimen": "none", "band_hz": [10, 30]},
+            {"type": "identify_table", "run": "table", "band_hz": [15.0, 25.0]},
+            {"type": "wait", "seconds": 30, "message": "Let the rubber reach room temperature."},
+            {"type": "sweep", "run": "soft-0", "specimen": "soft", "hardness_shore_a": 25,
+             "preload_strain": 0.104, "level": "0.15 g", "direction": "down"},
+        ],
+    }
+
+
+def parse(doc: dict) -> object:
+    return parse_sequence(dumps(doc), source="lab.toml")
+
+
+def test_steps_are_typed_and_defaults_are_overridden() -> None:
+    sequence = parse(document())
+    prompt, table, identify, wait, soft = sequence.steps
+    assert prompt == PromptStep("Remove the device.", "table")
+    assert isinstance(table, SweepStep) and table.band_hz == (10.0, 30.0) and table.points == 81
+    assert table.bare_table and math.isnan(table.hardness_shore_a)
+    assert identify == IdentifyTableStep("table", (15.0, 25.0))
+    assert wait == WaitStep(30.0, "Let the rubber reach room temperature.")
+    assert soft.band_hz == (20.0, 30.0) and soft.level_m_per_s2 == pytest.approx(1.4709975)
+    assert soft.level == "0.15 g" and soft.preload_strain == 0.104
+    np.testing.assert_allclose(soft.frequencies_hz()[[0, -1]], [30.0, 20.0])
+    assert sequence.run_names == ("table", "soft-0")
+    assert sequence.sweep("soft-0") is soft
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("1.5 m/s^2", 1.5), ("15 mm/s^2", 0.015), ("15 cm/s²", 0.15), ("0.15 g", 1.4709975),
+     ("1 m/s^2 rms", math.sqrt(2)), ("2 mg peak", 0.0196133), ("1e1 m/s**2", 10.0)],
+)
+def test_levels_are_converted_to_peak_si(text: str, expected: float) -> None:
+    assert parse_level(text) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("text", ["15", "1.5 ft/s^2", "-1 g", "0 m/s^2", "g", "1.5 m/s^2 max"])
+def test_levels_without_a_valid_unit_or_value_are_refused(text: str) -> None:
+    with pytest.raises(ValueError):
+        parse_level(text)
+
+
+def change(doc: dict, path: str, value: object) -> dict:
+    """Set (or delete, with value ...) a field given as 'steps.4.level' or 'defaults.level'."""
+    *parents, last = path.split(".")
+    target = doc
+    for part in parents:
+        target = target[int(part)] if isinstance(target, list) else target[part]
+    if value is ...:
+        del target[last]
+    else:
+        target[last] = value
+    return doc
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "where", "what"),
+    [
+        ("steps.4.level", 1.4, "steps[4].level", "text with its unit"),
+        ("steps.4.level", "1.4", "steps[4].level", "has no unit"),
+        ("defaults.level", "14 furlongs", "defaults.level", "not one of"),
+        ("steps.4.level", "900 m/s^2", "steps[4].level", "beyond any shaker"),
+        ("steps.4.run", "table", "steps[4].run", "duplicate run name 'table' (also steps[1])"),
+        ("steps.4.run", "soft/0", "steps[4].run", "letters, digits"),
+        ("steps.4.colour", "red", "steps[4].colour", "unknown key"),
+        ("steps.0.level", "1 g", "steps[0].level", "unknown key"),
+        ("steps.4.type", "dance", "steps[4].type", "not one of prompt, wait, sweep"),
+        ("steps.4.specimen", ..., "steps[4].specimen", "missing"),
+        ("steps.4.hardness_shore_a", 120, "steps[4].hardness_shore_a", "outside [0, 100]"),
+        ("steps.4.hardness_shore_a", "25", "steps[4].hardness_shore_a", "expected a number"),
+        ("steps.4.preload_strain", -0.1, "steps[4].preload_strain", "outside"),
+        ("steps.1.preload_strain", 0.1, "steps[1].preload_strain", "bare table"),
+        ("steps.4.temperature_c", math.nan, "steps[4].temperature_c", "outside"),
+        ("steps.4.settle_cycles", 10.5, "steps[4].settle_cycles", "whole number"),
+        ("steps.4.integrate_cycles", 0, "steps[4].integrate_cycles", "outside [1,"),
+        ("steps.4.direction", "sideways", "steps[4].direction", "not one of up, down"),
+        ("steps.4.band_hz", [30, 20], "steps[4].band_hz", "0 < low < high"),
+        ("steps.4.band_hz", [20], "steps[4].band_hz", "expected [low, high]"),
+        ("steps.4.band_hz", [20, 30000], "steps[4].band_hz", "25600"),
+        ("defaults.resolution_hz", 0.3, "defaults.resolution_hz", "whole number of"),
+        ("steps.4.resolution_hz", 0.001, "steps[4].resolution_hz", "outside"),
+        ("steps.4.segment_points", 1601, "steps[4].segment_points", "outside [1, 801]"),
+        ("steps.4.tolerance_db", 40.0, "steps[4].tolerance_db", "outside [0.1, 20] dB"),
+        ("steps.2.run", "soft-0", "steps[2].run", "no earlier sweep"),
+        ("steps.2.band_hz", [5.0, 25.0], "steps[2].band_hz", "outside the run's band"),
+        ("steps.3.seconds", -5, "steps[3].seconds", "outside"),
+        ("steps.0.simulated_rig", "../x", "steps[0].simulated_rig", "not a rig preset"),
+        ("defaults.run", "x", "defaults.run", "unknown default"),
+        ("name", 3, "name", "expected text"),
+        ("steps", [], "steps", "non-empty array"),
+    ],
+)
+def test_each_problem_is_one_input_error_naming_file_and_field(
+    path: str, value: object, where: str, what: str
+) -> None:
+    with pytest.raises(InputError) as caught:
+        parse(change(document(), path, value))
+    message = str(caught.value)
+    assert message.startswith(f"lab.toml: {where}: "), message
+    assert what in message, message
+
+
+def test_more_points_than_a_run_may_hold_says_which_limit_applies() -> None:
+    doc = change(document(), "steps.4.band_hz", [1.0, 25000.0])
+    doc = change(doc, "steps.4.resolution_hz", 0.125)
+    with pytest.raises(InputError, match=r"steps\[4\].resolution_hz: .*801-point limit applies"):
+        parse(doc)
+
+
+def test_bad_files_are_input_errors(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="cannot be read"):
+        load_sequence(tmp_path / "absent.toml")
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[[steps]\ntype = 'prompt'\n")
+    with pytest.raises(InputError, match=r"broken.toml: not valid TOML.*line 1"):
+        load_sequence(broken)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(InputError, match="cannot be read"):
+        load_sequence(binary)
+
+
+def test_paper_sequence_reproduces_the_paper_campaign() -> None:
+    sequence = load_sequence(ROOT / "sequences" / "paper.toml")
+    assert sequence.run_names == (
+        "table", "soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10",
+    )
+    table, *specimens = sequence.sweeps
+    assert table.bare_table and table.band_hz[0] < 19.3 < table.band_hz[1]
+    for step in specimens:
+        assert (step.band_hz, step.resolution_hz) == ((20.0, 120.0), 0.25)
+        assert (step.settle_cycles, step.integrate_cycles) == (100, 100)
+        assert step.preload_strain == (0.104 if step.run.endswith("-10") else 0.0)
+    presets = [step.simulated_rig for step in sequence.steps if isinstance(step, PromptStep)]
+    assert presets == ["table", *[step.run for step in specimens]]
+    assert any(isinstance(step, IdentifyTableStep) for step in sequence.steps)
+
+
+def shaker_force_n(step: SweepStep, frequency_hz: float, stiffness: float, damping: float,
+                   device_mass_kg: float) -> float:
+    """|F_e| of the rigid-link rig (physics.md) at the step's reference acceleration."""
+    omega = 2 * np.pi * frequency_hz
+    m_s, k_s, c_s = 3.4, 50194.0, 5.05
+    impedance = k_s + stiffness - omega**2 * (m_s + device_mass_kg) + 1j * omega * (c_s + damping)
+    return abs(impedance) * step.level_m_per_s2 / omega**2
+
+
+@pytest.mark.parametrize("device_mass_kg", [0.0, 0.25, 0.73])
+def test_paper_level_brings_the_hardest_specimen_close_to_but_below_the_shaker_limit(
+    device_mass_kg: float,
+) -> None:
+    sequence = load_sequence(ROOT / "sequences" / "paper.toml")
+    hard = sequence.sweep("hard-10")
+    force = shaker_force_n(hard, 20.0, 1_104_445.91, 102.72, device_mass_kg)
+    assert 90.0 < force < 100.0
+    soft = shaker_force_n(sequence.sweep("soft-0"), 20.0, 149_986.61, 114.59, device_mass_kg)
+    assert 10.0 < soft < 15.0
