@@ -148,3 +148,15 @@ def test_pause_resume_and_abort_a_running_sweep(action: str) -> None:
             assert len(segment) == 5 and pauses
             # about 1.5 s of paced sweep plus the 0.5 s pause
             assert time.time() - started > 1.9
+
+
+def test_a_single_point_in_manual_mode_matches_the_swept_value(server) -> None:
+    with connect(server) as analyser:
+        configure(analyser, cycles=10)
+        point = analyser.measure_point(33.25, poll_interval_s=0.01)
+        band = analyser.measure(33.0, 33.5, poll_interval_s=0.01)
+        commands_ok = analyser.sweep_mode == "AUTO"
+    np.testing.assert_array_equal(point.frequency_hz, [33.25])
+    assert point.frf_21.shape == point.frf_43.shape == (1,)
+    np.testing.assert_allclose(point.frf_21, band.frf_21[1:2], rtol=0.05)
+    assert commands_ok
