@@ -1,0 +1,180 @@
+"""The fitting core on hand-made data: starts, noise floor, result shapes, bad input.
+
+No truth recovery here (that is tests/test_identify_recovery.py, on simulator data): these
+tests pin exact algebraic properties that need no simulator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viscorig.errors import InputError
+from viscorig.estimates import equivalent_damping, loss_factor, measured_resonance, storage_modulus
+from viscorig.fitting import FrfData, fit, linear_start, local_noise_power, noise_floor
+from viscorig.fitting.starts import table_linear_fit
+from viscorig.models import parse_spec
+from viscorig.models.modulus import prony_nnls
+from viscorig.rig import RigDescription, geometry_factor
+
+FREQUENCY = np.arange(20.0, 120.001, 0.25)
+OMEGA = 2 * np.pi * FREQUENCY
+
+
+def accelerance_of_stiffness(z: np.ndarray) -> np.ndarray:
+    """Accelerance of a hand-written dynamic stiffness polynomial."""
+    return -(OMEGA**2) / z
+
+
+def test_table_linear_start_is_exact_on_a_polynomial() -> None:
+    z = 50194.0 - OMEGA**2 * 3.4 + 1j * OMEGA * 5.05
+    start = table_linear_fit(FrfData(FREQUENCY, accelerance_of_stiffness(z)))
+    assert start == pytest.approx({"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}, rel=1e-9)
+
+
+def test_voigt_linear_start_is_exact_with_the_table_known() -> None:
+    table = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
+    z_disc = 2.0e5 + 1j * OMEGA * 120.0 - OMEGA**2 * 0.3
+    z_table = table["K_s"] - OMEGA**2 * table["M_s"] + 1j * OMEGA * table["C_s"] + z_disc
+    data = FrfData(FREQUENCY, accelerance_of_stiffness(z_table), accelerance_of_stiffness(z_disc))
+    model = parse_spec("voigt")
+    for frfs in (("table",), ("support",), ("table", "support")):
+        start = linear_start(model, data, frfs, table)
+        assert start["K_v"] == pytest.approx(2.0e5, rel=1e-9)
+        assert start["C_v"] == pytest.approx(120.0, rel=1e-9)
+        assert start["M_v"] == pytest.approx(0.3, rel=1e-9)
+
+
+def test_nnls_prony_start_finds_the_arms_of_an_exact_series() -> None:
+    taus = np.array([1e-4, 3e-3])
+    gains = np.array([4e4, 9e4])
+    iwt = 1j * OMEGA[:, None] * taus
+    d_disc = 1.5e5 + (gains * iwt / (1 + iwt)).sum(axis=1) - OMEGA**2 * 0.2
+    found_taus, found_gains, k_0, m_v = prony_nnls(OMEGA, d_disc, 1 / np.abs(d_disc))
+    iwt_found = 1j * OMEGA[:, None] * found_taus
+    rebuilt = k_0 + (found_gains * iwt_found / (1 + iwt_found)).sum(axis=1) - OMEGA**2 * m_v
+    assert np.max(np.abs(rebuilt / d_disc - 1)) < 1e-2  # neighbours merged: a start, not a fit
+    assert np.all(found_gains > 0) and k_0 >= 0 and m_v >= 0
+    # two relaxation times three decades apart stay apart after merging neighbours
+    start = parse_spec("maxwell(2)").modulus_term.start(OMEGA, d_disc, 1 / np.abs(d_disc))
+    found = sorted(start[f"C_{i}"] / start[f"K_{i}"] for i in (1, 2))
+    assert found == pytest.approx(taus, rel=0.01)
+    assert [start["K_1"], start["K_2"], start["K_0"]] == pytest.approx([*gains, 1.5e5], rel=0.01)
+
+
+def test_noise_floor_matches_known_complex_gaussian_noise() -> None:
+    rng = np.random.default_rng(7)
+    clean = accelerance_of_stiffness(2.5e5 - OMEGA**2 * 3.6 + 1j * OMEGA * 120.0)
+    sigma = 1e-3 * (1 + 4 * (FREQUENCY - 20) / 100)  # noise growing fivefold along the band
+    noise = sigma * (rng.normal(size=FREQUENCY.size) + 1j * rng.normal(size=FREQUENCY.size))
+    measured = clean * (1 + noise / np.sqrt(2))
+    truth = np.sqrt(np.mean(sigma**2))
+    assert noise_floor([measured]) == pytest.approx(truth, rel=0.15)
+    local = local_noise_power(measured)
+    assert local.shape == FREQUENCY.shape
+    assert np.sqrt(local[-40:].mean()) > 3 * np.sqrt(local[:40].mean())
+
+
+def test_noise_floor_of_a_noiseless_resonance_is_far_below_measured_noise() -> None:
+    # ξ = 0.02 at 42 Hz: a half-power width of 1.8 Hz, 7 steps of 0.25 Hz
+    clean = accelerance_of_stiffness(2.5e5 - OMEGA**2 * 3.6 + 1j * OMEGA * 40.0)
+    assert noise_floor([clean]) < 3e-5
+    damped = accelerance_of_stiffness(2.5e5 - OMEGA**2 * 3.6 + 1j * OMEGA * 120.0)
+    assert noise_floor([damped]) < 1e-6
+
+
+def test_fit_result_has_every_parameter_and_evaluates_on_any_grid() -> None:
+    rng = np.random.default_rng(3)
+    z = 50194.0 - OMEGA**2 * 3.4 + 1j * OMEGA * 5.05
+    noisy = accelerance_of_stiffness(z) * (1 + 1e-3 * rng.normal(size=FREQUENCY.size))
+    result = fit("table", FrfData(FREQUENCY, noisy))
+    assert set(result.parameters) == {"M_s", "K_s", "C_s"}
+    assert result.parameters["K_s"].unit == "N/m"
+    assert result.covariance.shape == (3, 3)
+    assert result.points == FREQUENCY.size
+    assert result.residuals["table"].shape == FREQUENCY.shape
+    grid = np.linspace(5.0, 200.0, 17)
+    assert result.predict(grid)["table"].shape == grid.shape
+    document = result.to_json("table")
+    assert document["model"] == "table"
+    assert set(document) >= {"run", "model", "band_hz", "points", "rms_error", "noise_floor"}
+    assert document["parameters"]["M_s"]["unit"] == "kg"
+
+
+def test_band_selects_points_and_is_reported() -> None:
+    z = 50194.0 - OMEGA**2 * 3.4 + 1j * OMEGA * 5.05
+    result = fit("table", FrfData(FREQUENCY, accelerance_of_stiffness(z)), band_hz=(30, 60))
+    assert result.band_hz == (30.0, 60.0)
+    assert result.points == 121
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"band_hz": (30.0, 31.0)}, "at least"),
+        ({"band_hz": (60.0, 30.0)}, "LO < HI"),
+        ({"frfs": ("support",)}, "accelerance_support"),
+    ],
+)
+def test_bad_fit_requests_name_what_is_wrong(kwargs: dict, words: str) -> None:
+    z = 50194.0 - OMEGA**2 * 3.4 + 1j * OMEGA * 5.05
+    data = FrfData(FREQUENCY, accelerance_of_stiffness(z), name="run 'x'")
+    model = "voigt" if "frfs" in kwargs else "table"
+    with pytest.raises(InputError, match=words):
+        fit(model, data, fixed={"M_s": 3.4, "K_s": 5e4, "C_s": 5.0}, **kwargs)
+
+
+def test_nan_in_the_band_is_refused_and_named() -> None:
+    z = 50194.0 - OMEGA**2 * 3.4 + 1j * OMEGA * 5.05
+    h = accelerance_of_stiffness(z)
+    h[100] = np.nan
+    with pytest.raises(InputError, match="accelerance_table, ẍ_s/F_e has 1 NaN"):
+        fit("table", FrfData(FREQUENCY, h, name="run 'x'"))
+
+
+def test_specimen_model_on_the_table_frf_needs_the_table() -> None:
+    z = 2.0e5 - OMEGA**2 * 3.6 + 1j * OMEGA * 120.0
+    h = accelerance_of_stiffness(z)
+    with pytest.raises(InputError, match="needs the table's M_s, K_s, C_s"):
+        fit("voigt", FrfData(FREQUENCY, h, h), frfs=("table",))
+
+
+def test_model_needing_time_is_refused_without_time() -> None:
+    class Drifty(parse_spec("voigt").modulus_term.__class__):  # a K* term that needs time_s
+        keyword = "voigt"
+        requires = ("time_s",)
+
+    model = parse_spec("voigt")
+    model.terms = (Drifty(),)
+    h = accelerance_of_stiffness(2.0e5 - OMEGA**2 * 0.3 + 1j * OMEGA * 120.0)
+    with pytest.raises(InputError, match="needs time_s"):
+        fit(model, FrfData(FREQUENCY, None, h))
+
+
+def test_geometry_factor_arrangements_differ_as_documented() -> None:
+    paper = geometry_factor(0.02, 0.012)
+    assert paper == pytest.approx(np.pi * 0.02**2 / (8 * 0.012))
+    assert geometry_factor(0.02, 0.012, 2, "parallel") == pytest.approx(4 * paper)
+    assert RigDescription(specimen_diameter_m=0.02, specimen_height_m=0.012).theta == paper
+    assert RigDescription(geometry_factor_m=1.5).theta == 1.5
+    assert RigDescription().theta is None
+    with pytest.raises(InputError, match="unknown arrangement"):
+        geometry_factor(0.02, 0.012, 2, "diagonal")
+
+
+def test_moduli_and_equivalent_damping_follow_eq_7_8_12() -> None:
+    kstar = np.array([2.0e5 + 3.0e4j])
+    assert storage_modulus(kstar, 0.5) == pytest.approx([4.0e5])
+    assert loss_factor(kstar) == pytest.approx([0.15])
+    assert equivalent_damping([50.0], kstar) == pytest.approx([3.0e4 / (2 * np.pi * 50)])
+
+
+def test_measured_half_power_bandwidth_of_a_light_resonance() -> None:
+    f = np.arange(20.0, 80.0, 0.05)
+    w = 2 * np.pi * f
+    m, k, xi = 3.6, 2.0e5, 0.03
+    c = 2 * xi * np.sqrt(k * m)
+    resonance = measured_resonance(f, -(w**2) / (k - w**2 * m + 1j * w * c))
+    f_n = np.sqrt(k / m) / (2 * np.pi)
+    assert resonance.peak_hz == pytest.approx(f_n * np.sqrt(1 - 2 * xi**2), rel=1e-3)
+    assert resonance.bandwidth_hz == pytest.approx(2 * xi * f_n, rel=0.01)
