@@ -1,0 +1,125 @@
+"""``viscorig show FILE``: what a campaign file holds, run by run, with flagged points and fits.
+
+Works on a file that is still being written or whose writer crashed (its last run stays
+"running" with every committed segment). A run that cannot be read is listed with the reason,
+the others are still shown, and the exit status is 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from viscorig.errors import InputError
+from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``show`` command."""
+    parser = subparsers.add_parser("show", help="list the runs and fits of a campaign file")
+    parser.add_argument("file", help="campaign file (.h5)")
+    parser.set_defaults(handler=handler)
+
+
+def _number(value: float, digits: int = 3) -> str:
+    return "-" if math.isnan(value) else f"{value:.{digits}g}"
+
+
+def _flag_summary(run: Run) -> str:
+    if not run.points:
+        return "-"
+    flagged = int(run.flagged().sum())
+    if not flagged:
+        return "0"
+    counts = ", ".join(
+        f"{FLAG_NAMES[flag]} {count}" for flag, count in count_flags(run.flags).items() if count
+    )
+    return f"{flagged} ({counts})"
+
+
+def run_row(run: Run) -> list[str]:
+    """The listing's cells for one run."""
+    metadata = run.metadata
+    band = f"{run.frequency_hz.min():.2f}-{run.frequency_hz.max():.2f}" if run.points else "-"
+    return [
+        run.name,
+        metadata.status,
+        str(run.points),
+        band,
+        _number(metadata.level_m_per_s2),
+        metadata.specimen + ("" if math.isnan(metadata.hardness_shore_a)
+                             else f" ({metadata.hardness_shore_a:g} Shore A)"),
+        _number(metadata.preload_strain),
+        _flag_summary(run),
+    ]
+
+
+def fit_lines(fit: Fit) -> list[str]:
+    """The listing's lines for one fit."""
+    lo, hi = fit.band_hz
+    lines = [
+        f"  {fit.run}/{fit.id}  {fit.model}  {lo:g}-{hi:g} Hz  rms_error {_number(fit.rms_error)}"
+        f"  noise_floor {_number(fit.noise_floor)}  {fit.created}"
+    ]
+    for name, parameter in fit.parameters.items():
+        stderr = "" if math.isnan(parameter.stderr) else f" ± {parameter.stderr:.3g}"
+        lines.append(f"      {name} = {parameter.value:.6g}{stderr} {parameter.unit}".rstrip())
+    return lines
+
+
+def table(rows: list[list[str]]) -> list[str]:
+    """Rows as left-aligned columns."""
+    widths = [max(len(row[i]) for row in rows if i < len(row)) for i in range(len(rows[0]))]
+    return [
+        "  ".join(cell.ljust(widths[i]) for i, cell in enumerate(row)).rstrip() for row in rows
+    ]
+
+
+def describe(path: Path) -> tuple[list[str], list[str]]:
+    """The listing of a campaign file, and the problems met on the way (one line each)."""
+    campaign = Campaign.open(path)
+    attributes = campaign.attributes
+    lines = [
+        f"{path}: viscorig campaign, format {attributes.get('format_version')}, created "
+        f"{attributes.get('created', '?')} by {attributes.get('software', '?')}"
+    ]
+    files = campaign.setup_files
+    sequence = files.get("sequence_file") or ("stored" if campaign.sequence_text else "none")
+    station = files.get("station_file") or ("stored" if campaign.station_text else
+                                             "none (simulated rig)")
+    lines.append(f"sequence: {sequence}; station: {station}")
+    rig = campaign.rig
+    if rig:
+        lines.append("rig: " + ", ".join(f"{key} {value:g}" for key, value in rig.items()))
+    rows = [["run", "status", "points", "band [Hz]", "level [m/s^2]", "specimen", "preload",
+             "flagged"]]
+    problems: list[str] = []
+    fits: list[str] = []
+    for name in campaign.run_names:
+        try:
+            run = campaign.run(name)
+            rows.append(run_row(run))
+            for fit in campaign.fits(name):
+                fits.extend(fit_lines(fit))
+        except InputError as error:
+            rows.append([name, f"cannot be read: {error.detail}"])
+            problems.append(str(error))
+    if len(rows) == 1:
+        lines.append("no runs")
+    else:
+        lines.append("")
+        lines.extend(table(rows))
+    if fits:
+        lines.extend(["", "fits", *fits])
+    return lines, problems
+
+
+def handler(args: argparse.Namespace) -> int:
+    """Print the listing; exit status 2 if a run could not be read."""
+    lines, problems = describe(Path(args.file))
+    print("\n".join(lines))
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise InputError(problems[0] + more)
+    return 0

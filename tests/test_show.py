@@ -1,0 +1,90 @@
+"""``viscorig show``: runs with status, points, band, level, specimen, preload, flags; fits."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from test_storage import SETTINGS, make_segment
+
+from viscorig.cli import main
+from viscorig.storage import Campaign, RunSettings
+from viscorig.storage.atomic import staging_path
+
+
+@pytest.fixture()
+def campaign_path(tmp_path: Path) -> Path:
+    path = tmp_path / "paper.h5"
+    campaign = Campaign.create(path, sequence_text="name = 'paper'", sequence_file="paper.toml",
+                               rig={"table_mass_kg": 3.4}, durable=False)
+    table = RunSettings(specimen="none", level_m_per_s2=1.4, direction="up", settle_cycles=200,
+                        integrate_cycles=100, resolution_hz=0.125, simulated=True)
+    campaign.start_run("table", table)
+    campaign.append_segment("table", make_segment(12.0, 20))  # flags 0..15, 0..3
+    campaign.finish_run("table")
+    campaign.add_fit("table", model="table", band_hz=(12.0, 16.75), rms_error=0.0021,
+                     noise_floor=0.0019, parameters={"M_s": (3.41, 0.02, "kg")})
+    campaign.start_run("soft-10", SETTINGS)
+    campaign.append_segment("soft-10", make_segment(20.0, 6))
+    return path
+
+
+def test_lists_runs_flags_and_fits(campaign_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["show", str(campaign_path)]) == 0
+    out = capsys.readouterr().out
+    assert "sequence: paper.toml; station: none (simulated rig)" in out
+    assert "rig: table_mass_kg 3.4" in out
+    lines = {line.split()[0]: line for line in out.splitlines() if line}
+    table = lines["table"].split()
+    assert table[:4] == ["table", "complete", "20", "12.00-16.75"]
+    assert table[4:6] == ["1.4", "none"]
+    # flags 0..15 then 0..3: 18 flagged; bits 1 and 2 on 8 + 2 points, bits 4 and 8 on 8 + 0
+    assert lines["table"].endswith(
+        "18 (level not reached 10, input overload 10, source at limit 8, "
+        "force above shaker limit 8)"
+    )
+    soft = lines["soft-10"]
+    assert soft.split()[:4] == ["soft-10", "running", "6", "20.00-21.25"]
+    assert "soft 25 Shore A (25 Shore A)" in soft and "0.104" in soft
+    assert "table/0001  table  12-16.75 Hz  rms_error 0.0021  noise_floor 0.0019" in out
+    assert "M_s = 3.41 ± 0.02 kg" in out
+
+
+def test_crashed_writer_leaves_a_file_show_reads(campaign_path: Path,
+                                                 capsys: pytest.CaptureFixture) -> None:
+    campaign = Campaign.open(campaign_path, mode="a", durable=False)
+    campaign.start_run("hard-0", SETTINGS)  # started, no segment yet
+    staging_path(campaign_path).write_bytes(b"half a commit")  # a writer killed mid-commit
+    assert main(["show", str(campaign_path)]) == 0
+    out = capsys.readouterr().out
+    assert [line.split()[:3] for line in out.splitlines() if line.startswith("hard-0")] == [
+        ["hard-0", "running", "0"]
+    ]
+
+
+def test_a_damaged_run_is_reported_and_the_others_still_listed(
+    campaign_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    with h5py.File(campaign_path, "r+") as h5:
+        del h5["runs/soft-10/flags"]
+    assert main(["show", str(campaign_path)]) == 2
+    captured = capsys.readouterr()
+    assert any(line.split()[:2] == ["table", "complete"] for line in captured.out.splitlines())
+    assert "soft-10  cannot be read: dataset missing" in captured.out
+    assert captured.err.strip() == (
+        f"viscorig: {campaign_path}: /runs/soft-10/flags: dataset missing"
+    )
+
+
+def test_not_a_campaign_is_one_line_and_status_2(tmp_path: Path) -> None:
+    path = tmp_path / "notes.h5"
+    path.write_bytes(np.arange(100, dtype=np.uint8).tobytes())
+    result = subprocess.run([sys.executable, "-m", "viscorig", "show", str(path)],
+                            capture_output=True, text=True, check=False)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert "notes.h5: not a readable HDF5 file" in result.stderr
