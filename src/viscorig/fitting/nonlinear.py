@@ -5,8 +5,11 @@ point of every FRF fitted. Positive parameters are fitted as ``log(value)``, the
 to their bounds, and ``scipy.optimize.least_squares`` (trust-region reflective) scales the steps
 by the Jacobian, so stiffnesses of 10⁵ N/m and masses of 0.2 kg need no hand tuning.
 
-Standard errors: ``cov = s² (JᵀJ)⁻¹`` with ``s² = RSS/(n − k)`` from the Jacobian at the
-solution (in the fitted coordinates, then mapped to SI by the chain rule).
+Standard errors: the heteroscedasticity-consistent sandwich
+``cov = (JᵀJ)⁻¹ Jᵀ diag(r²) J (JᵀJ)⁻¹ · n/(n − k)`` from the Jacobian and residuals at the
+solution (in the fitted coordinates, then mapped to SI by the chain rule). The noise of a
+measured FRF changes along the band by orders of magnitude (constant acceleration control), so
+the textbook ``s² (JᵀJ)⁻¹`` would claim too small an uncertainty.
 """
 
 from __future__ import annotations
@@ -177,7 +180,7 @@ def _fit_concrete(
     r = residual(solution.x)
     n, k = r.size, len(free)
     rss = float(r @ r)
-    covariance, warnings = _covariance(solution.jac, rss, n, k, fitted, coordinates, free)
+    covariance, warnings = _covariance(solution.jac, r, n, k, fitted, coordinates, free)
     stderr = dict.fromkeys(model.names, 0.0)
     stderr.update(zip(free, np.sqrt(np.abs(np.diag(covariance))), strict=True))
     for name, x, lo, hi in zip(free, solution.x, lower, upper, strict=True):
@@ -209,7 +212,7 @@ def _fit_concrete(
 
 def _covariance(
     jac: NDArray[np.float64],
-    rss: float,
+    residual: NDArray[np.float64],
     n: int,
     k: int,
     fitted: NDArray[np.float64],
@@ -220,14 +223,17 @@ def _covariance(
     warnings: list[str] = []
     if k == 0:
         return np.zeros((0, 0)), warnings
-    s2 = rss / max(n - k, 1)
     _, singular, vt = np.linalg.svd(jac, full_matrices=False)
     keep = singular > singular[0] * 1e-12
     if not np.all(keep):
         warnings.append("the parameters are not all identifiable from these data (rank deficient)")
     inverse = (vt[keep].T / singular[keep] ** 2) @ vt[keep]
+    # Sandwich (HC1): the noise of an FRF changes along the band by orders of magnitude, so
+    # the textbook s²(JᵀJ)⁻¹, which assumes equal variance at every point, would be too small.
+    weighted = jac * residual[:, None]
+    meat = weighted.T @ weighted * (n / max(n - k, 1))
     d = coordinates.derivative(fitted)
-    covariance = s2 * inverse * np.outer(d, d)
+    covariance = (inverse @ meat @ inverse) * np.outer(d, d)
     sigma = np.sqrt(np.abs(np.diag(covariance)))
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = covariance / np.outer(sigma, sigma)
