@@ -1,0 +1,122 @@
+"""``viscorig identify`` and ``viscorig summary`` on campaign files of simulated runs."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
+
+from viscorig.cli import main
+from viscorig.storage import Campaign, RunSettings, Segment
+
+VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
+
+
+def add_run(campaign: Campaign, name: str, run: SimulatedRun, specimen: str) -> None:
+    settings = RunSettings(
+        specimen=specimen,
+        level_m_per_s2=1.0,
+        direction="up",
+        settle_cycles=100,
+        integrate_cycles=100,
+        resolution_hz=0.25,
+        simulated=True,
+    )
+    campaign.start_run(name, settings)
+    campaign.append_segment(
+        name,
+        Segment(
+            run.frequency_hz,
+            run.time_s,
+            run.accelerance_table,
+            run.accelerance_support,
+            run.reference_amplitude,
+            np.ones_like(run.time_s),
+            run.force_amplitude,
+            run.flags,
+        ),
+    )
+    campaign.finish_run(name)
+
+
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("campaign") / "paper.h5"
+    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+        add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
+        add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
+    return path
+
+
+def test_identify_json_follows_the_design_and_stores_the_fit(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--model", "maxwell",
+                 "--band", "20:120", "--json"]) == 0  # fmt: skip
+    document = json.loads(capsys.readouterr().out)
+    assert set(document) >= {"run", "model", "band_hz", "points", "rms_error", "noise_floor"}
+    assert document["run"] == "soft-0"
+    assert document["model"].startswith("maxwell(")
+    assert document["band_hz"] == [20.0, 120.0]
+    assert document["points"] == 401
+    assert document["parameters"]["K_0"]["unit"] == "N/m"
+    assert document["parameters"]["M_s"]["stderr"] == 0.0  # the table is held fixed
+    with Campaign.open(campaign_file) as campaign:
+        stored = campaign.fits("soft-0")[-1]
+    assert stored.model == document["model"]
+    assert stored.parameters["K_0"].value == pytest.approx(document["parameters"]["K_0"]["value"])
+    # the stored spec is accepted as is
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--model", stored.model,
+                 "--no-store", "--json"]) == 0  # fmt: skip
+    again = json.loads(capsys.readouterr().out)
+    assert again["rms_error"] == pytest.approx(document["rms_error"], rel=1e-3)
+
+
+def test_identify_bare_table_defaults_to_the_table_model(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["identify", str(campaign_file), "--run", "table", "--no-store"]) == 0
+    out = capsys.readouterr().out
+    assert "model table" in out
+    assert re.search(r"M_s = 3\.(39|40)", out), out
+
+
+def test_summary_prints_both_tables_beside_the_paper(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["summary", str(campaign_file)]) == 0
+    out = capsys.readouterr().out
+    assert "Table 1" in out and "Table 2" in out
+    assert "149986.61" in out  # the paper's K_v beside ours
+    assert "M_v < 0" in out  # the paper's own inconsistency is said
+    soft = next(line for line in out.splitlines() if line.strip().startswith("soft-0"))
+    assert float(soft.split()[1]) == pytest.approx(149986.61, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "words"),
+    [
+        (["--run", "soft-0", "--model", "voigt+wobble"], "unknown term 'wobble'"),
+        (["--run", "soft-0", "--band", "20-120"], "--band"),
+        (["--run", "soft-0", "--band", "50:50.5"], "at least"),
+        (["--run", "table", "--model", "voigt"], "bare-table run"),
+        (["--run", "nope"], "nope"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_status_2(
+    campaign_file: Path, arguments: list[str], words: str
+) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "viscorig", "identify", str(campaign_file), *arguments,
+         "--no-store"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert words in result.stderr
