@@ -56,6 +56,8 @@ MAX_SOURCE_VPK = 5.0
 #: ``*ESR?`` bits: operation complete, and the four error bits (query, device, execution, command).
 ESR_OPERATION_COMPLETE = 1
 ESR_ERRORS = 4 | 8 | 16 | 32
+#: First wait between ``*ESR?`` polls (s); the wait doubles up to ``poll_interval_s``.
+FIRST_POLL_S = 0.001
 #: ``STAT:OPER:COND?`` bits.
 OPERATION_SETTLING, OPERATION_RANGING, OPERATION_MEASURING = 2, 4, 16
 
@@ -720,7 +722,10 @@ class Agilent35670A:
             Overall deadline in seconds (pauses excluded); default twice the settle and
             integration time from the settings plus 30 s.
         poll_interval_s
-            Seconds between polls.
+            Longest time between polls, in seconds. Polling is adaptive: the first poll comes
+            :data:`FIRST_POLL_S` after the start and each wait doubles up to this interval, so
+            a short segment (or a fast simulated analyser) is read back at once while a long
+            one costs only a few extra ``*ESR?`` queries.
         switch_source_off
             Switch the source off when the segment ends (also after an error or abort).
 
@@ -838,6 +843,7 @@ class Agilent35670A:
         progress: Callable[[SweepProgress], None] | None,
         poll_interval_s: float,
     ) -> None:
+        wait_s = min(FIRST_POLL_S, poll_interval_s)
         while True:
             if self._abort.is_set():
                 raise MeasurementAborted("the measurement was aborted", self.resource)
@@ -872,7 +878,8 @@ class Agilent35670A:
                     )
                 )
             if not self._abort.is_set():
-                time.sleep(poll_interval_s)
+                time.sleep(wait_s)
+                wait_s = min(2.0 * wait_s, poll_interval_s)
 
     def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
         """Settle plus integration time of the given points from the settings sent (seconds)."""
