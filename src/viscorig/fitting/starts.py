@@ -85,6 +85,12 @@ def linear_start(
         for local, value in effect.initial(ctx, values).items():
             if names[local] not in fixed:
                 values[names[local]] = float(value)
+    measured = {name: data.frf(name) for name in frfs}
+    for effect in model.effects:  # after every initial(): a data start sees the whole model
+        names = model.local_names(effect)
+        for local, value in effect.start_from_data(model, ctx, values, measured).items():
+            if names[local] not in fixed and np.isfinite(value):
+                values[names[local]] = model.by_name[names[local]].clip(float(value))
     for parameter in model.parameters:
         if parameter.name not in fixed:
             value = values[parameter.name]

@@ -22,16 +22,23 @@ from viscorig.models.base import (
     register_term,
     stage_methods,
 )
+from viscorig.models.effects import EFFECTS, Amplitude, Delay, Drift, Fixture, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
 
 __all__ = [
     "DISC_MASS",
+    "EFFECTS",
     "FRF_NAMES",
     "MAXWELL_MAX_ORDER",
     "TABLE_PARAMETERS",
     "TERMS",
+    "Amplitude",
     "Context",
+    "Delay",
+    "Drift",
+    "Fixture",
     "Fractional",
+    "LoadCell",
     "Maxwell",
     "Model",
     "ModulusTerm",

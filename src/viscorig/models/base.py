@@ -202,6 +202,18 @@ class Term:
         everything else (global names). The default is each parameter's default."""
         return {parameter.name: parameter.default for parameter in self.parameters()}
 
+    def start_from_data(
+        self,
+        model: Model,
+        ctx: Context,
+        values: Mapping[str, float],
+        measured: Mapping[str, NDArray[np.complex128]],
+    ) -> dict[str, float]:
+        """Start values (local names) read off the measured FRFs ``{"table": ẍ_s/F_e, ...}``,
+        called after :meth:`initial` with ``values`` the start of every parameter of ``model``.
+        For what defaults cannot give (a fixture's frequency). The default returns ``{}``."""
+        return {}
+
     # -- pipeline stages (override those the term takes part in) ------------------------------
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
         """Stage 1, modulus terms only: ``K*(ω)`` in N/m."""

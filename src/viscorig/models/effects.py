@@ -1,0 +1,318 @@
+"""The effect terms: what a K* model alone leaves out of the rig's FRFs.
+
+Each term is one physical effect of the design's vocabulary (design.md, "Identification and
+diagnosis"), with named parameters, bounds and units, and takes part in one stage of the
+evaluation pipeline (:mod:`viscorig.models.base`):
+
+========== =================== ==================================================================
+term       stage               what it adds
+========== =================== ==================================================================
+amplitude  modify_modulus      ``K* · (x/x_ref)^(−β)``, ``x`` the displacement amplitude
+drift      modify_modulus      ``K* · (1 + κ t)``, ``t`` the test time ``time_s``
+fixture    disc_stiffness      a local mode (mass ``m`` on a spring-damper) attached to the disc
+load_cell  couple              the two-DOF coupling of physics.md with a finite ``K_c``
+delay      measure             ``H · e^{−iωτ_d}``, a time delay between response and force channel
+========== =================== ==================================================================
+
+Terms whose start cannot come from defaults (a fixture's frequency, the load cell's stiffness)
+also give a start from the measured FRFs (:meth:`start_from_data`), so that
+``identify --model voigt+fixture`` needs no guess either.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.models.base import Context, Model, Parameter, Term, register_term
+
+#: Reference displacement amplitude of the ``amplitude`` term (m): K* parameters of a model with
+#: that term are the values at this amplitude (10 µm, mid-range of the paper's sweeps).
+AMPLITUDE_REFERENCE_M = 1e-5
+
+#: Half-width of the frequency range of ``fixture(F)``, relative to ``F``.
+FIXTURE_WINDOW = 0.05
+
+
+def displacement_amplitude(ctx: Context) -> NDArray[np.float64]:
+    """Disc displacement amplitude ``|ẍ_v|/ω²`` (m) from the measured reference acceleration."""
+    if ctx.reference_amplitude is None:
+        raise InputError("the amplitude term needs reference_amplitude", "model spec")
+    return np.maximum(np.abs(ctx.reference_amplitude), 1e-300) / ctx.omega**2
+
+
+@register_term
+class LoadCell(Term):
+    """Finite load-cell (linkage) stiffness ``K_c`` between table and disc (physics.md).
+
+    Replaces the rigid link: with ``D_s = D_t + K_c`` and ``D_v' = K_c + D_v``,
+    ``X_s/F_e = D_v'/(D_s D_v' − K_c²)`` and ``X_v/F_v = 1/D_v`` (exact whatever ``K_c``).
+    """
+
+    keyword = "load_cell"
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter("K_c", "N/m", 1e3, 1e13, 1e9, description="load cell and linkage stiffness"),
+        )
+
+    def couple(self, ctx, p, d_table, d_disc):
+        k_c = p["K_c"]
+        # X_s/F_e = 1/(D_t + K_c D_v/(K_c + D_v)), written to stay exact as K_c grows.
+        series = d_disc / (1.0 + d_disc / k_c)
+        return {"table": 1.0 / (d_table + series), "support": 1.0 / d_disc}
+
+    def start_from_data(
+        self,
+        model: Model,
+        ctx: Context,
+        values: Mapping[str, float],
+        measured: Mapping[str, NDArray[np.complex128]],
+    ) -> dict[str, float]:
+        """``1/K_c = 1/(F_e/X_s − D_t) − X_v/F_v`` at every point, when both FRFs are fitted."""
+        estimate = compliance_estimate(ctx, values, measured)
+        if estimate is None or not np.isfinite(estimate[0]) or estimate[0] <= 0:
+            return {}
+        return {"K_c": 1.0 / estimate[0]}
+
+
+def compliance_estimate(
+    ctx: Context,
+    values: Mapping[str, float],
+    measured: Mapping[str, NDArray[np.complex128]],
+) -> tuple[float, float] | None:
+    """Direct estimate of the load cell's compliance ``1/K_c`` (m/N) and its standard error.
+
+    Eq. (4) gives the series stiffness ``D_eff = F_e/X_s − D_t``, Eq. (5) the disc's own
+    ``D_v = F_v/X_v``; a rigid link makes them equal, a finite ``K_c`` makes
+    ``1/D_eff − 1/D_v = 1/K_c``. ``None`` without both FRFs or the table's parameters.
+    """
+    if "table" not in measured or "support" not in measured:
+        return None
+    if not all(name in values for name in ("M_s", "K_s", "C_s")):
+        return None
+    w = ctx.omega
+    z_table = -(w**2) / measured["table"]
+    z_support = -(w**2) / measured["support"]
+    d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+    with np.errstate(all="ignore"):
+        compliance = (1.0 / (z_table - d_table) - 1.0 / z_support).real
+    compliance = compliance[np.isfinite(compliance)]
+    if compliance.size < 8:
+        return None
+    centre = float(np.median(compliance))
+    spread = 1.4826 * float(np.median(np.abs(compliance - centre)))
+    return centre, spread / np.sqrt(compliance.size)
+
+
+@register_term
+class Fixture(Term):
+    """A local mode attached to the disc: mass ``m`` on a spring-damper tuned to ``f_n``.
+
+    Adds ``−ω² m (k + iωc) / (k + iωc − ω² m)`` to the disc's dynamic stiffness, with
+    ``k = m (2π f_n)²`` and ``c = 2 ζ m (2π f_n)``. ``fixture`` lets the fit find the
+    frequency (started at the largest narrow residual peak); ``fixture(F)`` keeps ``f_n``
+    within ±5 % of ``F`` Hz.
+    """
+
+    keyword = "fixture"
+
+    def __init__(self, argument: float | None = None) -> None:
+        if argument is not None and not (np.isfinite(argument) and 0.1 <= argument <= 1e5):
+            raise InputError(f"fixture(F) needs a frequency in Hz, got {argument}", "model spec")
+        self.argument = argument
+
+    def frequency_bounds(self) -> tuple[float, float]:
+        """Range of ``f_n`` (Hz)."""
+        if self.argument is None:
+            return 0.1, 1e5
+        return self.argument * (1 - FIXTURE_WINDOW), self.argument * (1 + FIXTURE_WINDOW)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        lo, hi = self.frequency_bounds()
+        start = self.argument if self.argument is not None else 100.0
+        return (
+            Parameter("f_n", "Hz", lo, hi, start, description="natural frequency of the mode"),
+            Parameter("zeta", "", 1e-4, 0.5, 0.02, description="damping ratio of the mode"),
+            Parameter("m", "kg", 1e-8, 10.0, 1e-3, description="modal mass of the mode"),
+        )
+
+    def disc_stiffness(self, ctx, p):
+        w_n = 2 * np.pi * p["f_n"]
+        spring = p["m"] * w_n**2 + 2j * p["zeta"] * p["m"] * w_n * ctx.omega
+        return -(ctx.omega**2) * p["m"] * spring / (spring - ctx.omega**2 * p["m"])
+
+    def start_from_data(self, model, ctx, values, measured) -> dict[str, float]:
+        """Put the mode at the largest narrow peak of the residual of the rest of the model."""
+        names = model.local_names(self)
+        rest = dict(values)
+        rest[names["m"]] = 1e-12  # this mode off; every other term at its start
+        try:
+            predicted = model.predict(ctx, rest)
+        except (InputError, FloatingPointError):
+            return {}
+        lo, hi = self.frequency_bounds()
+        peaks = []
+        for name, h in measured.items():
+            with np.errstate(all="ignore"):
+                ratio = np.log(h / predicted[name])
+            peak = narrow_peak(ctx.frequency_hz, ratio, (lo, hi))
+            if peak is not None:
+                peaks.append((peak[1], peak[0], name))
+        if not peaks:
+            return {}
+        height, frequency, name = max(peaks)
+        return fixture_start(frequency, height, ctx, measured[name])
+
+
+def fixture_start(
+    frequency_hz: float, height: float, ctx: Context, accelerance: NDArray[np.complex128]
+) -> dict[str, float]:
+    """Start of a fixture mode from a residual peak of relative ``height`` at ``frequency_hz``.
+
+    At resonance the mode adds ``|ΔD| ≈ ω_n² m / (2ζ)`` to a dynamic stiffness
+    ``|D| = ω²/|H|``, so ``m ≈ 2 ζ height / |H(f_n)|`` with ``ζ`` started at 0.02.
+    """
+    zeta = 0.02
+    i = int(np.argmin(np.abs(ctx.frequency_hz - frequency_hz)))
+    mass = 2 * zeta * height / max(abs(accelerance[i]), 1e-300)
+    return {"f_n": float(frequency_hz), "zeta": zeta, "m": float(np.clip(mass, 1e-7, 1.0))}
+
+
+def narrow_peak(
+    frequency_hz: NDArray[np.float64],
+    log_ratio: NDArray[np.complex128],
+    band_hz: tuple[float, float],
+    width_hz: float = 8.0,
+) -> tuple[float, float] | None:
+    """The largest narrow feature of a complex log-ratio: ``(frequency_hz, relative height)``.
+
+    The smooth part is a running median over ``width_hz``; what stands above it over a few
+    points is a narrow feature. ``None`` if the band holds fewer than 8 points.
+    """
+    order = np.argsort(frequency_hz)
+    f, r = frequency_hz[order], log_ratio[order]
+    ok = np.isfinite(r)
+    f, r = f[ok], r[ok]
+    if f.size < 8:
+        return None
+    step = float(np.median(np.diff(f))) if f.size > 1 else 1.0
+    half = max(round(width_hz / max(step, 1e-9) / 2), 3)
+    smooth = running_median(r.real, half) + 1j * running_median(r.imag, half)
+    excess = np.abs(r - smooth)
+    inside = (f >= band_hz[0]) & (f <= band_hz[1])
+    if not np.any(inside):
+        return None
+    i = int(np.flatnonzero(inside)[np.argmax(excess[inside])])
+    return float(f[i]), float(excess[i])
+
+
+def running_median(values: NDArray[np.float64], half: int) -> NDArray[np.float64]:
+    """Median over ``±half`` points (shrinking at the ends), vectorised with a sliding window."""
+    padded = np.pad(values, half, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+    return np.median(windows, axis=1)
+
+
+@register_term
+class Delay(Term):
+    """A time delay ``τ_d`` of the response channel behind the force channel of each FRF.
+
+    Measured ``H · e^{−iωτ_d}`` on every FRF fitted (one conditioning delay shared by both
+    accelerometers, as when they use the same amplifier type). Negative ``τ_d``: the force
+    channel lags.
+    """
+
+    keyword = "delay"
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter(
+                "tau_d", "s", -2e-3, 2e-3, 0.0, log=False, description="channel time delay"
+            ),
+        )
+
+    def measure(self, ctx, p, frfs):
+        shift = np.exp(-1j * ctx.omega * p["tau_d"])
+        return {name: h * shift for name, h in frfs.items()}
+
+
+@register_term
+class Amplitude(Term):
+    """Stiffness against vibration amplitude: ``K* · (x / x_ref)^(−β)``.
+
+    ``x = |ẍ_v|/ω²`` is the disc's displacement amplitude from the measured reference
+    acceleration and ``x_ref`` is :data:`AMPLITUDE_REFERENCE_M` (10 µm), so ``β`` is the log-log
+    slope of the modulus against amplitude (positive: softening, the Payne effect) and the K*
+    parameters are the values at 10 µm. Separable from a frequency-dependent modulus only with
+    runs at two or more levels: at constant acceleration ``x ∝ 1/f²``.
+    """
+
+    keyword = "amplitude"
+    requires = ("reference_amplitude",)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter(
+                "beta", "", -0.5, 0.5, 0.0, log=False,
+                description="log-log slope of the modulus against displacement amplitude",
+            ),
+        )
+
+    def modify_modulus(self, ctx, p, kstar):
+        ratio = displacement_amplitude(ctx) / AMPLITUDE_REFERENCE_M
+        return kstar * ratio ** (-p["beta"])
+
+
+@register_term
+class Drift(Term):
+    """Thermal drift: ``K* · (1 + κ t)``, ``t`` the test time ``time_s`` (s).
+
+    ``κ`` in 1/s (−5.6e-6 /s is −2 % per hour); K* parameters are the values at ``t = 0``.
+    """
+
+    keyword = "drift"
+    requires = ("time_s",)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter(
+                "kappa", "1/s", -1e-3, 1e-3, 0.0, log=False,
+                description="relative change of the modulus per second of test time",
+            ),
+        )
+
+    def modify_modulus(self, ctx, p, kstar):
+        if ctx.time_s is None:
+            raise InputError("the drift term needs time_s", "model spec")
+        return kstar * (1.0 + p["kappa"] * ctx.time_s)
+
+
+#: Effect vocabulary of the design: effect name -> (term keyword, what is missing).
+EFFECTS: dict[str, tuple[str, str]] = {
+    "frequency_dependent_modulus": (
+        "maxwell",
+        "the rubber's stiffness and damping change with frequency",
+    ),
+    "load_cell_compliance": (
+        "load_cell",
+        "the link between table and device is not rigid (Eq. 1 not reduced)",
+    ),
+    "fixture_resonance": ("fixture", "a local mode of the linkage or device"),
+    "sensor_delay": ("delay", "a time delay between the two channels of an FRF"),
+    "amplitude_dependence": ("amplitude", "stiffness depends on vibration amplitude"),
+    "thermal_drift": ("drift", "the modulus drifts during the run"),
+}
+
+
+def effect_of(keyword: str) -> str:
+    """Effect name of a term keyword (``fixture`` -> ``fixture_resonance``)."""
+    if keyword in ("maxwell", "fractional"):
+        return "frequency_dependent_modulus"
+    for effect, (term, _) in EFFECTS.items():
+        if term == keyword:
+            return effect
+    raise KeyError(keyword)
