@@ -1406,6 +1406,10 @@ class VirtualAnalyser:
 # a controller's connection
 
 
+class _DeviceCleared(Exception):  # noqa: N818 - a signal, not an error
+    """A device clear ended a ``*OPC?`` or ``*WAI`` wait."""
+
+
 class ScpiSession:
     """One controller's connection: its own header path; the instrument is shared.
 
@@ -1442,6 +1446,8 @@ class ScpiSession:
             try:
                 unit = parse_unit(text)
                 answer = self._execute_unit(unit, path)
+            except _DeviceCleared:
+                return None  # the rest of the message and its responses are gone
             except ScpiError as error:
                 a.push_error(error.code, error.message)
                 if -199 <= error.code <= -100:
@@ -1484,3 +1490,5 @@ class ScpiSession:
             cleared = self._cleared
             while a.state != "IDLE" and self._cleared == cleared:
                 a.changed.wait()
+            if self._cleared != cleared:
+                raise _DeviceCleared

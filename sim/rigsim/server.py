@@ -45,6 +45,7 @@ from rigsim.faults import FaultInjector, garble
 __all__ = ["READ_TIMEOUT_FLOOR_S", "SimulatedAnalyserServer"]
 
 READ_TIMEOUT_FLOOR_S = 1.0
+POLL_SETTLE_S = 0.1
 _ESC, _CR, _LF, _PLUS = 0x1B, 0x0D, 0x0A, 0x2B
 _QUICKACK = getattr(socket, "TCP_QUICKACK", None)
 
@@ -125,17 +126,14 @@ class _GpibDevice:
 
     def write(self, message: str) -> None:
         with self.cond:
-            if self.output is not None:
-                # a new message while the response is unread (IEEE 488.2: query interrupted)
-                self.output = None
-                self.analyser.push_error(-410, "Query INTERRUPTED")
             self.busy += 1
         self.inbox.put(message)
 
     def read(self, timeout_s: float) -> bytes | None:
-        """Address the device to talk: its response, or ``None`` after ``timeout_s``."""
+        """Address the device to talk: its response once every message written is handled,
+        or ``None`` after ``timeout_s``."""
         with self.cond:
-            self.cond.wait_for(lambda: self.output is not None or self.busy == 0, timeout_s)
+            self.cond.wait_for(lambda: self.busy == 0, timeout_s)
             output, self.output = self.output, None
             if output is None and self.busy == 0:
                 if self.reply_lost:
@@ -145,7 +143,10 @@ class _GpibDevice:
             return output
 
     def has_output(self) -> bool:
+        """Message available, once the messages already written are parsed (a device that
+        waits on ``*OPC?`` answers the poll anyway, after at most :data:`POLL_SETTLE_S`)."""
         with self.cond:
+            self.cond.wait_for(lambda: self.busy == 0, POLL_SETTLE_S)
             return self.output is not None
 
     def clear(self) -> None:
@@ -175,6 +176,11 @@ class _GpibDevice:
                     self.busy = 0
                 self.on_drop()
                 return
+            with self.cond:
+                if self.output is not None:
+                    # a new message while a response is unread (IEEE 488.2: query interrupted)
+                    self.output = None
+                    self.analyser.push_error(-410, "Query INTERRUPTED")
             response = self.session.execute(message)
             with self.cond:
                 self.busy = max(0, self.busy - 1)
