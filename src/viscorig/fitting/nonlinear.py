@@ -125,13 +125,15 @@ def fit(
     results: list[FitResult] = []
     worse = 0
     for candidate in model.candidates():
-        result = _fit_concrete(candidate, band, chosen, fixed, start, floor)
+        result = _fit_concrete(candidate, band, chosen, fixed, start, floor, tolerance=1e-6)
         best_so_far = min((r.bic for r in results), default=np.inf)
         results.append(result)
         worse = worse + 1 if result.bic >= best_so_far else 0
         if worse >= 1:
             break
-    best = min(results, key=lambda result: result.bic)
+    chosen_one = min(results, key=lambda result: result.bic)
+    # The comparison needs only coarse convergence; the chosen variant is then refined.
+    best = _fit_concrete(chosen_one.model, band, chosen, fixed, chosen_one.values, floor)
     best.candidates = [(r.spec, r.bic, r.rms_error) for r in results]
     return best
 
@@ -143,6 +145,7 @@ def _fit_concrete(
     fixed: Mapping[str, float],
     start: Mapping[str, float] | None,
     floor: float,
+    tolerance: float = 1e-9,
 ) -> FitResult:
     values = linear_start(model, data, frfs, fixed)
     if start:
@@ -170,9 +173,9 @@ def _fit_concrete(
             bounds=(lower, upper),
             x_scale="jac",
             method="trf",
-            ftol=1e-9,
-            xtol=1e-9,
-            gtol=1e-9,
+            ftol=tolerance,
+            xtol=tolerance,
+            gtol=tolerance,
             max_nfev=50 + 20 * len(free),
         )
     fitted = coordinates.to_values(solution.x)
