@@ -11,3 +11,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=None,
         help="VISA resource of a real 35670A for the hardware tests (or env VISCORIG_RESOURCE)",
     )
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """Print the reliability figures (faults tried, kills survived, ...) measured in this run."""
+    from reliability_tally import summary_lines
+
+    lines = summary_lines()
+    if lines:
+        terminalreporter.write_sep("-", "reliability figures")
+        for line in lines:
+            terminalreporter.write_line(line)

@@ -6,6 +6,7 @@ in :class:`Quirks` so they can be checked on hardware and changed in one place.
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -204,6 +205,28 @@ def _parse_channel(reply: str) -> int:
 
 def _parse_keyword(reply: str) -> str:
     return reply.strip().strip('"').upper()
+
+
+#: The swept-sine trace feeds (``CALC1:FEED``): a whitelist, because the feed is sent inside a
+#: quoted string where a ``'`` or ``;`` would end it and inject commands.
+_FEED = re.compile(
+    r"^(XFR:POW:(RAT [1-4],[1-4]|CROS [1-4],[1-4]|LIN [1-4]|VAR [1-4])|XTIM:VOLT [1-4])$"
+)
+
+
+def check_feed(feed: object) -> str:
+    """Return a swept-sine feed in upper case, or raise :class:`SettingOutOfRange`.
+
+    Accepted: ``XFR:POW:RAT a,b``, ``XFR:POW:CROS a,b``, ``XFR:POW:LIN n``, ``XFR:POW:VAR n``,
+    ``XTIM:VOLT n`` with channels 1..4 (coherence is FFT-mode only).
+    """
+    text = str(feed).strip().upper()
+    if not _FEED.match(text):
+        raise SettingOutOfRange(
+            f"feed {feed!r} is not a swept-sine feed (XFR:POW:RAT a,b, XFR:POW:CROS a,b, "
+            "XFR:POW:LIN n, XFR:POW:VAR n, XTIM:VOLT n; channels 1..4)"
+        )
+    return text
 
 
 class Agilent35670A:
@@ -968,6 +991,7 @@ class Agilent35670A:
         -------
         (frequency_hz or None, values)
         """
+        feed = check_feed(feed)
         self.configure(f"CALC1:FEED '{feed}';*WAI")
         self.configure("TRAC:DATA D1,TRAC1")
         axis = None

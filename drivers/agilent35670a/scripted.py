@@ -64,6 +64,7 @@ class ScriptedSCPIServer:
         self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self._listener.bind(("127.0.0.1", 0))
         self._listener.listen(4)
+        self._listener.settimeout(0.05)  # here, not in the thread: close() may come first
         self.port = self._listener.getsockname()[1]
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -114,7 +115,6 @@ class ScriptedSCPIServer:
             thread.join(timeout=2.0)
 
     def _accept_loop(self) -> None:
-        self._listener.settimeout(0.05)
         while not self._stop.is_set():
             try:
                 connection, _ = self._listener.accept()

@@ -503,7 +503,10 @@ class SimulatedAnalyserServer:
     def _accept_loop(self, listener: socket.socket,
                      serve: Callable[[socket.socket], None]) -> None:
         while not self._stop.is_set():
-            readable, _, _ = select.select([listener, self._wake[0]], [], [])
+            try:
+                readable, _, _ = select.select([listener, self._wake[0]], [], [])
+            except OSError:  # close() came between the loop test and select: listener closed
+                return
             if self._stop.is_set():
                 return
             if listener not in readable:
