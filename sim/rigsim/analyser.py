@@ -11,6 +11,16 @@ instrument.
 The command set follows ``shared/docs/35670a.md``. Behaviour marked **(inferred)** in comments
 and docstrings is our reading where that page and the manual are silent; keep it easy to change.
 
+Not simulated, on purpose and visibly: FFT, octave, order and histogram measurements (``INIT``
+outside swept sine answers -221); the swept sine's automatic resolution (``FREQ:RES:AUTO ON``
+still measures the fixed ``FREQ:RES`` grid, so always read the X axis); the source slew rate
+(stored only). Traces and data registers (all values in engineering units when
+``VOLTn:RANG:UNIT:USER`` is on, else volts): ``XFR:POW:RAT a,b`` the complex ratio a/b;
+``XFR:POW:LIN n`` the complex peak amplitude of channel n (inferred: peak); ``XFR:POW:CROS a,b``
+``conj(X_a) X_b`` in peak² (inferred); ``XFR:POW:VAR n`` the normalized variance (real);
+``XTIM:VOLT n`` the last point's steady-state sine rebuilt from its measured amplitude (real,
+X in seconds). During and after a sweep the traces hold the points measured so far (inferred).
+
 In-process control (not SCPI; the instrument has no such command): :meth:`VirtualAnalyser.mount`
 swaps the specimens on the simulated rig between sweeps, as a technician does when a sequence
 prompt says "mount the soft specimens".
