@@ -764,7 +764,9 @@ class Agilent35670A:
         self._set_band(start, stop)
         self.resolution_hz = resolution
         grid = start + float(resolution) * np.arange(points)
-        return self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
+        segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
+        _check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
+        return segment
 
     def measure_point(
         self,
@@ -1027,6 +1029,27 @@ class Agilent35670A:
         overload = tuple(ch for ch in range(1, 5) if bits & (1 << (ch - 1)))
         half_range = tuple(ch for ch in range(1, 5) if bits & (1 << (ch + 7)))
         return overload, half_range
+
+
+def _check_axis(axis: np.ndarray, grid: np.ndarray, resolution: float, resource: str) -> None:
+    """Refuse a frequency axis that is not the requested grid (in either sweep order).
+
+    Finite but wrong X values (a wrong byte order, a stale or shifted reply) would otherwise be
+    stored as frequencies. The axis is still what is returned: it carries the analyser's own
+    rounding, which stays well within half a grid step.
+    """
+    tolerance = 0.5 * resolution
+    for expected in (grid, grid[::-1]):
+        if axis.shape == expected.shape and np.all(np.abs(axis - expected) <= tolerance):
+            return
+    ascending = np.abs(axis - grid) > tolerance if axis.shape == grid.shape else None
+    index = 0 if ascending is None else int(np.flatnonzero(ascending)[0])
+    raise MalformedReply(
+        f"TRAC:X? D1: frequency axis value {index} is {float(axis[index])!r} Hz, off the "
+        f"requested grid {grid[0]:g}..{grid[-1]:g} Hz in {resolution:g} Hz steps (wrong byte "
+        "order, or a stale or damaged reply)",
+        resource,
+    )
 
 
 def _parse_error(reply: str, resource: str) -> tuple[int, str]:
