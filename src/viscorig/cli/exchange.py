@@ -1,0 +1,124 @@
+"""``viscorig export`` and ``viscorig import``: FRFs to and from other tools.
+
+``export FILE.h5 --run RUN --format uff|csv --out PATH`` writes a run's two accelerances
+(ẍ_s/F_e and ẍ_v/F_v, m/s²/N): a universal file with one dataset 58 per FRF (binary 58 by
+default, so values survive to the last bit; ``--uff-ascii`` for plain ASCII), or a CSV with the
+units in the column names and the point flags.
+
+``import FILE.h5 --run NAME (--uff PATH | --csv PATH | --sdf PATH [--sdf PATH2])`` adds a new,
+complete run to a campaign file (created when missing): from a universal file's FRF records,
+from a CSV written by ``export``, or from SDF files a 35670A saved to its disk (swept-sine
+frequency responses; the first file is ẍ_s/F_e, the second ẍ_v/F_v, or one file holding both).
+Units and frequency axis are those the file declares, converted to Hz and m/s²/N; a file whose
+units are not acceleration over force is refused. What the files do not say (specimen, preload,
+hardness) is given with options. Everything is read and checked before the campaign file is
+touched, and an existing run is never overwritten.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+from viscorig.errors import InputError
+from viscorig.exchange import (
+    ImportSettings,
+    import_run,
+    read_csv,
+    read_sdf_frfs,
+    read_uff,
+    write_csv,
+    write_uff,
+)
+from viscorig.storage import Campaign
+
+
+def _paragraph(index: int) -> str:
+    """One paragraph of the module text, for a command's ``--help``."""
+    return (__doc__ or "").split("\n\n")[index]
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``export`` and ``import`` commands."""
+    export = subparsers.add_parser(
+        "export", help="write a run's FRFs to a universal file (dataset 58) or CSV",
+        description=_paragraph(1), formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    export.add_argument("file", help="campaign file (.h5)")
+    export.add_argument("--run", required=True, help="run name, e.g. soft-0")
+    export.add_argument("--format", choices=("uff", "csv"), required=True,
+                        help="uff: dataset 58 records, one per FRF; csv: one row per point")
+    export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
+    export.add_argument("--uff-ascii", action="store_true",
+                        help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "
+                        "instead of binary 58 (exact doubles)")
+    export.set_defaults(handler=export_handler)
+
+    imports = subparsers.add_parser(
+        "import", help="add a run to a campaign from UFF 58, CSV or 35670A SDF files",
+        description=_paragraph(2),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    imports.add_argument("file", help="campaign file (.h5); created if missing")
+    imports.add_argument("--run", required=True, help="name of the new run, e.g. soft-0")
+    source = imports.add_mutually_exclusive_group(required=True)
+    source.add_argument("--uff", metavar="PATH", help="universal file with dataset 58 FRFs")
+    source.add_argument("--csv", metavar="PATH", help="CSV written by 'viscorig export'")
+    source.add_argument("--sdf", metavar="PATH", action="append",
+                        help="35670A SDF file (give twice: ẍ_s/F_e, then ẍ_v/F_v)")
+    imports.add_argument("--specimen", default="unknown",
+                         help="specimen name; 'none' for a bare-table run (default: unknown)")
+    imports.add_argument("--hardness", type=float, default=math.nan, help="Shore A hardness")
+    imports.add_argument("--preload-strain", type=float, default=0.0,
+                         help="static strain of the specimens (0.104 for 10 %%; default 0)")
+    imports.add_argument("--temperature", type=float, default=math.nan, help="°C")
+    imports.add_argument("--level", type=float, default=math.nan,
+                         help="reference acceleration amplitude held, m/s^2 (peak)")
+    imports.set_defaults(handler=import_handler)
+
+
+def export_handler(args: argparse.Namespace) -> int:
+    """Run ``export``."""
+    path = Path(args.file)
+    run = Campaign.open(path).run(args.run)
+    out = Path(args.out)
+    if out.resolve() == path.resolve():
+        raise InputError("would overwrite the campaign file", "--out")
+    if args.format == "uff":
+        count = write_uff(run, out, path.name, binary=not args.uff_ascii)
+        kind = "ASCII" if args.uff_ascii else "binary"
+        print(f"{out}: {count} FRF record(s) (dataset 58, {kind}) of run {run.name}, "
+              f"{run.points} points")
+    else:
+        write_csv(run, out, path.name)
+        print(f"{out}: run {run.name}, {run.points} points")
+    return 0
+
+
+def import_handler(args: argparse.Namespace) -> int:
+    """Run ``import``."""
+    if args.uff:
+        frfs = read_uff(Path(args.uff))
+    elif args.csv:
+        frfs = read_csv(Path(args.csv))
+    else:
+        if len(args.sdf) > 2:
+            raise InputError(f"{len(args.sdf)} files; give one or two", "--sdf")
+        frfs = read_sdf_frfs([Path(p) for p in args.sdf])
+    for value, name in ((args.hardness, "--hardness"), (args.level, "--level")):
+        if not (math.isnan(value) or (math.isfinite(value) and value > 0)):
+            raise InputError(f"{value} must be a positive number", name)
+    if not (math.isfinite(args.preload_strain) and 0 <= args.preload_strain < 1):
+        raise InputError(f"{args.preload_strain} must be in 0..1", "--preload-strain")
+    settings = ImportSettings(
+        specimen=args.specimen, hardness_shore_a=args.hardness,
+        preload_strain=args.preload_strain, temperature_c=args.temperature,
+        level_m_per_s2=args.level,
+    )
+    points = import_run(Path(args.file), args.run, frfs, settings)
+    present = "two FRFs" if np.any(np.isfinite(frfs.accelerance_support)) else "ẍ_s/F_e only"
+    print(f"{args.file}: run {args.run} imported from {frfs.source}: {points} points, {present}")
+    return 0

@@ -1,0 +1,174 @@
+"""FRFs travelling between viscorig and other tools, and how they enter a campaign run.
+
+Every reader (UFF 58, CSV, SDF) returns an :class:`FrfSet`: accelerances in m/s²/N on one
+frequency axis in Hz, whatever units the file used. :func:`import_run` then writes it as one
+new run of a campaign file, after every check has passed, so bad input never changes the file.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage.campaign import check_name
+
+#: Relative tolerance within which two files' frequency axes count as the same.
+AXIS_RTOL = 1e-9
+
+
+@dataclass
+class FrfSet:
+    """The FRFs of one run, ready to be stored.
+
+    Attributes
+    ----------
+    frequency_hz
+        Frequency of each point, Hz.
+    accelerance_table
+        ẍ_s/F_e in m/s²/N (all NaN when absent).
+    accelerance_support
+        ẍ_v/F_v in m/s²/N (all NaN when absent, as on a bare table).
+    flags
+        Point flags (data-format.md bit mask); zeros when the source has none.
+    time_s
+        Seconds since the run's start at each point; NaN when the source has none.
+    source
+        Where the data came from, for the run's ``instrument`` attribute.
+    """
+
+    frequency_hz: NDArray[np.float64]
+    accelerance_table: NDArray[np.complex128]
+    accelerance_support: NDArray[np.complex128]
+    flags: NDArray[np.uint16] | None = None
+    time_s: NDArray[np.float64] | None = None
+    source: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.frequency_hz).size
+        self.frequency_hz = np.asarray(self.frequency_hz, dtype=float)
+        self.accelerance_table = np.asarray(self.accelerance_table, dtype=complex)
+        self.accelerance_support = np.asarray(self.accelerance_support, dtype=complex)
+        if self.flags is None:
+            self.flags = np.zeros(n, dtype=np.uint16)
+        if self.time_s is None:
+            self.time_s = np.full(n, np.nan)
+
+
+def combine(
+    frequency_hz: list[NDArray[np.float64]],
+    frfs: list[NDArray[np.complex128]],
+    names: list[str],
+    source: str,
+) -> FrfSet:
+    """One or two FRFs on the same axis -> an :class:`FrfSet` (first table, second support).
+
+    Raises
+    ------
+    InputError
+        No FRF, more than two, axes that differ, or an axis that is not finite and positive.
+    """
+    if not frfs:
+        raise InputError("holds no frequency response", source)
+    if len(frfs) > 2:
+        raise InputError(f"holds {len(frfs)} frequency responses; a run has two "
+                         "(ẍ_s/F_e, then ẍ_v/F_v)", source)
+    axis = np.asarray(frequency_hz[0], dtype=float)
+    if axis.size == 0 or not np.all(np.isfinite(axis)) or np.any(axis <= 0):
+        raise InputError("frequency axis is empty, not finite, or not positive", names[0])
+    for other, name in zip(frequency_hz[1:], names[1:], strict=True):
+        if other.shape != axis.shape or not np.allclose(other, axis, rtol=AXIS_RTOL, atol=0):
+            raise InputError(
+                f"frequency axis ({other.size} points, {other[0]:g}-{other[-1]:g} Hz) differs "
+                f"from {names[0]}'s ({axis.size} points, {axis[0]:g}-{axis[-1]:g} Hz)", name)
+    nan = np.full(axis.shape, np.nan + 1j * np.nan)
+    support = frfs[1] if len(frfs) == 2 else nan
+    return FrfSet(axis, frfs[0], support, source=source)
+
+
+@dataclass(frozen=True)
+class ImportSettings:
+    """What the user says about an imported run (the files do not carry it)."""
+
+    specimen: str = "unknown"
+    hardness_shore_a: float = math.nan
+    preload_strain: float = 0.0
+    temperature_c: float = math.nan
+    level_m_per_s2: float = math.nan
+
+
+def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: ImportSettings) -> int:
+    """Store ``frfs`` as a new, complete run ``run_name`` of a campaign file.
+
+    The campaign file is created when it does not exist. Everything is checked before the file
+    is touched; the run is written in one segment and marked complete.
+
+    Returns
+    -------
+    int
+        Points stored.
+
+    Raises
+    ------
+    InputError
+        Bad run name, run exists, the file is not a campaign, or the data cannot be stored.
+    """
+    check_name(run_name, "--run")
+    if settings.specimen.strip().lower() in {"none", ""} and np.any(
+        np.isfinite(frfs.accelerance_support)
+    ):
+        raise InputError("a bare-table run (specimen 'none') has no ẍ_v/F_v; "
+                         "give --specimen or import one FRF", run_name)
+    steps = np.diff(frfs.frequency_hz)
+    if np.all(steps > 0):
+        direction, keep = "up", np.arange(frfs.frequency_hz.size)
+    elif np.all(steps < 0):
+        direction, keep = "down", np.arange(frfs.frequency_hz.size)
+    else:  # neither sweep order: store sorted
+        direction, keep = "up", np.argsort(frfs.frequency_hz, kind="stable")
+        if np.any(np.diff(frfs.frequency_hz[keep]) == 0):
+            raise InputError("the frequency axis repeats a frequency", frfs.source)
+    resolution = float(np.median(np.abs(steps))) if steps.size else math.nan
+    run_settings = RunSettings(
+        specimen=settings.specimen,
+        level_m_per_s2=settings.level_m_per_s2,
+        direction=direction,
+        settle_cycles=0,
+        integrate_cycles=0,
+        resolution_hz=resolution,
+        hardness_shore_a=settings.hardness_shore_a,
+        preload_strain=settings.preload_strain,
+        temperature_c=settings.temperature_c,
+        instrument=f"imported from {frfs.source}"[:200],
+        simulated=False,
+    )
+    n = keep.size
+    segment = Segment(
+        frequency_hz=frfs.frequency_hz[keep],
+        time_s=frfs.time_s[keep],  # type: ignore[index]
+        accelerance_table=frfs.accelerance_table[keep],
+        accelerance_support=frfs.accelerance_support[keep],
+        reference_amplitude=np.full(n, np.nan),
+        source_amplitude=np.full(n, np.nan),
+        force_amplitude=np.full(n, np.nan),
+        flags=frfs.flags[keep],  # type: ignore[index]
+    )
+    segment.columns()  # raises ValueError on inconsistent arrays, before the file is touched
+    path = Path(campaign_path)
+    if path.exists():
+        campaign = Campaign.open(path, "a")
+        if run_name in campaign.run_names:
+            raise InputError("run exists; imports never overwrite a run",
+                             f"{path}: /runs/{run_name}")
+    else:
+        campaign = Campaign.create(path, sequence_text="", sequence_file="")
+    campaign.start_run(run_name, run_settings)
+    stored = campaign.append_segment(run_name, segment)
+    campaign.finish_run(run_name, "complete")
+    return stored

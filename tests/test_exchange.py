@@ -1,0 +1,268 @@
+"""Exchange: UFF 58 and CSV round trips, 35670A SDF import, and bad input left untouched."""
+
+from __future__ import annotations
+
+import hashlib
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from campaigndata import paper_campaign
+from sdfwrite import FOUR_CHANNELS, Channel, SdfLayout, Trace, sdf_bytes
+
+from viscorig.cli import main
+from viscorig.errors import InputError
+from viscorig.exchange import (
+    read_csv,
+    read_sdf,
+    read_sdf_frfs,
+    read_uff,
+    uff_records,
+    write_csv,
+    write_uff,
+)
+from viscorig.storage import Campaign
+
+
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return paper_campaign(tmp_path_factory.mktemp("exchange") / "c.h5",
+                          runs=("table", "soft-0"))
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_uff_round_trip_is_exact_and_declares_accelerance(campaign_file: Path, tmp_path: Path):
+    run = Campaign.open(campaign_file).run("soft-0")
+    out = tmp_path / "soft.uff"
+    assert main(["export", str(campaign_file), "--run", "soft-0", "--format", "uff",
+                 "--out", str(out)]) == 0
+    back = read_uff(out)
+    assert np.array_equal(back.frequency_hz, run.frequency_hz)
+    assert np.array_equal(back.accelerance_table, run.accelerance_table)
+    assert np.array_equal(back.accelerance_support, run.accelerance_support)
+    frfs = [r for r in uff_records(run) if r["type"] == 58]
+    assert len(frfs) == 2
+    for record in frfs:
+        assert record["func_type"] == 4
+        assert record["abscissa_spec_data_type"] == 18
+        assert record["abscissa_axis_units_lab"] == "Hz"
+        assert (record["ordinate_spec_data_type"], record["ordinate_len_unit_exp"]) == (12, 1)
+        assert record["ordinate_axis_units_lab"] == "m/s^2"
+        assert (record["orddenom_spec_data_type"], record["orddenom_force_unit_exp"]) == (13, 1)
+        assert record["orddenom_axis_units_lab"] == "N"
+    assert [r["rsp_node"] for r in frfs] == [1, 2]
+
+
+def test_uff_import_makes_a_run_equal_to_the_original(campaign_file: Path, tmp_path: Path):
+    run = Campaign.open(campaign_file).run("soft-0")
+    uff = tmp_path / "soft.uff"
+    write_uff(run, uff)
+    target = tmp_path / "imported.h5"
+    assert main(["import", str(target), "--run", "soft-0", "--uff", str(uff),
+                 "--specimen", "soft", "--hardness", "25"]) == 0
+    imported = Campaign.open(target).run("soft-0")
+    assert np.array_equal(imported.frequency_hz, run.frequency_hz)
+    assert np.array_equal(imported.accelerance_table, run.accelerance_table)
+    assert np.array_equal(imported.accelerance_support, run.accelerance_support)
+    assert imported.metadata.status == "complete"
+    assert imported.metadata.specimen == "soft" and imported.metadata.hardness_shore_a == 25
+
+
+def test_ascii_uff_keeps_twelve_digits_and_bare_table_has_one_record(campaign_file, tmp_path):
+    table = Campaign.open(campaign_file).run("table")
+    out = tmp_path / "table.uff"
+    assert write_uff(table, out, binary=False) == 1
+    back = read_uff(out)
+    assert np.all(np.isnan(back.accelerance_support))
+    assert np.max(np.abs(back.accelerance_table / table.accelerance_table - 1)) < 1e-10
+    assert np.max(np.abs(back.frequency_hz / table.frequency_hz - 1)) < 1e-5
+
+
+def test_uff_receptance_in_mm_is_converted_to_accelerance(campaign_file, tmp_path):
+    run = Campaign.open(campaign_file).run("soft-0")
+    records = uff_records(run)[:2]  # units (164), then the table FRF
+    omega = 2 * np.pi * run.frequency_hz
+    records[1].update(ordinate_spec_data_type=8, ordinate_axis_units_lab="mm",
+                      data=run.accelerance_table / -(omega**2) * 1e3, id1="other tool")
+    import pyuff
+
+    pyuff.UFF(str(tmp_path / "r.uff")).write_sets(records, mode="overwrite")
+    back = read_uff(tmp_path / "r.uff")
+    assert np.allclose(back.accelerance_table, run.accelerance_table, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"ordinate_axis_units_lab": "V"}, "not a unit of acceleration"),
+        ({"orddenom_spec_data_type": 8}, "not a force"),
+        ({"abscissa_spec_data_type": 17}, "not frequency"),
+        ({"func_type": 1}, "holds no frequency response"),
+    ],
+)
+def test_uff_with_wrong_units_is_refused(campaign_file, tmp_path, change, message):
+    import pyuff
+
+    run = Campaign.open(campaign_file).run("soft-0")
+    records = uff_records(run)[:2]
+    records[1].update(change)
+    pyuff.UFF(str(tmp_path / "bad.uff")).write_sets(records, mode="overwrite")
+    with pytest.raises(InputError, match=message):
+        read_uff(tmp_path / "bad.uff")
+
+
+def test_csv_round_trip_keeps_values_flags_and_units(campaign_file: Path, tmp_path: Path):
+    run = Campaign.open(campaign_file).run("soft-0")
+    out = tmp_path / "soft.csv"
+    assert main(["export", str(campaign_file), "--run", "soft-0", "--format", "csv",
+                 "--out", str(out)]) == 0
+    header = next(line for line in out.read_text().splitlines() if not line.startswith("#"))
+    assert header.split(",") == [
+        "frequency_hz", "time_s", "accelerance_table_real_m_per_s2_per_n",
+        "accelerance_table_imag_m_per_s2_per_n", "accelerance_support_real_m_per_s2_per_n",
+        "accelerance_support_imag_m_per_s2_per_n", "flags"]
+    assert "m/s^2/N" in out.read_text()
+    back = read_csv(out)
+    for name in ("frequency_hz", "accelerance_table", "accelerance_support", "flags", "time_s"):
+        assert np.array_equal(getattr(back, name), getattr(run, name)), name
+
+
+def test_csv_with_flags_survives_and_bad_cell_is_named(tmp_path: Path, campaign_file: Path):
+    run = Campaign.open(campaign_file).run("table")
+    out = tmp_path / "t.csv"
+    write_csv(run, out)
+    back = read_csv(out)
+    assert np.all(np.isnan(back.accelerance_support))
+    lines = out.read_text().splitlines()
+    lines[-1] = lines[-1].replace(",0", ",zero")
+    out.write_text("\n".join(lines))
+    with pytest.raises(InputError, match=rf"t.csv:{len(lines)}: a cell is not a number"):
+        read_csv(out)
+
+
+F = np.arange(20.0, 120.0 + 1e-9, 0.25)
+H_TABLE = -0.1 * F**2 / (50e3 + 150e3 - (2 * np.pi * F) ** 2 * 3.6 + 2j * np.pi * F * 120)
+H_SUPPORT = -(2 * np.pi * F) ** 2 / (150e3 - (2 * np.pi * F) ** 2 * 0.15 + 2j * np.pi * F * 115)
+
+
+def test_sdf_with_both_frfs_reads_back_the_same_data(tmp_path: Path):
+    path = tmp_path / "FRF.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(F, FOUR_CHANNELS,
+                                         [Trace(1, 0, H_TABLE), Trace(3, 2, H_SUPPORT)])))
+    frfs = read_sdf(path)
+    assert [frf.response_unit for frf in frfs] == ["m/s2", "m/s2"]
+    assert [frf.reference_unit for frf in frfs] == ["N", "N"]
+    assert np.array_equal(frfs[0].frequency_hz, F)
+    assert np.allclose(frfs[0].values, H_TABLE, rtol=1e-14, atol=0)
+    assert np.allclose(frfs[1].values, H_SUPPORT, rtol=1e-14, atol=0)
+
+
+def test_sdf_import_of_two_files_with_linear_axis_and_g_units(tmp_path: Path):
+    channels = [Channel("F_e", "N", 0.01), Channel("acc", "g", 0.1),
+                Channel("F_v", "lbf", 0.04), Channel("acc", "m/s2", 0.01)]
+    first, second = tmp_path / "TABLE.DAT", tmp_path / "SUPPORT.DAT"
+    first.write_bytes(sdf_bytes(SdfLayout(F, channels, [Trace(1, 0, H_TABLE)],
+                                          x_resolution=0, y_type=3)))
+    second.write_bytes(sdf_bytes(SdfLayout(F, channels, [Trace(3, 2, H_SUPPORT)],
+                                           x_resolution=0, y_type=3)))
+    target = tmp_path / "c.h5"
+    assert main(["import", str(target), "--run", "soft-0", "--sdf", str(first),
+                 "--sdf", str(second), "--specimen", "soft"]) == 0
+    run = Campaign.open(target).run("soft-0")
+    assert np.allclose(run.frequency_hz, F, rtol=1e-12)
+    assert np.allclose(run.accelerance_table, H_TABLE * 9.80665, rtol=1e-6, atol=0)
+    assert np.allclose(run.accelerance_support, H_SUPPORT / 4.4482216152605, rtol=1e-6, atol=0)
+
+
+def test_sdfascii_cannot_read_a_swept_sine_frequency_response(tmp_path: Path):
+    """Why viscorig has its own SDF reader: sdfascii mangles FRF data (see exchange/sdf.py)."""
+    sdfascii = pytest.importorskip("sdfascii")
+    path = tmp_path / "FRF.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(F, FOUR_CHANNELS, [Trace(1, 0, H_TABLE)])))
+    with np.errstate(all="ignore"):
+        header, data = sdfascii.read_sdf_file(str(path))
+    assert header["data_hdr"][0]["data_type"] == "Frequency response"  # headers agree
+    assert np.asarray(data).shape != H_TABLE.shape or not np.allclose(data, H_TABLE)
+
+
+def _sdf(tmp_path: Path, **changes) -> Path:
+    path = tmp_path / "bad.dat"
+    layout = SdfLayout(F, FOUR_CHANNELS, [Trace(1, 0, H_TABLE)])
+    for key, value in changes.items():
+        setattr(layout, key, value)
+    path.write_bytes(sdf_bytes(layout))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"revision": 3}, "SDF revision 3"),
+        ({"application": 2}, "not a 35670A file"),
+        ({"measurement": 3}, "not a swept sine"),
+        ({"data_type": 2}, "holds no frequency response"),
+        ({"x_unit": "s"}, "not a unit of frequency"),
+        ({"channels": [Channel("F", "N", 0.01), Channel("a", "V", 1.0)]},
+         "not a unit of acceleration"),
+        ({"powers": (48, 0)}, "not those of a frequency response"),
+    ],
+)
+def test_bad_sdf_is_refused_with_the_reason(tmp_path: Path, changes, message):
+    with pytest.raises(InputError, match=message):
+        read_sdf_frfs([_sdf(tmp_path, **changes)])
+
+
+@pytest.mark.parametrize("cut", [1, 40, 300, 2000, -8])
+def test_truncated_or_corrupt_sdf_is_one_input_error(tmp_path: Path, cut: int):
+    path = _sdf(tmp_path)
+    raw = path.read_bytes()
+    path.write_bytes(raw[:cut])
+    with pytest.raises(InputError):
+        read_sdf(path)
+    path.write_bytes(raw[:64] + struct.pack(">h", 99) + raw[66:])  # a wrong record type
+    with pytest.raises(InputError):
+        read_sdf(path)
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["--uff", "{bad}"],
+        ["--sdf", "{bad}"],
+        ["--csv", "{bad}"],
+        ["--uff", "{missing}"],
+        ["--uff", "{good}", "--run", "soft-0"],  # the run exists
+        ["--uff", "{good}", "--run", "bad name"],
+    ],
+)
+def test_bad_import_is_one_line_exit_2_and_leaves_the_campaign_unchanged(
+    campaign_file: Path, tmp_path: Path, capsys, arguments
+):
+    target = tmp_path / "c.h5"
+    target.write_bytes(campaign_file.read_bytes())
+    before = _digest(target)
+    bad = tmp_path / "bad.bin"
+    bad.write_bytes(b"    -1\n    58\n garbage\n    -1\n")
+    good = tmp_path / "good.uff"
+    write_uff(Campaign.open(campaign_file).run("soft-0"), good)
+    values = {"bad": bad, "missing": tmp_path / "nothing.uff", "good": good}
+    arguments = [a.format(**values) for a in arguments]
+    if "--run" not in arguments:
+        arguments += ["--run", "new"]
+    capsys.readouterr()
+    assert main(["import", str(target), *arguments]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("viscorig: ")
+    assert _digest(target) == before
+
+
+def test_export_of_a_missing_run_is_one_line_and_writes_nothing(campaign_file, tmp_path, capsys):
+    out = tmp_path / "x.uff"
+    assert main(["export", str(campaign_file), "--run", "nope", "--format", "uff",
+                 "--out", str(out)]) == 2
+    assert "no such run" in capsys.readouterr().err
+    assert not out.exists() and not list(tmp_path.iterdir())
