@@ -1,0 +1,44 @@
+"""Diagnosis: where a model departs from the measurements, which physical effect is missing,
+and the model with it.
+
+``d = diagnose_run(campaign, "soft-0", "voigt")`` (or ``diagnose(frf_data, "voigt",
+table=...)``) fits the model and gives ``d.failures`` (bands where it fails), ``d.findings``
+(candidate effects fitted and tested, best first), ``d.residuals()`` (magnitude error in %,
+phase error in degrees); ``d.with_effect("fixture(58)")`` adds an effect in one step and
+``d.auto()`` climbs the ladder until the error reaches the noise floor.
+"""
+
+from viscorig.diagnosis.core import (
+    AT_FLOOR_RATIO,
+    DEFAULT_MODEL,
+    Diagnosis,
+    analyse,
+    diagnose,
+    diagnose_run,
+)
+from viscorig.diagnosis.data import DiagnosisData, combine, companions, from_campaign
+from viscorig.diagnosis.findings import SIGNIFICANT_DELTA_BIC, Finding, whitened_bic
+from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
+from viscorig.diagnosis.screening import Signature, screen
+
+__all__ = [
+    "AT_FLOOR_RATIO",
+    "DEFAULT_MODEL",
+    "SIGNIFICANT_DELTA_BIC",
+    "Diagnosis",
+    "DiagnosisData",
+    "FailureBand",
+    "Finding",
+    "FrfResidual",
+    "Signature",
+    "analyse",
+    "combine",
+    "companions",
+    "diagnose",
+    "diagnose_run",
+    "failure_bands",
+    "from_campaign",
+    "residuals",
+    "screen",
+    "whitened_bic",
+]

@@ -1,0 +1,198 @@
+"""The diagnosis of a fit: where it fails, which effect is missing, and the model with it.
+
+>>> d = diagnose_run(campaign, "soft-0", "voigt")      # or diagnose(frf_data, "voigt", table=...)
+>>> d.failures[0].what, d.findings[0].effect, d.findings[0].explanation
+>>> d2 = d.with_effect("fixture(58)")                  # add it in one step; d2.rms_error falls
+>>> ladder = d.auto()                                  # until the noise floor or nothing left
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
+from viscorig.diagnosis.explain import explain, extra_runs
+from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with
+from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
+from viscorig.diagnosis.screening import screen
+from viscorig.errors import InputError
+from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.models import parse_spec
+from viscorig.storage import Campaign
+
+#: ``rms_error`` within this factor of the noise floor counts as "at the noise floor".
+AT_FLOOR_RATIO = 1.25
+#: The model diagnosed when none is given: Voigt K*, on both FRFs.
+DEFAULT_MODEL = "voigt"
+#: Most effects ``auto`` adds.
+MAX_AUTO_STEPS = 6
+
+
+@dataclass
+class Diagnosis:
+    """A fitted model, where it fails, and the effects that would improve it, best first.
+
+    Attributes
+    ----------
+    data
+        The runs diagnosed (:class:`~viscorig.diagnosis.data.DiagnosisData`).
+    fit
+        The fit of the model diagnosed.
+    findings
+        Candidate effects, fitted and tested, lowest ΔBIC first.
+    failures
+        Bands where the model stands clearly above the noise, worst first.
+    advice
+        Extra runs that would separate candidates these data cannot tell apart.
+    """
+
+    data: DiagnosisData
+    fit: FitResult
+    findings: list[Finding] = field(default_factory=list)
+    failures: list[FailureBand] = field(default_factory=list)
+    advice: list[str] = field(default_factory=list)
+
+    @property
+    def model(self) -> str:
+        """Canonical spec of the model diagnosed."""
+        return self.fit.spec
+
+    @property
+    def rms_error(self) -> float:
+        """``sqrt(mean |H_model/H_measured − 1|²)`` over every point of every FRF."""
+        return self.fit.rms_error
+
+    @property
+    def noise_floor(self) -> float:
+        """The ``rms_error`` a perfect model would reach, from the data alone."""
+        return self.data.noise_floor
+
+    @property
+    def at_noise_floor(self) -> bool:
+        """``rms_error`` within :data:`AT_FLOOR_RATIO` of the noise floor."""
+        return self.rms_error <= AT_FLOOR_RATIO * self.noise_floor
+
+    @property
+    def significant(self) -> list[Finding]:
+        """The significant findings, best first."""
+        return [finding for finding in self.findings if finding.significant]
+
+    def residuals(self) -> list[FrfResidual]:
+        """Magnitude (%) and phase (°) error of every FRF of every run, and whitened."""
+        return residuals(self.fit, self.data)
+
+    def with_effect(self, effect: str | Finding) -> Diagnosis:
+        """The diagnosis of this model with one more effect (or another K* term).
+
+        ``effect`` is a finding, a term (``"fixture(58)"``, ``"load_cell"``, ``"maxwell"``),
+        or a whole spec (``"fractional+delay"``).
+        """
+        if isinstance(effect, Finding):
+            return analyse(self.data, effect.fit)
+        text = effect.strip()
+        for finding in self.findings:
+            if finding.term == text:
+                return analyse(self.data, finding.fit)
+        if "+" in text:
+            return diagnose(self.data, text)
+        candidate_spec(self.fit.model, text)  # checks the term
+        return analyse(self.data, fit_with(self.fit, self.data, text))
+
+    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
+        """Add the best significant effect and refit, until the noise floor or nothing is left.
+
+        Returns the ladder: this diagnosis, then one per effect added.
+        """
+        ladder = [self]
+        while len(ladder) <= max_steps:
+            current = ladder[-1]
+            if current.at_noise_floor or not current.significant:
+                break
+            ladder.append(current.with_effect(current.significant[0]))
+        return ladder
+
+    def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
+        """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``)."""
+        document: dict[str, object] = {
+            "run": self.data.run,
+            "runs": list(self.data.runs),
+            "model": self.model,
+            "rms_error": float(self.rms_error),
+            "noise_floor": float(self.noise_floor),
+            "at_noise_floor": bool(self.at_noise_floor),
+            "failures": [band.to_json() for band in self.failures],
+            "findings": [finding.to_json() for finding in self.findings],
+            "advice": list(self.advice),
+        }
+        if ladder is not None:
+            document["ladder"] = [
+                {"model": step.model, "rms_error": float(step.rms_error),
+                 "noise_floor": float(step.noise_floor)}
+                for step in ladder
+            ]
+        return document
+
+
+def analyse(data: DiagnosisData, result: FitResult) -> Diagnosis:
+    """Failures, screening and confirmed findings of a fit already made on ``data``."""
+    result.noise_floor = data.noise_floor
+    findings = confirm(result, data, screen(result, data))
+    advice: list[str] = []
+    for finding in findings:
+        finding.explanation = explain(finding, data)
+        if finding.significant and finding.alternatives:
+            names = ", ".join(finding.alternatives)
+            finding.explanation += f" These data cannot tell it apart from {names}."
+            for text in extra_runs(finding, data):
+                if text not in advice:
+                    advice.append(text)
+    return Diagnosis(data, result, findings, failure_bands(result, data), advice)
+
+
+def diagnose(
+    data: DiagnosisData | FrfData | Sequence[tuple[str, FrfData]],
+    model: str | None = None,
+    *,
+    table: dict[str, float] | None = None,
+    band_hz: tuple[float, float] | None = None,
+    frfs: Sequence[str] | None = None,
+) -> Diagnosis:
+    """Fit ``model`` (default :data:`DEFAULT_MODEL`) and diagnose it.
+
+    Parameters
+    ----------
+    data
+        Diagnosis data, one run's :class:`FrfData`, or ``[(run name, FrfData), ...]`` with the
+        main run first and every ``time_s`` on the main run's clock.
+    model
+        Model spec.
+    table
+        The table's ``M_s, K_s, C_s`` (needed for the table FRF).
+    band_hz, frfs
+        Band and FRFs diagnosed (default: every point; both FRFs when the table is known).
+    """
+    if not isinstance(data, DiagnosisData):
+        runs = [(data.name, data)] if isinstance(data, FrfData) else list(data)
+        data = combine(runs, table=table, band_hz=band_hz, frfs=frfs)
+    spec = parse_spec(model or DEFAULT_MODEL)
+    if spec.modulus_term is None or not spec.modulus_term.has_disc:
+        raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
+    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}))
+    return analyse(data, result)
+
+
+def diagnose_run(
+    campaign: Campaign,
+    run: str,
+    model: str | None = None,
+    *,
+    band_hz: tuple[float, float] | None = None,
+    frfs: Sequence[str] | None = None,
+    with_companions: bool = True,
+) -> Diagnosis:
+    """Diagnose a stored run (with the same specimen's runs at other levels or directions)."""
+    data = from_campaign(
+        campaign, run, band_hz=band_hz, frfs=frfs, with_companions=with_companions
+    )
+    return diagnose(data, model)

@@ -1,0 +1,236 @@
+"""What a diagnosis looks at: one run, or one run with its companions, and their noise.
+
+A *companion* is another run of the same specimen (same specimen text, hardness and preload)
+in the same campaign, at another level or in the other sweep direction. Only such runs can
+separate amplitude dependence (the level changes, the frequency does not) and thermal drift
+(time runs the other way along the band) from a frequency-dependent modulus; diagnosis fits
+them jointly with shared parameters. Their ``time_s`` is put on the main run's clock through
+the runs' ``started`` stamps.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.fitting import FrfData, local_noise_power
+from viscorig.storage import Campaign, Run
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One run inside the diagnosed data: its name, points, level and sweep direction."""
+
+    run: str
+    index: slice
+    level_m_per_s2: float
+    direction: str
+
+
+@dataclass(frozen=True)
+class DiagnosisData:
+    """The runs diagnosed together, as one :class:`FrfData`, with per-point noise power.
+
+    Attributes
+    ----------
+    data
+        Every point of every run (the main run first), within the band.
+    segments
+        Where each run's points are in ``data``.
+    frfs
+        FRFs diagnosed (``"table"`` needs ``table``).
+    table
+        The table's ``M_s, K_s, C_s`` held fixed, or ``None`` (support FRF only).
+    noise_power
+        FRF name -> ``E|ε_i|²`` at every point (:func:`viscorig.fitting.local_noise_power`,
+        estimated run by run, from the data alone).
+    """
+
+    data: FrfData
+    segments: tuple[Segment, ...]
+    frfs: tuple[str, ...]
+    table: dict[str, float] | None
+    noise_power: dict[str, NDArray[np.float64]]
+
+    @property
+    def run(self) -> str:
+        """Name of the main run."""
+        return self.segments[0].run
+
+    @property
+    def runs(self) -> tuple[str, ...]:
+        """Names of every run, the main one first."""
+        return tuple(segment.run for segment in self.segments)
+
+    @property
+    def levels(self) -> tuple[float, ...]:
+        """Distinct levels (m/s²), to 5 %."""
+        distinct: list[float] = []
+        for segment in self.segments:
+            if all(abs(segment.level_m_per_s2 / level - 1) > 0.05 for level in distinct):
+                distinct.append(segment.level_m_per_s2)
+        return tuple(distinct)
+
+    @property
+    def directions(self) -> tuple[str, ...]:
+        """Distinct sweep directions."""
+        return tuple(dict.fromkeys(segment.direction for segment in self.segments))
+
+    @property
+    def noise_floor(self) -> float:
+        """``sqrt(mean σ_i²)`` over every point of every FRF: the rms a perfect model reaches."""
+        return float(np.sqrt(np.mean(np.concatenate(list(self.noise_power.values())))))
+
+    @property
+    def fit_options(self) -> dict[str, object]:
+        """Keyword arguments of :func:`viscorig.fitting.fit` for these data."""
+        return {"frfs": self.frfs, "fixed": dict(self.table or {})}
+
+
+def _direction(frequency_hz: NDArray[np.float64]) -> str:
+    return "down" if frequency_hz.size > 1 and frequency_hz[-1] < frequency_hz[0] else "up"
+
+
+def _level(data: FrfData) -> float:
+    if data.reference_amplitude is None:
+        return math.nan
+    return float(np.median(data.reference_amplitude))
+
+
+def combine(
+    runs: Sequence[tuple[str, FrfData]],
+    *,
+    table: dict[str, float] | None,
+    band_hz: tuple[float, float] | None = None,
+    frfs: Sequence[str] | None = None,
+) -> DiagnosisData:
+    """Diagnosis data from runs as plain arrays (the main run first).
+
+    ``time_s`` of every run must already be on one clock (seconds since the main run started)
+    for the ``drift`` term to use it across runs.
+    """
+    if not runs:
+        raise InputError("no run to diagnose", "diagnosis")
+    pieces = [(name, data.in_band(band_hz)) for name, data in runs]
+    main = pieces[0][1]
+    if frfs is None:
+        frfs = tuple(name for name in ("table", "support") if name in main.available)
+        if table is None:
+            frfs = tuple(name for name in frfs if name != "table")
+    frfs = tuple(frfs)
+    if not frfs:
+        raise InputError("has no FRF to diagnose", main.name)
+    if "table" in frfs and table is None:
+        raise InputError(
+            "the table FRF needs the table's M_s, K_s, C_s (a bare-table run or /rig)", main.name
+        )
+    segments, noise = [], {name: [] for name in frfs}
+    start = 0
+    for name, data in pieces:
+        data.checked(frfs, None)
+        n = data.frequency_hz.size
+        segments.append(Segment(name, slice(start, start + n), _level(data), _direction(
+            data.frequency_hz)))
+        for frf in frfs:
+            noise[frf].append(local_noise_power(data.frf(frf)))
+        start += n
+
+    def joined(field: str) -> NDArray | None:
+        values = [getattr(data, field) for _, data in pieces]
+        if any(value is None for value in values):
+            return None
+        return np.concatenate(values)
+
+    combined = FrfData(
+        np.concatenate([data.frequency_hz for _, data in pieces]),
+        joined("table"),
+        joined("support"),
+        joined("time_s"),
+        joined("reference_amplitude"),
+        name=main.name,
+    )
+    return DiagnosisData(
+        combined,
+        tuple(segments),
+        frfs,
+        None if table is None else dict(table),
+        {frf: np.concatenate(parts) for frf, parts in noise.items()},
+    )
+
+
+def _started(run: Run) -> datetime | None:
+    try:
+        return datetime.fromisoformat(str(run.metadata.started).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+
+
+def same_specimen(a: Run, b: Run) -> bool:
+    """The two runs measure the same specimen in the same state (text, hardness, preload)."""
+    ma, mb = a.metadata, b.metadata
+    hard_a, hard_b = float(ma.hardness_shore_a), float(mb.hardness_shore_a)
+    same_hardness = (math.isnan(hard_a) and math.isnan(hard_b)) or hard_a == hard_b
+    return (
+        str(ma.specimen).strip().lower() == str(mb.specimen).strip().lower()
+        and same_hardness
+        and abs(float(ma.preload_strain) - float(mb.preload_strain)) < 0.005
+    )
+
+
+def companions(campaign: Campaign, run_name: str) -> list[str]:
+    """Other runs of the same specimen in the campaign that differ in level or direction."""
+    from viscorig.identify import is_bare_table
+
+    main = campaign.run(run_name)
+    found = []
+    for name in campaign.run_names:
+        if name == run_name:
+            continue
+        other = campaign.run(name)
+        if not other.points or is_bare_table(other) or not same_specimen(main, other):
+            continue
+        level_differs = abs(other.metadata.level_m_per_s2 / main.metadata.level_m_per_s2 - 1) > 0.05
+        if level_differs or other.metadata.direction != main.metadata.direction:
+            found.append(name)
+    return found
+
+
+def from_campaign(
+    campaign: Campaign,
+    run_name: str,
+    *,
+    band_hz: tuple[float, float] | None = None,
+    frfs: Sequence[str] | None = None,
+    with_companions: bool = True,
+) -> DiagnosisData:
+    """Diagnosis data of a stored run (and its companions), table parameters from the file."""
+    from viscorig.identify import is_bare_table, run_data, table_parameters
+
+    run = campaign.run(run_name)
+    if not run.points:
+        raise InputError("has no measured point", f"run '{run_name}'")
+    if is_bare_table(run):
+        raise InputError(
+            "is a bare-table run; diagnosis looks at specimen runs (identify it with 'table')",
+            f"run '{run_name}'",
+        )
+    table = table_parameters(campaign, band_hz)
+    names = [run_name] + (companions(campaign, run_name) if with_companions else [])
+    started = _started(run)
+    pieces = []
+    for name in names:
+        data = run_data(campaign.run(name))
+        other = _started(campaign.run(name))
+        if name != run_name and data.time_s is not None and started and other:
+            offset = (other - started).total_seconds()
+            data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
+                           data.reference_amplitude, name=data.name)
+        pieces.append((name, data))
+    return combine(pieces, table=None if table is None else table.values, band_hz=band_hz,
+                   frfs=frfs)
