@@ -335,6 +335,44 @@ class Campaign:
             group.attrs["finished"] = ""
             return int(group["frequency_hz"].shape[0])
 
+    def annotate(
+        self, run_name: str, attributes: Mapping[str, str | float | int | bool],
+        dataset: str | None = None,
+    ) -> None:
+        """Add descriptive attributes to a run group, or to one of its datasets, in one commit.
+
+        For what the layout leaves open and a reader should know (how ``time_s`` was clocked,
+        why ``source_amplitude`` is NaN, the limits a sweep ran under). Attributes the layout
+        defines (a run's settings and lifecycle, a dataset's ``units``) cannot be changed here.
+
+        Raises
+        ------
+        InputError
+            No such run or dataset, a reserved or invalid name, or a value that is not text,
+            a number or a boolean.
+        """
+        reserved = {"units"} if dataset else {"status", "started", "finished",
+                                              *RunSettings.__dataclass_fields__}
+        checked: dict[str, object] = {}
+        for key, value in attributes.items():
+            check_name(key, f"{self.path}: attribute")
+            if key in reserved:
+                raise InputError("is defined by the layout; not an annotation",
+                                 f"{self.path}: attribute {key!r}")
+            if isinstance(value, bool | np.bool_):
+                checked[key] = np.bool_(value)
+            elif isinstance(value, str | int | float | np.integer | np.floating):
+                checked[key] = value
+            else:
+                raise InputError(f"{type(value).__name__} is not text, a number or a boolean",
+                                 f"{self.path}: attribute {key!r}")
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            target = group if dataset is None else group.get(dataset)
+            if not isinstance(target, h5py.Group | h5py.Dataset):
+                raise InputError("no such dataset", f"{self.path}: {group.name}/{dataset}")
+            target.attrs.update(checked)
+
     def set_rig(self, **attributes: float | int) -> None:
         """Set ``/rig`` attributes (e.g. table parameters identified from the bare-table run)."""
         checked = _checked_rig(attributes, str(self.path))

@@ -1,0 +1,63 @@
+"""Acquisition: drive an analyser through a sequence, segment by segment, into a campaign file.
+
+The core knows analysers only through :class:`~viscorig.acquisition.protocol.Analyser`, a
+structural protocol that the 35670A driver satisfies; the command line wires a driver in.
+"""
+
+from viscorig.acquisition.console import Console, NoAnswer, format_duration
+from viscorig.acquisition.limits import (
+    ForceEstimate,
+    RigEstimate,
+    estimate_force,
+    point_flags,
+    source_limit_v,
+    specimen_from_accelerance,
+)
+from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
+from viscorig.acquisition.runner import (
+    OVER_LIMIT_CHOICES,
+    Outcome,
+    Runner,
+    RunnerOptions,
+    RunResult,
+    RunState,
+    StepRecord,
+)
+from viscorig.acquisition.sweep import (
+    SegmentDone,
+    SweepHooks,
+    SweepInterrupted,
+    SweepMeasurement,
+    SweepSettings,
+    Wiring,
+    configure,
+)
+
+__all__ = [
+    "OVER_LIMIT_CHOICES",
+    "Analyser",
+    "Console",
+    "ForceEstimate",
+    "MeasuredSegment",
+    "NoAnswer",
+    "Outcome",
+    "RigEstimate",
+    "RunResult",
+    "RunState",
+    "Runner",
+    "RunnerOptions",
+    "SegmentDone",
+    "StepRecord",
+    "SweepHooks",
+    "SweepInterrupted",
+    "SweepMeasurement",
+    "SweepProgressReport",
+    "SweepSettings",
+    "Wiring",
+    "configure",
+    "estimate_force",
+    "format_duration",
+    "point_flags",
+    "source_limit_v",
+    "specimen_from_accelerance",
+]

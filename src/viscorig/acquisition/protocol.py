@@ -1,0 +1,129 @@
+"""What the acquisition layer needs from an analyser driver: a structural protocol.
+
+The core never imports a driver. Any object with these members works: the 35670A driver
+(``agilent35670a.Agilent35670A``) satisfies it as it is, and a second analyser model only has
+to provide the same few calls. Only the command line wires a concrete driver to the core.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+class SweepProgressReport(Protocol):
+    """A driver's report while a segment is being measured."""
+
+    @property
+    def elapsed_s(self) -> float:
+        """Seconds since the segment started (pauses included)."""
+
+    @property
+    def expected_s(self) -> float:
+        """Settle and integration time of the whole segment, s."""
+
+
+class MeasuredSegment(Protocol):
+    """What a driver returns for one measured sub-band (one analyser sweep).
+
+    Channels are analyser inputs 1..4; the FRFs are input 2 over input 1 and 4 over 3 (the
+    analyser's ``REF PAIR``), in engineering units.
+    """
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        """The analyser's own frequency axis, in measurement order."""
+
+    @property
+    def frf_21(self) -> np.ndarray:
+        """Input 2 / input 1, complex."""
+
+    @property
+    def frf_43(self) -> np.ndarray | None:
+        """Input 4 / input 3, complex (``None`` with two channels)."""
+
+    @property
+    def amplitude_eu(self) -> Mapping[int, np.ndarray]:
+        """Input -> peak amplitude at each point, engineering units."""
+
+    @property
+    def variance(self) -> Mapping[int, np.ndarray]:
+        """Input -> normalized variance at each point."""
+
+    @property
+    def overload_channels(self) -> tuple[int, ...]:
+        """Inputs that overloaded at any point of the segment (latched per segment)."""
+
+    @property
+    def started_at_s(self) -> float:
+        """Wall-clock time (``time.time()``) the segment started."""
+
+    @property
+    def finished_at_s(self) -> float:
+        """Wall-clock time the segment ended."""
+
+
+ProgressCallback = Callable[[SweepProgressReport], None]
+
+
+@runtime_checkable
+class Analyser(Protocol):
+    """A swept-sine analyser with auto level, as the acquisition layer drives it.
+
+    Faults are raised as the driver's own exceptions; the caller says which types are
+    instrument faults (see :class:`viscorig.acquisition.runner.Runner`).
+    """
+
+    @property
+    def resource(self) -> str:
+        """The VISA resource string (named in every fault message)."""
+
+    def identify(self) -> str:
+        """The ``*IDN?`` answer."""
+
+    def configure_swept_sine(
+        self,
+        *,
+        sensitivities_v_per_eu: Mapping[int, float],
+        level_m_per_s2: float,
+        source_limit_vpk: float,
+        force_limit_n: float | None,
+        reference_channel: int,
+        four_channels: bool,
+        resolution_hz: float,
+        start_hz: float,
+        stop_hz: float,
+        settle_cycles: float,
+        integrate_cycles: float,
+        direction: str,
+        tolerance_db: float,
+    ) -> None:
+        """Set up the sweep with the source off; the source limit is set before anything that
+        could switch the source on."""
+
+    def measure(
+        self,
+        start_hz: float,
+        stop_hz: float,
+        *,
+        progress: ProgressCallback | None = None,
+        poll_interval_s: float = 0.2,
+    ) -> MeasuredSegment:
+        """Measure ``start_hz`` .. ``stop_hz`` (at least two points) on the configured grid."""
+
+    def measure_point(
+        self,
+        frequency_hz: float,
+        *,
+        progress: ProgressCallback | None = None,
+        poll_interval_s: float = 0.2,
+    ) -> MeasuredSegment:
+        """Measure a single frequency."""
+
+    def abort(self) -> None:
+        """Stop the running measurement and switch the source off; ``measure`` then raises."""
+
+    def close(self) -> None:
+        """Release the connection."""

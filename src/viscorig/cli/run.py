@@ -1,0 +1,194 @@
+"""``viscorig run SEQUENCE.toml`` and ``viscorig resume FILE.h5``: run a test sequence.
+
+::
+
+    viscorig run sequences/paper.toml --yes --out paper.h5     # the embedded simulated rig
+    viscorig run my-test.toml --station lab.toml                # the rig in the lab
+    viscorig resume paper.h5 --yes                              # after Ctrl-C, a fault, a crash
+
+Exit status: 0 complete; 2 bad input (nothing written) or a sweep refused because its
+estimated force exceeds the shaker limit; 3 instrument fault (data kept); 130 interrupted by
+Ctrl-C (data kept). After 3 or 130 (or a crash), ``viscorig resume FILE.h5`` continues the
+interrupted run from its first missing point and then the rest of the sequence.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+from viscorig.acquisition import (
+    OVER_LIMIT_CHOICES,
+    Console,
+    NoAnswer,
+    Outcome,
+    Runner,
+    RunnerOptions,
+)
+from viscorig.errors import InputError, InstrumentError
+from viscorig.sequences import Sequence, load_sequence, parse_sequence, parse_station
+from viscorig.storage import Campaign
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--yes", action="store_true",
+                        help="answer every operator prompt (CI, demos)")
+    parser.add_argument("--over-limit", choices=OVER_LIMIT_CHOICES, default="refuse",
+                        help="a sweep whose estimated shaker force exceeds the limit: refuse it "
+                        "(default) or reduce its level below the limit")
+    parser.add_argument("--sim-pace", type=_positive, default=None, metavar="X",
+                        help="embedded simulated rig only: simulated seconds per wall-clock "
+                        "second (default: as fast as the computer allows)")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``run`` and ``resume`` commands."""
+    run = subparsers.add_parser(
+        "run", help="run a test sequence into a new campaign file",
+        description="Run a test sequence (TOML) and record every sweep into a new campaign "
+        "file. Without --station, the embedded simulated rig and analyser are used.")
+    run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
+    run.add_argument("--station", metavar="STATION.toml", default=None,
+                     help="the lab's station file (analyser resource, transducers, shaker)")
+    run.add_argument("--out", metavar="FILE.h5", default=None,
+                     help="campaign file to create (default: <sequence name>.h5 here; an "
+                     "existing file is never overwritten)")
+    _common(run)
+    run.set_defaults(handler=run_command)
+
+    resume = subparsers.add_parser(
+        "resume", help="continue an interrupted campaign file",
+        description="Continue the sequence stored in a campaign file: the interrupted run "
+        "from its first missing point, then the remaining steps.")
+    resume.add_argument("file", metavar="FILE.h5", help="campaign file")
+    _common(resume)
+    resume.set_defaults(handler=resume_command)
+
+
+def _read_text(path: str, what: str) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"cannot be read ({type(error).__name__}: {error})", path) from None
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``viscorig run``: check everything, create the file, run the sequence."""
+    sequence = load_sequence(args.sequence)
+    sequence_text = _read_text(args.sequence, "sequence")
+    station = station_text = None
+    if args.station is not None:
+        if args.sim_pace is not None:
+            raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
+        station_text = _read_text(args.station, "station")
+        station = parse_station(station_text, source=args.station)
+    out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.sequence).stem}.h5"
+    if out.exists():
+        raise InputError(
+            f"exists; a campaign file is never overwritten. Continue it with "
+            f"'viscorig resume {out}', or choose another --out", str(out))
+    if not out.parent.is_dir():
+        raise InputError("folder does not exist", str(out))
+    with _open_station(sequence, station, args.sim_pace) as opened:
+        campaign = Campaign.create(
+            out, sequence_text=sequence_text, sequence_file=str(args.sequence),
+            station_text=station_text, station_file=args.station or "",
+            rig=opened.station.rig_attributes(),
+        )
+        print(f"campaign file: {out}  ({_where(opened)})", flush=True)
+        return _run(campaign, sequence, opened, args)
+
+
+def resume_command(args: argparse.Namespace) -> int:
+    """``viscorig resume``: the file holds the sequence and station texts."""
+    campaign = Campaign.open(args.file, "a")
+    sequence_text = campaign.sequence_text
+    if sequence_text is None:
+        raise InputError("holds no sequence (/setup/sequence_toml); it was not written by "
+                         "'viscorig run'", args.file)
+    sequence = parse_sequence(sequence_text, source=f"{args.file}: /setup/sequence_toml")
+    station_text = campaign.station_text
+    station = None
+    if station_text is not None:
+        if args.sim_pace is not None:
+            raise InputError("only for the embedded simulated rig; this campaign used a station "
+                             "file", "--sim-pace")
+        station = parse_station(station_text, source=f"{args.file}: /setup/station_toml")
+    statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
+    if all(statuses.get(name) == "complete" for name in sequence.run_names) and _identified(
+        campaign, sequence
+    ):
+        print(f"{args.file}: every run of sequence '{sequence.name}' is complete; "
+              "nothing to do")
+        return 0
+    with _open_station(sequence, station, args.sim_pace) as opened:
+        print(f"continuing {args.file}  ({_where(opened)})", flush=True)
+        return _run(campaign, sequence, opened, args)
+
+
+def _identified(campaign: Campaign, sequence: Sequence) -> bool:
+    from viscorig.sequences import IdentifyTableStep
+
+    return all(
+        any(fit.model == "table" for fit in campaign.fits(step.run))
+        for step in sequence.steps if isinstance(step, IdentifyTableStep)
+    )
+
+
+def _where(opened) -> str:
+    what = "embedded simulated rig" if opened.simulated else "station"
+    return f"{what}, analyser {opened.analyser.resource}"
+
+
+@contextlib.contextmanager
+def _open_station(sequence: Sequence, station, pace: float | None):
+    from viscorig.cli.stations import lab_station, simulated_station
+
+    if station is None:
+        with simulated_station(sequence, pace) as opened:
+            yield opened
+    else:
+        with lab_station(station) as opened:
+            yield opened
+
+
+def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespace) -> int:
+    simulated = opened.simulated
+    fast = simulated and args.sim_pace is None
+    options = RunnerOptions(
+        simulated=simulated,
+        time_base="test" if simulated else "wall",
+        real_time_waits=not simulated,
+        over_limit=args.over_limit,
+        poll_interval_s=0.2,
+        mount=opened.mount,
+        instrument_errors=opened.instrument_errors,
+    )
+    console = Console(yes=args.yes)
+    runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options)
+    try:
+        result = runner.run()
+    except NoAnswer:
+        print(f"viscorig: a prompt needs an answer and the input is closed; run with --yes, "
+              f"then continue with: viscorig resume {campaign.path}", file=sys.stderr)
+        return 2
+    if result.outcome is Outcome.COMPLETE:
+        print(f"{result.message}" + (" (simulated rig, as fast as possible)" if fast else ""))
+        print(f"campaign file: {campaign.path}")
+        return 0
+    if result.outcome is Outcome.FAULT:
+        raise InstrumentError(result.message)
+    print(f"viscorig: {result.message}", file=sys.stderr)
+    return result.outcome.exit_status
