@@ -115,7 +115,7 @@ def identify_run(
     if not run.points:
         raise InputError("has no measured point", f"run '{run_name}'")
     bare = is_bare_table(run)
-    spec = spec or ("table" if bare else "voigt")
+    spec = ("table" if bare else "voigt") if spec is None else spec  # "" is an error
     model = parse_spec(spec)
     data = run_data(run)
     if bare:

@@ -39,6 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(message: str) -> str:
+    """The message with line breaks and other control characters escaped (``\\n``), so a value
+    quoted from a file or the command line cannot break the one-line error or forge a second."""
+    return "".join(
+        char if char.isprintable() else repr(char)[1:-1] for char in message
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line and return its exit status."""
     parser = build_parser()
@@ -50,7 +58,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(handler(args) or 0)
     except ViscorigError as error:
-        print(f"viscorig: {error}", file=sys.stderr)
+        print(f"viscorig: {one_line(str(error))}", file=sys.stderr)
         return error.exit_status
     except KeyboardInterrupt:
         print("viscorig: interrupted", file=sys.stderr)
