@@ -99,6 +99,7 @@ class Analyser(Protocol):
         integrate_cycles: float,
         direction: str,
         tolerance_db: float,
+        start_level_vpk: float,
     ) -> None:
         """Set up the sweep with the source off; the source limit is set before anything that
         could switch the source on."""

@@ -34,6 +34,8 @@ from viscorig.storage import Campaign, Segment
 #: "test" is accumulated settle and integration time (a simulated rig running faster than
 #: real time, whose physics advances by test time).
 TIME_BASES = ("wall", "test")
+#: Source level the auto-level controller starts a run from, V peak (at most the limit).
+START_LEVEL_V = 0.1
 #: The analyser sets frequencies in steps of 15.625 mHz; half a step tells points apart.
 FREQUENCY_MATCH_HZ = 0.0078125
 
@@ -152,6 +154,7 @@ def configure(analyser: Analyser, wiring: Wiring, settings: SweepSettings) -> No
         integrate_cycles=step.integrate_cycles,
         direction=step.direction.upper(),
         tolerance_db=step.tolerance_db,
+        start_level_vpk=min(START_LEVEL_V, settings.source_limit_v),
     )
 
 
