@@ -99,15 +99,21 @@ def simulate_run(
     level_m_per_s2: float = 1.0,
     settle_cycles: float = 100.0,
     integrate_cycles: float = 100.0,
+    direction: str = "up",
+    simulator: RigSimulator | None = None,
 ) -> SimulatedRun:
     """Sweep a rig (a :class:`Rig`, TOML text, or a preset name) and return its FRFs.
 
     Bare table (no device): the controller holds the table's acceleration and the support FRF is
-    NaN, as a campaign file stores it.
+    NaN, as a campaign file stores it. ``direction="down"`` sweeps from ``stop_hz`` down.
+    ``simulator``: measure on this simulator (its clock and state go on from its last sweep;
+    ``time_s`` stays on the simulator's clock) instead of a fresh one.
     """
     if isinstance(rig, str):
         rig = parse_rig(rig, "<test rig>") if "\n" in rig or "[" in rig else load_preset(rig)
     frequency = np.arange(start_hz, stop_hz + step_hz / 2, step_hz)
+    if direction == "down":
+        frequency = frequency[::-1]
     sensors = rig.sensors
     reference_channel = 4 if rig.device is not None else 2
     source_limit_v = rig.shaker.force_limit_n / rig.shaker.force_n_per_v
@@ -125,7 +131,7 @@ def simulate_run(
         integrate_s=integrate_cycles / frequency,
         control=control,
     )
-    record = RigSimulator(rig, seed=seed).sweep(request)
+    record = (simulator or RigSimulator(rig, seed=seed)).sweep(request)
     volts = record.channel_v
     force_e = volts[:, 0] / sensors.force_v_per_n
     accel_s = volts[:, 1] / sensors.acceleration_v_per_m_s2

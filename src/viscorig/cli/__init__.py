@@ -16,7 +16,9 @@ from viscorig import __version__
 from viscorig.errors import ViscorigError
 
 #: Modules of ``viscorig.cli`` that provide commands, in the order ``--help`` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("run", "show", "identify", "summary", "sim", "exchange")
+COMMAND_MODULES: tuple[str, ...] = (
+    "run", "show", "identify", "diagnose", "summary", "sim", "exchange",
+)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -21,8 +21,9 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
     why = finding.evidence
     if not finding.significant:
         return (
-            f"No clear sign of {effect.replace('_', ' ')}: adding {finding.term} leaves the error at "
-            f"{finding.rms_error:.3g} (ΔBIC {finding.delta_bic:+.0f}), within what noise explains."
+            f"No clear sign of {effect.replace('_', ' ')}: adding {finding.term} leaves the "
+            f"error at {finding.rms_error:.3g} (ΔBIC {finding.delta_bic:+.0f}), within what "
+            "noise explains."
         )
     if effect == "fixture_resonance":
         f_n, zeta, m = (_value(finding, p) for p in ("f_n", "zeta", "m"))

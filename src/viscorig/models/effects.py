@@ -199,8 +199,9 @@ def narrow_peak(
     f, r = f[ok], r[ok]
     if f.size < 8:
         return None
-    step = float(np.median(np.diff(f))) if f.size > 1 else 1.0
-    half = max(round(width_hz / max(step, 1e-9) / 2), 3)
+    steps = np.diff(f)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
+    half = int(np.clip(round(width_hz / step / 2), 3, max(f.size // 4, 3)))
     smooth = running_median(r.real, half) + 1j * running_median(r.imag, half)
     excess = np.abs(r - smooth)
     inside = (f >= band_hz[0]) & (f <= band_hz[1])

@@ -1,0 +1,132 @@
+"""``viscorig diagnose FILE --run RUN [--model SPEC] [--auto] [--band LO:HI] [--json]``.
+
+Fits the model (default ``voigt`` on both FRFs, the table held at the file's bare-table run or
+``/rig`` values), shows where it departs from the measurements, which effect is most likely
+missing and why, and the exact ``identify`` command with that effect added. ``--auto`` adds the
+best significant effect and refits until the error reaches the noise floor or nothing
+significant is left, and prints the ladder. Runs of the same specimen at other levels or in the
+other sweep direction are diagnosed jointly (``--alone`` to diagnose the run by itself).
+The file is only read.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+
+from viscorig.cli.identify import FRF_CHOICES, parse_band
+from viscorig.diagnosis import DEFAULT_MODEL, Diagnosis, diagnose_run
+from viscorig.storage import Campaign
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``diagnose`` command."""
+    parser = subparsers.add_parser(
+        "diagnose", help="show where a model fails and which physical effect is missing"
+    )
+    parser.add_argument("file", help="campaign file (.h5)")
+    parser.add_argument("--run", required=True, help="run name, e.g. hard-10")
+    parser.add_argument(
+        "--model", default=None, help=f"model spec diagnosed (default: {DEFAULT_MODEL})"
+    )
+    parser.add_argument(
+        "--auto", action="store_true",
+        help="add the best significant effect and refit until the noise floor",
+    )
+    parser.add_argument("--band", default=None, help="band, LO:HI in Hz (default: all points)")
+    parser.add_argument(
+        "--frf", choices=sorted(FRF_CHOICES), default=None,
+        help="FRFs diagnosed (default: both when the table is known)",
+    )
+    parser.add_argument(
+        "--alone", action="store_true",
+        help="leave out the specimen's runs at other levels or directions",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=handler)
+
+
+def handler(args: argparse.Namespace) -> int:
+    """Run ``diagnose``."""
+    band = parse_band(args.band)
+    frfs = FRF_CHOICES[args.frf] if args.frf else None
+    with Campaign.open(args.file, "r") as campaign:
+        diagnosis = diagnose_run(
+            campaign, args.run, args.model, band_hz=band, frfs=frfs,
+            with_companions=not args.alone,
+        )
+    ladder = diagnosis.auto() if args.auto else None
+    if args.json:
+        document = diagnosis.to_json(ladder)
+        if ladder is not None:
+            document["final"] = ladder[-1].to_json()
+        print(json.dumps(document))
+    else:
+        print(format_diagnosis(diagnosis, args.file, ladder, band))
+    return 0
+
+
+def next_command(file: str, run: str, spec: str, band: tuple[float, float] | None) -> str:
+    """The ``identify`` command line that fits ``spec``."""
+    words = ["viscorig", "identify", file, "--run", run, "--model", spec]
+    if band is not None:
+        words += ["--band", f"{band[0]:g}:{band[1]:g}"]
+    return shlex.join(words)
+
+
+def format_diagnosis(
+    d: Diagnosis,
+    file: str,
+    ladder: list[Diagnosis] | None = None,
+    band_hz: tuple[float, float] | None = None,
+) -> str:
+    """Human-readable diagnosis: where it fails, what is missing, what to run next."""
+    last = ladder[-1] if ladder else d
+    lines = [
+        f"run {d.data.run}: model {d.model}, FRFs {', '.join(d.data.frfs)}"
+        + (f", with runs {', '.join(d.data.runs[1:])}" if len(d.data.runs) > 1 else ""),
+        f"rms_error {d.rms_error:.3e}   noise_floor {d.noise_floor:.3e}   "
+        f"({d.rms_error / d.noise_floor:.2f} x floor"
+        + (", at the noise floor)" if d.at_noise_floor else ")"),
+    ]
+    if d.failures:
+        lines.append("where it fails:")
+        for band in d.failures[:6]:
+            run = f" [{band.run}]" if band.run != d.data.run else ""
+            lines.append(
+                f"  {band.band_hz[0]:7.2f}-{band.band_hz[1]:<7.2f} Hz  {band.frf:<8}{run} "
+                f"{band.what}"
+            )
+    if d.findings:
+        lines.append("candidate effects (best first; significant = beyond noise):")
+        for finding in d.findings:
+            mark = "*" if finding.significant else " "
+            lines.append(
+                f" {mark} {finding.effect:<28} {finding.model:<36} rms {finding.rms_error:.3e}"
+                f"  ΔBIC {finding.delta_bic:+.4g}"
+            )
+    best = d.significant[0] if d.significant else None
+    if best is None:
+        lines.append(
+            "nothing significant is missing: what is left is noise."
+            if d.at_noise_floor
+            else "no candidate effect explains what is left beyond noise."
+        )
+    else:
+        lines.append(f"most likely missing: {best.effect}")
+        lines.append(f"  {best.explanation}")
+        lines.append("next: " + next_command(file, d.data.run, best.model, band_hz))
+    for text in d.advice:
+        lines.append(f"to tell them apart: {text}")
+    if ladder:
+        lines.append("ladder (model -> rms_error):")
+        for step in ladder:
+            mark = "  at the noise floor" if step.at_noise_floor else ""
+            lines.append(
+                f"  {step.model:<44} {step.rms_error:.3e}  "
+                f"({step.rms_error / step.noise_floor:.2f} x floor){mark}"
+            )
+        if last is not d:
+            lines.append("next: " + next_command(file, d.data.run, last.model, band_hz))
+    return "\n".join(lines)

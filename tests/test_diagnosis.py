@@ -1,0 +1,268 @@
+"""Diagnosis on runs the time-domain simulator measured with a hidden effect planted in the rig.
+
+Nothing here evaluates the core's model functions to make data: every run comes from
+``rigsim`` (time-domain integration and correlation, like the analyser), so a diagnosis that
+names the planted effect has found it in data it did not make.
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from rigsim.engine import RigSimulator
+from rigsim.rigfile import parse_rig
+from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
+
+from viscorig.cli import main
+from viscorig.diagnosis import Diagnosis, diagnose, diagnose_run
+from viscorig.storage import Campaign, RunSettings, Segment
+
+TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
+RIG_ATTRIBUTES = {
+    "table_mass_kg": 3.4, "table_stiffness_n_per_m": 50194.0, "table_damping_ns_per_m": 5.05,
+}
+VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
+FRACTIONAL = {
+    "mass_kg": 0.25, "model": "fractional", "static_stiffness_n_per_m": 1.2e5,
+    "high_stiffness_n_per_m": 4.0e5, "tau_s": 1 / (2 * np.pi * 300.0), "alpha": 0.5,
+}
+#: Sensor noise of the paper presets: relative FRF scatter of about 1e-4 to 1e-3.
+QUIET = {key: value / 10 for key, value in DEFAULT_NOISE.items()}
+FIXTURE_58 = {"frequency_hz": 58.0, "damping_ratio": 0.02, "mass_kg": 0.003}
+DELAY = "[delays]\ntable_acceleration_s = 5e-5\ndisc_acceleration_s = 5e-5\n"
+DRIFT = "[drift]\nmodulus_change_per_hour = -0.05\n"
+AMPLITUDE = (
+    "[amplitude]\nsoftening_fraction = 0.1\nreference_displacement_m = 2e-5\nexponent = 0.3\n"
+)
+
+
+def single(rig: str, seed: int = 3, step_hz: float = 0.5) -> Diagnosis:
+    run = simulate_run(rig, seed=seed, step_hz=step_hz)
+    return diagnose(run.frf_data("run"), "voigt", table=TABLE)
+
+
+def top(diagnosis: Diagnosis) -> str:
+    assert diagnosis.significant, "no significant finding"
+    return diagnosis.significant[0].effect
+
+
+def assert_at_floor_after(diagnosis: Diagnosis) -> Diagnosis:
+    better = diagnosis.with_effect(diagnosis.significant[0])
+    assert better.rms_error < diagnosis.rms_error / 3
+    assert better.rms_error <= 1.5 * better.noise_floor
+    return better
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_clean_data_has_no_significant_finding_and_sits_at_the_noise_floor(seed: int) -> None:
+    diagnosis = single(rig_text(VOIGT, noise=QUIET), seed=seed)
+    assert diagnosis.at_noise_floor
+    assert diagnosis.findings, "every candidate is fitted and reported"
+    assert not diagnosis.significant
+    assert diagnosis.auto() == [diagnosis]
+    assert all("No clear sign" in finding.explanation for finding in diagnosis.findings)
+
+
+def test_fixture_mode_is_found_within_a_hertz() -> None:
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), step_hz=0.25)
+    assert top(diagnosis) == "fixture_resonance"
+    finding = diagnosis.significant[0]
+    f_n = finding.parameters()["f_n"]["value"]
+    assert abs(f_n - 58.0) < 1.0
+    assert finding.model.startswith("voigt+fixture(5")
+    assert any("narrow peak" in band.what and band.band_hz[0] <= 58 <= band.band_hz[1]
+               for band in diagnosis.failures)  # fmt: skip
+    assert_at_floor_after(diagnosis)
+
+
+def test_load_cell_compliance_is_found_from_eq4_against_eq5() -> None:
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, load_cell_n_per_m=2.0e6))
+    assert top(diagnosis) == "load_cell_compliance"
+    k_c = diagnosis.significant[0].parameters()["K_c"]["value"]
+    assert k_c == pytest.approx(2.0e6, rel=0.05)
+    assert "Eq. 4" in diagnosis.significant[0].explanation
+    assert_at_floor_after(diagnosis)
+
+
+def test_sensor_delay_is_found_from_a_linear_phase_error() -> None:
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, extra=DELAY))
+    assert top(diagnosis) == "sensor_delay"
+    assert diagnosis.significant[0].parameters()["tau_d"]["value"] == pytest.approx(5e-5, rel=0.05)
+    assert any("phase trend" in band.what for band in diagnosis.failures)
+    assert_at_floor_after(diagnosis)
+
+
+def test_frequency_dependent_modulus_replaces_voigt() -> None:
+    diagnosis = single(rig_text(FRACTIONAL, noise=QUIET))
+    assert top(diagnosis) == "frequency_dependent_modulus"
+    assert not diagnosis.significant[0].model.startswith("voigt")
+    assert_at_floor_after(diagnosis)
+
+
+def add_run(
+    campaign: Campaign, name: str, run: SimulatedRun, level: float, direction: str = "up"
+) -> None:
+    settings = RunSettings(
+        specimen="soft", level_m_per_s2=level, direction=direction, settle_cycles=100,
+        integrate_cycles=100, resolution_hz=0.5, hardness_shore_a=25.0, simulated=True,
+    )
+    campaign.start_run(name, settings)
+    campaign.append_segment(name, Segment(
+        run.frequency_hz, run.time_s, run.accelerance_table, run.accelerance_support,
+        run.reference_amplitude, np.ones_like(run.time_s), run.force_amplitude, run.flags,
+    ))  # fmt: skip
+    campaign.finish_run(name)
+
+
+def write_campaign(path: Path, runs: list[tuple[str, SimulatedRun, float, str, float]]) -> Path:
+    """Runs ``(name, run, level, direction, start_s)``; ``started`` stamps follow ``start_s``."""
+    with Campaign.create(path, sequence_text="", rig=RIG_ATTRIBUTES, durable=False) as campaign:
+        for name, run, level, direction, _ in runs:
+            add_run(campaign, name, run, level, direction)
+    origin = datetime(2026, 1, 5, 9, 0, tzinfo=UTC)
+    with h5py.File(path, "a") as h5:
+        for name, _, _, _, start_s in runs:
+            h5[f"runs/{name}"].attrs["started"] = (origin + timedelta(seconds=start_s)).isoformat()
+    return path
+
+
+def on_run_clock(run: SimulatedRun, start_s: float) -> SimulatedRun:
+    run.time_s = run.time_s - start_s
+    return run
+
+
+def test_amplitude_dependence_is_found_with_two_levels(tmp_path: Path) -> None:
+    rig = rig_text(VOIGT, noise=QUIET, extra=AMPLITUDE)
+    low = simulate_run(rig, seed=3, step_hz=0.5, level_m_per_s2=1.0)
+    high = simulate_run(rig, seed=4, step_hz=0.5, level_m_per_s2=3.0)
+    path = write_campaign(tmp_path / "c.h5", [
+        ("soft-0", low, 1.0, "up", 0.0), ("soft-0-level2", high, 3.0, "up", 3600.0),
+    ])  # fmt: skip
+    with Campaign.open(path) as campaign:
+        diagnosis = diagnose_run(campaign, "soft-0")
+    assert diagnosis.data.runs == ("soft-0", "soft-0-level2")
+    assert top(diagnosis) == "amplitude_dependence"
+    assert not diagnosis.significant[0].alternatives
+    assert_at_floor_after(diagnosis)
+
+
+def test_one_level_cannot_separate_amplitude_and_says_which_run_would() -> None:
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, extra=AMPLITUDE))
+    best = diagnosis.significant[0]
+    assert best.effect in ("amplitude_dependence", "thermal_drift")
+    assert best.alternatives
+    assert any('run = "run-level2"' in text for text in diagnosis.advice)
+
+
+def test_thermal_drift_is_found_with_an_up_and_a_down_sweep(tmp_path: Path) -> None:
+    rig = parse_rig(rig_text(VOIGT, noise=QUIET, extra=DRIFT), "drift rig")
+    simulator = RigSimulator(rig, seed=5)  # one specimen, one clock: the down sweep follows
+    up = simulate_run(rig, step_hz=0.5, simulator=simulator)
+    start_down = float(simulator.clock_s)
+    down = on_run_clock(simulate_run(rig, step_hz=0.5, simulator=simulator, direction="down"),
+                        start_down)  # fmt: skip
+    path = write_campaign(tmp_path / "c.h5", [
+        ("soft-0", up, 1.0, "up", 0.0), ("soft-0-down", down, 1.0, "down", start_down),
+    ])  # fmt: skip
+    with Campaign.open(path) as campaign:
+        diagnosis = diagnose_run(campaign, "soft-0")
+    assert diagnosis.data.directions == ("up", "down")
+    assert top(diagnosis) == "thermal_drift"
+    kappa = diagnosis.significant[0].parameters()["kappa"]["value"]
+    assert kappa * 3600 == pytest.approx(-0.05, rel=0.1)
+    assert_at_floor_after(diagnosis)
+
+
+def test_auto_finds_both_of_two_planted_effects() -> None:
+    rig = rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58], extra=DELAY)
+    ladder = single(rig, step_hz=0.25).auto()
+    final = ladder[-1]
+    assert "delay" in final.model and "fixture(5" in final.model
+    assert final.at_noise_floor
+    errors = [step.rms_error for step in ladder]
+    assert errors == sorted(errors, reverse=True) and len(ladder) == 3
+
+
+@pytest.fixture(scope="module")
+def fixture_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    run = simulate_run(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), seed=3, step_hz=0.25)
+    path = tmp_path_factory.mktemp("diagnose") / "c.h5"
+    return write_campaign(path, [("soft-0", run, 1.0, "up", 0.0)])
+
+
+def test_diagnose_json_follows_the_design(
+    fixture_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["diagnose", str(fixture_campaign), "--run", "soft-0", "--auto", "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    for key, kind in {"run": str, "model": str, "rms_error": float, "noise_floor": float,
+                      "at_noise_floor": bool, "failures": list, "findings": list,
+                      "ladder": list}.items():  # fmt: skip
+        assert isinstance(document[key], kind), key
+    assert document["run"] == "soft-0" and document["model"] == "voigt"
+    for band in document["failures"]:
+        assert set(band) >= {"band_hz", "frf", "what"} and len(band["band_hz"]) == 2
+    vocabulary = {"frequency_dependent_modulus", "load_cell_compliance", "fixture_resonance",
+                  "sensor_delay", "amplitude_dependence", "thermal_drift"}  # fmt: skip
+    for finding in document["findings"]:
+        assert set(finding) >= {"effect", "model", "rms_error", "delta_bic", "significant",
+                                "explanation", "parameters"}  # fmt: skip
+        assert finding["effect"] in vocabulary
+    bics = [finding["delta_bic"] for finding in document["findings"]]
+    assert bics == sorted(bics)
+    best = document["findings"][0]
+    assert best["effect"] == "fixture_resonance" and best["significant"]
+    assert document["ladder"][0]["model"] == "voigt"
+    assert document["ladder"][-1]["rms_error"] < document["ladder"][0]["rms_error"] / 3
+    # the finding's model is accepted by identify as is
+    assert main(["identify", str(fixture_campaign), "--run", "soft-0", "--model", best["model"],
+                 "--no-store", "--json"]) == 0  # fmt: skip
+    fitted = json.loads(capsys.readouterr().out)
+    assert fitted["rms_error"] == pytest.approx(best["rms_error"], rel=0.05)
+
+
+def test_diagnose_text_names_the_effect_and_the_next_command(
+    fixture_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["diagnose", str(fixture_campaign), "--run", "soft-0"]) == 0
+    text = capsys.readouterr().out
+    assert "most likely missing: fixture_resonance" in text
+    command = f"next: viscorig identify {fixture_campaign} --run soft-0 --model 'voigt+fixture(5"
+    assert command in text
+
+
+def test_diagnose_bad_input_is_one_line(
+    fixture_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    arguments = ["diagnose", str(fixture_campaign), "--run", "soft-0", "--model", "voigt+nope"]
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "unknown term 'nope'" in error
+
+
+def test_identify_finds_a_fixture_frequency_by_itself() -> None:
+    """``fixture`` without a frequency: the start comes from the residual's largest peak."""
+    from viscorig.fitting import fit
+
+    run = simulate_run(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), seed=4)
+    result = fit("voigt+fixture", run.frf_data(), fixed=TABLE)
+    assert result.values["f_n"] == pytest.approx(58.0, abs=0.5)
+    assert result.rms_error <= 1.5 * result.noise_floor
+
+
+@pytest.mark.slow
+def test_hard_10_preset_reads_sensibly() -> None:
+    """hard-10: stiff rubber, preload, K_c = 1e7 N/m, fixture modes at 38, 58, 92 Hz."""
+    run = simulate_run("hard-10", seed=1, level_m_per_s2=1.4)
+    diagnosis = diagnose(run.frf_data("hard-10"), "voigt", table=TABLE)
+    effects = [finding.effect for finding in diagnosis.significant]
+    assert effects[0] in ("load_cell_compliance", "frequency_dependent_modulus")
+    ladder = diagnosis.auto()
+    final = ladder[-1].model
+    assert "load_cell" in final and not final.startswith("voigt")
+    assert ladder[-1].rms_error < diagnosis.rms_error / 10
