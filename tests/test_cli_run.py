@@ -1,0 +1,194 @@
+"""``viscorig run`` and ``viscorig resume`` as a technician runs them, in a subprocess.
+
+The embedded simulated rig: a virtual 35670A on 127.0.0.1 reached through the real driver
+over pyvisa-py. The paper campaign runs whole; a run is killed (SIGKILL) and interrupted
+(SIGINT) mid-sweep and resumed.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from viscorig.storage import Campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "sequences" / "paper.toml"
+RUNS = ("table", "soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10")
+
+
+def viscorig(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "viscorig", *args], capture_output=True,
+                          text=True, timeout=120, **kwargs)
+
+
+def start(*args: str, cwd: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "viscorig", *args], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def points_in(path: Path) -> int:
+    """Points committed so far (0 while the file does not exist or has no run yet)."""
+    if not path.exists():
+        return 0
+    try:
+        with h5py.File(path, "r") as h5:
+            return sum(h5[f"runs/{name}/frequency_hz"].shape[0] for name in h5["runs"])
+    except (OSError, KeyError):
+        return 0
+
+
+def wait_for_points(path: Path, process: subprocess.Popen, timeout_s: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while points_in(path) == 0:
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline, "no segment landed"
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def paper_campaign(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    folder = tmp_path_factory.mktemp("paper")
+    result = viscorig("run", str(PAPER), "--yes", "--out", "paper.h5", cwd=folder)
+    return folder / "paper.h5", result
+
+
+@pytest.mark.slow
+def test_the_paper_campaign_runs_whole_on_the_embedded_rig(paper_campaign) -> None:
+    path, result = paper_campaign
+    assert result.returncode == 0, result.stderr
+    assert "sequence complete" in result.stdout
+    campaign = Campaign.open(path)
+    assert campaign.run_names == list(RUNS)
+    assert campaign.attributes["format"] == "viscorig"
+    assert campaign.attributes["format_version"] == 1
+    assert campaign.sequence_text == PAPER.read_text(encoding="utf-8")
+    assert campaign.station_text is None
+    for run in campaign.runs():
+        meta = run.metadata
+        assert meta.status == "complete" and meta.finished
+        assert meta.simulated and meta.resource.startswith("TCPIP::127.0.0.1::")
+        assert meta.resource.endswith("::SOCKET") and "35670A" in meta.instrument
+        assert run.points == (129 if run.name == "table" else 401)
+        assert np.all(np.diff(run.time_s) > 0)
+        assert np.all(np.isfinite(run.accelerance_table))
+        bare = run.name == "table"
+        assert np.all(np.isnan(run.accelerance_support)) == bare
+        assert np.all(np.isnan(run.source_amplitude))
+        # flags sane: the paper's level is reachable everywhere below the 100 N limit
+        assert np.count_nonzero(run.flags) <= 0.02 * run.points, run.name
+        level_db = 20 * np.log10(run.reference_amplitude / 1.4)
+        assert np.all(np.abs(level_db[run.flags == 0]) <= 1.0)
+        assert np.all(run.force_amplitude <= 100.0 * 1.01)
+    # the table identified on the fly and stored
+    [fit] = campaign.fits("table")
+    assert fit.model == "table"
+    assert fit.parameters["M_s"].value == pytest.approx(3.4, rel=0.02)
+    assert fit.parameters["K_s"].value == pytest.approx(50194.0, rel=0.02)
+    with h5py.File(path, "r") as h5:
+        for name in RUNS:
+            group = h5[f"runs/{name}"]
+            for key, dataset in group.items():
+                if isinstance(dataset, h5py.Dataset):
+                    assert "units" in dataset.attrs, f"{name}/{key}"
+                    assert dataset.chunks is not None and dataset.maxshape == (None,)
+            assert group["time_s"].attrs["time_base"] == "test"
+
+
+@pytest.mark.slow
+def test_a_run_killed_mid_sweep_resumes_without_losing_or_repeating_a_point(
+    paper_campaign, tmp_path
+) -> None:
+    reference_path, reference_result = paper_campaign
+    assert reference_result.returncode == 0
+    seed = random.randrange(1 << 30)
+    delay_s = random.Random(seed).uniform(0.0, 2.5)
+    path = tmp_path / "killed.h5"
+    # paced (a 2.9 h campaign in about 5 s) so that the kill lands in the middle of it
+    process = start("run", str(PAPER), "--yes", "--out", str(path), "--sim-pace", "2000",
+                    cwd=tmp_path)
+    wait_for_points(path, process)
+    time.sleep(delay_s)
+    assert process.poll() is None, f"finished before the kill (seed {seed})"
+    process.send_signal(signal.SIGKILL)
+    process.communicate()
+    before = {run.name: (run.metadata.status, run.points) for run in Campaign.open(path).runs()}
+    assert any(status == "running" for status, _ in before.values()) or len(before) < 7
+
+    result = viscorig("resume", str(path), "--yes", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    resumed, reference = Campaign.open(path), Campaign.open(reference_path)
+    assert resumed.run_names == list(RUNS)
+    for name in RUNS:
+        run, uninterrupted = resumed.run(name), reference.run(name)
+        assert run.metadata.status == "complete"
+        np.testing.assert_array_equal(run.frequency_hz, uninterrupted.frequency_hz)
+        assert np.all(np.diff(run.time_s) > 0)
+        ratio = run.accelerance_table / uninterrupted.accelerance_table
+        # the same rig measured twice: agreement within the noise (about 1e-3)
+        assert np.median(np.abs(ratio - 1)) < 5e-3, (name, seed)
+        assert np.max(np.abs(ratio - 1)) < 5e-2, (name, seed)
+    assert len(resumed.fits("table")) == 1
+
+
+@pytest.mark.slow
+def test_ctrl_c_aborts_the_run_keeps_its_data_and_says_how_to_resume(tmp_path) -> None:
+    path = tmp_path / "stopped.h5"
+    process = start("run", str(PAPER), "--yes", "--out", str(path), "--sim-pace", "300",
+                    cwd=tmp_path)
+    wait_for_points(path, process)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=30)
+    assert process.returncode == 130, err
+    assert f"viscorig resume {path}" in err and "interrupted in run 'table'" in err
+    assert "Traceback" not in err
+    run = Campaign.open(path).run("table")
+    assert run.metadata.status == "aborted" and 0 < run.points < 129
+    # the segment in flight was dropped whole: only planned points, in order
+    np.testing.assert_allclose(run.frequency_hz, 12.0 + 0.125 * np.arange(run.points))
+
+
+def test_an_existing_file_is_never_overwritten(tmp_path) -> None:
+    path = tmp_path / "paper.h5"
+    path.write_bytes(b"precious")
+    result = viscorig("run", str(PAPER), "--yes", cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1
+    assert "never overwritten" in result.stderr and "viscorig resume" in result.stderr
+    assert path.read_bytes() == b"precious"
+
+
+def test_a_bad_sequence_is_one_line_exit_2_and_nothing_written(tmp_path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(PAPER.read_text(encoding="utf-8").replace('level = "1.4 m/s^2"',
+                                                             'level = "1.4"'))
+    result = viscorig("run", str(bad), "--yes", cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "bad.toml: defaults.level" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert list(tmp_path.iterdir()) == [bad]
+
+
+def test_sim_pace_belongs_to_the_embedded_rig_only(tmp_path) -> None:
+    station = tmp_path / "station.toml"
+    station.write_text("")
+    result = viscorig("run", str(PAPER), "--station", str(station), "--sim-pace", "10",
+                      cwd=tmp_path)
+    assert result.returncode == 2 and "--sim-pace" in result.stderr
+    assert not (tmp_path / "paper.h5").exists()
+
+
+def test_resume_of_a_file_that_is_not_a_campaign_is_exit_2(tmp_path) -> None:
+    path = tmp_path / "x.h5"
+    path.write_bytes(b"not hdf5")
+    result = viscorig("resume", str(path), "--yes", cwd=tmp_path, env={**os.environ})
+    assert result.returncode == 2 and str(path) in result.stderr
