@@ -24,6 +24,8 @@ from .blocks import (
 from .channel import InputChannel
 from .connection import Connection
 from .errors import (
+    ConnectionLost,
+    InstrumentError,
     InstrumentTimeout,
     MalformedReply,
     MeasurementAborted,
@@ -847,6 +849,7 @@ class Agilent35670A:
         self._paused_total_s = 0.0
         self.ask("STAT:QUES:VOLT:EVEN?")  # reading clears the latches of the previous segment
         self.ask("*ESR?")  # and the event status register
+        fault: BaseException | None = None
         try:
             self.source_enabled = True
             started = time.time()
@@ -854,11 +857,28 @@ class Agilent35670A:
             self._wait(started, expected_s, deadline_s, progress, poll_interval_s)
             finished = time.time()
             return self._read_segment(points, started, finished)
+        except BaseException as error:
+            fault = error
+            raise
         finally:
             if switch_source_off:
-                # no error-queue check here: it must not hide the fault that ended the segment
-                self.write("OUTP OFF")
-                self.sent["source_enabled"] = False
+                self._switch_source_off(fault)
+
+    def _switch_source_off(self, fault: BaseException | None) -> None:
+        """Send ``OUTP OFF`` at the end of a segment, however it ended.
+
+        After a lost connection or a timeout the session is reopened first: a write to a socket
+        the peer has closed still "succeeds", so the source would stay on. No error-queue check
+        here, and a failure does not replace the fault that ended the segment.
+        """
+        try:
+            if isinstance(fault, ConnectionLost | InstrumentTimeout):
+                self.connection.reconnect()
+            self.write("OUTP OFF")
+            self.sent["source_enabled"] = False
+        except InstrumentError:
+            if fault is None:
+                raise
 
     def _wait(
         self,

@@ -664,6 +664,10 @@ class VirtualAnalyser:
                 if start >= frequencies.size:
                     self.state = "IDLE"
                     self._point_window = None
+                    # an overload forced "for the next sweep" ends with it
+                    for channel, remaining in list(self._forced_overload.items()):
+                        if remaining is None:
+                            del self._forced_overload[channel]
                     self._complete_operation()
                     return
                 stop = self._next_segment(start)
