@@ -14,18 +14,19 @@ the textbook ``s² (JᵀJ)⁻¹`` would claim too small an uncertainty.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from viscorig.errors import InputError
 from viscorig.fitting.data import FrfData
+from viscorig.fitting.jacobian import stiffness_derivatives
 from viscorig.fitting.noise import noise_floor
 from viscorig.fitting.result import FitResult
 from viscorig.fitting.starts import linear_start
-from viscorig.models import Model, parse_spec
+from viscorig.models import Maxwell, Model, parse_spec
 
 #: Correlation above which a warning names the pair of parameters.
 CORRELATION_WARNING = 0.95
@@ -122,20 +123,81 @@ def fit(
         return _fit_concrete(model, band, chosen, fixed, start, floor)
     # Candidates come in order of growing complexity (maxwell(1), (2), ...): forward selection,
     # stopping at the first candidate whose BIC does not improve on the best so far.
+    projected = _maxwell_order_search(model, fixed, start)
     results: list[FitResult] = []
-    worse = 0
     for candidate in model.candidates():
-        result = _fit_concrete(candidate, band, chosen, fixed, start, floor, tolerance=1e-6)
+        if projected:
+            result = _fit_maxwell_candidate(candidate, band, chosen, fixed, floor, results)
+        else:
+            result = _fit_concrete(candidate, band, chosen, fixed, start, floor, tolerance=1e-6)
         best_so_far = min((r.bic for r in results), default=np.inf)
         results.append(result)
-        worse = worse + 1 if result.bic >= best_so_far else 0
-        if worse >= 1:
+        if result.bic >= best_so_far:
             break
     chosen_one = min(results, key=lambda result: result.bic)
     # The comparison needs only coarse convergence; the chosen variant is then refined.
     best = _fit_concrete(chosen_one.model, band, chosen, fixed, chosen_one.values, floor)
     best.candidates = [(r.spec, r.bic, r.rms_error) for r in results]
     return best
+
+
+#: Nonlinear evaluations a Maxwell order gets while orders are compared (it starts at the
+#: solution of the projected problem, so a well-posed order converges in a few).
+ORDER_SEARCH_EVALUATIONS = 12
+
+
+def _maxwell_order_search(
+    model: Model, fixed: Mapping[str, float], start: Mapping[str, float] | None
+) -> bool:
+    """Orders of a plain open ``maxwell`` can be compared from their projected starts.
+
+    :meth:`Maxwell.start` solves the linearised problem (variable projection over ``log τ``,
+    weighted by ``1/|Z|``, which is the error measure to first order), so each order needs only
+    a few nonlinear steps. Effect terms, fixed ``K*`` parameters or a given start change that
+    problem: those take the general path (a full fit of every order).
+    """
+    return (
+        isinstance(model.modulus_term, Maxwell)
+        and not model.effects
+        and start is None
+        and set(fixed) <= {"M_s", "K_s", "C_s"}
+    )
+
+
+def _fit_maxwell_candidate(
+    candidate: Model,
+    data: FrfData,
+    frfs: tuple[str, ...],
+    fixed: Mapping[str, float],
+    floor: float,
+    lower_orders: Sequence[FitResult],
+) -> FitResult:
+    """One Maxwell order during the order search: a few nonlinear steps from the better of its
+    projected start and the previous order's fit with one more, idle, arm (so that an order
+    whose projected start failed is never shown worse than the order below it)."""
+    starts = [linear_start(candidate, data, frfs, fixed)]
+    if lower_orders:
+        previous = lower_orders[-1].values
+        order = len([name for name in candidate.names if name.startswith("C_")]) - 1
+        omega = 2 * np.pi * data.frequency_hz
+        idle = candidate.by_name[f"K_{order}"].clip(0.0)
+        tau = 1.0 / np.sqrt(omega.min() * omega.max())
+        starts.append({**starts[0], **previous, f"K_{order}": idle, f"C_{order}": idle * tau})
+    ctx = data.context()
+    measured = [data.frf(name) for name in frfs]
+
+    def error(values: Mapping[str, float]) -> float:
+        predicted = candidate.predict(ctx, values)
+        with np.errstate(all="ignore"):
+            ratio = np.concatenate([predicted[n] / h for n, h in zip(frfs, measured, strict=True)])
+        value = float(np.sum(np.abs(ratio - 1.0) ** 2))
+        return value if np.isfinite(value) else np.inf
+
+    best = min(starts, key=error)
+    return _fit_concrete(
+        candidate, data, frfs, fixed, best, floor, tolerance=1e-6,
+        max_evaluations=ORDER_SEARCH_EVALUATIONS, bounded_fallback=False,
+    )  # fmt: skip
 
 
 def _fit_concrete(
@@ -146,38 +208,65 @@ def _fit_concrete(
     start: Mapping[str, float] | None,
     floor: float,
     tolerance: float = 1e-9,
+    max_evaluations: int | None = None,
+    bounded_fallback: bool = True,
 ) -> FitResult:
-    values = linear_start(model, data, frfs, fixed)
-    if start:
-        values.update({k: v for k, v in start.items() if k in values and k not in fixed})
     free = tuple(name for name in model.names if name not in fixed)
+    if start and all(name in start for name in free):  # a complete start: no linear start
+        values = {**model.defaults(), **fixed}
+        values.update({name: model.by_name[name].clip(float(start[name])) for name in free})
+    else:
+        values = linear_start(model, data, frfs, fixed)
+        if start:
+            values.update({k: v for k, v in start.items() if k in values and k not in fixed})
     coordinates = _Coordinates(model, free)
     ctx = data.context()
     measured = [data.frf(name) for name in frfs]
+    omega_squared = ctx.omega**2
     current = dict(values)
+    last: dict[str, object] = {}
+
+    def predict(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        if last.get("x") is not None and np.array_equal(last["x"], x):
+            return last["predicted"]  # type: ignore[return-value]
+        current.update(zip(free, coordinates.to_values(x), strict=True))
+        last["x"], last["predicted"] = x.copy(), model.predict(ctx, current)
+        return last["predicted"]  # type: ignore[return-value]
 
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        current.update(zip(free, coordinates.to_values(x), strict=True))
-        predicted = model.predict(ctx, current)
+        predicted = predict(x)
         ratio = np.concatenate([predicted[n] / h for n, h in zip(frfs, measured, strict=True)])
         ratio -= 1.0
         return np.concatenate([ratio.real, ratio.imag])
 
+    def jacobian(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
+        # r = H/H_measured − 1 with H = −ω²/D: ∂r/∂p = H²/(ω² H_measured) ∂D/∂p.
+        predicted = predict(x)
+        derivatives = stiffness_derivatives(model, ctx, current, free)
+        assert derivatives is not None
+        blocks = [
+            (predicted[n] ** 2 / (omega_squared * h))[:, None] * derivatives[n]
+            for n, h in zip(frfs, measured, strict=True)
+        ]
+        complex_jacobian = np.concatenate(blocks) * coordinates.derivative(
+            np.array([current[name] for name in free])
+        )
+        return np.concatenate([complex_jacobian.real, complex_jacobian.imag])
+
+    analytic = stiffness_derivatives(model, ctx, values, free) is not None
+
     x0 = coordinates.to_x(np.array([values[name] for name in free]))
     lower, upper = coordinates.bounds()
     x0 = np.clip(x0, lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
-    with np.errstate(all="ignore"):
-        solution = least_squares(
-            residual,
-            x0,
-            bounds=(lower, upper),
-            x_scale="jac",
-            method="trf",
-            ftol=tolerance,
-            xtol=tolerance,
-            gtol=tolerance,
-            max_nfev=50 + 20 * len(free),
-        )
+    solution = _least_squares(
+        residual,
+        jacobian if analytic else None,
+        x0,
+        (lower, upper),
+        tolerance,
+        max_evaluations or 50 + 20 * len(free),
+        bounded_fallback,
+    )
     fitted = coordinates.to_values(solution.x)
     values.update(zip(free, fitted, strict=True))
     r = residual(solution.x)
@@ -211,6 +300,53 @@ def _fit_concrete(
         nfev=int(solution.nfev),
         warnings=warnings,
     )
+
+
+def _least_squares(
+    residual: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    jacobian: Callable[..., NDArray[np.float64]] | None,
+    x0: NDArray[np.float64],
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]],
+    tolerance: float,
+    max_evaluations: int,
+    bounded_fallback: bool = True,
+) -> OptimizeResult:
+    """Minimise ``|residual|²`` from ``x0`` within ``bounds``.
+
+    With an analytic Jacobian, Levenberg-Marquardt (MINPACK) goes first: in the fitted
+    coordinates (logarithms of positive parameters) the bounds are far from any sensible
+    solution, and MINPACK's own small QR avoids the threaded LAPACK calls on the tall Jacobian
+    that make the trust-region method slow on a busy machine. If it leaves the bounds or ends
+    worse than it began, the bounded trust-region method (``trf``) solves from ``x0``; without
+    ``bounded_fallback`` the start is kept instead (the Maxwell order search, where an order
+    that does not converge quickly is a degenerate one).
+    """
+    lower, upper = bounds
+    options = {"x_scale": "jac", "ftol": tolerance, "xtol": tolerance, "gtol": tolerance}
+    with np.errstate(all="ignore"):
+        if jacobian is not None and x0.size <= residual(x0).size:
+            start_cost = 0.5 * float(np.sum(residual(x0) ** 2))
+            solution = least_squares(
+                residual, x0, jac=jacobian, method="lm", max_nfev=max_evaluations, **options
+            )
+            x = solution.x
+            if (
+                np.all(np.isfinite(x))
+                and np.all((lower < x) & (x < upper))
+                and solution.cost <= start_cost
+            ):
+                return solution
+            if not bounded_fallback:
+                return OptimizeResult(x=x0, jac=jacobian(x0), nfev=solution.nfev, cost=start_cost)
+        return least_squares(
+            residual,
+            x0,
+            jac=jacobian if jacobian is not None else "2-point",
+            bounds=(lower, upper),
+            method="trf",
+            max_nfev=max_evaluations,
+            **options,
+        )
 
 
 def _covariance(

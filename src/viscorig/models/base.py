@@ -278,6 +278,14 @@ class ModulusTerm(Term):
         """Start values (local names, plus ``M_v``) from ``D_v`` samples and their weights."""
         raise NotImplementedError
 
+    def modulus_derivatives(
+        self, ctx: Context, p: Mapping[str, float]
+    ) -> dict[str, NDArray[np.complex128]] | None:
+        """Optional: ``∂K*/∂p`` (N/m per unit of ``p``) for every local parameter name, one
+        complex value per point, so that a fitter can use an analytic Jacobian. ``None`` (the
+        default) makes it use finite differences instead."""
+        return None
+
 
 TERMS: dict[str, type[Term]] = {}
 """The registry: spec keyword -> term class. Filled by :func:`register_term`."""

@@ -40,6 +40,9 @@ class TableOnly(ModulusTerm):
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
         return np.zeros(ctx.omega.shape, dtype=complex)
 
+    def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
+        return {}
+
     def start(self, omega, d_disc, weight) -> dict[str, float]:
         return {}
 
@@ -58,6 +61,9 @@ class Voigt(ModulusTerm):
 
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
         return p["K_v"] + 1j * ctx.omega * p["C_v"]
+
+    def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
+        return {"K_v": np.ones(ctx.omega.shape, dtype=complex), "C_v": 1j * ctx.omega}
 
     def start(self, omega, d_disc, weight) -> dict[str, float]:
         columns = np.stack([np.ones_like(omega), 1j * omega, -(omega**2)], axis=1).astype(complex)
@@ -123,8 +129,21 @@ class Maxwell(ModulusTerm):
         iwt = 1j * ctx.omega[:, None] * (c / k)[None, :]
         return p["K_0"] + (k[None, :] * iwt / (1.0 + iwt)).sum(axis=1)
 
+    def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
+        # Arm i: iω k c / (k + iω c); ∂/∂k = (iωc)²/(k + iωc)², ∂/∂c = iω k²/(k + iωc)².
+        k, c = self.arms(p)
+        iwc = 1j * ctx.omega[:, None] * c[None, :]
+        denominator = (k[None, :] + iwc) ** 2
+        d_k = iwc**2 / denominator
+        d_c = 1j * ctx.omega[:, None] * k[None, :] ** 2 / denominator
+        derivatives = {"K_0": np.ones(ctx.omega.shape, dtype=complex)}
+        for i in range(k.size):
+            derivatives[f"K_{i + 1}"] = d_k[:, i]
+            derivatives[f"C_{i + 1}"] = d_c[:, i]
+        return derivatives
+
     def start(self, omega, d_disc, weight) -> dict[str, float]:
-        taus, gains, k_0, m_v = prony_nnls(omega, d_disc, weight)
+        taus, gains, k_0, m_v = _prony_for(omega, d_disc, weight)
         # An arm relaxing far below the band acts as a spring there: fold it into K_0.
         spring = taus > 30.0 / omega.min()
         k_0 += float(gains[spring].sum())
@@ -162,30 +181,72 @@ def _refine_relaxation_times(
 ) -> tuple[NDArray, float, NDArray, float]:
     """Variable projection: adjust ``log τ_i``, solving ``K_0, K_i, M_v`` linearly at each step.
 
-    Keeps the NNLS/merge result if the refined one has a negative stiffness or mass.
+    The residual is what the columns ``1, iωτ_i/(1+iωτ_i), −ω²`` (weighted, scaled to unit
+    norm) leave of the weighted ``D_v`` samples; its Jacobian is Kaufman's,
+    ``P⊥ (∂A/∂log τ_i) x_i``. Only products with the tall matrix and solves of the small Gram
+    matrix are used, so every evaluation stays cheap on a busy machine. ``log τ`` stays within
+    two decades of the band (bounded: an arm with ``τ → 0`` and a huge stiffness is a damper,
+    a limit an unbounded search drifts into). Keeps the NNLS/merge result if the refined one
+    has a negative stiffness or mass.
     """
     lo, hi = np.log(0.01 / omega.max()), np.log(100.0 / omega.min())
+    rows = np.concatenate([weight, weight])
+    target = np.concatenate([d_disc.real, d_disc.imag]) * rows
+    state: dict[str, NDArray] = {}
 
-    def solve(lt: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    def project(lt: NDArray[np.float64]) -> NDArray[np.float64]:
         iwt = 1j * omega[:, None] * np.exp(lt)[None, :]
         columns = np.concatenate(
             [np.ones((omega.size, 1)), iwt / (1 + iwt), -(omega[:, None] ** 2)], axis=1
         )
-        a, b, scale = _stack(columns, d_disc, weight)
-        x = np.linalg.lstsq(a, b, rcond=None)[0]
-        return x / scale, a @ x - b
+        a = np.concatenate([columns.real, columns.imag]) * rows[:, None]
+        scale = np.sqrt(np.einsum("ij,ij->j", a, a))
+        scale[scale == 0] = 1.0
+        a /= scale
+        gram_inverse = np.linalg.pinv(a.T @ a, hermitian=True)
+        x = gram_inverse @ (a.T @ target)
+        state.update(lt=lt, a=a, gram_inverse=gram_inverse, iwt=iwt, x=x / scale)
+        return a @ x - target
+
+    def jacobian(lt: NDArray[np.float64]) -> NDArray[np.float64]:
+        if state.get("lt") is not lt:
+            project(lt)
+        a, gram_inverse, iwt = state["a"], state["gram_inverse"], state["iwt"]
+        d_columns = iwt / (1 + iwt) ** 2 * state["x"][None, 1:-1]
+        d_a = np.concatenate([d_columns.real, d_columns.imag]) * rows[:, None]
+        return d_a - a @ (gram_inverse @ (a.T @ d_a))
+
+    def solve(lt: NDArray[np.float64]) -> NDArray[np.float64]:
+        project(lt)
+        return state["x"]
 
     start = np.clip(log_tau, lo + 1e-6, hi - 1e-6)
     with np.errstate(all="ignore"):
         refined = least_squares(
-            lambda lt: solve(lt)[1], start, bounds=(lo, hi), ftol=1e-8, xtol=1e-8, max_nfev=200
+            project, start, jac=jacobian, bounds=(lo, hi), ftol=1e-7, xtol=1e-7, max_nfev=40
         ).x
-    x, _ = solve(refined)
-    if np.any(x < 0):
+    x = solve(refined)
+    if not np.all(np.isfinite(x)) or np.any(x < 0):
         refined = start
-        x, _ = solve(refined)
-        x = np.maximum(x, 0.0)
+        x = np.maximum(np.nan_to_num(solve(refined)), 0.0)
     return refined, float(x[0]), x[1:-1], float(x[-1])
+
+
+#: The last Prony series and its inputs: an order search starts every order from the same one.
+_LAST_PRONY: list[tuple[tuple[NDArray, ...], tuple[NDArray, NDArray, float, float]]] = []
+
+
+def _prony_for(
+    omega: NDArray[np.float64], d_disc: NDArray[np.complex128], weight: NDArray[np.float64]
+) -> tuple[NDArray, NDArray, float, float]:
+    """:func:`prony_nnls` of these samples, reused when the same samples come again."""
+    inputs = (omega, d_disc, weight)
+    for seen, series in _LAST_PRONY:
+        if all(np.array_equal(a, b) for a, b in zip(seen, inputs, strict=True)):
+            return series
+    series = prony_nnls(omega, d_disc, weight)
+    _LAST_PRONY[:] = [(tuple(np.array(a, copy=True) for a in inputs), series)]
+    return series
 
 
 def prony_nnls(
@@ -251,34 +312,67 @@ class Fractional(ModulusTerm):
         s = (1j * ctx.omega * p["tau"]) ** p["alpha"]
         return (p["K_0"] + p["K_inf"] * s) / (1.0 + s)
 
+    def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
+        # s = (iωτ)^α: ∂s/∂τ = α s/τ, ∂s/∂α = s log(iωτ); ∂K*/∂s = (K_inf − K_0)/(1 + s)².
+        log_iwt = np.log(ctx.omega * p["tau"]) + 0.5j * np.pi
+        s = np.exp(p["alpha"] * log_iwt)
+        d_s = (p["K_inf"] - p["K_0"]) / (1.0 + s) ** 2
+        return {
+            "K_0": 1.0 / (1.0 + s),
+            "K_inf": s / (1.0 + s),
+            "tau": d_s * p["alpha"] * s / p["tau"],
+            "alpha": d_s * s * log_iwt,
+        }
+
     def start(self, omega, d_disc, weight) -> dict[str, float]:
-        """Grid over ``τ, α``; for each, ``(1+s) D_v = K_0 + K_inf s − ω² M_v (1+s)`` is linear."""
-        best: tuple[float, dict[str, float]] | None = None
+        """Grid over ``τ, α``; for each, ``(1+s) D_v = K_0 + K_inf s − ω² M_v (1+s)`` is linear.
+
+        The grid only chooses the basin, so its 150 small problems are solved at once on at most
+        about 200 of the samples (normal equations of unit-norm columns); the best point with
+        positive stiffnesses and mass is then solved exactly on every sample.
+        """
         lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
-        for tau in np.logspace(np.log10(lo), np.log10(hi), 25):
-            for alpha in (0.15, 0.3, 0.45, 0.6, 0.75, 0.9):
-                s = (1j * omega * tau) ** alpha
-                columns = np.stack([np.ones_like(s), s, -(omega**2) * (1 + s)], axis=1)
-                w = weight / np.abs(1 + s)
-                a, b, scale = _stack(columns, d_disc * (1 + s), w)
-                x, *_ = np.linalg.lstsq(a, b, rcond=None)
-                x = x / scale
-                if np.any(x <= 0):
-                    continue
-                cost = float(np.sum((a @ (x * scale) - b) ** 2))
-                if best is None or cost < best[0]:
-                    best = (
-                        cost,
-                        {"K_0": x[0], "K_inf": x[1], "tau": tau, "alpha": alpha, "M_v": x[2]},
-                    )
-        if best is None:  # no grid point with positive stiffnesses: fall back to a Voigt start
-            voigt = Voigt().start(omega, d_disc, weight)
-            tau = 1.0 / np.sqrt(omega.min() * omega.max())
-            return {
-                "K_0": voigt["K_v"],
-                "K_inf": 10 * abs(voigt["K_v"]),
-                "tau": tau,
-                "alpha": 0.5,
-                "M_v": voigt["M_v"],
-            }
-        return best[1]
+        taus = np.logspace(np.log10(lo), np.log10(hi), 25)
+        alphas = np.array([0.15, 0.3, 0.45, 0.6, 0.75, 0.9])
+        tau_grid, alpha_grid = (g.ravel() for g in np.meshgrid(taus, alphas, indexing="ij"))
+
+        def system(pick: slice, tau: NDArray, alpha: NDArray) -> tuple[NDArray, NDArray]:
+            """Weighted real systems ``a x ≈ b``, one per ``(τ, α)``: grid x rows x 3."""
+            w_pick = omega[pick]
+            log_iwt = np.log(w_pick[None, :] * tau[:, None]) + 0.5j * np.pi
+            s = np.exp(alpha[:, None] * log_iwt)  # (iωτ)^α
+            rows = weight[pick][None, :] / np.abs(1.0 + s)
+            columns = np.stack([np.ones_like(s), s, -(w_pick**2) * (1.0 + s)], axis=1)
+            target = d_disc[pick][None, :] * (1.0 + s)
+            a = np.concatenate([columns.real, columns.imag], axis=2) * np.concatenate(
+                [rows, rows], axis=1
+            )[:, None, :]
+            b = np.concatenate([target.real * rows, target.imag * rows], axis=1)
+            return a.transpose(0, 2, 1), b
+
+        a, b = system(slice(None, None, max(1, omega.size // 200)), tau_grid, alpha_grid)
+        scale = np.sqrt(np.einsum("gpk,gpk->gk", a, a))
+        scale[scale == 0] = 1.0
+        a = a / scale[:, None, :]
+        gram = np.matmul(a.transpose(0, 2, 1), a)
+        with np.errstate(all="ignore"):
+            x = np.matmul(np.linalg.pinv(gram), np.matmul(a.transpose(0, 2, 1), b[:, :, None]))
+            cost = np.sum((np.matmul(a, x)[:, :, 0] - b) ** 2, axis=1)
+        feasible = np.all(x[:, :, 0] > 0, axis=1) & np.isfinite(cost)
+        if np.any(feasible):
+            j = int(np.argmin(np.where(feasible, cost, np.inf)))
+            a_all, b_all = system(slice(None), tau_grid[j : j + 1], alpha_grid[j : j + 1])
+            k_0, k_inf, m_v = np.linalg.lstsq(a_all[0], b_all[0], rcond=None)[0]
+            if min(k_0, k_inf, m_v) > 0:
+                return {"K_0": k_0, "K_inf": k_inf, "tau": tau_grid[j], "alpha": alpha_grid[j],
+                        "M_v": m_v}  # fmt: skip
+        # no grid point with positive stiffnesses: fall back to a Voigt start
+        voigt = Voigt().start(omega, d_disc, weight)
+        tau = 1.0 / np.sqrt(omega.min() * omega.max())
+        return {
+            "K_0": voigt["K_v"],
+            "K_inf": 10 * abs(voigt["K_v"]),
+            "tau": tau,
+            "alpha": 0.5,
+            "M_v": voigt["M_v"],
+        }
