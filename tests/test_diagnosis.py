@@ -258,7 +258,7 @@ def test_identify_finds_a_fixture_frequency_by_itself() -> None:
 @pytest.mark.slow
 def test_hard_10_preset_reads_sensibly() -> None:
     """hard-10: stiff rubber, preload, K_c = 1e7 N/m, fixture modes at 38, 58, 92 Hz."""
-    run = simulate_run("hard-10", seed=1, level_m_per_s2=1.4)
+    run = simulate_run("hard-10", seed=1, level_m_per_s2=1.4, step_hz=0.5)
     diagnosis = diagnose(run.frf_data("hard-10"), "voigt", table=TABLE)
     effects = [finding.effect for finding in diagnosis.significant]
     assert effects[0] in ("load_cell_compliance", "frequency_dependent_modulus")

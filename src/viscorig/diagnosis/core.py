@@ -179,6 +179,7 @@ def diagnose(
     if spec.modulus_term is None or not spec.modulus_term.has_disc:
         raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
     result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}))
+    result.noise_floor = data.noise_floor
     return analyse(data, result)
 
 

@@ -1,5 +1,9 @@
 """Confirmation: fit each candidate warm-started from the current fit, rank by BIC, test it.
 
+Fits. Every candidate is fitted as ``identify`` fits it (the design's error measure, so its
+``rms_error`` and parameters are the ones ``identify --model`` gives); for the statistic below
+the fit is then polished to maximum likelihood (:mod:`viscorig.diagnosis.weighted`).
+
 Statistic. The noise of an FRF changes by orders of magnitude along a band (constant
 acceleration), so every comparison is made on the residual *whitened* by the local noise
 estimate of the data (:func:`viscorig.fitting.local_noise_power`):
@@ -24,6 +28,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Signature
+from viscorig.diagnosis.weighted import polish
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.models import TERMS, Fixture, Model, parse_spec
@@ -125,7 +130,8 @@ def whitened_chi2(result: FitResult, data: DiagnosisData) -> float:
 
 
 def whitened_bic(result: FitResult, data: DiagnosisData) -> float:
-    """``χ² + k ln n`` with ``n`` real residuals and ``k`` free parameters."""
+    """``χ² + k ln n`` with ``n`` real residuals and ``k`` free parameters (of a fit polished
+    by :func:`viscorig.diagnosis.weighted.polish`, for the statistic to be calibrated)."""
     n = 2 * sum(data.noise_power[frf].size for frf in result.frfs)
     return whitened_chi2(result, data) + len(result.free) * np.log(n)
 
@@ -176,7 +182,7 @@ def confirm(
     current: FitResult, data: DiagnosisData, signatures: list[Signature]
 ) -> list[Finding]:
     """Fit every screened candidate and return the findings, best (lowest ΔBIC) first."""
-    base = whitened_bic(current, data)
+    base = whitened_bic(polish(current, data), data)
     findings: list[Finding] = []
     for signature in signatures:
         terms = [signature.term]
@@ -188,7 +194,7 @@ def confirm(
                 result = fit_with(current, data, term, signature.start)
             except (InputError, ValueError, np.linalg.LinAlgError):
                 continue
-            bic = whitened_bic(result, data)
+            bic = whitened_bic(polish(result, data), data)
             if best is None or bic < best[0]:
                 best = (bic, result, term)
         if best is None:

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.fitting import FitResult
+from viscorig.models.effects import running_median
 
 #: Smoothed whitened residual power above which a point belongs to a failure band.
 FAILURE_LEVEL = 6.0
@@ -121,11 +122,20 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     size = np.abs(dz)
     worst = int(np.argmax(size))
     where = f"{f[worst]:.1f} Hz"
-    wide = f[size > 0.5 * size[worst]]
+    # What stands above a running median over ±NARROW_HZ is narrow.
+    steps = np.diff(f)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
+    half = int(np.clip(round(NARROW_HZ / step), 2, max(f.size // 3, 2)))
+    excess = np.abs(dz - (running_median(dz.real, half) + 1j * running_median(dz.imag, half)))
+    peak = int(np.argmax(excess))
+    wide = f[excess > 0.5 * excess[peak]]
     if f[-1] - f[0] < NARROW_HZ or (
-        size[worst] > PEAK_DOMINANCE * np.median(size) and np.ptp(wide) < NARROW_HZ
+        excess[peak] > PEAK_DOMINANCE * np.median(excess) and np.ptp(wide) < NARROW_HZ
     ):
-        return f"a narrow peak at {where} not in the model ({size[worst] * 100:.1f} % of |K*|)"
+        return (
+            f"a narrow peak at {f[peak]:.1f} Hz not in the model "
+            f"({excess[peak] * 100:.1f} % of |K*|)"
+        )
     phase = np.unwrap(np.angle(ratio))
     magnitude = np.log(np.abs(ratio))
     if f.size >= 6 and np.std(phase) > 2 * np.std(magnitude):
