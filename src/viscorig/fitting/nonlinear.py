@@ -362,11 +362,17 @@ def _covariance(
     warnings: list[str] = []
     if k == 0:
         return np.zeros((0, 0)), warnings
-    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
-    keep = singular > singular[0] * 1e-12
+    # (JᵀJ)⁻¹ from the Gram matrix of unit-norm columns: a small product and a k x k eigen
+    # decomposition, where an SVD of the tall J would call threaded LAPACK (slow on a busy
+    # machine). Directions below 1e-7 of the largest singular value count as not identified.
+    norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))
+    norms[norms == 0] = 1.0
+    scaled = jac / norms
+    eigenvalues, vectors = np.linalg.eigh(scaled.T @ scaled)
+    keep = eigenvalues > eigenvalues.max() * 1e-14
     if not np.all(keep):
         warnings.append("the parameters are not all identifiable from these data (rank deficient)")
-    inverse = (vt[keep].T / singular[keep] ** 2) @ vt[keep]
+    inverse = ((vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T) / np.outer(norms, norms)
     # Sandwich (HC1): the noise of an FRF changes along the band by orders of magnitude, so
     # the textbook s²(JᵀJ)⁻¹, which assumes equal variance at every point, would be too small.
     weighted = jac * residual[:, None]
