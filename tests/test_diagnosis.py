@@ -178,6 +178,7 @@ def test_thermal_drift_is_found_with_an_up_and_a_down_sweep(tmp_path: Path) -> N
     assert_at_floor_after(diagnosis)
 
 
+@pytest.mark.slow
 def test_auto_finds_both_of_two_planted_effects() -> None:
     rig = rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58], extra=DELAY)
     ladder = single(rig, step_hz=0.25).auto()
@@ -195,6 +196,7 @@ def fixture_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_campaign(path, [("soft-0", run, 1.0, "up", 0.0)])
 
 
+@pytest.mark.slow
 def test_diagnose_json_follows_the_design(
     fixture_campaign: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -266,3 +268,12 @@ def test_hard_10_preset_reads_sensibly() -> None:
     final = ladder[-1].model
     assert "load_cell" in final and not final.startswith("voigt")
     assert ladder[-1].rms_error < diagnosis.rms_error / 10
+
+
+def test_example_sequence_measures_the_runs_diagnosis_asks_for() -> None:
+    from viscorig.sequences.sequence import load_sequence
+
+    sequence = load_sequence(Path(__file__).parents[1] / "sequences" / "separate-effects.toml")
+    soft = {step.run: step for step in sequence.sweeps if step.specimen == "soft"}
+    assert soft["soft-0-level2"].level_m_per_s2 == 2 * soft["soft-0"].level_m_per_s2
+    assert soft["soft-0-down"].direction == "down" and soft["soft-0"].direction == "up"

@@ -89,11 +89,11 @@ class Diagnosis:
         or a whole spec (``"fractional+delay"``).
         """
         if isinstance(effect, Finding):
-            return analyse(self.data, effect.fit)
+            return analyse(self.data, effect.fit, effect.bic)
         text = effect.strip()
         for finding in self.findings:
             if finding.term == text:
-                return analyse(self.data, finding.fit)
+                return analyse(self.data, finding.fit, finding.bic)
         if "+" in text:
             return diagnose(self.data, text)
         candidate_spec(self.fit.model, text)  # checks the term
@@ -134,10 +134,10 @@ class Diagnosis:
         return document
 
 
-def analyse(data: DiagnosisData, result: FitResult) -> Diagnosis:
+def analyse(data: DiagnosisData, result: FitResult, bic: float | None = None) -> Diagnosis:
     """Failures, screening and confirmed findings of a fit already made on ``data``."""
     result.noise_floor = data.noise_floor
-    findings = confirm(result, data, screen(result, data))
+    findings = confirm(result, data, screen(result, data), bic)
     advice: list[str] = []
     for finding in findings:
         finding.explanation = explain(finding, data)

@@ -80,6 +80,8 @@ class Finding:
     term: str
     explanation: str = ""
     alternatives: list[str] = field(default_factory=list)
+    bic: float = float("nan")
+    """Whitened BIC of the candidate."""
 
     @property
     def rms_error(self) -> float:
@@ -179,10 +181,16 @@ def fit_with(
 
 
 def confirm(
-    current: FitResult, data: DiagnosisData, signatures: list[Signature]
+    current: FitResult,
+    data: DiagnosisData,
+    signatures: list[Signature],
+    base_bic: float | None = None,
 ) -> list[Finding]:
-    """Fit every screened candidate and return the findings, best (lowest ΔBIC) first."""
-    base = whitened_bic(polish(current, data), data)
+    """Fit every screened candidate and return the findings, best (lowest ΔBIC) first.
+
+    ``base_bic``: the current fit's whitened BIC when already known (a finding's ``bic``).
+    """
+    base = whitened_bic(polish(current, data), data) if base_bic is None else base_bic
     findings: list[Finding] = []
     for signature in signatures:
         terms = [signature.term]
@@ -214,6 +222,7 @@ def confirm(
                 bool(delta < -SIGNIFICANT_DELTA_BIC),
                 signature.evidence,
                 term,
+                bic=float(bic),
             )
         )
     findings.sort(key=lambda finding: finding.delta_bic)
