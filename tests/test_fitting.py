@@ -12,8 +12,9 @@ import pytest
 from viscorig.errors import InputError
 from viscorig.estimates import equivalent_damping, loss_factor, measured_resonance, storage_modulus
 from viscorig.fitting import FrfData, fit, linear_start, local_noise_power, noise_floor
+from viscorig.fitting.jacobian import stiffness_derivatives
 from viscorig.fitting.starts import table_linear_fit
-from viscorig.models import parse_spec
+from viscorig.models import Model, Voigt, parse_spec
 from viscorig.models.modulus import prony_nnls
 from viscorig.rig import RigDescription, geometry_factor
 
@@ -178,3 +179,70 @@ def test_measured_half_power_bandwidth_of_a_light_resonance() -> None:
     f_n = np.sqrt(k / m) / (2 * np.pi)
     assert resonance.peak_hz == pytest.approx(f_n * np.sqrt(1 - 2 * xi**2), rel=1e-3)
     assert resonance.bandwidth_hz == pytest.approx(2 * xi * f_n, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    ("spec", "values"),
+    [
+        ("table", {}),
+        ("voigt", {"K_v": 2.0e5, "C_v": 120.0, "M_v": 0.3}),
+        (
+            "maxwell(2)",
+            {"K_0": 1.2e5, "K_1": 5e4, "C_1": 53.0, "K_2": 8e4, "C_2": 424.0, "M_v": 0.25},
+        ),
+        ("fractional", {"K_0": 1.5e5, "K_inf": 6e5, "tau": 2e-3, "alpha": 0.45, "M_v": 0.2}),
+    ],
+)
+def test_analytic_derivatives_match_finite_differences_of_the_prediction(
+    spec: str, values: dict
+) -> None:
+    """∂H/∂p = (H²/ω²) ∂D/∂p through the whole rigid-link chain, for every parameter."""
+    model = parse_spec(spec)
+    ctx = FrfData(FREQUENCY, np.ones(FREQUENCY.size)).context()
+    point = {**model.defaults(), "M_s": 3.4, "K_s": 50194.0, "C_s": 5.05, **values}
+    names = model.names
+    derivatives = stiffness_derivatives(model, ctx, point, names)
+    assert derivatives is not None and set(derivatives) == set(model.frfs)
+    predicted = model.predict(ctx, point)
+    for j, name in enumerate(names):
+        step = 1e-6 * abs(point[name])
+        up, down = dict(point), dict(point)
+        up[name] += step
+        down[name] -= step
+        for frf in model.frfs:
+            numeric = (model.predict(ctx, up)[frf] - model.predict(ctx, down)[frf]) / (2 * step)
+            analytic = predicted[frf] ** 2 / OMEGA**2 * derivatives[frf][:, j]
+            scale = np.max(np.abs(predicted[frf])) / abs(point[name])
+            assert np.max(np.abs(analytic - numeric)) < 1e-6 * scale, (frf, name)
+
+
+def test_terms_without_derivatives_fall_back_to_finite_differences() -> None:
+    """An effect term, or a K* term without derivatives, still fits (to the same values)."""
+    rng = np.random.default_rng(5)
+    table = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
+    z_disc = 2.0e5 + 1j * OMEGA * 120.0 - OMEGA**2 * 0.3
+    z_table = table["K_s"] - OMEGA**2 * table["M_s"] + 1j * OMEGA * table["C_s"] + z_disc
+    noise = 1 + 1e-3 * (rng.normal(size=(2, FREQUENCY.size)) + 1j * rng.normal(size=(2, 1)))
+    data = FrfData(
+        FREQUENCY,
+        accelerance_of_stiffness(z_table) * noise[0],
+        accelerance_of_stiffness(z_disc) * noise[1],
+    )
+    ctx = data.context()
+    with_effect = parse_spec("voigt+delay")
+    assert stiffness_derivatives(with_effect, ctx, linear_start(with_effect, data, ("support",),
+                                 table), with_effect.names) is None  # fmt: skip
+    analytic = fit("voigt", data, fixed=table)
+
+    class NoDerivatives(Voigt):
+        def modulus_derivatives(self, ctx, p):
+            return None
+
+    plain = Model([NoDerivatives()])
+    assert stiffness_derivatives(plain, ctx, analytic.values, plain.names) is None
+    numeric = fit(plain, data, fixed=table)
+    for name in ("K_v", "C_v", "M_v"):
+        assert numeric.values[name] == pytest.approx(analytic.values[name], rel=1e-6)
+        assert numeric.stderr[name] == pytest.approx(analytic.stderr[name], rel=1e-3)
+    delayed = fit("voigt+delay", data, fixed=table)
+    assert delayed.values["K_v"] == pytest.approx(analytic.values["K_v"], rel=1e-3)

@@ -167,3 +167,18 @@ def test_paper_presets_give_back_table_1_and_table_2() -> None:
         if not name.startswith("hard"):
             assert system.natural_frequency_hz == pytest.approx(f_r, rel=0.04), name
             assert system.bandwidth_hz == pytest.approx(b_r, rel=0.12), name
+
+
+def test_maxwell_orders_compared_from_projected_starts_match_full_fits() -> None:
+    """The order search scores each order after a few steps from its projected start; a full
+    fit of the same order may only be slightly better, never enough to change the choice."""
+    data = simulate_run(rig_text(MAXWELL, noise=DEFAULT_NOISE), seed=16).frf_data()
+    result = fit("maxwell", data, fixed=TABLE)
+    assert result.spec == "maxwell(2)"
+    assert len(result.candidates) >= 3
+    for spec, bic, rms_error in result.candidates:
+        full = fit(spec, data, fixed=TABLE)
+        assert bic >= full.bic - 1e-6, spec  # an honest score: never better than the optimum
+        assert bic - full.bic < 2.0, spec  # and close to it
+        assert rms_error == pytest.approx(full.rms_error, rel=0.01), spec
+    assert result.bic == pytest.approx(fit("maxwell(2)", data, fixed=TABLE).bic, abs=1e-6)

@@ -168,6 +168,7 @@ class Maxwell(ModulusTerm):
         )
         values = {"K_0": k_0, "M_v": m_v}
         for i, (lt, g) in enumerate(zip(log_tau_array, gains_array, strict=True), start=1):
+            g = max(g, 1e-3)  # an idle arm keeps its relaxation time
             values[f"K_{i}"] = g
             values[f"C_{i}"] = g * np.exp(lt)
         return values
@@ -227,8 +228,18 @@ def _refine_relaxation_times(
         ).x
     x = solve(refined)
     if not np.all(np.isfinite(x)) or np.any(x < 0):
-        refined = start
-        x = np.maximum(np.nan_to_num(solve(refined)), 0.0)
+        # More arms than the data hold: the best non-negative solution at the refined or at the
+        # starting τ (an arm whose gain goes to zero is idle, and the others fit as they can).
+        feasible = []
+        for lt in (refined, start):
+            iwt = 1j * omega[:, None] * np.exp(lt)[None, :]
+            columns = np.concatenate(
+                [np.ones((omega.size, 1)), iwt / (1 + iwt), -(omega[:, None] ** 2)], axis=1
+            )
+            a, b, scale = _stack(columns, d_disc, weight)
+            solution, norm = nnls(a, b, maxiter=50 * a.shape[1])
+            feasible.append((norm, lt, solution / scale))
+        _, refined, x = min(feasible, key=lambda item: item[0])
     return refined, float(x[0]), x[1:-1], float(x[-1])
 
 
