@@ -224,7 +224,7 @@ def _refine_relaxation_times(
     start = np.clip(log_tau, lo + 1e-6, hi - 1e-6)
     with np.errstate(all="ignore"):
         refined = least_squares(
-            project, start, jac=jacobian, bounds=(lo, hi), ftol=1e-7, xtol=1e-7, max_nfev=40
+            project, start, jac=jacobian, bounds=(lo, hi), ftol=1e-6, xtol=1e-6, max_nfev=20
         ).x
     x = solve(refined)
     if not np.all(np.isfinite(x)) or np.any(x < 0):
