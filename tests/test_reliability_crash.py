@@ -91,6 +91,15 @@ def complete(sequence: Path, path: Path, log: Path, resume: bool = False) -> flo
     return time.monotonic() - working_from
 
 
+def wait_for_commit(path: Path, stamp: int | None, process: subprocess.Popen) -> None:
+    """Wait until the campaign file changes (a commit) or the process ends."""
+    deadline = time.monotonic() + 60
+    while process.poll() is None and time.monotonic() < deadline:
+        if path.exists() and path.stat().st_mtime_ns != stamp:
+            return
+        time.sleep(0.005)
+
+
 def check_file(path: Path) -> None:
     """The file opens and every run is a gap-free, duplicate-free prefix of its grid."""
     if not path.exists():
@@ -121,15 +130,15 @@ def test_sigkill_at_random_moments_then_resume_loses_nothing(tmp_path: Path) -> 
         campaigns.append(path)
         while kills < KILLS:
             before = snapshot(path)
+            stamp = path.stat().st_mtime_ns if path.exists() else None
             command = (Viscorig("resume", path, "--yes", log=log) if path.exists()
                        else Viscorig("run", sequence, "--yes", "--out", path, log=log))
             if rng.random() < 0.1:  # now and then during start-up
                 command.working.wait(rng.uniform(0.0, 3.0))
-            else:  # mostly while it works: measuring, committing, identifying
-                done = sum(len(a["frequency_hz"]) for a in before.values())
-                left = 1.0 - done / sum(grid.size for grid in GRIDS.values())
+            else:  # mostly while it works: after its first commit, at a random moment
                 command.working.wait(120)
-                time.sleep(rng.uniform(0.0, 0.9 * work_s * left))
+                wait_for_commit(path, stamp, command.process)
+                time.sleep(rng.uniform(0.0, 0.25 * work_s))
             if command.process.poll() is not None:  # the campaign ended before the kill
                 assert command.process.returncode == 0, log.read_text()
                 break
