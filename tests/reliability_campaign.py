@@ -81,7 +81,7 @@ def one_clear_line(err: str) -> str:
     assert "Traceback" not in err, err
     lines = [line for line in err.strip().splitlines() if line.strip()]
     assert len(lines) == 1, err
-    assert lines[0].startswith("viscorig: "), err
+    assert lines[0].startswith(("viscorig: ", "viscorig ")), err  # "viscorig run: error: ..."
     return lines[0]
 
 
