@@ -17,7 +17,7 @@ from viscorig.errors import ViscorigError
 
 #: Modules of ``viscorig.cli`` that provide commands, in the order ``--help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
-    "run", "show", "identify", "diagnose", "summary", "sim", "exchange",
+    "run", "show", "identify", "diagnose", "summary", "sim", "exchange", "report",
 )
 
 

@@ -19,6 +19,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``show`` command."""
     parser = subparsers.add_parser("show", help="list the runs and fits of a campaign file")
     parser.add_argument("file", help="campaign file (.h5)")
+    parser.add_argument("--plot", metavar="RUN", default=None,
+                        help="write the FRF figure of RUN (measured so far) as a PNG instead")
+    parser.add_argument("--out", default=None,
+                        help="PNG written by --plot (default: FILE-RUN.png beside FILE)")
     parser.set_defaults(handler=handler)
 
 
@@ -117,6 +121,12 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
 
 def handler(args: argparse.Namespace) -> int:
     """Print the listing; exit status 2 if a run could not be read."""
+    if args.plot is not None:
+        from viscorig.report.quicklook import default_png, plot_run
+
+        path = Path(args.file)
+        print(plot_run(path, args.plot, default_png(path, args.plot, args.out)))
+        return 0
     lines, problems = describe(Path(args.file))
     print("\n".join(lines))
     if problems:

@@ -1,0 +1,282 @@
+"""The report's figures, drawn with matplotlib's object API on the Agg canvas (no pyplot, no
+display, no global state), each saved as PNG and SVG.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, storage_and_loss
+from viscorig.storage import INPUT_OVERLOAD, Run
+
+FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
+MEASURED = "#1f4e79"
+MODEL = "#c0392b"
+FLAGGED = "#e67e22"
+BAND = "#f5b7b1"
+PRELOAD_STYLES = ("o", "s", "^", "D")
+RUBBER_COLOURS = ("#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
+DPI = 100
+
+
+@dataclass(frozen=True)
+class SavedFigure:
+    """A figure written to disk: its file stem, caption and PNG bytes (for embedding)."""
+
+    stem: str
+    caption: str
+    png: bytes
+
+
+def save(figure: Figure, folder: Path | None, stem: str, caption: str) -> SavedFigure:
+    """Write ``stem.png`` and ``stem.svg`` in ``folder`` (when given); return the PNG bytes."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=DPI)
+    png = buffer.getvalue()
+    if folder is not None:
+        (folder / f"{stem}.png").write_bytes(png)
+        figure.savefig(folder / f"{stem}.svg", format="svg")
+    return SavedFigure(stem, caption, png)
+
+
+def _frfs(run: Run) -> list[tuple[str, np.ndarray]]:
+    out = [("table", run.accelerance_table)]
+    if np.any(np.isfinite(run.accelerance_support)):
+        out.append(("support", run.accelerance_support))
+    return out
+
+
+def _shade(axes, failures, frf: str, label: bool) -> None:
+    for index, band in enumerate(b for b in failures if b.frf == frf):
+        axes.axvspan(*band.band_hz, color=BAND, alpha=0.45, lw=0,
+                     label="model fails here" if label and index == 0 else None)
+
+
+def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure:
+    """Measured and model FRFs (magnitude, phase) with failure bands and flagged points."""
+    run = analysis.run
+    frfs = _frfs(run)
+    figure = Figure(figsize=(5.2 * len(frfs), 6.0), layout=None)
+    axes = figure.subplots(2, len(frfs), sharex=True, squeeze=False)
+    figure.subplots_adjust(left=0.1 if len(frfs) == 2 else 0.16, right=0.98, top=0.9,
+                           bottom=0.09, wspace=0.28, hspace=0.08)
+    order = np.argsort(run.frequency_hz)
+    f = run.frequency_hz[order]
+    flagged = run.flagged()[order]
+    curve = analysis.shown
+    predicted = {}
+    if curve is not None and f.size:
+        grid = np.linspace(f.min(), f.max(), max(800, 4 * f.size))
+        time_s = np.interp(grid, f, run.time_s[order]) if np.all(np.isfinite(run.time_s)) else None
+        reference = (np.interp(grid, f, run.reference_amplitude[order])
+                     if np.all(np.isfinite(run.reference_amplitude)) else None)
+        try:
+            predicted = curve.predict(grid, time_s, reference)
+        except Exception:  # a stored model needing data this run lacks: show measurement only
+            predicted = {}
+    for column, (name, values) in enumerate(frfs):
+        h = values[order]
+        magnitude, phase = axes[0, column], axes[1, column]
+        for ax in (magnitude, phase):
+            _shade(ax, failures or analysis.failures, name, label=ax is magnitude)
+        magnitude.semilogy(f, np.abs(h), "-", lw=0.9, color=MEASURED, label="measured")
+        phase.plot(f, np.degrees(np.angle(h)), "-", lw=0.9, color=MEASURED)
+        if name in predicted:
+            label = f"{curve.spec} ({curve.source})"
+            magnitude.semilogy(grid, np.abs(predicted[name]), "-", lw=1.3, color=MODEL,
+                               label=label)
+            phase.plot(grid, np.degrees(np.angle(predicted[name])), "-", lw=1.3, color=MODEL)
+        if flagged.any():
+            magnitude.plot(f[flagged], np.abs(h[flagged]), "x", ms=6, color=FLAGGED,
+                           label=f"flagged ({int(flagged.sum())} points)")
+            phase.plot(f[flagged], np.degrees(np.angle(h[flagged])), "x", ms=6, color=FLAGGED)
+        overloaded = run.flagged(INPUT_OVERLOAD)[order]
+        if overloaded.any():
+            magnitude.plot(f[overloaded], np.abs(h[overloaded]), "o", mfc="none", ms=7,
+                           color="black", label="input overload (not fitted)")
+        magnitude.set_title(FRF_TITLES[name])
+        magnitude.set_ylabel("|accelerance| [m/s²/N]")
+        phase.set_ylabel("phase [°]")
+        phase.set_xlabel("frequency [Hz]")
+        phase.set_ylim(-185, 185)
+        phase.set_yticks([-180, -90, 0, 90, 180])
+        for ax in (magnitude, phase):
+            ax.grid(True, which="major", alpha=0.3)
+        magnitude.legend(fontsize=7, loc="best")
+    m = run.metadata
+    status = "" if m.status == "complete" else f", {m.status}"
+    figure.suptitle(f"run {run.name}: {m.specimen}, preload {m.preload_strain:g}, "
+                    f"{run.points} points{status}", fontsize=11)
+    return figure
+
+
+def residual_figure(analysis: RunAnalysis) -> Figure | None:
+    """``|H_model/H_measured − 1|`` against frequency, with the local noise and the floor."""
+    if not analysis.residuals:
+        return None
+    count = len(analysis.residuals)
+    figure = Figure(figsize=(5.2 * count, 3.2), layout=None)
+    axes = figure.subplots(1, count, squeeze=False)[0]
+    figure.subplots_adjust(left=0.1 if count == 2 else 0.16, right=0.98, top=0.9, bottom=0.16,
+                           wspace=0.25)
+    curve = analysis.shown
+    for ax, residual in zip(axes, analysis.residuals, strict=True):
+        _shade(ax, analysis.failures, residual.frf, label=True)
+        ax.semilogy(residual.frequency_hz, residual.magnitude, "-", lw=0.8,
+                    color=MODEL, label=f"|model/measured − 1|, {curve.spec}")
+        ax.semilogy(residual.frequency_hz, residual.noise, "-", lw=1.0, color="grey",
+                    label="local noise σ (from the data)")
+        floor = float(np.sqrt(np.mean(residual.noise**2)))
+        ax.axhline(floor, ls="--", lw=1.0, color="black", label=f"noise floor {floor:.2g}")
+        ax.set_title(f"residual, {FRF_TITLES[residual.frf]}")
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel("relative error")
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    return figure
+
+
+def ladder_figure(analysis: RunAnalysis) -> Figure | None:
+    """Error against model as effects are added: the ladder climbed, or the first rung's
+    candidates (each effect added alone) when the ladder was not climbed."""
+    steps = analysis.ladder
+    if not steps:
+        return None
+    figure = Figure(figsize=(7.5, 3.6), layout=None)
+    ax = figure.subplots()
+    figure.subplots_adjust(left=0.1, right=0.98, top=0.9, bottom=0.26)
+    if len(steps) > 1:
+        labels = [steps[0].model] + [
+            "+ " + _added(steps[i - 1].model, steps[i].model) for i in range(1, len(steps))]
+        errors = [s.rms_error for s in steps]
+        colours = [MODEL] * len(steps)
+        title = f"run {analysis.name}: error as effects are added (ladder)"
+    else:
+        found = sorted(analysis.findings, key=lambda f: f.rms_error)[:8]
+        labels = [steps[0].model] + ["+ " + _added(steps[0].model, f.model) for f in found]
+        errors = [steps[0].rms_error] + [f.rms_error for f in found]
+        colours = [MODEL] + [MODEL if f.significant else "#aaaaaa" for f in found]
+        title = (f"run {analysis.name}: error of {steps[0].model} and with each candidate "
+                 "effect (grey: not significant)")
+    x = np.arange(len(errors))
+    if len(steps) > 1:
+        ax.semilogy(x, errors, "-", color=MODEL, lw=1)
+    ax.scatter(x, errors, c=colours, zorder=3)
+    ax.set_yscale("log")
+    ax.axhline(steps[-1].noise_floor, ls="--", color="black",
+               label=f"noise floor {steps[-1].noise_floor:.2g}")
+    for i, error in enumerate(errors):
+        ax.annotate(f"{error:.2g}", (i, error), textcoords="offset points", xytext=(0, 6),
+                    ha="center", fontsize=7)
+    ax.set_xticks(x, labels, rotation=20, ha="right", fontsize=7)
+    ax.set_ylabel("rms error")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=7)
+    return figure
+
+
+def _added(before: str, after: str) -> str:
+    old = before.split("+")
+    new = [term for term in after.split("+") if term not in old]
+    return "+".join(new) or after
+
+
+def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None) -> Figure:
+    """E' (or K') and η against frequency, each preload, like the paper's Figures 10-12."""
+    figure = Figure(figsize=(10.4, 3.6), layout=None)
+    stiffness_ax, loss_ax = figure.subplots(1, 2, sharex=True)
+    figure.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.14, wspace=0.25)
+    scale, unit = (1e-6, "E' [MPa]") if theta_m else (1e-3, "K' = Re K* [kN/m]")
+    for index, member in enumerate(members):
+        curves = member.modulus
+        e_meas, e_model, eta_meas, eta_model = storage_and_loss(curves, theta_m)
+        colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
+        label = f"{member.name} (preload {member.run.metadata.preload_strain:g})"
+        marker = PRELOAD_STYLES[index % len(PRELOAD_STYLES)]
+        stiffness_ax.plot(curves.frequency_hz, e_meas * scale, marker, ms=2, alpha=0.5,
+                          color=colour, label=f"{label}, Eq. 5")
+        stiffness_ax.plot(curves.frequency_hz, e_model * scale, "-", lw=1.5, color=colour,
+                          label=f"{label}, {curves.spec}")
+        loss_ax.plot(curves.frequency_hz, eta_meas, marker, ms=2, alpha=0.5, color=colour)
+        loss_ax.plot(curves.frequency_hz, eta_model, "-", lw=1.5, color=colour)
+    stiffness_ax.set_ylabel(unit)
+    loss_ax.set_ylabel("loss factor η")
+    for ax in (stiffness_ax, loss_ax):
+        ax.set_xlabel("frequency [Hz]")
+        ax.grid(True, alpha=0.3)
+    stiffness_ax.legend(fontsize=7)
+    figure.suptitle(f"{rubber} rubber: estimated properties", fontsize=11)
+    return figure
+
+
+def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
+    """The preload effect: change of K' (%) and of η against frequency, per rubber."""
+    pairs = {name: (members[0], members[-1]) for name, members in groups.items()
+             if len(members) >= 2 and members[-1].run.metadata.preload_strain
+             > members[0].run.metadata.preload_strain}
+    if not pairs:
+        return None
+    figure = Figure(figsize=(10.4, 3.4), layout=None)
+    stiffness_ax, loss_ax = figure.subplots(1, 2, sharex=True)
+    figure.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.15, wspace=0.25)
+    for index, (name, (none, loaded)) in enumerate(pairs.items()):
+        f = none.modulus.frequency_hz
+        k0 = none.modulus.model
+        k1 = np.interp(f, loaded.modulus.frequency_hz, loaded.modulus.model.real) + 1j * np.interp(
+            f, loaded.modulus.frequency_hz, loaded.modulus.model.imag)
+        colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
+        label = f"{name}: {loaded.name} vs {none.name}"
+        stiffness_ax.plot(f, (k1.real / k0.real - 1) * 100, "-", color=colour, label=label)
+        loss_ax.plot(f, k1.imag / k1.real - k0.imag / k0.real, "-", color=colour, label=label)
+    stiffness_ax.set_ylabel("change of K' (= change of E') [%]")
+    loss_ax.set_ylabel("change of η")
+    for ax in (stiffness_ax, loss_ax):
+        ax.set_xlabel("frequency [Hz]")
+        ax.grid(True, alpha=0.3)
+        ax.axhline(0, color="black", lw=0.6)
+    stiffness_ax.legend(fontsize=7)
+    figure.suptitle("preload effect (Maxwell models of K* from Eq. 5)", fontsize=11)
+    return figure
+
+
+def campaign_figures(analysis: CampaignAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
+    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``)."""
+    from viscorig.report.analysis import rubbers
+
+    saved: dict[str, SavedFigure] = {}
+    for run in analysis.runs:
+        if not run.run.points:
+            continue
+        saved[f"frf-{run.name}"] = save(
+            frf_figure(run), folder, f"frf-{run.name}",
+            f"Run {run.name}: measured FRFs and the model; shaded: bands where the model "
+            "fails (diagnosis); crosses: flagged points.")
+        residual = residual_figure(run)
+        if residual is not None:
+            saved[f"residual-{run.name}"] = save(
+                residual, folder, f"residual-{run.name}",
+                f"Run {run.name}: relative residual of the model shown, with the local noise "
+                "estimated from the data and the noise floor.")
+        ladder = ladder_figure(run)
+        if ladder is not None:
+            saved[f"ladder-{run.name}"] = save(
+                ladder, folder, f"ladder-{run.name}",
+                f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
+                "effect is added, step by step.")
+    groups = rubbers(analysis)
+    for name, members in groups.items():
+        saved[f"moduli-{name}"] = save(
+            moduli_figure(name, members, analysis.theta_m), folder, f"moduli-{name}",
+            f"{name}: storage {'modulus' if analysis.theta_m else 'stiffness'} and loss factor "
+            "against frequency, Eq. (5) estimates (points) and Maxwell model (lines).")
+    preload = preload_figure(groups)
+    if preload is not None:
+        saved["preload"] = save(preload, folder, "preload",
+                                "Preload effect per rubber, from the Maxwell models.")
+    return saved

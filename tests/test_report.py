@@ -1,0 +1,130 @@
+"""The report: builds from a simulated campaign, self-contained, opens in a browser; quick look."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from campaigndata import add_run, paper_campaign
+
+from viscorig.cli import main
+from viscorig.identify import identify_run, store_fit
+from viscorig.report import analyse_campaign, build_report
+from viscorig.storage import Campaign
+
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists()
+                                        else None)
+
+
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return paper_campaign(tmp_path_factory.mktemp("report") / "paper.h5",
+                          runs=("table", "soft-0", "soft-10"))
+
+
+@pytest.fixture(scope="module")
+def report_dir(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("out") / "report"
+    assert main(["report", str(campaign_file), "--out", str(out), "--no-diagnosis"]) == 0
+    return out
+
+
+def test_report_page_is_self_contained_with_every_figure(report_dir: Path):
+    page = (report_dir / "index.html").read_text(encoding="utf-8")
+    for stem in ("frf-table", "frf-soft-0", "frf-soft-10", "residual-soft-0", "moduli-soft",
+                 "preload"):
+        assert (report_dir / f"{stem}.png").stat().st_size > 10_000, stem
+        assert (report_dir / f"{stem}.svg").read_text().lstrip().startswith("<?xml"), stem
+    images = re.findall(r'<img [^>]*src="([^"]+)"', page)
+    assert len(images) == len(list(report_dir.glob("*.png")))
+    assert all(src.startswith("data:image/png;base64,") for src in images)
+    assert "<script" not in page.lower()
+    assert not re.search(r'(src|href)="(https?:)?//', page)
+    assert "diagnosis sections left out" in page
+
+
+def test_report_tables_sit_beside_the_papers_values_and_say_its_inconsistencies(report_dir):
+    page = (report_dir / "index.html").read_text(encoding="utf-8")
+    assert "Table 1: Voigt fit" in page and "Table 2" in page
+    assert "149986.61" in page and "163948.13" in page  # paper's K_v, soft
+    assert "39.50" in page  # paper's f_r, soft-0
+    assert "not fully self-consistent" in page
+    assert "+9.31 %" in page  # the paper's preload variation of K_v, soft
+
+
+def test_stored_fit_is_the_model_shown(tmp_path: Path, campaign_file: Path):
+    path = tmp_path / "c.h5"
+    path.write_bytes(campaign_file.read_bytes())
+    with Campaign.open(path, "a") as campaign:
+        result, _ = identify_run(campaign, "soft-0", "maxwell(2)", band_hz=(20, 120))
+        fit_id = store_fit(campaign, "soft-0", result)
+        analysis = analyse_campaign(campaign, diagnosis=False)
+    shown = analysis.run("soft-0").shown
+    assert shown.source == f"stored fit {fit_id}" and shown.spec == "maxwell(2)"
+    f = np.linspace(20, 120, 5)
+    assert np.allclose(shown.predict(f, None, None)["support"], result.predict(f)["support"])
+    assert analysis.run("soft-10").shown.source.startswith("fitted here")
+
+
+def test_report_with_diagnosis_shades_failures_and_lists_candidates(tmp_path: Path):
+    path = paper_campaign(tmp_path / "c.h5", runs=("table", "soft-0"))
+    analysis = analyse_campaign(Campaign.open(path))
+    soft = analysis.run("soft-0")
+    assert analysis.diagnosis_available
+    assert soft.failures and soft.findings
+    assert soft.ladder[0].model == "voigt"
+    assert soft.shown.rms_error > 10 * soft.ladder[0].noise_floor  # Voigt misses the rubber
+    page = build_report(path, tmp_path / "r").read_text(encoding="utf-8")
+    assert "Diagnosis of voigt" in page and "frequency_dependent_modulus" in page
+
+
+def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, capsys):
+    assert main(["report", str(tmp_path / "none.h5"), "--out", str(tmp_path / "r")]) == 2
+    Campaign.create(tmp_path / "empty.h5", sequence_text="", durable=False)
+    assert main(["report", str(tmp_path / "empty.h5"), "--out", str(tmp_path / "r")]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 2 and "has no run" in errors[1]
+
+
+def test_quick_look_of_a_run_being_measured(tmp_path: Path, capsys):
+    path = tmp_path / "live.h5"
+    campaign = Campaign.create(path, sequence_text="", durable=False)
+    add_run(campaign, "soft-0", points=37, finish=False)
+    out = tmp_path / "look.png"
+    assert main(["show", str(path), "--plot", "soft-0", "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
+    assert main(["show", str(path), "--plot", "hard-0"]) == 2
+    assert "no such run" in capsys.readouterr().err
+    assert main(["show", str(path), "--plot", "soft-0"]) == 0
+    assert (tmp_path / "live-soft-0.png").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+def test_page_opens_in_headless_chromium_without_errors(report_dir: Path, tmp_path: Path):
+    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0"]
+    url = (report_dir / "index.html").as_uri()
+    dom = subprocess.run([*flags, "--dump-dom", url], capture_output=True, text=True,
+                         timeout=120)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    assert "Table 1: Voigt fit" in dom.stdout and dom.stdout.count("<img") >= 6
+    console = [line for line in dom.stderr.splitlines() if "CONSOLE" in line.upper()
+               or "Failed to load" in line or "net::ERR" in line]
+    assert not console, console
+    shot = tmp_path / "report-screenshot.png"
+    result = subprocess.run([*flags, f"--screenshot={shot}", "--window-size=1280,2400", url],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and shot.stat().st_size > 50_000
+    keep = os.environ.get("VISCORIG_ARTIFACTS")
+    if keep:  # for a person to look at
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        shutil.copy(shot, Path(keep) / shot.name)
+    print(f"screenshot: {shot}")
