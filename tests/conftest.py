@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-import pytest
+from viscorig.runtime import limit_blas_threads
+
+limit_blas_threads()
+
+import pytest  # noqa: E402
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

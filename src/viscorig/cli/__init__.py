@@ -12,8 +12,12 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from viscorig import __version__
-from viscorig.errors import ViscorigError
+from viscorig.runtime import limit_blas_threads
+
+limit_blas_threads()
+
+from viscorig import __version__  # noqa: E402  (after the BLAS setting, before numpy loads)
+from viscorig.errors import ViscorigError  # noqa: E402
 
 #: Modules of ``viscorig.cli`` that provide commands, in the order ``--help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
