@@ -72,6 +72,7 @@ def test_stored_fit_is_the_model_shown(tmp_path: Path, campaign_file: Path):
 
 
 def test_report_with_diagnosis_shades_failures_and_lists_candidates(tmp_path: Path):
+    pytest.importorskip("viscorig.diagnosis")
     path = paper_campaign(tmp_path / "c.h5", runs=("table", "soft-0"))
     analysis = analyse_campaign(Campaign.open(path))
     soft = analysis.run("soft-0")

@@ -66,12 +66,15 @@ def _figure(saved: SavedFigure | None) -> str:
 
 
 def _table(header: list[str], rows: list[list[str]], text_columns: int = 1,
-           classes: list[str] | None = None) -> str:
-    head = "".join(f'<th class="text">{_e(h)}</th>' if i < text_columns else f"<th>{_e(h)}</th>"
+           classes: list[str] | None = None, text_last: bool = False) -> str:
+    def text(i: int) -> bool:
+        return i < text_columns or (text_last and i == len(header) - 1)
+
+    head = "".join(f'<th class="text">{_e(h)}</th>' if text(i) else f"<th>{_e(h)}</th>"
                    for i, h in enumerate(header))
     body = []
     for index, row in enumerate(rows):
-        cells = "".join(f'<td class="text">{c}</td>' if i < text_columns else f"<td>{c}</td>"
+        cells = "".join(f'<td class="text">{c}</td>' if text(i) else f"<td>{c}</td>"
                         for i, c in enumerate(row))
         css = f' class="{classes[index]}"' if classes and classes[index] else ""
         body.append(f"<tr{css}>{cells}</tr>")
@@ -202,7 +205,7 @@ def diagnosis_section(run: RunAnalysis, figures: dict[str, SavedFigure]) -> str:
                  _num(f.delta_bic, ".1f"), "yes" if f.significant else "no", _e(f.explanation)]
                 for f in run.findings[:6]]
         parts.append(_table(["effect", "model", "rms_error", "ΔBIC", "significant",
-                             "explanation"], rows, text_columns=2))
+                             "explanation"], rows, text_columns=2, text_last=True))
     verdict = ('<span class="ok">at the noise floor</span>' if at_floor
                else '<span class="bad">above the noise floor</span>')
     parts.append(f"<p>Ladder: {' → '.join(_e(s.model) for s in run.ladder)}; last model "

@@ -1,0 +1,85 @@
+"""How long ``viscorig report`` takes on the paper's campaign (target: under 20 s).
+
+The campaign is made first with ``viscorig run sequences/paper.toml --yes`` on the simulated rig
+(7 runs, 2,535 points). Then, in this process:
+
+- baseline: ``viscorig summary`` (the table fit and the six Voigt fits of Tables 1 and 2), the
+  least any report of the campaign must do;
+- the report's phases: analysis (fits, diagnosis of each specimen run), figures (PNG and SVG),
+  page; and the whole ``viscorig report`` command, without and with diagnosis;
+- with ``--ladder``: the report climbing the whole diagnosis ladder for every run (minutes).
+
+Wall and CPU time are both printed: the machine may be shared, and CPU time is what the code
+costs. Run: ``python benchmarks/bench_report.py [--ladder]``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viscorig.cli import main
+from viscorig.identify import PAPER_BAND_HZ, summarize
+from viscorig.report.analysis import analyse_campaign
+from viscorig.report.figures import campaign_figures
+from viscorig.report.page import build_page
+from viscorig.storage import Campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_S = 20.0
+
+
+def timed(function):
+    """(result, wall seconds, CPU seconds) of one call."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = function()
+    return result, time.perf_counter() - wall, time.process_time() - cpu
+
+
+def main_quiet(arguments: list[str]) -> int:
+    with contextlib.redirect_stdout(io.StringIO()):
+        return main(arguments)
+
+
+def run(ladder: bool) -> None:
+    folder = Path(tempfile.mkdtemp(prefix="bench-report-"))
+    campaign_path = folder / "paper.h5"
+    _, wall, _ = timed(lambda: main_quiet(["run", str(ROOT / "sequences" / "paper.toml"),
+                                           "--yes", "--out", str(campaign_path)]))
+    campaign = Campaign.open(campaign_path)
+    points = sum(campaign.run(name).points for name in campaign.run_names)
+    print(f"campaign: {len(campaign.run_names)} runs, {points} points (made in {wall:.1f} s)")
+
+    _, base_wall, base_cpu = timed(lambda: summarize(campaign, PAPER_BAND_HZ))
+    print(f"baseline  summary (Tables 1, 2)     wall {base_wall:6.2f} s   cpu {base_cpu:6.2f} s")
+    with np.errstate(all="ignore"):
+        analysis, a_wall, a_cpu = timed(lambda: analyse_campaign(campaign))
+    (folder / "phases").mkdir()
+    figures, f_wall, f_cpu = timed(lambda: campaign_figures(analysis, folder / "phases"))
+    _, p_wall, p_cpu = timed(lambda: build_page(analysis, figures, "bench"))
+    print(f"phase     analysis + diagnosis      wall {a_wall:6.2f} s   cpu {a_cpu:6.2f} s")
+    print(f"phase     {len(figures)} figures, PNG + SVG     wall {f_wall:6.2f} s   "
+          f"cpu {f_cpu:6.2f} s")
+    print(f"phase     page                      wall {p_wall:6.2f} s   cpu {p_cpu:6.2f} s")
+    cases = [("report --no-diagnosis", ["--no-diagnosis"]), ("report", [])]
+    if ladder:
+        cases.append(("report --ladder", ["--ladder"]))
+    for label, options in cases:
+        out = folder / label.replace(" ", "_")
+        status, wall, cpu = timed(lambda out=out, options=options: main_quiet(
+            ["report", str(campaign_path), "--out", str(out), *options]))
+        assert status == 0
+        verdict = "within" if wall < TARGET_S else "OVER"
+        print(f"command   {label:<24}  wall {wall:6.2f} s   cpu {cpu:6.2f} s   "
+              f"{wall / base_wall:5.1f}x summary, {verdict} the {TARGET_S:g} s target")
+    print(f"files in {folder}")
+
+
+if __name__ == "__main__":
+    run(ladder="--ladder" in sys.argv[1:])
