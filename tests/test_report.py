@@ -92,6 +92,20 @@ def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, 
     assert len(errors) == 2 and "has no run" in errors[1]
 
 
+def test_report_of_a_campaign_still_being_measured(tmp_path: Path):
+    path = tmp_path / "live.h5"
+    campaign = Campaign.create(path, sequence_text="", durable=False)
+    add_run(campaign, "table")
+    add_run(campaign, "soft-0", points=140, finish=False)
+    add_run(campaign, "soft-10", points=5, finish=False)
+    page = build_report(path, tmp_path / "r", diagnosis=False).read_text(encoding="utf-8")
+    assert "running" in page and "5 points, too few to fit" in page
+    assert (tmp_path / "r" / "frf-soft-0.png").exists()
+    assert (tmp_path / "r" / "frf-soft-10.png").exists()
+    analysis = analyse_campaign(Campaign.open(path), diagnosis=False)
+    assert analysis.run("soft-0").band_hz == (20.0, pytest.approx(54.75))
+
+
 def test_quick_look_of_a_run_being_measured(tmp_path: Path, capsys):
     path = tmp_path / "live.h5"
     campaign = Campaign.create(path, sequence_text="", durable=False)

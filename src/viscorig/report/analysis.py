@@ -268,6 +268,11 @@ def analyse_campaign(
                     curve = ModelCurve.from_fit(diagnosed.fit, "fitted here, both FRFs")
             except InputError as error:
                 analysis.diagnosis_error = str(error)
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
+                analysis.diagnosis_error = f"diagnosis failed ({type(error).__name__}: {error})"
+        elif not bare and use_diagnosis:
+            analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
+                                        "run, no /rig values)")
         if curve is None and analysis.summary is not None:
             frfs = "X_s/F_e" if not bare else "the bare table"
             curve = ModelCurve.from_fit(analysis.summary.fit, f"fitted here to {frfs}")
@@ -280,7 +285,7 @@ def analyse_campaign(
                 result = fit("maxwell", data, frfs=("support",), band_hz=band,
                              fixed=table.values if table is not None else None)
                 analysis.modulus = _modulus(run, result, band)
-            except InputError as error:
+            except (InputError, ValueError, np.linalg.LinAlgError) as error:
                 analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
     if not use_diagnosis:
         notes.append("diagnosis sections left out: "
