@@ -38,7 +38,7 @@ from viscorig.storage import Campaign
 
 def _paragraph(index: int) -> str:
     """One paragraph of the module text, for a command's ``--help``."""
-    return (__doc__ or "").split("\n\n")[index]
+    return (__doc__ or "").split("\n\n")[index].replace("``", "")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -20,7 +20,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``report`` command."""
     parser = subparsers.add_parser(
         "report", help="HTML report with figures (PNG, SVG) of a campaign file",
-        description=(__doc__ or "").split("\n\n", 1)[1],
+        description=(__doc__ or "").split("\n\n", 1)[1].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--out", default=None,
