@@ -58,3 +58,19 @@ def test_unknown_command_is_one_line_and_status_2() -> None:
     assert len(result.stderr.strip().splitlines()) == 1
     assert "no-such-command" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_listing_commands_loads_no_heavy_library() -> None:
+    """``viscorig --help`` and a light command start quickly: only the chosen command's module
+    is imported."""
+    probe = (
+        "import sys\n"
+        "from viscorig.cli import main\n"
+        "main([])\n"
+        "heavy = {'scipy', 'matplotlib', 'pyvisa', 'h5py', 'rigsim'} & set(sys.modules)\n"
+        "print(sorted(heavy))\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True
+    )
+    assert result.stdout.strip().splitlines()[-1] == "[]"

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.exchange import (
     ImportSettings,
@@ -43,8 +44,7 @@ def _paragraph(index: int) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``export`` and ``import`` commands."""
-    export = subparsers.add_parser(
-        "export", help="write a run's FRFs to a universal file (dataset 58) or CSV",
+    export = subparsers.add_parser("export", help=summary_of("export"),
         description=_paragraph(1), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     export.add_argument("file", help="campaign file (.h5)")
@@ -57,8 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "instead of binary 58 (exact doubles)")
     export.set_defaults(handler=export_handler)
 
-    imports = subparsers.add_parser(
-        "import", help="add a run to a campaign from UFF 58, CSV or 35670A SDF files",
+    imports = subparsers.add_parser("import", help=summary_of("import"),
         description=_paragraph(2),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

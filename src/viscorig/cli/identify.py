@@ -11,6 +11,7 @@ import argparse
 import json
 import math
 
+from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult
 from viscorig.identify import TableSource, identify_run, store_fit
@@ -37,8 +38,7 @@ def parse_band(text: str | None) -> tuple[float, float] | None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` command."""
-    parser = subparsers.add_parser(
-        "identify", help="fit a model to one run and store the fit in the file"
+    parser = subparsers.add_parser("identify", help=summary_of("identify")
     )
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--run", required=True, help="run name, e.g. soft-0")

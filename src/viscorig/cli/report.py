@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from viscorig.cli import summary_of
 from viscorig.cli.identify import parse_band
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
@@ -18,8 +19,7 @@ from viscorig.report import build_report
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``report`` command."""
-    parser = subparsers.add_parser(
-        "report", help="HTML report with figures (PNG, SVG) of a campaign file",
+    parser = subparsers.add_parser("report", help=summary_of("report"),
         description=(__doc__ or "").split("\n\n", 1)[1].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", help="campaign file (.h5)")

@@ -11,13 +11,14 @@ import argparse
 import math
 from pathlib import Path
 
+from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``show`` command."""
-    parser = subparsers.add_parser("show", help="list the runs and fits of a campaign file")
+    parser = subparsers.add_parser("show", help=summary_of("show"))
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--plot", metavar="RUN", default=None,
                         help="write the FRF figure of RUN (measured so far) as a PNG instead")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from viscorig.cli import summary_of
 from viscorig.cli.identify import parse_band
 from viscorig.identify import PAPER_BAND_HZ, RunSummary, TableSource, summarize
 from viscorig.paper import (
@@ -23,8 +24,7 @@ from viscorig.storage import Campaign
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``summary`` command."""
-    parser = subparsers.add_parser(
-        "summary", help="Table 1 and Table 2 of the paper for every run of a campaign"
+    parser = subparsers.add_parser("summary", help=summary_of("summary")
     )
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument(
