@@ -6,6 +6,8 @@ runs ``viscorig run``/``resume`` in process, as a lab station would be used.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -115,10 +117,33 @@ def test_a_level_the_source_cannot_reach_is_flagged_as_source_limited(tmp_path, 
 def test_a_level_held_back_by_the_shaker_limit_is_flagged_but_not_as_source_limited(
     tmp_path, rig
 ) -> None:
+    """The analyser's input limit is the last defence when a force prediction is wrong: the
+    runner would refuse this sweep (13 N predicted, 5 N limit), so the sweep layer measures it
+    directly, configured as the runner configures every sweep."""
+    from agilent35670a import Agilent35670A
+
+    from viscorig.acquisition import SweepMeasurement, SweepSettings, Wiring, configure
+    from viscorig.sequences import load_sequence, load_station
+    from viscorig.storage import RunSettings
+
     # the station's shaker takes 5 N (0.1 V at 50 N/V); the soft rig needs about 13 N at 20 Hz
     sequence, station, out = write_files(tmp_path, rig, force_limit=5.0, source_limit=5.0)
-    assert run_cli(sequence, "--station", station, "--out", out) == 0
+    step = load_sequence(sequence).sweep("soft-0")
+    wiring = Wiring.from_station(load_station(station))
+    settings = SweepSettings(step=step, level_m_per_s2=1.4, force_limit_n=5.0,
+                             source_limit_v=0.1, time_base="test", poll_interval_s=0.01)
+    campaign = Campaign.create(out, sequence_text=Path(sequence).read_text(), durable=False)
+    campaign.start_run("soft-0", RunSettings(specimen="soft", level_m_per_s2=1.4, direction="up",
+                                             settle_cycles=10, integrate_cycles=10,
+                                             resolution_hz=0.25))
+    analyser = Agilent35670A.open(rig.resource, timeout_s=5.0)
+    try:
+        configure(analyser, wiring, settings)
+        SweepMeasurement(campaign, analyser, wiring, settings).run()
+    finally:
+        analyser.close()
     run = Campaign.open(out).run("soft-0")
+    assert run.points == 17
     assert np.all(run.force_amplitude <= 5.0 * 1.01)
     assert np.all(run.flags == LEVEL_NOT_REACHED)
     assert np.all(run.reference_amplitude < 1.4 * 10 ** (-1 / 20))

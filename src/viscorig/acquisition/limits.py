@@ -1,8 +1,9 @@
 """Safety limits, force estimates and point flags of a sweep (pure functions).
 
 The source limit comes from the station's shaker before the source is ever switched on; the
-force a sweep will need is estimated from what is already known before it starts; every point
-gets the flags of data-format.md from what the analyser measured.
+force a sweep will need is predicted before it starts, from a low-level probe of the mounted rig
+(:func:`estimate_force_from_probe`) or from what is already known (:func:`estimate_force`); every
+point gets the flags of data-format.md from what the analyser measured.
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ AT_FORCE_LIMIT_DB = 0.5
 FORCE_LIMIT_SLACK = 0.01
 #: A reduced sweep aims this far below the shaker limit (the estimate is rough).
 REDUCE_MARGIN = 0.9
+#: A probe measures at this fraction of the run's level (-20 dB): a specimen ten times stiffer
+#: than one that just fits under the shaker limit still fits under it during the probe, and the
+#: source and input limits (set first) hold anything stiffer.
+PROBE_LEVEL_FRACTION = 0.1
 
 
 def source_limit_v(
@@ -62,6 +67,9 @@ class RigEstimate:
     specimen_mass_kg: float = 0.0
     basis: str = ""
     """Where the numbers come from, for the operator."""
+    motion_ratio: float = 1.0
+    """|ẍ_s / ẍ_ref|: how much more the table moves than the reference accelerometer (the disc,
+    behind a compliant load cell); 1 for a rigid link or a bare table."""
 
     def dynamic_stiffness(self, frequency_hz: ArrayLike) -> NDArray[np.complex128]:
         """F_e / X_s of the rig with a rigid link: K − ω² M + iω C, N/m."""
@@ -73,12 +81,50 @@ class RigEstimate:
 
 
 @dataclass(frozen=True)
+class ProbeReading:
+    """One low-level point measured before a sweep: the rig's dynamic stiffness there."""
+
+    frequency_hz: float
+    dynamic_stiffness_n_per_m: complex
+    """F_e / X_s = -ω² / (ẍ_s / F_e), measured (valid whatever level the controller reached)."""
+    level_m_per_s2: float
+    """Reference level the probe asked for."""
+    reference_m_per_s2: float
+    """Reference amplitude reached."""
+    force_n: float
+    """Shaker force |F_e| during the probe."""
+    flags: int
+    """Point flags (data-format.md) against the probe's level and the shaker limit."""
+    test_time_s: float
+    """Settle and integration time of the probe point."""
+
+    @property
+    def motion_ratio(self) -> float:
+        """|ẍ_s / ẍ_ref| = |F_e| ω² / (|F_e/X_s| |ẍ_ref|): the table moves more than the disc
+        behind a compliant load cell, so holding the disc's level takes more force."""
+        omega2 = (2.0 * math.pi * self.frequency_hz) ** 2
+        return self.force_n * omega2 / (abs(complex(self.dynamic_stiffness_n_per_m))
+                                        * self.reference_m_per_s2)
+
+    @property
+    def usable(self) -> bool:
+        """A finite, non-zero dynamic stiffness and force, and no input overload."""
+        stiffness = complex(self.dynamic_stiffness_n_per_m)
+        return (math.isfinite(stiffness.real) and math.isfinite(stiffness.imag)
+                and abs(stiffness) > 0.0 and math.isfinite(self.force_n) and self.force_n > 0.0
+                and self.reference_m_per_s2 > 0.0 and math.isfinite(self.motion_ratio)
+                and not self.flags & int(INPUT_OVERLOAD))
+
+
+@dataclass(frozen=True)
 class ForceEstimate:
     """The shaker force a sweep is expected to need."""
 
     frequency_hz: NDArray[np.float64]
     force_n: NDArray[np.float64]
     basis: str
+    probes: tuple[ProbeReading, ...] = ()
+    """The probe points it rests on (none when it comes from earlier runs or the station)."""
 
     @property
     def peak_n(self) -> float:
@@ -94,19 +140,94 @@ class ForceEstimate:
         """A level whose estimated peak force is :data:`REDUCE_MARGIN` of the limit."""
         return level_m_per_s2 * REDUCE_MARGIN * force_limit_n / self.peak_n
 
+    def force_at(self, frequency_hz: float) -> float:
+        """Estimated force at the grid point nearest ``frequency_hz``, N."""
+        return float(self.force_n[int(np.argmin(np.abs(self.frequency_hz - frequency_hz)))])
+
 
 def estimate_force(
     frequency_hz: ArrayLike, level_m_per_s2: float, rig: RigEstimate
 ) -> ForceEstimate:
     """Force amplitude needed to hold ``level_m_per_s2`` at each frequency.
 
-    F ≈ |K − ω² M + iω C| · a / ω² (rigid link, so the disc and the table move alike); the
-    whole grid is evaluated, which covers the band's ends and the resonance.
+    F ≈ |K − ω² M + iω C| · r · a / ω², with ``r`` the rig's :attr:`RigEstimate.motion_ratio`
+    (1 for a rigid link, so the disc and the table move alike); the whole grid is evaluated,
+    which covers the band's ends and the resonance.
     """
     frequency = np.asarray(frequency_hz, dtype=float)
     omega2 = (2.0 * np.pi * frequency) ** 2
-    force = np.abs(rig.dynamic_stiffness(frequency)) * level_m_per_s2 / omega2
+    force = (np.abs(rig.dynamic_stiffness(frequency)) * rig.motion_ratio * level_m_per_s2
+             / omega2)
     return ForceEstimate(frequency, force, rig.basis)
+
+
+def estimate_force_from_probe(
+    frequency_hz: ArrayLike,
+    level_m_per_s2: float,
+    probes: tuple[ProbeReading, ...],
+    table: RigEstimate | None,
+    basis: str,
+) -> ForceEstimate:
+    """Force needed over the grid, from probe points and (if known) the table.
+
+    What the table does not explain at a probe point, ``ΔD = F_e/X_s − D_table``, is the newly
+    mounted part (the specimen; the whole rig when the table is unknown). It is carried over the
+    band by two models, and the larger force of the two is taken at every frequency:
+
+    - a spring and viscous damper through the lowest probe point (stiffness-dominated
+      extrapolation, ``K = Re ΔD``, ``C = Im ΔD / ω``): the force at constant acceleration is
+      largest at the low edge for a stiff specimen, and there it is the measured one. Ignoring
+      the specimen's mass keeps ``|D|`` high below the resonance, and a viscous ``C`` grows
+      ``Im D`` with frequency faster than rubber's loss does, so both err on the high side;
+    - with a second probe point, the spring-mass-damper ``K − ω² M + iω C`` through both, which
+      covers a mass-dominated high end (a band above the resonance).
+
+    The force then follows as ``|D| · r · a / ω²``, with ``r`` the largest
+    :attr:`ProbeReading.motion_ratio` of the probe points: behind a compliant load cell the
+    table moves more than the disc whose level is held (about 10 % for the hard rubber).
+
+    Rubber is stiffer at the probe's small amplitude than at the run's (Payne effect), which
+    also errs on the high side. Not seen: local modes between the probe points and a modulus
+    rising with frequency; both matter little where the force is largest.
+    """
+    frequency = np.asarray(frequency_hz, dtype=float)
+    omega = 2.0 * np.pi * frequency
+    usable = sorted((p for p in probes if p.usable), key=lambda p: p.frequency_hz)
+    if not usable:
+        raise ValueError("no usable probe point")
+
+    def known(at_hz: float | NDArray[np.float64]) -> NDArray[np.complex128]:
+        if table is None:
+            return np.zeros(np.shape(at_hz), dtype=complex)
+        return table.dynamic_stiffness(at_hz)
+
+    omega_p = np.array([2.0 * np.pi * p.frequency_hz for p in usable])
+    unknown = np.array([complex(p.dynamic_stiffness_n_per_m) for p in usable]) - known(
+        np.array([p.frequency_hz for p in usable]))
+    damping = max(float(np.max(unknown.imag / omega_p)), 0.0)
+    spring = known(frequency) + unknown[0].real + 1j * omega * damping
+    dynamic = np.abs(spring)
+    if len(usable) > 1 and omega_p[-1] > omega_p[0]:
+        # K − ω² M through the lowest and highest probe points (real parts)
+        mass = -(unknown[-1].real - unknown[0].real) / (omega_p[-1] ** 2 - omega_p[0] ** 2)
+        stiffness = unknown[0].real + omega_p[0] ** 2 * mass
+        both = known(frequency) + stiffness - omega**2 * mass + 1j * omega * damping
+        dynamic = np.maximum(dynamic, np.abs(both))
+    ratio = max(p.motion_ratio for p in usable)
+    force = dynamic * ratio * level_m_per_s2 / omega**2
+    return ForceEstimate(frequency, force, basis, tuple(probes))
+
+
+def motion_ratio(
+    accelerance_table: ArrayLike, force_amplitude: ArrayLike, reference_amplitude: ArrayLike
+) -> float:
+    """Largest |ẍ_s / ẍ_ref| = |ẍ_s/F_e| |F_e| / |ẍ_ref| over measured points (1 if none)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = (np.abs(np.asarray(accelerance_table, dtype=complex))
+                 * np.asarray(force_amplitude, dtype=float)
+                 / np.asarray(reference_amplitude, dtype=float))
+    ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
+    return float(ratio.max()) if ratio.size else 1.0
 
 
 def specimen_from_accelerance(

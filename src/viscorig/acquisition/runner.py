@@ -8,9 +8,18 @@ instrument fault keeps every committed segment, is marked "aborted" in the file,
 :meth:`Runner.run` continues it from its first missing point when started on the same file.
 
 Safety: the source limit (from the station's shaker limit and gain) is part of configuring
-and precedes the source; before each sweep the force it needs is estimated from what is known
-(table parameters from the station or the identified table run, the specimen from the
-previous run), and a sweep over the shaker limit is refused or run at a reduced level.
+and precedes the source; before each sweep the force it needs is predicted, and a sweep over the
+shaker limit is refused or run at a reduced level (the sweep's ``over_limit``, or
+``RunnerOptions.over_limit`` when given). The prediction comes from:
+
+- a low-level probe (:mod:`viscorig.acquisition.probe`) whenever the mounting may have changed
+  since the last run measured (after a prompt, or at the start of a session): the measured
+  dynamic stiffness at the band's edges plus the known table;
+- the previous run's specimen when no prompt came between (same mounting);
+- the table alone for a bare-table run whose table is known (station, identified run, /rig).
+
+The probe precedes the run's start: it is not in the run's datasets or ``time_s``, and is
+recorded in the run's attributes (``probe_*``).
 """
 
 from __future__ import annotations
@@ -26,12 +35,16 @@ from dataclasses import dataclass, field, replace
 
 from viscorig.acquisition.console import Console
 from viscorig.acquisition.limits import (
+    PROBE_LEVEL_FRACTION,
     ForceEstimate,
     RigEstimate,
     estimate_force,
+    estimate_force_from_probe,
+    motion_ratio,
     source_limit_v,
     specimen_from_accelerance,
 )
+from viscorig.acquisition.probe import measure_probe, probe_frequencies_hz, probe_test_time_s
 from viscorig.acquisition.protocol import Analyser
 from viscorig.acquisition.sweep import (
     SegmentDone,
@@ -44,6 +57,7 @@ from viscorig.acquisition.sweep import (
 )
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import (
+    OVER_LIMIT_CHOICES,
     IdentifyTableStep,
     PromptStep,
     Sequence,
@@ -53,8 +67,6 @@ from viscorig.sequences import (
     WaitStep,
 )
 from viscorig.storage import Campaign, RunSettings
-
-OVER_LIMIT_CHOICES = ("refuse", "reduce")
 
 
 class RunState(enum.Enum):
@@ -172,8 +184,9 @@ class RunnerOptions:
     """``time_s`` clock: "wall" on a real rig, "test" on a simulated rig faster than real time."""
     real_time_waits: bool = True
     """Wait steps really wait (off for a simulated rig, whose clock is test time)."""
-    over_limit: str = "refuse"
-    """A sweep whose estimated force exceeds the shaker limit: "refuse" or "reduce" its level."""
+    over_limit: str | None = None
+    """A sweep whose predicted force exceeds the shaker limit: "refuse" it or "reduce" its
+    level, for every sweep; ``None``: as each sweep step says (its ``over_limit``)."""
     poll_interval_s: float = 0.2
     mount: Callable[[str], None] | None = None
     """Stand-in for the technician on a simulated rig: mounts a rig preset at a prompt."""
@@ -214,8 +227,8 @@ class Runner:
         self.analyser = analyser
         self.console = console
         self.options = options or RunnerOptions()
-        if self.options.over_limit not in OVER_LIMIT_CHOICES:
-            raise ValueError(f"over_limit must be one of {OVER_LIMIT_CHOICES}")
+        if self.options.over_limit not in (None, *OVER_LIMIT_CHOICES):
+            raise ValueError(f"over_limit must be None or one of {OVER_LIMIT_CHOICES}")
         self.wiring = Wiring.from_station(station)
         self.records: list[StepRecord] = []
         self.stop = _Stop(console)
@@ -223,7 +236,9 @@ class Runner:
         self._preset_wanted: str | None = None
         self._preset_mounted: str | None = None
         self._table: RigEstimate | None = self._station_table()
-        self._specimen: tuple[float, float, float, str] | None = None
+        self._specimen: tuple[float, float, float, float, str] | None = None
+        self._mounting_known = False
+        """A run was measured in this session and no prompt came since (same mounting)."""
         self.console.time_label = "test time left" if self.options.time_base == "test" else "left"
 
     # -- the whole sequence ------------------------------------------------------------------
@@ -317,6 +332,7 @@ class Runner:
     def prompt_step(self, step: PromptStep, record: StepRecord) -> None:
         """Ask the operator; on a simulated rig, mount the preset the prompt names."""
         record.move("waiting for the operator")
+        self._mounting_known = False  # the operator may change the rig at any prompt
         self.console.prompt(step.message)
         if step.simulated_rig:
             self._preset_wanted = step.simulated_rig
@@ -357,7 +373,7 @@ class Runner:
         limit = self.station.shaker_force_limit_n
         if existing is None:
             level = step.level_m_per_s2
-            estimate = self._estimate(step, level)
+            estimate = self._predict(step, level)
             if estimate is not None and estimate.peak_n > limit:
                 level, refusal = self._over_limit(step, estimate)
                 if refusal is not None:
@@ -373,11 +389,7 @@ class Runner:
                 f"continuing run '{step.run}' from point {done + 1} of {step.points}"
                 + (f" ({step.frequencies_hz()[done]:g} Hz)" if done < step.points else "")
             )
-        settings = SweepSettings(
-            step=step, level_m_per_s2=level, force_limit_n=limit,
-            source_limit_v=self._source_limit_v(), time_base=self.options.time_base,
-            poll_interval_s=self.options.poll_interval_s,
-        )
+        settings = self._sweep_settings(step, level)
         flags = int((self.campaign.run(step.run).flags != 0).sum()) if done else 0
         self.console.start_run(step.run, done, step.points, flags)
         self.console.say(
@@ -404,6 +416,7 @@ class Runner:
             self.campaign.finish_run(step.run, "aborted")
             raise
         self.campaign.finish_run(step.run, "complete")
+        self._mounting_known = True
         record.move(RunState.COMPLETE)
         run = self.campaign.run(step.run)
         flagged = int((run.flags != 0).sum())
@@ -414,6 +427,13 @@ class Runner:
     # -- helpers of the sweep step ---------------------------------------------------------
     def _on_segment(self, done: SegmentDone) -> None:
         self.console.segment(done)
+
+    def _sweep_settings(self, step: SweepStep, level: float) -> SweepSettings:
+        return SweepSettings(
+            step=step, level_m_per_s2=level, force_limit_n=self.station.shaker_force_limit_n,
+            source_limit_v=self._source_limit_v(), time_base=self.options.time_base,
+            poll_interval_s=self.options.poll_interval_s,
+        )
 
     def _source_limit_v(self) -> float:
         return source_limit_v(self.station.source_limit_v, self.station.shaker_force_limit_n,
@@ -442,9 +462,18 @@ class Runner:
             "shaker_force_limit_n": self.station.shaker_force_limit_n,
             "source_limit_v": self._source_limit_v(),
             "estimated_peak_force_n": math.nan if estimate is None else estimate.peak_n,
+            "estimated_peak_frequency_hz": (math.nan if estimate is None
+                                            else estimate.peak_frequency_hz),
+            "estimated_peak_force_at_run_level_n": (
+                math.nan if estimate is None
+                else estimate.peak_n * level / step.level_m_per_s2),
             "force_estimate_basis": "" if estimate is None else estimate.basis,
+            "over_limit": self._over_limit_mode(step)[0],
+            "over_limit_from": self._over_limit_mode(step)[1],
             "segment_s": step.segment_s,
         }
+        if estimate is not None and estimate.probes:
+            attributes.update(_probe_attributes(estimate))
         self.campaign.annotate(step.run, attributes)
         self.campaign.annotate(step.run, {
             "note": "the 35670A does not report its source level per point in swept sine; NaN",
@@ -454,6 +483,12 @@ class Runner:
         self.campaign.annotate(step.run, {"time_base": self.options.time_base, "note": clock},
                                dataset="time_s")
 
+    def _over_limit_mode(self, step: SweepStep) -> tuple[str, str]:
+        """(refuse | reduce, where the choice comes from): the command line wins."""
+        if self.options.over_limit is not None:
+            return self.options.over_limit, "command line"
+        return step.over_limit, "sequence"
+
     def _over_limit(self, step: SweepStep, estimate: ForceEstimate) -> tuple[float, str | None]:
         limit = self.station.shaker_force_limit_n
         reduced = estimate.level_for(limit, step.level_m_per_s2)
@@ -461,12 +496,16 @@ class Runner:
                 f"{estimate.peak_frequency_hz:g} Hz exceeds the shaker limit {limit:g} N "
                 f"(level {step.level}; estimate from {estimate.basis})")
         self.console.warn(what)
-        if self.options.over_limit == "reduce":
-            self.console.warn(f"run '{step.run}': level reduced to {reduced:.4g} m/s^2")
+        mode, source = self._over_limit_mode(step)
+        chosen = "--over-limit" if source == "command line" else "over_limit in the sequence"
+        if mode == "reduce":
+            self.console.warn(f"run '{step.run}': level reduced to {reduced:.4g} m/s^2 "
+                              f"(requested {step.level}; {chosen} is \"reduce\")")
             return reduced, None
         return step.level_m_per_s2, (
-            f"{what}; not measured. Lower the level in the sequence, or continue with "
-            f"--over-limit reduce (level {reduced:.3g} m/s^2)"
+            f"{what}; not measured ({chosen} is \"refuse\"). Lower the level, set "
+            f"over_limit = \"reduce\" in the sequence, or continue with: viscorig resume "
+            f"{self.campaign.path} --over-limit reduce (level {reduced:.3g} m/s^2)"
         )
 
     # -- what is known of the rig ----------------------------------------------------------
@@ -493,28 +532,80 @@ class Runner:
         found = specimen_from_accelerance(run.frequency_hz[keep], run.accelerance_table[keep],
                                           self._table)
         if found is not None:
-            self._specimen = (*found, step.run)
+            ratio = motion_ratio(run.accelerance_table[keep], run.force_amplitude[keep],
+                                 run.reference_amplitude[keep])
+            self._specimen = (*found, ratio, step.run)
 
-    def _estimate(self, step: SweepStep, level: float) -> ForceEstimate | None:
-        if self._table is None:
-            self.console.warn(f"run '{step.run}': table parameters unknown (no [table] in the "
-                              "station, no identified table run): no force estimate")
+    def _predict(self, step: SweepStep, level: float) -> ForceEstimate | None:
+        """The force a new run will need: probed on a newly mounted rig, else from what is
+        known (see the module's docstring); printed with where it comes from."""
+        known_table = step.bare_table and self._table is not None
+        same_mounting = (not step.bare_table and self._mounting_known
+                         and self._specimen is not None)
+        if known_table or same_mounting:
+            return self._estimate(step, level)
+        estimate = self._probe(step, level)
+        if estimate is None:
+            return self._estimate(step, level, "the probe gave no usable reading; ")
+        self._say_estimate(step, estimate)
+        return estimate
+
+    def _probe(self, step: SweepStep, level: float) -> ForceEstimate | None:
+        """Measure the probe points of a newly mounted rig and predict from them."""
+        frequencies = " and ".join(f"{f:g}" for f in probe_frequencies_hz(step))
+        probe_level = level * PROBE_LEVEL_FRACTION
+        self.console.say(
+            f"run '{step.run}': newly mounted; probing at {frequencies} Hz at "
+            f"{probe_level:.3g} m/s^2 (a tenth of the level; {probe_test_time_s(step):.0f} s "
+            "of test time, not part of the run)"
+        )
+        hooks = SweepHooks(should_stop=self.stop.requested.is_set, measuring=self.stop.measuring)
+        readings = measure_probe(self.analyser, self.wiring, self._sweep_settings(step, level),
+                                 hooks)
+        for reading in readings:
+            stiffness = complex(reading.dynamic_stiffness_n_per_m)
+            self.console.say(
+                f"  probe {reading.frequency_hz:g} Hz: |F_e/X_s| {abs(stiffness):.4g} N/m, "
+                f"force {reading.force_n:.3g} N at {reading.reference_m_per_s2:.3g} m/s^2"
+                + ("" if reading.usable else "  (not usable)")
+            )
+        if not readings[0].usable:
             return None
-        rig = self._table
-        if not step.bare_table:
-            if self._specimen is None:
-                rig = replace(rig, basis=f"{rig.basis} only; specimen unknown, a lower bound")
-            else:
-                stiffness, damping, mass, source = self._specimen
-                rig = replace(rig, specimen_stiffness_n_per_m=stiffness,
-                              specimen_damping_ns_per_m=damping, specimen_mass_kg=mass,
-                              basis=f"{rig.basis} and the specimen of run '{source}'")
-        estimate = estimate_force(step.frequencies_hz(), level, rig)
+        table = ("the table unknown" if self._table is None
+                 else f"the table of {self._table.basis}")
+        basis = f"a probe of the mounted rig at {frequencies} Hz and {table}"
+        return estimate_force_from_probe(step.frequencies_hz(), level, readings, self._table,
+                                         basis)
+
+    def _say_estimate(self, step: SweepStep, estimate: ForceEstimate) -> None:
         self.console.say(
             f"run '{step.run}': estimated force up to {estimate.peak_n:.3g} N at "
             f"{estimate.peak_frequency_hz:g} Hz (shaker limit "
             f"{self.station.shaker_force_limit_n:g} N; from {estimate.basis})"
         )
+
+    def _estimate(self, step: SweepStep, level: float, why: str = "") -> ForceEstimate | None:
+        if self._table is None:
+            self.console.warn(f"run '{step.run}': {why}table parameters unknown (no [table] in "
+                              "the station, no identified table run): no force estimate")
+            return None
+        rig = self._table
+        if not step.bare_table:
+            if self._specimen is None:
+                rig = replace(rig, basis=f"{why}{rig.basis} only; specimen unknown, a lower "
+                              "bound")
+            else:
+                stiffness, damping, mass, ratio, source = self._specimen
+                same = ("" if why else " (same mounting)")
+                rig = replace(rig, specimen_stiffness_n_per_m=stiffness,
+                              specimen_damping_ns_per_m=damping, specimen_mass_kg=mass,
+                              motion_ratio=ratio,
+                              basis=f"{why}{rig.basis} and the specimen of run "
+                              f"'{source}'{same}")
+        else:
+            rig = replace(rig, basis=f"{why}{rig.basis}")
+        estimate = estimate_force(step.frequencies_hz(), level, rig)
+        self._say_estimate(step, estimate)
         return estimate
 
     def _mount_wanted(self) -> None:
@@ -526,11 +617,28 @@ class Runner:
         self.console.say(f"(simulated rig: {wanted} mounted)")
 
     def _set_campaign_left(self, index: int) -> None:
-        later = self.sequence.steps[index + 1:]
+        """Test time of the later sweeps, their probes and waits."""
+        later = range(index + 1, len(self.sequence.steps))
+        steps = self.sequence.steps
         self.console.campaign_left_s = sum(
-            s.duration_s() if isinstance(s, SweepStep) else s.seconds
-            for s in later if isinstance(s, SweepStep | WaitStep)
-        )
+            steps[i].duration_s() if isinstance(steps[i], SweepStep) else steps[i].seconds
+            for i in later if isinstance(steps[i], SweepStep | WaitStep)
+        ) + sum(probe_test_time_s(steps[i]) for i in later if self._probe_expected(i))
+
+    def _probe_expected(self, index: int) -> bool:
+        """Will the sweep at ``index`` be probed (for the time left; decided when it comes)?"""
+        step = self.sequence.steps[index]
+        if not isinstance(step, SweepStep) or self._status(step.run) is not None:
+            return False
+        if step.bare_table and (self._table is not None or any(
+                isinstance(s, IdentifyTableStep) for s in self.sequence.steps[:index])):
+            return False
+        for before in reversed(self.sequence.steps[:index]):
+            if isinstance(before, PromptStep):
+                return True
+            if isinstance(before, SweepStep):
+                return False
+        return True
 
     # -- endings -------------------------------------------------------------------------------
     def _resume_hint(self) -> str:
@@ -565,6 +673,30 @@ def _name(step: Step) -> str:
     if isinstance(step, PromptStep):
         return step.message[:40]
     return f"{step.seconds:g} s"
+
+
+def _probe_attributes(estimate: ForceEstimate) -> dict[str, str | float | int]:
+    """The probe points of an estimate as run attributes (``probe_<i>_...``, i from 0)."""
+    probes = estimate.probes
+    attributes: dict[str, str | float | int] = {
+        "probe_points": len(probes),
+        "probe_level_m_per_s2": probes[0].level_m_per_s2,
+        "probe_test_time_s": sum(p.test_time_s for p in probes),
+        "probe_note": "measured before the run started, in manual sweep mode at a tenth of its "
+                      "level, to predict the shaker force; not part of the run's datasets or "
+                      "of time_s",
+    }
+    for i, probe in enumerate(probes):
+        stiffness = complex(probe.dynamic_stiffness_n_per_m)
+        attributes.update({
+            f"probe_{i}_frequency_hz": probe.frequency_hz,
+            f"probe_{i}_dynamic_stiffness_real_n_per_m": stiffness.real,
+            f"probe_{i}_dynamic_stiffness_imag_n_per_m": stiffness.imag,
+            f"probe_{i}_force_n": probe.force_n,
+            f"probe_{i}_reference_m_per_s2": probe.reference_m_per_s2,
+            f"probe_{i}_flags": probe.flags,
+        })
+    return attributes
 
 
 def check_over_limit(value: str) -> str:

@@ -91,6 +91,8 @@ class SweepSettings:
     source_limit_v: float
     time_base: str = "wall"
     poll_interval_s: float = 0.2
+    start_level_v: float = START_LEVEL_V
+    """Source level the auto-level controller starts from, V peak (capped at the limit)."""
 
     def __post_init__(self) -> None:
         if self.time_base not in TIME_BASES:
@@ -154,7 +156,7 @@ def configure(analyser: Analyser, wiring: Wiring, settings: SweepSettings) -> No
         integrate_cycles=step.integrate_cycles,
         direction=step.direction.upper(),
         tolerance_db=step.tolerance_db,
-        start_level_vpk=min(START_LEVEL_V, settings.source_limit_v),
+        start_level_vpk=min(settings.start_level_v, settings.source_limit_v),
     )
 
 

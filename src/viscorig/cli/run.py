@@ -7,9 +7,11 @@
     viscorig resume paper.h5 --yes                              # after Ctrl-C, a fault, a crash
 
 Exit status: 0 complete; 2 bad input (nothing written) or a sweep refused because its
-estimated force exceeds the shaker limit; 3 instrument fault (data kept); 130 interrupted by
-Ctrl-C (data kept). After 3 or 130 (or a crash), ``viscorig resume FILE.h5`` continues the
-interrupted run from its first missing point and then the rest of the sequence.
+predicted force exceeds the shaker limit (``over_limit = "refuse"`` in the sequence, the
+default, unless ``--over-limit reduce`` is given: the command line overrides the sequence);
+3 instrument fault (data kept); 130 interrupted by Ctrl-C (data kept). After 3 or 130 (or a
+crash), ``viscorig resume FILE.h5`` continues the interrupted run from its first missing point
+and then the rest of the sequence.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from viscorig.acquisition import (
     Runner,
     RunnerOptions,
 )
+from viscorig.cli import summary_of
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import Sequence, load_sequence, parse_sequence, parse_station
 from viscorig.storage import Campaign
@@ -45,9 +48,12 @@ def _positive(text: str) -> float:
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--yes", action="store_true",
                         help="answer every operator prompt (CI, demos)")
-    parser.add_argument("--over-limit", choices=OVER_LIMIT_CHOICES, default="refuse",
-                        help="a sweep whose estimated shaker force exceeds the limit: refuse it "
-                        "(default) or reduce its level below the limit")
+    parser.add_argument("--over-limit", choices=OVER_LIMIT_CHOICES, default=None,
+                        help="a sweep whose predicted shaker force exceeds the limit: refuse it "
+                        "or reduce its level below the limit. Given here, it applies to every "
+                        "sweep and overrides the sequence; otherwise each sweep's over_limit "
+                        "(its step, else [defaults]) applies, and 'refuse' when the sequence "
+                        "says nothing")
     parser.add_argument("--sim-pace", type=_positive, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
@@ -55,8 +61,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``run`` and ``resume`` commands."""
-    run = subparsers.add_parser(
-        "run", help="run a test sequence into a new campaign file",
+    run = subparsers.add_parser("run", help=summary_of("run"),
         description="Run a test sequence (TOML) and record every sweep into a new campaign "
         "file. Without --station, the embedded simulated rig and analyser are used.")
     run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
@@ -68,8 +73,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(run)
     run.set_defaults(handler=run_command)
 
-    resume = subparsers.add_parser(
-        "resume", help="continue an interrupted campaign file",
+    resume = subparsers.add_parser("resume", help=summary_of("resume"),
         description="Continue the sequence stored in a campaign file: the interrupted run "
         "from its first missing point, then the remaining steps.")
     resume.add_argument("file", metavar="FILE.h5", help="campaign file")

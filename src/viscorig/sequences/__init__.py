@@ -27,6 +27,7 @@ from viscorig.sequences.station import (
     parse_station,
 )
 from viscorig.sequences.steps import (
+    OVER_LIMIT_CHOICES,
     IdentifyTableStep,
     PromptStep,
     Sequence,
@@ -38,6 +39,7 @@ from viscorig.sequences.steps import (
 __all__ = [
     "ANALYSER_MAX_POINTS",
     "DEFAULT_SEGMENT_S",
+    "OVER_LIMIT_CHOICES",
     "Channels",
     "IdentifyTableStep",
     "PromptStep",

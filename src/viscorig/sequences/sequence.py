@@ -8,6 +8,8 @@
     [defaults]                 # any sweep field; a step's own value wins
     band_hz = [20.0, 120.0]
     level = "1.4 m/s^2"
+    over_limit = "refuse"      # or "reduce": a sweep whose predicted force exceeds the shaker
+                               # limit (viscorig run --over-limit overrides it)
 
     [[steps]]
     type = "prompt"            # prompt | wait | sweep | identify_table
@@ -36,6 +38,7 @@ from viscorig.sequences import segments
 from viscorig.sequences.fields import TableReader, kind_name
 from viscorig.sequences.levels import parse_level
 from viscorig.sequences.steps import (
+    OVER_LIMIT_CHOICES,
     IdentifyTableStep,
     PromptStep,
     Sequence,
@@ -51,7 +54,7 @@ PRESET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 SWEEP_FIELDS = (
     "run", "specimen", "hardness_shore_a", "preload_strain", "temperature_c", "band_hz",
     "resolution_hz", "settle_cycles", "integrate_cycles", "level", "tolerance_db", "direction",
-    "segment_s", "segment_points",
+    "segment_s", "segment_points", "over_limit",
 )
 #: The analyser's highest frequency with four channels, Hz.
 MAX_FREQUENCY_HZ = 25_600.0
@@ -224,6 +227,7 @@ def _parse_sweep(fields: TableReader) -> SweepStep:
         segment_s=fields.number("segment_s", segments.DEFAULT_SEGMENT_S, low=1.0, high=3600.0,
                                 unit="s"),
         segment_points=segment_points,
+        over_limit=fields.text("over_limit", "refuse", choices=OVER_LIMIT_CHOICES),
     )
 
 

@@ -14,6 +14,9 @@ from numpy.typing import NDArray
 
 from viscorig.sequences import segments
 
+#: What to do with a sweep whose predicted shaker force exceeds the limit.
+OVER_LIMIT_CHOICES = ("refuse", "reduce")
+
 
 @dataclass(frozen=True)
 class PromptStep:
@@ -61,6 +64,9 @@ class SweepStep:
     """Longest test time between two commits of the run."""
     segment_points: int = segments.ANALYSER_MAX_POINTS
     """Most points per segment (one analyser sweep; at most 801)."""
+    over_limit: str = "refuse"
+    """A predicted force above the shaker limit: "refuse" the run or "reduce" its level
+    (``viscorig run --over-limit`` overrides it)."""
 
     @property
     def bare_table(self) -> bool:

@@ -1,0 +1,151 @@
+"""A low-level probe of a newly mounted rig: its dynamic stiffness at the band's edges.
+
+Before the first sweep on a newly mounted specimen nothing measured tells how stiff it is: an
+estimate carried over from the previous specimen can be several times too low (a hard rubber
+after a medium one). So the runner measures one point at each edge of the band, in manual
+sweep mode, at a tenth of the run's level (:data:`~viscorig.acquisition.limits.
+PROBE_LEVEL_FRACTION`), with the run's own source and input limits set first, and reads the
+rig's dynamic stiffness ``F_e/X_s`` there. The table accelerance ``ẍ_s/F_e`` is a ratio of two
+channels, valid whatever level the controller reached, so even a probe held back by the limits
+gives the stiffness.
+
+Probe points are not run data (the run's datasets are fixed by data-format.md and the probe is
+at another level): the runner records them as attributes of the run it precedes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from viscorig.acquisition.limits import PROBE_LEVEL_FRACTION, ProbeReading, point_flags
+from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
+from viscorig.acquisition.sweep import (
+    FREQUENCY_MATCH_HZ,
+    SweepHooks,
+    SweepInterrupted,
+    SweepSettings,
+    Wiring,
+    configure,
+)
+from viscorig.errors import InstrumentError
+from viscorig.sequences import SweepStep, point_durations_s
+
+
+def probe_frequencies_hz(step: SweepStep) -> tuple[float, ...]:
+    """The band's lowest and highest grid frequencies (one when the grid has one point)."""
+    grid = step.frequencies_hz()
+    lo, hi = float(grid.min()), float(grid.max())
+    return (lo,) if hi <= lo else (lo, hi)
+
+
+def probe_test_time_s(step: SweepStep) -> float:
+    """Settle and integration time of a probe before ``step``, s."""
+    frequencies = np.array(probe_frequencies_hz(step))
+    return float(point_durations_s(frequencies, step.settle_cycles, step.integrate_cycles).sum())
+
+
+def probe_settings(settings: SweepSettings) -> SweepSettings:
+    """The run's settings at :data:`PROBE_LEVEL_FRACTION` of its level, with the same source and
+    input limits, the controller starting as far down."""
+    return replace(settings, level_m_per_s2=settings.level_m_per_s2 * PROBE_LEVEL_FRACTION,
+                   start_level_v=settings.start_level_v * PROBE_LEVEL_FRACTION)
+
+
+def measure_probe(
+    analyser: Analyser,
+    wiring: Wiring,
+    settings: SweepSettings,
+    hooks: SweepHooks | None = None,
+) -> tuple[ProbeReading, ...]:
+    """Configure the analyser for a probe of ``settings.step`` and measure its points.
+
+    ``settings`` are the run's (its level, limits and cycles); the probe runs at
+    :func:`probe_settings` of them. A point whose input overloaded is measured once more. The
+    analyser is left configured for the probe: configure it again before the sweep.
+
+    Raises
+    ------
+    SweepInterrupted
+        ``hooks.should_stop()`` turned true.
+    InstrumentError
+        The analyser measured another frequency than asked.
+    Exception
+        Whatever the driver raises on an instrument fault (the caller classifies it).
+    """
+    hooks = hooks or SweepHooks()
+    low = probe_settings(settings)
+    configure(analyser, wiring, low)
+    readings = []
+    for frequency in probe_frequencies_hz(settings.step):
+        measured = _measure(analyser, frequency, low, hooks)
+        if measured.overload_channels:
+            measured = _measure(analyser, frequency, low, hooks)
+        readings.append(_reading(measured, frequency, wiring, low))
+    return tuple(readings)
+
+
+def _measure(analyser: Analyser, frequency_hz: float, settings: SweepSettings,
+             hooks: SweepHooks) -> MeasuredSegment:
+    def progress(report: SweepProgressReport) -> None:
+        if hooks.should_stop():
+            analyser.abort()
+
+    run = settings.step.run
+    hooks.measuring[0] = True
+    try:
+        measured = analyser.measure_point(frequency_hz, progress=progress,
+                                          poll_interval_s=settings.poll_interval_s)
+    except Exception as error:
+        if hooks.should_stop():
+            raise SweepInterrupted(run) from error
+        raise
+    finally:
+        hooks.measuring[0] = False
+    if hooks.should_stop():
+        raise SweepInterrupted(run)
+    axis = np.asarray(measured.frequency_hz, dtype=float)
+    if axis.shape != (1,) or not abs(axis[0] - frequency_hz) <= FREQUENCY_MATCH_HZ:
+        raise InstrumentError(
+            f"{analyser.resource}: the analyser returned {axis.size} points for the probe at "
+            f"{frequency_hz:g} Hz" + (f" (at {axis[0]:g} Hz)" if axis.size == 1 else "")
+        )
+    return measured
+
+
+def _first(values: object) -> float:
+    array = np.asarray(values, dtype=float).ravel()
+    return float(array[0]) if array.size else math.nan
+
+
+def _reading(measured: MeasuredSegment, frequency_hz: float, wiring: Wiring,
+             settings: SweepSettings) -> ProbeReading:
+    step = settings.step
+    if wiring.excitation_force == 1:
+        table_frf = measured.frf_21
+    else:
+        table_frf = measured.frf_43 if measured.frf_43 is not None else [math.nan]
+    accelerance = complex(np.asarray(table_frf, dtype=complex).ravel()[0])
+    omega = 2.0 * math.pi * frequency_hz
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stiffness = complex(-(omega**2) / np.complex128(accelerance))
+    reference_channel = (wiring.table_acceleration if step.bare_table
+                         else wiring.device_acceleration)
+    reference = _first(measured.amplitude_eu.get(reference_channel, [math.nan]))
+    force = _first(measured.amplitude_eu.get(wiring.excitation_force, [math.nan]))
+    flags = point_flags([reference], [force], level_m_per_s2=settings.level_m_per_s2,
+                        tolerance_db=step.tolerance_db, force_limit_n=settings.force_limit_n,
+                        overloaded=bool(measured.overload_channels))
+    duration = point_durations_s(np.array([frequency_hz]), step.settle_cycles,
+                                 step.integrate_cycles)
+    return ProbeReading(
+        frequency_hz=float(measured.frequency_hz[0]),
+        dynamic_stiffness_n_per_m=stiffness,
+        level_m_per_s2=settings.level_m_per_s2,
+        reference_m_per_s2=reference,
+        force_n=force,
+        flags=int(flags[0]),
+        test_time_s=float(duration[0]),
+    )
