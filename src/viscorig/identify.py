@@ -54,16 +54,16 @@ class TableSource:
     fit: FitResult | None = None
 
 
-def table_parameters(
-    campaign: Campaign, band_hz: tuple[float, float] | None = None
-) -> TableSource | None:
-    """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``."""
+def table_parameters(campaign: Campaign) -> TableSource | None:
+    """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``.
+
+    The bare-table run is fitted over every point it has: its band was chosen to cover the
+    table's own resonance (about 19 Hz), which the specimen band (20-120 Hz) leaves out.
+    """
     for name in campaign.run_names:
         run = campaign.run(name)
         if is_bare_table(run) and run.points:
-            data = run_data(run)
-            band = _band_within(data, band_hz)
-            result = fit("table", data, band_hz=band)
+            result = fit("table", run_data(run))
             return TableSource(dict(result.values), f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
     if rig.table is not None:
@@ -130,7 +130,7 @@ def identify_run(
         raise InputError("has a specimen; the 'table' model is for bare-table runs", run_name)
     if data.support is None and (frfs is None or "support" in frfs):
         raise InputError("has no accelerance_support (ẍ_v/F_v)", f"run '{run_name}'")
-    table = table or table_parameters(campaign, band_hz)
+    table = table or table_parameters(campaign)
     if table is None:
         chosen = frfs or model.frfs
         if "table" in chosen:
@@ -170,16 +170,19 @@ def summarize(
     campaign: Campaign, band_hz: tuple[float, float] = PAPER_BAND_HZ
 ) -> tuple[TableSource | None, list[RunSummary]]:
     """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed."""
-    table = table_parameters(campaign, band_hz)
+    table = table_parameters(campaign)
     summaries = []
     for name in campaign.run_names:
         run = campaign.run(name)
         if not run.points:
             continue
         data = run_data(run)
-        band = _band_within(data, band_hz)
         if is_bare_table(run):
-            result, _ = identify_run(campaign, name, "table", band_hz=band)
+            band = None
+            if table is not None and table.fit is not None and table.source == f"run '{name}'":
+                result = table.fit
+            else:
+                result, _ = identify_run(campaign, name, "table")
             system = None
         else:
             if table is None:
@@ -187,6 +190,7 @@ def summarize(
                     "Table 1 needs the table's M_s, K_s, C_s: no bare-table run, no /rig values",
                     str(campaign.path),
                 )
+            band = _band_within(data, band_hz)
             result, _ = identify_run(
                 campaign, name, "voigt", band_hz=band, frfs=("table",), table=table
             )

@@ -220,7 +220,7 @@ def from_campaign(
             "is a bare-table run; diagnosis looks at specimen runs (identify it with 'table')",
             f"run '{run_name}'",
         )
-    table = table_parameters(campaign, band_hz)
+    table = table_parameters(campaign)
     names = [run_name] + (companions(campaign, run_name) if with_companions else [])
     started = _started(run)
     pieces = []

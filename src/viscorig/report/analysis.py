@@ -243,7 +243,12 @@ def analyse_campaign(
     use_diagnosis = diagnosis and _diagnosis is not None
     for run in runs:
         bare = is_bare_table(run)
-        band = _band(run, band_hz) if run.points else band_hz
+        if not run.points:
+            band = band_hz
+        elif bare:  # the table's own band, which covers its resonance
+            band = (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
+        else:
+            band = _band(run, band_hz)
         analysis = RunAnalysis(run, bare, band, summary=by_name.get(run.name))
         analyses.append(analysis)
         if run not in measured:
