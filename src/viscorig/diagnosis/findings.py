@@ -18,6 +18,12 @@ improvement is beyond what ``k`` extra parameters fitted to noise give (on avera
 ``ΔBIC ≈ k(ln n − 1) > 0``), with a margin for the search a fixture or a delay makes over the
 band. On clean simulated data (no hidden effect, several seeds, every candidate) the best
 candidate's ΔBIC stayed above the threshold (see the tests and the report).
+
+Relevance. A statistically clear improvement can still be too small to matter: near the noise
+floor, with thousands of points, a term such as ``drift`` may absorb a sliver of a systematic
+misfit it does not explain. A significant finding must therefore also remove at least
+:data:`MIN_EXCESS_FRACTION` of the current model's error above the noise floor,
+``rms² − floor²``; a model at or below the floor leaves nothing to remove.
 """
 
 from __future__ import annotations
@@ -35,6 +41,8 @@ from viscorig.models import TERMS, Fixture, Model, parse_spec
 
 #: ΔBIC (whitened) below minus this is beyond noise.
 SIGNIFICANT_DELTA_BIC = 20.0
+#: A significant finding removes at least this share of the error above the noise floor.
+MIN_EXCESS_FRACTION = 0.1
 #: Two candidates within this ΔBIC of each other are not told apart by the data.
 AMBIGUOUS_DELTA_BIC = 10.0
 #: ... or when the other's rms_error is within this factor: the two differ only in the exact
@@ -219,7 +227,8 @@ def confirm(
                 result.spec,
                 result,
                 float(delta),
-                bool(delta < -SIGNIFICANT_DELTA_BIC),
+                bool(delta < -SIGNIFICANT_DELTA_BIC)
+                and removes_enough(current.rms_error, result.rms_error, data.noise_floor),
                 signature.evidence,
                 term,
                 bic=float(bic),
@@ -228,6 +237,12 @@ def confirm(
     findings.sort(key=lambda finding: finding.delta_bic)
     _mark_ambiguities(findings)
     return findings
+
+
+def removes_enough(rms_before: float, rms_after: float, noise_floor: float) -> bool:
+    """The change removes at least :data:`MIN_EXCESS_FRACTION` of the error above the floor."""
+    excess = rms_before**2 - noise_floor**2
+    return excess > 0.0 and rms_before**2 - rms_after**2 >= MIN_EXCESS_FRACTION * excess
 
 
 def _fixture_at_fitted_frequency(result: FitResult, term: str) -> tuple[FitResult, str]:
