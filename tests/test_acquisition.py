@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
 
 from viscorig.acquisition import (
     Analyser,
+    ProbeReading,
     RigEstimate,
     SweepHooks,
     SweepMeasurement,
     SweepSettings,
     Wiring,
     estimate_force,
+    estimate_force_from_probe,
+    motion_ratio,
     point_flags,
     source_limit_v,
     specimen_from_accelerance,
@@ -252,3 +255,104 @@ def test_a_bare_table_run_stores_nan_support(tmp_path) -> None:
     # the reference of a bare table is the table acceleration (input 2), 1.0 here
     np.testing.assert_allclose(run.reference_amplitude, 1.0)
     assert math.isnan(run.variance_support[0])
+
+
+# -- force prediction from a low-level probe --------------------------------------------------
+
+
+def rig_dynamic_stiffness(frequency_hz, specimen_stiffness, specimen_damping, disc_mass_kg,
+                          link_stiffness=None):
+    """F_e/X_s and X_s/X_v of the two-DOF rig (physics.md), table of TABLE, a Voigt specimen."""
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    table = TABLE.dynamic_stiffness(frequency_hz)
+    device = specimen_stiffness + 1j * omega * specimen_damping - omega**2 * disc_mass_kg
+    if link_stiffness is None:
+        return table + device, np.ones_like(omega)
+    link = link_stiffness
+    dynamic = table + link * device / (link + device)  # D_s − K_c² / D_v, D_s with K_c in it
+    return dynamic, np.abs((link + device) / link)
+
+
+def probe_at(frequency_hz, level, **rig) -> ProbeReading:
+    """What a probe at ``level`` of the disc's acceleration reads on the closed-form rig."""
+    dynamic, motion = rig_dynamic_stiffness(np.array([frequency_hz]), **rig)
+    omega2 = (2 * np.pi * frequency_hz) ** 2
+    force = float(np.abs(dynamic[0]) * motion[0] * level / omega2)
+    return ProbeReading(frequency_hz, complex(dynamic[0]), level, level, force, 0, 10.0)
+
+
+def needed_force(frequency_hz, level, **rig):
+    dynamic, motion = rig_dynamic_stiffness(frequency_hz, **rig)
+    return np.abs(dynamic) * motion * level / (2 * np.pi * np.asarray(frequency_hz)) ** 2
+
+
+HARD = {"specimen_stiffness": 1.07e6, "specimen_damping": 306.0, "disc_mass_kg": 0.15,
+        "link_stiffness": 1e7}
+GRID = np.arange(20.0, 120.25, 0.25)
+
+
+def test_a_probe_predicts_a_hard_specimen_that_the_previous_soft_one_underestimates() -> None:
+    truth = needed_force(GRID, 1.4, **HARD)
+    # the old way: the previous (soft) run's specimen, fitted from its table accelerance
+    soft = {"specimen_stiffness": 1.5e5, "specimen_damping": 115.0, "disc_mass_kg": 0.15}
+    dynamic, _ = rig_dynamic_stiffness(GRID, **soft)
+    accelerance = -((2 * np.pi * GRID) ** 2) / dynamic
+    stiffness, damping, mass = specimen_from_accelerance(GRID, accelerance, TABLE)
+    carried = estimate_force(GRID, 1.4, RigEstimate(3.4, 50194.0, 5.05, stiffness, damping, mass))
+    assert carried.peak_n < 0.2 * truth.max()
+    # the probe: the band's edges at a tenth of the level
+    probes = (probe_at(20.0, 0.14, **HARD), probe_at(120.0, 0.14, **HARD))
+    estimate = estimate_force_from_probe(GRID, 1.4, probes, TABLE, "probe")
+    assert estimate.peak_frequency_hz == 20.0 == GRID[np.argmax(truth)]
+    # measured there (up to the other point's larger motion ratio or damping), not modelled
+    assert estimate.peak_n == pytest.approx(truth.max(), rel=1e-3)
+    # conservative over the band (the disc's mass ignored, viscous damping), never far off
+    assert np.all(estimate.force_n >= truth * (1 - 1e-9))
+    assert np.all(estimate.force_n <= 1.2 * truth)
+    # a rigid-link reading of the same probe misses the 10 % the table moves beyond the disc
+    assert probes[0].motion_ratio == pytest.approx(1.107, abs=0.01)
+    assert estimate.probes == probes and estimate.basis == "probe"
+
+
+def test_a_band_above_the_resonance_is_covered_by_the_second_probe_point() -> None:
+    """Mass-dominated: the force is largest at the high edge, which a spring through the low
+    probe point alone would underestimate."""
+    soft = {"specimen_stiffness": 1.5e5, "specimen_damping": 115.0, "disc_mass_kg": 0.6}
+    grid = np.arange(60.0, 400.5, 0.5)
+    truth = needed_force(grid, 10.0, **soft)
+    low_only = estimate_force_from_probe(grid, 10.0, (probe_at(60.0, 1.0, **soft),), TABLE, "")
+    assert low_only.force_n[-1] < 0.9 * truth[-1]
+    both = estimate_force_from_probe(grid, 10.0, (probe_at(60.0, 1.0, **soft),
+                                                  probe_at(400.0, 1.0, **soft)), TABLE, "")
+    assert np.all(both.force_n >= truth * (1 - 1e-9))
+    assert both.peak_n == pytest.approx(truth.max(), rel=0.02)
+
+
+def test_a_probe_without_known_table_predicts_the_bare_table() -> None:
+    grid = np.arange(12.0, 28.125, 0.125)
+    bare = {"specimen_stiffness": 0.0, "specimen_damping": 0.0, "disc_mass_kg": 0.0}
+    truth = needed_force(grid, 1.4, **bare)
+    probes = (probe_at(12.0, 0.14, **bare), probe_at(28.0, 0.14, **bare))
+    estimate = estimate_force_from_probe(grid, 1.4, probes, None, "")
+    assert estimate.peak_n == pytest.approx(truth.max(), rel=1e-9)
+    assert np.all(estimate.force_n >= truth * (1 - 1e-9))
+
+
+def test_an_unusable_probe_reading_is_not_used() -> None:
+    good = probe_at(20.0, 0.14, **HARD)
+    assert good.usable
+    assert not replace(good, dynamic_stiffness_n_per_m=complex(math.nan, 0.0)).usable
+    assert not replace(good, force_n=0.0).usable
+    assert not replace(good, flags=int(INPUT_OVERLOAD)).usable
+    with pytest.raises(ValueError, match="no usable probe"):
+        estimate_force_from_probe(GRID, 1.4, (replace(good, force_n=math.nan),), TABLE, "")
+    # the unusable high point is left out; the low one still predicts the peak
+    estimate = estimate_force_from_probe(
+        GRID, 1.4, (good, replace(probe_at(120.0, 0.14, **HARD), flags=int(INPUT_OVERLOAD))),
+        TABLE, "")
+    assert estimate.peak_n == pytest.approx(needed_force(GRID, 1.4, **HARD).max(), rel=1e-3)
+
+
+def test_motion_ratio_of_a_measured_run() -> None:
+    assert motion_ratio([0.5, 0.4, np.nan], [2.0, 2.0, 1.0], [1.0, 1.0, 1.0]) == 1.0
+    assert motion_ratio([np.nan], [1.0], [1.0]) == 1.0  # nothing measured: a rigid link

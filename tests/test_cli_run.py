@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -84,11 +85,13 @@ def test_the_paper_campaign_runs_whole_on_the_embedded_rig(paper_campaign) -> No
         bare = run.name == "table"
         assert np.all(np.isnan(run.accelerance_support)) == bare
         assert np.all(np.isnan(run.source_amplitude))
-        # flags sane: the paper's level is reachable everywhere below the 100 N limit
+        # flags sane: the level of each run (hard-10's reduced) is reachable below 100 N
         assert np.count_nonzero(run.flags) <= 0.02 * run.points, run.name
-        level_db = 20 * np.log10(run.reference_amplitude / 1.4)
+        level_db = 20 * np.log10(run.reference_amplitude / meta.level_m_per_s2)
         assert np.all(np.abs(level_db[run.flags == 0]) <= 1.0)
         assert np.all(run.force_amplitude <= 100.0 * 1.01)
+        assert meta.level_m_per_s2 == (1.4 if run.name != "hard-10" else pytest.approx(1.16,
+                                                                                     abs=0.03))
     # the table identified on the fly and stored
     [fit] = campaign.fits("table")
     assert fit.model == "table"
@@ -102,6 +105,52 @@ def test_the_paper_campaign_runs_whole_on_the_embedded_rig(paper_campaign) -> No
                     assert "units" in dataset.attrs, f"{name}/{key}"
                     assert dataset.chunks is not None and dataset.maxshape == (None,)
             assert group["time_s"].attrs["time_base"] == "test"
+
+
+@pytest.mark.slow
+def test_the_force_of_every_newly_mounted_run_is_predicted_by_a_probe(paper_campaign) -> None:
+    """hard-0 and hard-10 follow softer specimens; the prediction made before each run is within
+    20 % of the force the run then reached at the band's low edge (where it is largest)."""
+    path, result = paper_campaign
+    assert result.returncode == 0, result.stderr
+    with h5py.File(path, "r") as h5:
+        for name in RUNS:
+            attributes, group = h5[f"runs/{name}"].attrs, h5[f"runs/{name}"]
+            assert attributes["probe_points"] == 2, name
+            assert attributes["probe_level_m_per_s2"] == pytest.approx(0.14)
+            assert "a probe of the mounted rig" in attributes["force_estimate_basis"]
+            low_edge = attributes["probe_0_frequency_hz"]
+            assert attributes["estimated_peak_frequency_hz"] == low_edge
+            assert group["frequency_hz"][0] == low_edge
+            predicted = attributes["estimated_peak_force_at_run_level_n"]
+            reached = group["force_amplitude"][0]
+            assert predicted == pytest.approx(reached, rel=0.2), name
+            assert predicted == pytest.approx(group["force_amplitude"][:].max(), rel=0.2)
+        # hard-10 needs more than the shaker gives at 1.4 m/s^2: reduced, as paper.toml says
+        hard = h5["runs/hard-10"].attrs
+        assert hard["estimated_peak_force_n"] > 100.0
+        assert hard["over_limit"] == "reduce" and hard["over_limit_from"] == "sequence"
+        assert hard["estimated_peak_force_at_run_level_n"] == pytest.approx(90.0)
+    assert "run 'hard-10': level reduced to" in result.stdout
+    assert "run 'hard-0': estimated force up to" in result.stdout
+
+
+@pytest.mark.slow
+def test_the_time_left_counts_the_probes_still_to_come(paper_campaign) -> None:
+    """The first segment's 'all' time left is its run's plus every later sweep and probe."""
+    from viscorig.acquisition import probe_test_time_s
+    from viscorig.sequences import load_sequence
+
+    _, result = paper_campaign
+    first = next(line for line in result.stdout.splitlines() if line.startswith("table [1/"))
+    run_left, all_left = re.search(r"test time left: run ([\d:]+), all ([\d:]+)",
+                                   first).groups()
+    seconds = [sum(int(part) * 60**i for i, part in enumerate(reversed(text.split(":"))))
+               for text in (run_left, all_left)]
+    later = load_sequence(PAPER).sweeps[1:]
+    expected = sum(step.duration_s() + probe_test_time_s(step) for step in later)
+    assert seconds[1] - seconds[0] == pytest.approx(expected, abs=1.0)
+    assert sum(probe_test_time_s(step) for step in later) == pytest.approx(70.0)
 
 
 @pytest.mark.slow

@@ -6,6 +6,7 @@ runs ``viscorig run``/``resume`` in process, as a lab station would be used.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -229,3 +230,134 @@ def test_an_unreachable_analyser_is_exit_3_and_writes_nothing(tmp_path, rig, cap
     assert run_cli(sequence, "--station", station, "--out", out) == 3
     assert "TCPIP::127.0.0.1::1::SOCKET" in capsys.readouterr().err
     assert not (tmp_path / "out.h5").exists()
+
+
+# -- the force prediction of a newly mounted specimen, and over_limit in the sequence ----------
+
+HARD_SEQUENCE = """
+name = "hard"
+[defaults]
+resolution_hz = 0.25
+settle_cycles = 10
+integrate_cycles = 10
+level = "2 m/s^2"
+{defaults}
+[[steps]]
+type = "prompt"
+message = "Mount the HARD specimens."
+[[steps]]
+type = "sweep"
+run = "hard-10"
+specimen = "hard"
+band_hz = [20.0, 21.0]
+{step}
+"""
+
+
+def hard_files(tmp_path, server, *, defaults="", step=""):
+    """hard-10 at 2 m/s^2: about 156 N at 20 Hz; the table alone would predict 7 N."""
+    station = tmp_path / "station.toml"
+    station.write_text(STATION.format(resource=server.resource, force_limit=100.0,
+                                      source_limit=5.0))
+    sequence = tmp_path / "hard.toml"
+    sequence.write_text(HARD_SEQUENCE.format(defaults=defaults, step=step))
+    return str(sequence), str(station), str(tmp_path / "out.h5")
+
+
+def probe_forces(printed: str) -> list[float]:
+    return [float(f) for f in re.findall(r"probe [\d.]+ Hz: .* force ([\d.e+-]+) N", printed)]
+
+
+@pytest.mark.parametrize("rig", ["hard-10"], indirect=True)
+def test_a_hard_specimen_is_probed_and_refused_before_anything_is_measured(
+    tmp_path, rig, capsys
+) -> None:
+    sequence, station, out = hard_files(tmp_path, rig, defaults='over_limit = "refuse"')
+    assert run_cli(sequence, "--station", station, "--out", out) == 2
+    captured = capsys.readouterr()
+    line = captured.err.strip()
+    assert "\n" not in line and "Traceback" not in line
+    found = re.search(r"estimated force (\d+) N at 20 Hz exceeds the shaker limit 100 N", line)
+    assert found and 140 < int(found.group(1)) < 175, line
+    assert "from a probe of the mounted rig at 20 and 21 Hz" in line
+    assert 'over_limit in the sequence is "refuse"' in line and "--over-limit reduce" in line
+    assert Campaign.open(out).run_names == []  # nothing measured for the run
+    assert rig.analyser.source.output is False
+    # the probe itself stayed at a tenth of the level: about 16 N, far below the limit
+    forces = probe_forces(captured.out)
+    assert len(forces) == 2 and max(forces) < 20.0
+
+
+@pytest.mark.parametrize("rig", ["hard-10"], indirect=True)
+def test_a_hard_specimen_runs_reduced_when_its_step_says_so(tmp_path, rig, capsys) -> None:
+    sequence, station, out = hard_files(tmp_path, rig, step='over_limit = "reduce"')
+    assert run_cli(sequence, "--station", station, "--out", out) == 0
+    printed = capsys.readouterr().out
+    found = re.search(r"level reduced to ([\d.]+) m/s\^2 \(requested 2 m/s\^2; over_limit in "
+                      r"the sequence is \"reduce\"\)", printed)
+    assert found, printed
+    campaign = Campaign.open(out)
+    run = campaign.run("hard-10")
+    assert run.metadata.level_m_per_s2 == pytest.approx(float(found.group(1)), rel=1e-3)
+    assert 1.0 < run.metadata.level_m_per_s2 < 1.3
+    # the reduced level aims at 90 N at 20 Hz and gets there: the prediction was right
+    assert run.force_amplitude[0] == pytest.approx(90.0, rel=0.05)
+    assert run.force_amplitude.max() < 100.0
+    assert not (run.flags & (LEVEL_NOT_REACHED | FORCE_ABOVE_SHAKER_LIMIT)).any()
+    import h5py
+
+    with h5py.File(out, "r") as h5:
+        attributes = dict(h5["runs/hard-10"].attrs)
+    assert attributes["over_limit"] == "reduce" and attributes["over_limit_from"] == "sequence"
+    assert attributes["estimated_peak_force_n"] > 140.0
+    assert attributes["estimated_peak_force_at_run_level_n"] == pytest.approx(90.0, rel=1e-6)
+    assert attributes["probe_points"] == 2
+    assert attributes["probe_level_m_per_s2"] == pytest.approx(0.2)
+    assert attributes["probe_0_frequency_hz"] == 20.0 and attributes["probe_1_frequency_hz"] == 21.0
+    # F_e/X_s of hard-10 at 20 Hz: K* + K_s - w^2 M, about 1.1e6 N/m
+    assert 0.9e6 < attributes["probe_0_dynamic_stiffness_real_n_per_m"] < 1.3e6
+    assert attributes["probe_test_time_s"] == pytest.approx(20 / 20.0 + 20 / 21.0)
+    # the probe is not run data: the run starts at its own first point
+    assert run.points == 5 and run.time_s[0] < 2.0
+
+
+@pytest.mark.parametrize("rig", ["hard-10"], indirect=True)
+@pytest.mark.parametrize(("in_sequence", "option", "status"), [
+    ("reduce", "refuse", 2), ("refuse", "reduce", 0), ("", "reduce", 0),
+])
+def test_the_over_limit_option_overrides_the_sequence(
+    tmp_path, rig, capsys, in_sequence: str, option: str, status: int
+) -> None:
+    defaults = f'over_limit = "{in_sequence}"' if in_sequence else ""
+    sequence, station, out = hard_files(tmp_path, rig, defaults=defaults)
+    assert run_cli(sequence, "--station", station, "--out", out, "--over-limit", option) == status
+    captured = capsys.readouterr()
+    if status == 2:
+        assert '--over-limit is "refuse"' in captured.err
+        assert Campaign.open(out).run_names == []
+    else:
+        assert '--over-limit is "reduce"' in captured.out
+        assert Campaign.open(out).run("hard-10").metadata.level_m_per_s2 < 1.3
+
+
+def test_a_second_run_on_the_same_mounting_is_predicted_from_the_first(tmp_path, rig,
+                                                                         capsys) -> None:
+    sequence, station, out = write_files(tmp_path, rig)
+    text = (tmp_path / "short.toml").read_text()
+    (tmp_path / "short.toml").write_text(
+        text + '[[steps]]\ntype = "sweep"\nrun = "soft-0-level2"\nspecimen = "soft"\n'
+        'band_hz = [20.0, 24.0]\nlevel = "2.8 m/s^2"\n')
+    assert run_cli(sequence, "--station", station, "--out", out) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("newly mounted; probing") == 1
+    found = re.search(r"run 'soft-0-level2': estimated force up to ([\d.]+) N at 20 Hz .*"
+                      r"the specimen of run 'soft-0' \(same mounting\)", printed)
+    assert found, printed
+    campaign = Campaign.open(out)
+    reached = campaign.run("soft-0-level2").force_amplitude[0]
+    assert float(found.group(1)) == pytest.approx(reached, rel=0.05)
+    import h5py
+
+    with h5py.File(out, "r") as h5:
+        assert h5["runs/soft-0"].attrs["probe_points"] == 2
+        assert "probe_points" not in h5["runs/soft-0-level2"].attrs

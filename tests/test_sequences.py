@@ -60,6 +60,16 @@ def test_steps_are_typed_and_defaults_are_overridden() -> None:
     assert sequence.sweep("soft-0") is soft
 
 
+def test_over_limit_comes_from_the_step_then_the_defaults_then_refuse() -> None:
+    assert [step.over_limit for step in parse(document()).sweeps] == ["refuse", "refuse"]
+    doc = change(document(), "defaults.over_limit", "reduce")
+    change(doc, "steps.1.over_limit", "refuse")
+    assert [step.over_limit for step in parse(doc).sweeps] == ["refuse", "reduce"]
+    paper = load_sequence(ROOT / "sequences" / "paper.toml")
+    assert {step.run: step.over_limit for step in paper.sweeps if step.over_limit != "refuse"} \
+        == {"hard-10": "reduce"}
+
+
 @pytest.mark.parametrize(
     ("text", "expected"),
     [("1.5 m/s^2", 1.5), ("15 mm/s^2", 0.015), ("15 cm/s²", 0.15), ("0.15 g", 1.4709975),
@@ -116,6 +126,10 @@ def change(doc: dict, path: str, value: object) -> dict:
         ("steps.4.resolution_hz", 0.001, "steps[4].resolution_hz", "outside"),
         ("steps.4.segment_points", 1601, "steps[4].segment_points", "outside [1, 801]"),
         ("steps.4.tolerance_db", 40.0, "steps[4].tolerance_db", "outside [0.1, 20] dB"),
+        ("defaults.over_limit", "ignore", "defaults.over_limit", "'ignore' is not one of refuse,"
+         " reduce"),
+        ("steps.4.over_limit", True, "steps[4].over_limit", "expected text"),
+        ("steps.0.over_limit", "reduce", "steps[0].over_limit", "unknown key"),
         ("steps.2.run", "soft-0", "steps[2].run", "no earlier sweep"),
         ("steps.2.band_hz", [5.0, 25.0], "steps[2].band_hz", "outside the run's band"),
         ("steps.3.seconds", -5, "steps[3].seconds", "outside"),

@@ -6,13 +6,18 @@ structural protocol that the 35670A driver satisfies; the command line wires a d
 
 from viscorig.acquisition.console import Console, NoAnswer, format_duration
 from viscorig.acquisition.limits import (
+    PROBE_LEVEL_FRACTION,
     ForceEstimate,
+    ProbeReading,
     RigEstimate,
     estimate_force,
+    estimate_force_from_probe,
+    motion_ratio,
     point_flags,
     source_limit_v,
     specimen_from_accelerance,
 )
+from viscorig.acquisition.probe import measure_probe, probe_frequencies_hz, probe_test_time_s
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
 from viscorig.acquisition.runner import (
     OVER_LIMIT_CHOICES,
@@ -35,12 +40,14 @@ from viscorig.acquisition.sweep import (
 
 __all__ = [
     "OVER_LIMIT_CHOICES",
+    "PROBE_LEVEL_FRACTION",
     "Analyser",
     "Console",
     "ForceEstimate",
     "MeasuredSegment",
     "NoAnswer",
     "Outcome",
+    "ProbeReading",
     "RigEstimate",
     "RunResult",
     "RunState",
@@ -56,8 +63,13 @@ __all__ = [
     "Wiring",
     "configure",
     "estimate_force",
+    "estimate_force_from_probe",
     "format_duration",
+    "measure_probe",
+    "motion_ratio",
     "point_flags",
+    "probe_frequencies_hz",
+    "probe_test_time_s",
     "source_limit_v",
     "specimen_from_accelerance",
 ]
