@@ -135,16 +135,23 @@ def points_lost(before: dict, after: dict) -> int:
 
 class DelayedFaults(FaultInjector):
     """Fault injection armed only when the analyser starts its ``after_sweeps + 1``-th sweep,
-    so that ``after_sweeps`` segments are committed before the fault."""
+    so that ``after_sweeps`` segments are committed before the fault.
+
+    Only segment sweeps count: the runner's force probe before a newly mounted run measures
+    single points in manual sweep mode (``SWE:MODE MAN``), which are not segments."""
 
     def __init__(self, analyser, fault: Fault, after_sweeps: int) -> None:
         super().__init__(analyser)
         self.delayed = fault
         self.after_sweeps = after_sweeps
         self.sweeps = 0
+        self.manual = False
 
     def take(self, message: str) -> set[str]:
-        if "INIT" in message.upper() and ":IMM" in message.upper():
+        upper = message.upper()
+        if "SWE:MODE MAN" in upper or "SWE:MODE AUTO" in upper:
+            self.manual = "SWE:MODE MAN" in upper
+        if "INIT" in upper and ":IMM" in upper and not self.manual:
             self.sweeps += 1
             if self.sweeps == self.after_sweeps + 1 and self.delayed is not None:
                 fault, self.delayed = self.delayed, None

@@ -192,9 +192,11 @@ def test_a_level_that_cannot_be_reached_is_flagged_not_hidden(tmp_path: Path) ->
     assert "level not reached" in shown
 
 
-def test_a_force_the_shaker_cannot_give_is_flagged(tmp_path: Path) -> None:
-    """A shaker limit below what the level needs: the drive is limited and the points flagged;
-    no stored force exceeds the limit by more than the flag's slack without its flag."""
+def test_a_force_the_shaker_cannot_give_is_refused_before_the_sweep(tmp_path: Path) -> None:
+    """A shaker limit below what the level needs: the low-level probe before the newly mounted
+    run predicts it, and the run is refused with nothing measured and the source off. (The
+    analyser's input limit, which holds the drive and flags the points when a prediction is
+    wrong, is tested on the sweep layer in test_runner.py.)"""
     with SimulatedAnalyserServer(load_preset("soft-0"), seed=3) as server:
         station = tmp_path / "station.toml"
         station.write_text(station_text(server.socket_resource, force_limit_n=5.0))
@@ -202,12 +204,11 @@ def test_a_force_the_shaker_cannot_give_is_flagged(tmp_path: Path) -> None:
         sequence.write_text(sweep_sequence(segment_points=20))
         path = tmp_path / "campaign.h5"
         status, _, err = cli(["run", sequence, "--station", station, "--out", path, "--yes"])
+        source_on = server.analyser.source.output
     tally.add("faults tried")
-    assert status == 0, err
+    assert status == 2, err
+    line = one_clear_line(err)
+    assert "exceeds the shaker limit 5 N" in line and "from a probe of the mounted rig" in line
     with Campaign.open(path) as campaign:
-        run = campaign.run("soft-0")
-    assert run.flagged().any()
-    over = run.force_amplitude > 5.0 * 1.01
-    assert run.flagged(PointFlag.FORCE_ABOVE_SHAKER_LIMIT)[over].all()
-    limited = run.reference_amplitude < 10 ** (-1.0 / 20)
-    assert run.flagged(PointFlag.LEVEL_NOT_REACHED)[limited].all()
+        assert campaign.run_names == []
+    assert not source_on
