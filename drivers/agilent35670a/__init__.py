@@ -24,7 +24,9 @@ from .errors import (
     SettingOutOfRange,
     WrongInstrument,
 )
-from .instrument import Agilent35670A, Quirks, SweepProgress, SweepSegment
+from .instrument import Agilent35670A
+from .quirks import Quirks
+from .segment import SweepProgress, SweepSegment
 
 __all__ = [
     "IDEMPOTENT_QUERIES",

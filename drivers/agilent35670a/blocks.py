@@ -146,3 +146,24 @@ def interleaved_to_complex(values: np.ndarray, what: str, points: int | None = N
         raise MalformedReply(f"{what}: {values.size} values cannot be (real, imag) pairs")
     check_values(values, what, None if points is None else 2 * points)
     return values[0::2] + 1j * values[1::2]
+
+
+def check_axis(axis: np.ndarray, grid: np.ndarray, resolution: float, resource: str) -> None:
+    """Refuse a frequency axis that is not the requested grid (in either sweep order).
+
+    Finite but wrong X values (a wrong byte order, a stale or shifted reply) would otherwise be
+    stored as frequencies. The axis is still what is returned: it carries the analyser's own
+    rounding, which stays well within half a grid step.
+    """
+    tolerance = 0.5 * resolution
+    for expected in (grid, grid[::-1]):
+        if axis.shape == expected.shape and np.all(np.abs(axis - expected) <= tolerance):
+            return
+    ascending = np.abs(axis - grid) > tolerance if axis.shape == grid.shape else None
+    index = 0 if ascending is None else int(np.flatnonzero(ascending)[0])
+    raise MalformedReply(
+        f"TRAC:X? D1: frequency axis value {index} is {float(axis[index])!r} Hz, off the "
+        f"requested grid {grid[0]:g}..{grid[-1]:g} Hz in {resolution:g} Hz steps (wrong byte "
+        "order, or a stale or damaged reply)",
+        resource,
+    )

@@ -96,3 +96,20 @@ class SCPIError(InstrumentError):
 
 class SettingOutOfRange(ValueError):  # noqa: N818 (names of the driver's API)
     """A value outside the analyser's documented range; refused before anything is sent."""
+
+
+def parse_error_entry(reply: str, resource: str) -> tuple[int, str]:
+    """Parse a ``SYST:ERR?`` reply ``<code>,"<text>"`` into ``(code, text)``.
+
+    Raises
+    ------
+    MalformedReply
+        The code is not an integer.
+    """
+    code_text, _, text = reply.partition(",")
+    try:
+        code = int(code_text.strip())
+    except ValueError:
+        raise MalformedReply(f"SYST:ERR? answered {reply!r}, not <code>,\"<text>\"",
+                             resource) from None
+    return code, text.strip().strip('"')

@@ -1,20 +1,20 @@
 """The Agilent (HP) 35670A in swept-sine mode: settings, one call per measurement, data.
 
 Facts used here come from ``shared/docs/35670a.md``; those marked *inferred* there are gathered
-in :class:`Quirks` so they can be checked on hardware and changed in one place.
+in :class:`Quirks` (:mod:`agilent35670a.quirks`) so they can be checked on hardware and changed in
+one place. What a measurement returns: :mod:`agilent35670a.segment`.
 """
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from .blocks import (
+    check_axis,
     check_values,
     decode_ascii,
     decode_real,
@@ -33,6 +33,7 @@ from .errors import (
     SCPIError,
     SettingOutOfRange,
     WrongInstrument,
+    parse_error_entry,
 )
 from .properties import (
     boolean,
@@ -43,11 +44,24 @@ from .properties import (
     on_off_text,
     one_of,
     parse_bool,
+    parse_channel,
     parse_float,
     parse_int,
+    parse_keyword,
     setting,
     strict_range,
 )
+from .quirks import Quirks
+from .segment import SweepProgress, SweepSegment
+from .validators import (
+    check_data_format,
+    check_feed,
+    check_frequency,
+    check_reference_channel,
+    unit_text,
+)
+
+__all__ = ["Agilent35670A", "Quirks", "SweepProgress", "SweepSegment", "check_feed"]
 
 #: Most points in one swept-sine sweep.
 MAX_POINTS = 801
@@ -63,172 +77,6 @@ ESR_ERRORS = 4 | 8 | 16 | 32
 FIRST_POLL_S = 0.001
 #: ``STAT:OPER:COND?`` bits.
 OPERATION_SETTLING, OPERATION_RANGING, OPERATION_MEASURING = 2, 4, 16
-
-
-class Quirks:
-    """Instrument behaviour that the driver relies on but the manual leaves open (inferred).
-
-    Every item here is our reading, to verify on a real 35670A (``tests/test_hardware_35670a.py``
-    checks the first two).
-    """
-
-    #: ``FORM REAL`` blocks are big-endian (no byte-order command exists).
-    REAL_BIG_ENDIAN = True
-    #: ``SYST:ERR?`` answers ``+0,"No error"`` when the queue is empty (SCPI standard).
-    NO_ERROR_CODE = 0
-    #: Error queue depth: 5 entries plus the overflow entry; more reads than this means a fault.
-    ERROR_QUEUE_READS = 8
-    #: After a sweep, changing ``CALCn:FEED`` shows other data of the same measurement (the
-    #: variance and linear spectra are read that way, through trace A and register D1).
-    FEED_CHANGE_KEEPS_DATA = True
-    #: A real-valued trace (normalized variance) may come as N values or as N (real, 0) pairs.
-    REAL_TRACE_MAY_BE_PAIRED = True
-    #: The analyser rejects a start above the stop frequency, so the order of writing them matters.
-    START_BELOW_STOP = True
-
-
-@dataclass(frozen=True)
-class SweepProgress:
-    """State of a running measurement, passed to the progress callback.
-
-    Attributes
-    ----------
-    elapsed_s
-        Seconds since the measurement started (pauses included).
-    expected_s
-        Settle and integration time of the whole segment from the settings (a lower bound).
-    paused
-        The measurement is paused.
-    settling, ranging, measuring
-        Bits of ``STAT:OPER:COND?`` at this poll.
-    """
-
-    elapsed_s: float
-    expected_s: float
-    paused: bool
-    settling: bool
-    ranging: bool
-    measuring: bool
-
-
-@dataclass(frozen=True)
-class SweepSegment:
-    """Everything the analyser gives for one measured sub-band (or set of manual points).
-
-    Attributes
-    ----------
-    frequency_hz
-        The analyser's own frequency axis (``TRAC:X?``), never computed.
-    frf_21
-        Frequency response channel 2 / channel 1, complex, in channel 2's engineering unit per
-        channel 1's (with the paper's wiring: table accelerance, (m/s²)/N).
-    frf_43
-        Channel 4 / channel 3 (support accelerance, (m/s²)/N), or ``None`` with two channels.
-    amplitude_eu
-        Channel number -> magnitude of its linear spectrum at each point, in that channel's
-        engineering unit (``eu_labels``), as the analyser scales it (peak in swept sine,
-        inferred).
-    variance
-        Channel number -> the analyser's normalized variance of that channel at each point
-        (dimensionless).
-    eu_labels
-        Channel number -> engineering-unit label sent to the analyser (``"N"``, ``"M/S2"``).
-    overload_channels, half_range_channels
-        Channels whose input exceeded its range (or half of it) at any point of this segment
-        (``STAT:QUES:VOLT:EVEN?`` latches over the sweep, so it is known per segment only).
-    started_at_s, finished_at_s
-        Wall-clock times (``time.time()``) at the start and end of the measurement.
-
-    Notes
-    -----
-    The source level used at each point is not readable from the 35670A in swept sine (no
-    command for it in the programming guide), so it is not part of a segment.
-    """
-
-    frequency_hz: np.ndarray
-    frf_21: np.ndarray
-    frf_43: np.ndarray | None
-    amplitude_eu: Mapping[int, np.ndarray]
-    variance: Mapping[int, np.ndarray]
-    eu_labels: Mapping[int, str]
-    overload_channels: tuple[int, ...]
-    half_range_channels: tuple[int, ...]
-    started_at_s: float
-    finished_at_s: float
-    extras: Mapping[str, np.ndarray] = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return int(self.frequency_hz.size)
-
-    @property
-    def variance_21(self) -> np.ndarray | None:
-        """Normalized variance of ``frf_21``: channel 1 and 2 variances added (first order)."""
-        return self._ratio_variance(2, 1)
-
-    @property
-    def variance_43(self) -> np.ndarray | None:
-        """Normalized variance of ``frf_43``: channel 3 and 4 variances added (first order)."""
-        return self._ratio_variance(4, 3)
-
-    def _ratio_variance(self, numerator: int, denominator: int) -> np.ndarray | None:
-        if numerator in self.variance and denominator in self.variance:
-            return self.variance[numerator] + self.variance[denominator]
-        return None
-
-
-def _frequency(value: object, analyser: Agilent35670A) -> float:
-    limit = analyser.max_frequency_hz
-    return strict_range(0.0, limit, "Hz", low_inclusive=False)(value, analyser)
-
-
-def _time_text(unit: str) -> Callable[[float], str]:
-    return lambda value: f"{number_text(value)} {unit}"
-
-
-def _data_format(value: object, analyser: object) -> str:
-    text = str(value).strip().upper().replace(" ", "")
-    if text in {"ASC", "REAL,32", "REAL,64"}:
-        return text
-    if text.startswith("ASC,") and text[4:].isdigit() and 3 <= int(text[4:]) <= 12:
-        return text
-    raise SettingOutOfRange(f"{value!r} is not ASC, ASC,3..12, REAL,32 or REAL,64")
-
-
-def _reference_channel(value: object, analyser: object) -> int:
-    return integer_range(1, 4, "channel")(value, analyser)
-
-
-def _parse_channel(reply: str) -> int:
-    text = reply.strip().strip('"').upper()
-    if text.startswith("INP") and text[3:].isdigit():
-        return int(text[3:])
-    raise MalformedReply(f"expected INP1..INP4, got {reply!r}")
-
-
-def _parse_keyword(reply: str) -> str:
-    return reply.strip().strip('"').upper()
-
-
-#: The swept-sine trace feeds (``CALC1:FEED``): a whitelist, because the feed is sent inside a
-#: quoted string where a ``'`` or ``;`` would end it and inject commands.
-_FEED = re.compile(
-    r"^(XFR:POW:(RAT [1-4],[1-4]|CROS [1-4],[1-4]|LIN [1-4]|VAR [1-4])|XTIM:VOLT [1-4])$"
-)
-
-
-def check_feed(feed: object) -> str:
-    """Return a swept-sine feed in upper case, or raise :class:`SettingOutOfRange`.
-
-    Accepted: ``XFR:POW:RAT a,b``, ``XFR:POW:CROS a,b``, ``XFR:POW:LIN n``, ``XFR:POW:VAR n``,
-    ``XTIM:VOLT n`` with channels 1..4 (coherence is FFT-mode only).
-    """
-    text = str(feed).strip().upper()
-    if not _FEED.match(text):
-        raise SettingOutOfRange(
-            f"feed {feed!r} is not a swept-sine feed (XFR:POW:RAT a,b, XFR:POW:CROS a,b, "
-            "XFR:POW:LIN n, XFR:POW:VAR n, XTIM:VOLT n; channels 1..4)"
-        )
-    return text
 
 
 class Agilent35670A:
@@ -247,20 +95,21 @@ class Agilent35670A:
     label = "35670A"
     placeholders: Mapping[str, object] = {}
 
-    # -- mode and sweep ------------------------------------------------------------------------
+    # -- mode (INSTrument) ---------------------------------------------------------------------
     instrument_mode = control(
         "INST:SEL {value}",
         "INST:SEL?",
         """Measurement mode: ``"SINE"`` (swept sine, option 1D2) or ``"FFT"`` (power-up mode).""",
         validator=one_of(("SINE", "FFT")),
-        parse=_parse_keyword,
+        parse=parse_keyword,
     )
+    # -- frequency span and grid (SENSe:FREQuency) ---------------------------------------------
     start_frequency_hz = control(
         "FREQ:STAR {value} HZ",
         "FREQ:STAR?",
         """Sweep start frequency in Hz, above 0 and up to 51.2 kHz (25.6 kHz with four
         channels); the analyser rounds it to 15.625 mHz.""",
-        validator=_frequency,
+        validator=check_frequency,
         to_text=number_text,
         parse=parse_float,
     )
@@ -268,7 +117,7 @@ class Agilent35670A:
         "FREQ:STOP {value} HZ",
         "FREQ:STOP?",
         """Sweep stop frequency in Hz, same range as :attr:`start_frequency_hz`.""",
-        validator=_frequency,
+        validator=check_frequency,
         to_text=number_text,
         parse=parse_float,
     )
@@ -276,7 +125,7 @@ class Agilent35670A:
         "FREQ:MAN {value} HZ",
         "FREQ:MAN?",
         """Frequency measured in manual sweep mode, in Hz (same range as the start).""",
-        validator=_frequency,
+        validator=check_frequency,
         to_text=number_text,
         parse=parse_float,
     )
@@ -299,50 +148,51 @@ class Agilent35670A:
         to_text=on_off_text,
         parse=parse_bool,
     )
+    # -- sweep timing, order, pairing (SENSe:SWEep, SENSe:REFerence) ---------------------------
     settle_cycles = setting(
         "SWE:STIM {value}",
         """Settle time after each frequency change, in cycles of the source, 0 to 1e6.""",
         validator=strict_range(0.0, 1e6, "cycles"),
-        to_text=_time_text("CYCLE"),
+        to_text=unit_text("CYCLE"),
     )
     settle_s = setting(
         "SWE:STIM {value}",
         """Settle time after each frequency change, in seconds, 0 to 1e5.""",
         validator=strict_range(0.0, 1e5, "s"),
-        to_text=_time_text("S"),
+        to_text=unit_text("S"),
     )
     integrate_cycles = setting(
         "SWE:DWEL {value}",
         """Integration (dwell) time per point in cycles, 1 to 1e6 (and at least 250 µs).""",
         validator=strict_range(1.0, 1e6, "cycles"),
-        to_text=_time_text("CYCLE"),
+        to_text=unit_text("CYCLE"),
     )
     integrate_s = setting(
         "SWE:DWEL {value}",
         """Integration (dwell) time per point in seconds, 250 µs to 1e5 s.""",
         validator=strict_range(250e-6, 1e5, "s"),
-        to_text=_time_text("S"),
+        to_text=unit_text("S"),
     )
     spacing = control(
         "SWE:SPAC {value}",
         "SWE:SPAC?",
         """Point spacing: ``"LIN"`` or ``"LOG"`` (preset LIN).""",
         validator=one_of(("LIN", "LOG")),
-        parse=_parse_keyword,
+        parse=parse_keyword,
     )
     direction = control(
         "SWE:DIR {value}",
         "SWE:DIR?",
         """Sweep direction: ``"UP"`` or ``"DOWN"`` (preset UP).""",
         validator=one_of(("UP", "DOWN")),
-        parse=_parse_keyword,
+        parse=parse_keyword,
     )
     sweep_mode = control(
         "SWE:MODE {value}",
         "SWE:MODE?",
         """``"AUTO"`` sweeps start to stop; ``"MAN"`` measures only :attr:`manual_frequency_hz`.""",
         validator=one_of(("AUTO", "MAN")),
-        parse=_parse_keyword,
+        parse=parse_keyword,
     )
     reference_pairing = control(
         "REF {value}",
@@ -350,18 +200,19 @@ class Agilent35670A:
         """``"PAIR"``: channel 1 is the reference of 2 and channel 3 of 4; ``"SING"``: channel 1
         is the reference of all.""",
         validator=one_of(("PAIR", "SING")),
-        parse=_parse_keyword,
+        parse=parse_keyword,
     )
+    # -- data format of trace queries (FORMat) -------------------------------------------------
     data_format = control(
         "FORM {value}",
         "FORM?",
         """Data format of trace queries: ``"REAL,64"`` (default here), ``"REAL,32"``, ``"ASC"``
         or ``"ASC,<3..12 digits>"``.""",
-        validator=_data_format,
-        parse=_parse_keyword,
+        validator=check_data_format,
+        parse=parse_keyword,
     )
 
-    # -- source and auto level -----------------------------------------------------------------
+    # -- source and auto level (OUTPut, SOURce) ------------------------------------------------
     source_enabled = control(
         "OUTP {value}",
         "OUTP?",
@@ -398,8 +249,8 @@ class Agilent35670A:
         "SOUR:VOLT:REF:CHAN INP{value}",
         "SOUR:VOLT:REF:CHAN?",
         """Channel (1..4) the auto-level controller holds at the reference level (preset 2).""",
-        validator=_reference_channel,
-        parse=_parse_channel,
+        validator=check_reference_channel,
+        parse=parse_channel,
     )
     auto_level_reference_eu = setting(
         "SOUR:VOLT:REF {value} EU",
@@ -443,7 +294,7 @@ class Agilent35670A:
         to_text=number_text,
     )
 
-    # -- read-only -----------------------------------------------------------------------------
+    # -- read-only (*IDN?, STATus) -------------------------------------------------------------
     identity = measurement("*IDN?", """``*IDN?`` reply (names a 35670A).""")
     operation_condition = measurement(
         "STAT:OPER:COND?",
@@ -451,7 +302,7 @@ class Agilent35670A:
         parse=parse_int,
     )
 
-    # -----------------------------------------------------------------------------------------
+    # -- opening and closing ------------------------------------------------------------------
     def __init__(self, connection: Connection) -> None:
         self.connection = connection
         self.sent: dict[str, object] = {}
@@ -532,7 +383,7 @@ class Agilent35670A:
         entries: list[tuple[int, str]] = []
         for _ in range(Quirks.ERROR_QUEUE_READS):
             reply = self.connection.query("SYST:ERR?")
-            code, text = _parse_error(reply, self.resource)
+            code, text = parse_error_entry(reply, self.resource)
             if code == Quirks.NO_ERROR_CODE:
                 return entries
             entries.append((code, text))
@@ -767,7 +618,7 @@ class Agilent35670A:
         self.resolution_hz = resolution
         grid = start + float(resolution) * np.arange(points)
         segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
-        _check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
+        check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
         return segment
 
     def measure_point(
@@ -784,7 +635,7 @@ class Agilent35670A:
         The point is picked from the traces by the analyser's own frequency axis (the entry
         nearest ``frequency_hz``); arguments as in :meth:`measure`.
         """
-        frequency = _frequency(frequency_hz, self)
+        frequency = check_frequency(frequency_hz, self)
         self.sweep_mode = "MAN"
         self.manual_frequency_hz = frequency
         segment = self._run(
@@ -809,8 +660,8 @@ class Agilent35670A:
         self, start_hz: float, stop_hz: float, resolution_hz: float
     ) -> tuple[float, float, int]:
         """Validate a band on a linear grid; return start, stop and the number of points."""
-        start = _frequency(start_hz, self)
-        stop = _frequency(stop_hz, self)
+        start = check_frequency(start_hz, self)
+        stop = check_frequency(stop_hz, self)
         if stop <= start:
             raise SettingOutOfRange(f"stop {stop:g} Hz must be above start {start:g} Hz")
         points = round((stop - start) / resolution_hz) + 1
@@ -1049,37 +900,3 @@ class Agilent35670A:
         overload = tuple(ch for ch in range(1, 5) if bits & (1 << (ch - 1)))
         half_range = tuple(ch for ch in range(1, 5) if bits & (1 << (ch + 7)))
         return overload, half_range
-
-
-def _check_axis(axis: np.ndarray, grid: np.ndarray, resolution: float, resource: str) -> None:
-    """Refuse a frequency axis that is not the requested grid (in either sweep order).
-
-    Finite but wrong X values (a wrong byte order, a stale or shifted reply) would otherwise be
-    stored as frequencies. The axis is still what is returned: it carries the analyser's own
-    rounding, which stays well within half a grid step.
-    """
-    tolerance = 0.5 * resolution
-    for expected in (grid, grid[::-1]):
-        if axis.shape == expected.shape and np.all(np.abs(axis - expected) <= tolerance):
-            return
-    ascending = np.abs(axis - grid) > tolerance if axis.shape == grid.shape else None
-    index = 0 if ascending is None else int(np.flatnonzero(ascending)[0])
-    raise MalformedReply(
-        f"TRAC:X? D1: frequency axis value {index} is {float(axis[index])!r} Hz, off the "
-        f"requested grid {grid[0]:g}..{grid[-1]:g} Hz in {resolution:g} Hz steps (wrong byte "
-        "order, or a stale or damaged reply)",
-        resource,
-    )
-
-
-def _parse_error(reply: str, resource: str) -> tuple[int, str]:
-    code_text, _, text = reply.partition(",")
-    try:
-        code = int(code_text.strip())
-    except ValueError:
-        raise MalformedReply(f"SYST:ERR? answered {reply!r}, not <code>,\"<text>\"",
-                             resource) from None
-    return code, text.strip().strip('"')
-
-
-__all__ = ["Agilent35670A", "Quirks", "SweepProgress", "SweepSegment"]

@@ -58,6 +58,19 @@ def parse_int(reply: str) -> int:
     return int(value)
 
 
+def parse_keyword(reply: str) -> str:
+    """Parse a keyword reply (``SINE``, ``"LIN"``): unquoted, upper case."""
+    return reply.strip().strip('"').upper()
+
+
+def parse_channel(reply: str) -> int:
+    """Parse a channel reply ``INP1`` .. ``INP4`` into its number."""
+    text = parse_keyword(reply)
+    if text.startswith("INP") and text[3:].isdigit():
+        return int(text[3:])
+    raise MalformedReply(f"expected INP1..INP4, got {reply!r}")
+
+
 # -- validators: (value, owner) -> value as it will be sent ----------------------------------
 def strict_range(low: float, high: float, unit: str, *, low_inclusive: bool = True) -> Validator:
     """Accept a real number in ``[low, high]`` (or ``(low, high]``), unit named in messages."""

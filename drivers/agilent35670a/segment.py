@@ -1,0 +1,99 @@
+"""What one measurement gives back: a sweep segment's data, and progress while it runs."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["SweepProgress", "SweepSegment"]
+
+
+@dataclass(frozen=True)
+class SweepProgress:
+    """State of a running measurement, passed to the progress callback.
+
+    Attributes
+    ----------
+    elapsed_s
+        Seconds since the measurement started (pauses included).
+    expected_s
+        Settle and integration time of the whole segment from the settings (a lower bound).
+    paused
+        The measurement is paused.
+    settling, ranging, measuring
+        Bits of ``STAT:OPER:COND?`` at this poll.
+    """
+
+    elapsed_s: float
+    expected_s: float
+    paused: bool
+    settling: bool
+    ranging: bool
+    measuring: bool
+
+
+@dataclass(frozen=True)
+class SweepSegment:
+    """Everything the analyser gives for one measured sub-band (or set of manual points).
+
+    Attributes
+    ----------
+    frequency_hz
+        The analyser's own frequency axis (``TRAC:X?``), never computed.
+    frf_21
+        Frequency response channel 2 / channel 1, complex, in channel 2's engineering unit per
+        channel 1's (with the paper's wiring: table accelerance, (m/s²)/N).
+    frf_43
+        Channel 4 / channel 3 (support accelerance, (m/s²)/N), or ``None`` with two channels.
+    amplitude_eu
+        Channel number -> magnitude of its linear spectrum at each point, in that channel's
+        engineering unit (``eu_labels``), as the analyser scales it (peak in swept sine,
+        inferred).
+    variance
+        Channel number -> the analyser's normalized variance of that channel at each point
+        (dimensionless).
+    eu_labels
+        Channel number -> engineering-unit label sent to the analyser (``"N"``, ``"M/S2"``).
+    overload_channels, half_range_channels
+        Channels whose input exceeded its range (or half of it) at any point of this segment
+        (``STAT:QUES:VOLT:EVEN?`` latches over the sweep, so it is known per segment only).
+    started_at_s, finished_at_s
+        Wall-clock times (``time.time()``) at the start and end of the measurement.
+
+    Notes
+    -----
+    The source level used at each point is not readable from the 35670A in swept sine (no
+    command for it in the programming guide), so it is not part of a segment.
+    """
+
+    frequency_hz: np.ndarray
+    frf_21: np.ndarray
+    frf_43: np.ndarray | None
+    amplitude_eu: Mapping[int, np.ndarray]
+    variance: Mapping[int, np.ndarray]
+    eu_labels: Mapping[int, str]
+    overload_channels: tuple[int, ...]
+    half_range_channels: tuple[int, ...]
+    started_at_s: float
+    finished_at_s: float
+    extras: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.frequency_hz.size)
+
+    @property
+    def variance_21(self) -> np.ndarray | None:
+        """Normalized variance of ``frf_21``: channel 1 and 2 variances added (first order)."""
+        return self._ratio_variance(2, 1)
+
+    @property
+    def variance_43(self) -> np.ndarray | None:
+        """Normalized variance of ``frf_43``: channel 3 and 4 variances added (first order)."""
+        return self._ratio_variance(4, 3)
+
+    def _ratio_variance(self, numerator: int, denominator: int) -> np.ndarray | None:
+        if numerator in self.variance and denominator in self.variance:
+            return self.variance[numerator] + self.variance[denominator]
+        return None
