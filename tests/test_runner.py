@@ -361,3 +361,28 @@ def test_a_second_run_on_the_same_mounting_is_predicted_from_the_first(tmp_path,
     with h5py.File(out, "r") as h5:
         assert h5["runs/soft-0"].attrs["probe_points"] == 2
         assert "probe_points" not in h5["runs/soft-0-level2"].attrs
+
+
+def test_a_fault_during_the_probe_stops_before_the_run_and_resume_probes_again(
+    tmp_path, rig, capsys
+) -> None:
+    sequence, station, out = write_files(tmp_path, rig)
+    seen = []
+
+    def fault_on_the_first_probe_point(count: int) -> None:
+        seen.append(count)
+        if len(seen) == 1:
+            rig.analyser.push_error(-310, "System error; hardware fault")
+
+    rig.analyser.on_point = fault_on_the_first_probe_point
+    assert run_cli(sequence, "--station", station, "--out", out) == 3
+    captured = capsys.readouterr()
+    assert "newly mounted; probing" in captured.out
+    assert "hardware fault" in captured.err and "before run 'soft-0' started" in captured.err
+    assert Campaign.open(out).run_names == []
+    assert rig.analyser.source.output is False
+
+    rig.analyser.on_point = None
+    assert main(["resume", out, "--yes"]) == 0
+    assert "newly mounted; probing" in capsys.readouterr().out
+    assert Campaign.open(out).run("soft-0").points == 17
