@@ -16,15 +16,15 @@ import json
 import shlex
 
 from viscorig.cli import summary_of
-from viscorig.cli.identify import FRF_CHOICES, parse_band
+from viscorig.cli.arguments import parse_band
+from viscorig.cli.identify import FRF_CHOICES
 from viscorig.diagnosis import DEFAULT_MODEL, Diagnosis, diagnose_run
 from viscorig.storage import Campaign
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``diagnose`` command."""
-    parser = subparsers.add_parser("diagnose", help=summary_of("diagnose")
-    )
+    parser = subparsers.add_parser("diagnose", help=summary_of("diagnose"))
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--run", required=True, help="run name, e.g. hard-10")
     parser.add_argument(

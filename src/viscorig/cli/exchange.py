@@ -44,7 +44,8 @@ def _paragraph(index: int) -> str:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``export`` and ``import`` commands."""
-    export = subparsers.add_parser("export", help=summary_of("export"),
+    export = subparsers.add_parser(
+        "export", help=summary_of("export"),
         description=_paragraph(1), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     export.add_argument("file", help="campaign file (.h5)")
@@ -57,7 +58,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "instead of binary 58 (exact doubles)")
     export.set_defaults(handler=export_handler)
 
-    imports = subparsers.add_parser("import", help=summary_of("import"),
+    imports = subparsers.add_parser(
+        "import", help=summary_of("import"),
         description=_paragraph(2),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

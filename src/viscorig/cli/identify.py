@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 
 from viscorig.cli import summary_of
-from viscorig.errors import InputError
+from viscorig.cli.arguments import parse_band
 from viscorig.fitting import FitResult
 from viscorig.identify import TableSource, identify_run, store_fit
 from viscorig.storage import Campaign
@@ -20,26 +19,9 @@ from viscorig.storage import Campaign
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
 
 
-def parse_band(text: str | None) -> tuple[float, float] | None:
-    """``"LO:HI"`` in Hz -> ``(lo, hi)``; :class:`InputError` naming the value when malformed."""
-    if text is None:
-        return None
-    parts = text.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        lo, hi = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise InputError(f"'{text}' is not LO:HI in Hz (for example 20:120)", "--band") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise InputError(f"'{text}' needs 0 <= LO < HI", "--band")
-    return lo, hi
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` command."""
-    parser = subparsers.add_parser("identify", help=summary_of("identify")
-    )
+    parser = subparsers.add_parser("identify", help=summary_of("identify"))
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--run", required=True, help="run name, e.g. soft-0")
     parser.add_argument(

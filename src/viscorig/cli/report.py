@@ -12,14 +12,15 @@ import argparse
 from pathlib import Path
 
 from viscorig.cli import summary_of
-from viscorig.cli.identify import parse_band
+from viscorig.cli.arguments import parse_band
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``report`` command."""
-    parser = subparsers.add_parser("report", help=summary_of("report"),
+    parser = subparsers.add_parser(
+        "report", help=summary_of("report"),
         description=(__doc__ or "").split("\n\n", 1)[1].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", help="campaign file (.h5)")

@@ -30,19 +30,10 @@ from viscorig.acquisition import (
     RunnerOptions,
 )
 from viscorig.cli import summary_of
+from viscorig.cli.arguments import positive_number
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import Sequence, load_sequence, parse_sequence, parse_station
 from viscorig.storage import Campaign
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-    return value
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
@@ -54,14 +45,15 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "sweep and overrides the sequence; otherwise each sweep's over_limit "
                         "(its step, else [defaults]) applies, and 'refuse' when the sequence "
                         "says nothing")
-    parser.add_argument("--sim-pace", type=_positive, default=None, metavar="X",
+    parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``run`` and ``resume`` commands."""
-    run = subparsers.add_parser("run", help=summary_of("run"),
+    run = subparsers.add_parser(
+        "run", help=summary_of("run"),
         description="Run a test sequence (TOML) and record every sweep into a new campaign "
         "file. Without --station, the embedded simulated rig and analyser are used.")
     run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
@@ -73,7 +65,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _common(run)
     run.set_defaults(handler=run_command)
 
-    resume = subparsers.add_parser("resume", help=summary_of("resume"),
+    resume = subparsers.add_parser(
+        "resume", help=summary_of("resume"),
         description="Continue the sequence stored in a campaign file: the interrupted run "
         "from its first missing point, then the remaining steps.")
     resume.add_argument("file", metavar="FILE.h5", help="campaign file")

@@ -11,13 +11,16 @@ import argparse
 import sys
 from typing import Any
 
+from viscorig.cli import summary_of
+from viscorig.cli.arguments import positive_number
 from viscorig.errors import InputError
 
 
 def register(subparsers: Any) -> None:
     """Add ``sim serve`` to the command line."""
-    sim = subparsers.add_parser("sim", help="simulated rig and analyser",
-                                description="Simulated rig and virtual 35670A analyser.")
+    sim = subparsers.add_parser(
+        "sim", help=summary_of("sim"), description="Simulated rig and virtual 35670A analyser."
+    )
     commands = sim.add_subparsers(title="commands", dest="sim_command", required=True)
     serve = commands.add_parser(
         "serve",
@@ -38,7 +41,7 @@ def register(subparsers: Any) -> None:
                        help="port of the Prologix endpoint (default: a free port)")
     serve.add_argument("--pty", action="store_true",
                        help="also serve a Prologix GPIB-USB adapter on a pseudo-terminal")
-    serve.add_argument("--pace", type=_positive, default=None, metavar="X",
+    serve.add_argument("--pace", type=positive_number, default=None, metavar="X",
                        help="simulated seconds per wall-clock second (default: as fast as "
                        "possible)")
     serve.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
@@ -60,16 +63,6 @@ def _port(text: str) -> int:
         raise argparse.ArgumentTypeError(f"port must be an integer, got {text!r}") from None
     if not 0 <= value <= 65535:
         raise argparse.ArgumentTypeError(f"port must be 0..65535, got {value}")
-    return value
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
     return value
 
 

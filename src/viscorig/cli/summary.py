@@ -11,7 +11,7 @@ import argparse
 import math
 
 from viscorig.cli import summary_of
-from viscorig.cli.identify import parse_band
+from viscorig.cli.arguments import parse_band
 from viscorig.identify import PAPER_BAND_HZ, RunSummary, TableSource, summarize
 from viscorig.paper import (
     PAPER_TABLE_1,
@@ -24,8 +24,7 @@ from viscorig.storage import Campaign
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``summary`` command."""
-    parser = subparsers.add_parser("summary", help=summary_of("summary")
-    )
+    parser = subparsers.add_parser("summary", help=summary_of("summary"))
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument(
         "--band", default=None, help="band fitted, LO:HI in Hz (default: the paper's 20:120)"

@@ -1,0 +1,35 @@
+"""Parsers of command-line values shared by several commands."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from viscorig.errors import InputError
+
+
+def positive_number(text: str) -> float:
+    """An ``argparse`` type: a number above zero."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def parse_band(text: str | None) -> tuple[float, float] | None:
+    """``"LO:HI"`` in Hz -> ``(lo, hi)``; :class:`InputError` naming the value when malformed."""
+    if text is None:
+        return None
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        lo, hi = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"'{text}' is not LO:HI in Hz (for example 20:120)", "--band") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+        raise InputError(f"'{text}' needs 0 <= LO < HI", "--band")
+    return lo, hi
