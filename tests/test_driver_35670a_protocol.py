@@ -28,6 +28,7 @@ from agilent35670a.blocks import (
 )
 from agilent35670a.connection import is_idempotent
 from agilent35670a.scripted import ScriptedSCPIServer
+from scpi_blocks import canned_trace, definite_block
 
 IDN = "HEWLETT-PACKARD,35670A,3416A01234,A.02.01"
 SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
@@ -35,26 +36,9 @@ FREQUENCIES = np.array([10.0, 10.25, 10.5, 10.75, 11.0])
 FRF_21 = np.array([1 + 2j, -0.5 + 0.25j, 3e-3 - 1e2j, 0.1 + 0.1j, -7.0 + 0j])
 
 
-def real64_block(values: np.ndarray) -> bytes:
-    payload = np.asarray(values, dtype=">f8").tobytes()
-    length = str(len(payload)).encode()
-    return b"#" + str(len(length)).encode() + length + payload + b"\n"
-
-
-def interleave(values: np.ndarray) -> np.ndarray:
-    out = np.empty(2 * values.size)
-    out[0::2], out[1::2] = values.real, values.imag
-    return out
-
-
 def trace_for(feed: str) -> np.ndarray:
     """Data of each feed: FRFs and linear spectra complex (interleaved), variances real."""
-    kind, _, argument = feed.partition(" ")
-    if kind == "XFR:POW:RAT":
-        return interleave(FRF_21 if argument == "2,1" else 2 * FRF_21)
-    if kind == "XFR:POW:LIN":
-        return interleave((3 + 4j) * int(argument) * np.ones(FREQUENCIES.size))
-    return np.full(FREQUENCIES.size, 1e-4 * int(argument))
+    return canned_trace(feed, FRF_21)
 
 
 class Analyser(ScriptedSCPIServer):
@@ -83,7 +67,7 @@ class Analyser(ScriptedSCPIServer):
         formats = [c.upper() for c in self.commands(0) if c.upper().startswith("FORM ")]
         if formats and formats[-1].startswith("FORM ASC"):
             return ",".join(f"{v:+.12E}" for v in values)
-        return real64_block(values)
+        return definite_block(values)
 
 
 def open_analyser(server: ScriptedSCPIServer, timeout_s: float = 1.0) -> Agilent35670A:
@@ -107,7 +91,7 @@ def configured(server: Analyser, **overrides) -> Agilent35670A:
 # -- decoding ----------------------------------------------------------------------------------
 def test_real64_and_ascii_decode_to_the_same_values() -> None:
     values = np.array([1.0, -2.5e-7, 3.25e4, 0.1, np.pi])
-    from_block = decode_real(split_definite_block(real64_block(values)))
+    from_block = decode_real(split_definite_block(definite_block(values)))
     from_ascii = decode_ascii(",".join(f"{v:+.15E}" for v in values))
     np.testing.assert_array_equal(from_block, values)
     np.testing.assert_allclose(from_ascii, values, rtol=1e-15)
@@ -339,7 +323,7 @@ def test_a_band_of_more_than_801_points_is_refused_before_sending() -> None:
 
 def test_wrong_point_count_in_a_trace_is_malformed() -> None:
     with Analyser() as server, configured(server) as analyser:
-        server.replies["TRAC:DATA? D1"] = lambda message: real64_block(np.ones(8))
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(np.ones(8))
         with pytest.raises(MalformedReply, match=r"XFR:POW:RAT 2,1\): expected 10 values, got 8"):
             analyser.measure(10.0, 11.0, poll_interval_s=0.01)
         assert server.commands()[-1] == "OUTP OFF"
@@ -407,10 +391,10 @@ def test_the_prologix_path_configures_the_adapter_and_carries_binary_blocks() ->
         assert analyser.resource == "GPIB3::11::INSTR"
         # a block whose payload holds line feeds and '+' survives the adapter's framing
         tricky = np.frombuffer(b"\n+\x1b\r" * 4, dtype=">f8").astype(float)
-        server.replies["TRAC:X? D1"] = lambda message: real64_block(tricky)
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(tricky)
         np.testing.assert_array_equal(analyser.read_values("TRAC:X? D1"), tricky)
         segment_server = server
-        segment_server.replies["TRAC:X? D1"] = lambda message: real64_block(FREQUENCIES)
+        segment_server.replies["TRAC:X? D1"] = lambda message: definite_block(FREQUENCIES)
         check_segment(analyser.measure(10.0, 11.0, poll_interval_s=0.01))
     assert server.adapter_commands[:7] == [
         "++mode 1", "++auto 0", "++read_tmo_ms 50", "++eos 3", "++eoi 1", "++eot_enable 0",

@@ -22,6 +22,7 @@ from agilent35670a import Agilent35670A, InstrumentError, MalformedReply
 from agilent35670a.scripted import ScriptedSCPIServer
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
+from scpi_blocks import canned_trace, definite_block
 
 IDN = "HEWLETT-PACKARD,35670A,3416A01234,A.02.01"
 SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
@@ -30,25 +31,8 @@ FREQUENCIES = START_HZ + RESOLUTION_HZ * np.arange(5)
 FRF_21 = np.array([1 + 2j, -0.5 + 0.25j, 3e-3 - 1e2j, 0.1 + 0.1j, -7.0 + 0j])
 
 
-def block(values: np.ndarray, dtype: str = ">f8") -> bytes:
-    payload = np.asarray(values, dtype=dtype).tobytes()
-    length = str(len(payload)).encode()
-    return b"#" + str(len(length)).encode() + length + payload + b"\n"
-
-
-def interleave(values: np.ndarray) -> np.ndarray:
-    out = np.empty(2 * values.size)
-    out[0::2], out[1::2] = values.real, values.imag
-    return out
-
-
 def true_trace(feed: str) -> np.ndarray:
-    kind, _, argument = feed.partition(" ")
-    if kind == "XFR:POW:RAT":
-        return interleave(FRF_21 if argument == "2,1" else 2 * FRF_21)
-    if kind == "XFR:POW:LIN":
-        return interleave((3 + 4j) * int(argument) * np.ones(FREQUENCIES.size))
-    return np.full(FREQUENCIES.size, 1e-4 * int(argument))
+    return canned_trace(feed, FRF_21)
 
 
 # -- damage ---------------------------------------------------------------------------------------
@@ -66,20 +50,20 @@ TARGETS = ("TRAC:X? D1", "XFR:POW:RAT 2,1", "XFR:POW:RAT 4,3", "XFR:POW:LIN 1", 
 
 def damage_block(values: np.ndarray, how: str, junk: bytes) -> bytes:
     if how == "short":  # header declares more bytes than follow: the read waits, then times out
-        good = block(values)
+        good = definite_block(values)
         return good[:-9] + b"\n"
     if how == "long":
-        return block(values)[:-1] + junk[:8] + b"\n"
+        return definite_block(values)[:-1] + junk[:8] + b"\n"
     if how in ("nan", "scpi_nan", "inf"):
         bad = values.copy()
         bad[len(bad) // 2] = {"nan": np.nan, "scpi_nan": 9.91e37, "inf": -np.inf}[how]
-        return block(bad)
+        return definite_block(bad)
     if how == "fewer":
-        return block(values[:-2])
+        return definite_block(values[:-2])
     if how == "more":
-        return block(np.concatenate([values, values[:2]]))
+        return definite_block(np.concatenate([values, values[:2]]))
     if how == "odd":
-        return block(values[:-1])
+        return definite_block(values[:-1])
     if how == "garbage":
         return junk.replace(b"\n", b"") + b"\n"
     if how == "ascii":
@@ -87,10 +71,10 @@ def damage_block(values: np.ndarray, how: str, junk: bytes) -> bytes:
     if how == "empty":
         return b"\n"
     if how == "little_endian":
-        return block(values, "<f8")
+        return definite_block(values, "<f8")
     if how == "shifted":
-        return block(values + 7.0)
-    return block(values) + junk[:4].replace(b"\n", b"") + b"\n"
+        return definite_block(values + 7.0)
+    return definite_block(values) + junk[:4].replace(b"\n", b"") + b"\n"
 
 
 def damage_text(good: str, how: str, junk: bytes) -> bytes:
@@ -145,7 +129,9 @@ class DamagedAnalyser(ScriptedSCPIServer):
         return damage_text(good, self.how, self.junk) if self._hit(what) else good
 
     def data(self, what: str, values: np.ndarray) -> bytes:
-        return damage_block(values, self.how, self.junk) if self._hit(what) else block(values)
+        if self._hit(what):
+            return damage_block(values, self.how, self.junk)
+        return definite_block(values)
 
 
 def measure_with(server: DamagedAnalyser):
