@@ -107,7 +107,11 @@ class FitResult:
         return self.model.kstar(Context(np.asarray(frequency_hz, dtype=float)), self.values)
 
     def to_json(self, run: str) -> dict[str, Any]:
-        """The ``identify --json`` object of design.md (plus ``frfs``)."""
+        """The ``identify --json`` object of design.md (plus ``frfs``).
+
+        A parameter held fixed in this fit (the table's, taken from the bare-table run) has
+        ``stderr`` null: it was not estimated here, and 0 would read as exactly known.
+        """
         return {
             "run": run,
             "model": self.spec,
@@ -117,7 +121,11 @@ class FitResult:
             "rms_error": float(self.rms_error),
             "noise_floor": float(self.noise_floor),
             "parameters": {
-                name: {"value": float(e.value), "stderr": float(e.stderr), "unit": e.unit}
+                name: {
+                    "value": float(e.value),
+                    "stderr": float(e.stderr) if name in self.free else None,
+                    "unit": e.unit,
+                }
                 for name, e in self.parameters.items()
             },
         }
