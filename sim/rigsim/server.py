@@ -29,7 +29,7 @@ import select
 import socket
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from rigsim.analyser import (
@@ -65,23 +65,28 @@ def _quickack(sock: socket.socket) -> None:
 # raw SCPI socket
 
 
+def _received(conn: socket.socket, *, quickack: bool = False) -> Iterator[bytes]:
+    """What the peer sends, chunk by chunk, until it closes the connection or the socket fails."""
+    while True:
+        try:
+            data = conn.recv(65536)
+        except OSError:
+            return
+        if not data:
+            return
+        if quickack:
+            _quickack(conn)
+        yield data
+
+
 def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInjector) -> None:
     session = analyser.session()
     buffer = b""
     with conn:
-        while True:
-            try:
-                data = conn.recv(65536)
-            except OSError:
-                return
-            if not data:
-                return
+        for data in _received(conn):
             buffer += data
-            while True:
-                end = buffer.find(b"\n")
-                if end < 0:
-                    break
-                line, buffer = buffer[:end], buffer[end + 1:]
+            while b"\n" in buffer:
+                line, _, buffer = buffer.partition(b"\n")
                 text = line.decode("latin-1").rstrip("\r")
                 kinds = faults.take(text)
                 if "drop" in kinds:
@@ -552,15 +557,10 @@ class SimulatedAnalyserServer:
         with self._lock:
             self._adapters.append(adapter)
         try:
-            while not dropped.is_set():
-                try:
-                    data = conn.recv(65536)
-                except OSError:
-                    return
-                if not data:
-                    return
-                _quickack(conn)
+            for data in _received(conn, quickack=True):
                 adapter.feed(data)
+                if dropped.is_set():
+                    break
         finally:
             adapter.close()
             with self._lock:
