@@ -46,9 +46,8 @@ from viscorig.sequences.steps import (
     SweepStep,
     WaitStep,
 )
+from viscorig.storage import layout
 
-#: Run names become HDF5 group names in the campaign file.
-RUN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}$")
 PRESET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 
 SWEEP_FIELDS = (
@@ -178,8 +177,8 @@ def _band(fields: TableReader, key: str) -> tuple[float, float]:
 
 def _parse_sweep(fields: TableReader) -> SweepStep:
     run = fields.text("run")
-    if not RUN_NAME.match(run):
-        raise fields.fail("run", f"{run!r}: use letters, digits, '.', '_', '+', '-' (at most 64)")
+    if not layout.NAME.match(run):  # run names become HDF5 group names in the campaign file
+        raise fields.fail("run", f"{run!r}: use {layout.NAME_RULE}")
     specimen = fields.text("specimen")
     band = _band(fields, "band_hz")
     resolution = fields.number("resolution_hz", low=MIN_RESOLUTION_HZ, high=1000.0, unit="Hz")

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import re
 from collections.abc import Iterator, Mapping
 from dataclasses import asdict
 from datetime import UTC, datetime
@@ -35,8 +34,6 @@ from viscorig.storage import layout, reading
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import Fit, Run, RunSettings, Segment
 
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}$")
-
 
 def utc_now() -> str:
     """The current time as ISO 8601 UTC, to the second (``2024-05-01T12:00:00Z``)."""
@@ -45,10 +42,8 @@ def utc_now() -> str:
 
 def check_name(name: str, what: str) -> str:
     """A run or parameter name usable as an HDF5 object name."""
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise InputError(
-            f"{name!r} is not a valid name (letters, digits, '.', '_', '+', '-'; at most 64)", what
-        )
+    if not isinstance(name, str) or not layout.NAME.match(name):
+        raise InputError(f"{name!r} is not a valid name ({layout.NAME_RULE})", what)
     return name
 
 

@@ -5,7 +5,12 @@ Reading and writing both use these tables, so the contract is written down once.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+
+#: Run, fit-parameter and attribute names: they become HDF5 object names.
+NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}$")
+NAME_RULE = "letters, digits, '.', '_', '+', '-'; at most 64"
 
 FORMAT_NAME = "viscorig"
 FORMAT_VERSION = 1
