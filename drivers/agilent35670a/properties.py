@@ -210,12 +210,6 @@ class Control:
         instance.configure(command)
         instance.sent[self.name] = checked
 
-    def command_for(self, instance: Any, value: Any) -> str:
-        """The command a valid ``value`` would send (for tests and logs)."""
-        return self.set_command.format(
-            value=self.to_text(self.validator(value, instance)), **instance.placeholders
-        )
-
 
 def control(
     set_command: str,

@@ -199,16 +199,6 @@ class ModalSystem:
         """Real state of modal coordinates."""
         return (self.vectors @ modal).real
 
-    def frequency_response(self, omega: np.ndarray) -> np.ndarray:
-        """Channel phasors per newton of source force, shape ``(points, 4)``."""
-        p_plus = self.b_modal / (1j * omega[:, None] - self.eigenvalues)
-        return p_plus @ self.c_modal.T + self.space.d
-
-    def relative_response(self, omega: np.ndarray) -> np.ndarray:
-        """Displacement phasor across the specimens per newton, shape ``(points,)``."""
-        p_plus = self.b_modal / (1j * omega[:, None] - self.eigenvalues)
-        return p_plus @ self.relative_modal
-
     def free_decay(self, state: np.ndarray, duration_s: float) -> np.ndarray:
         """State after ``duration_s`` with no source."""
         return self.to_state(np.exp(self.eigenvalues * duration_s) * self.to_modal(state))

@@ -140,10 +140,6 @@ class ForceEstimate:
         """A level whose estimated peak force is :data:`REDUCE_MARGIN` of the limit."""
         return level_m_per_s2 * REDUCE_MARGIN * force_limit_n / self.peak_n
 
-    def force_at(self, frequency_hz: float) -> float:
-        """Estimated force at the grid point nearest ``frequency_hz``, N."""
-        return float(self.force_n[int(np.argmin(np.abs(self.frequency_hz - frequency_hz)))])
-
 
 def estimate_force(
     frequency_hz: ArrayLike, level_m_per_s2: float, rig: RigEstimate

@@ -55,7 +55,7 @@ from viscorig.acquisition.sweep import (
     Wiring,
     configure,
 )
-from viscorig.errors import InputError, InstrumentError
+from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     OVER_LIMIT_CHOICES,
     IdentifyTableStep,
@@ -697,11 +697,3 @@ def _probe_attributes(estimate: ForceEstimate) -> dict[str, str | float | int]:
             f"probe_{i}_flags": probe.flags,
         })
     return attributes
-
-
-def check_over_limit(value: str) -> str:
-    """Validate an ``--over-limit`` choice."""
-    if value not in OVER_LIMIT_CHOICES:
-        raise InputError(f"{value!r} is not one of {', '.join(OVER_LIMIT_CHOICES)}",
-                         "--over-limit")
-    return value

@@ -87,11 +87,6 @@ class DiagnosisData:
         """``sqrt(mean σ_i²)`` over every point of every FRF: the rms a perfect model reaches."""
         return float(np.sqrt(np.mean(np.concatenate(list(self.noise_power.values())))))
 
-    @property
-    def fit_options(self) -> dict[str, object]:
-        """Keyword arguments of :func:`viscorig.fitting.fit` for these data."""
-        return {"frfs": self.frfs, "fixed": dict(self.table or {})}
-
 
 def _direction(frequency_hz: NDArray[np.float64]) -> str:
     return "down" if frequency_hz.size > 1 and frequency_hz[-1] < frequency_hz[0] else "up"

@@ -26,11 +26,6 @@ DISPLACEMENT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 FORCE_UNITS = {"n": 1.0, "kn": 1e3, "lbf": POUND_FORCE_N, "lb": POUND_FORCE_N}
 #: frequency label -> factor to Hz
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "1/s": 1.0}
-#: accelerance label -> factor to m/s²/N
-ACCELERANCE_UNITS = {
-    "m/s^2/n": 1.0, "m/s2/n": 1.0, "m/s²/n": 1.0, "(m/s^2)/n": 1.0, "(m/s2)/n": 1.0,
-    "m/(s^2n)": 1.0, "m/(s^2*n)": 1.0, "g/n": STANDARD_GRAVITY_M_PER_S2,
-}
 
 
 def normalised(label: str) -> str:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.estimates import equivalent_damping, kstar_from_support
+from viscorig.estimates import kstar_from_support
 from viscorig.fitting import FitResult, local_noise_power
 from viscorig.identify import (
     PAPER_BAND_HZ,
@@ -307,11 +307,6 @@ def storage_and_loss(curves: ModulusCurves, theta_m: float | None
     scale = 1.0 / theta_m if theta_m else 1.0
     return (curves.measured.real * scale, curves.model.real * scale,
             curves.measured.imag / curves.measured.real, curves.model.imag / curves.model.real)
-
-
-def damping_at(curves: ModulusCurves) -> NDArray[np.float64]:
-    """Eq. (12): the equivalent viscous damper of the Maxwell model at each frequency."""
-    return equivalent_damping(curves.frequency_hz, curves.model)
 
 
 def rubbers(analysis: CampaignAnalysis) -> dict[str, list[RunAnalysis]]:

@@ -33,7 +33,6 @@ from rigsim.scpi import (
 __all__ = ["TraceCommands"]
 
 TRACE_COUNT = 4
-REGISTER_COUNT = 8
 
 
 class TraceCommands(SweepWorker):
