@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from reliability_campaign import station_text
 
 from viscorig.cli import main
 from viscorig.storage import (
@@ -22,29 +23,6 @@ from viscorig.storage import (
 )
 
 server_module = pytest.importorskip("rigsim.server")
-
-STATION = """
-resource = "{resource}"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = 0.01124
-table_acceleration_v_per_m_s2 = 0.0102
-device_force_v_per_n = 0.01124
-device_acceleration_v_per_m_s2 = 0.0102
-[shaker]
-force_limit_n = {force_limit}
-gain_n_per_v = 50.0
-[source]
-limit_v = {source_limit}
-[table]
-mass_kg = 3.4
-stiffness_n_per_m = 50194.0
-damping_ns_per_m = 5.05
-"""
 
 SEQUENCE = """
 name = "short"
@@ -75,8 +53,8 @@ def rig(request):
 def write_files(tmp_path, server, *, level="1.4 m/s^2", force_limit=100.0, source_limit=2.0,
                 run="soft-0", specimen="soft", band=(20.0, 24.0)):
     station = tmp_path / "station.toml"
-    station.write_text(STATION.format(resource=server.resource, force_limit=force_limit,
-                                      source_limit=source_limit))
+    station.write_text(station_text(server.resource, force_limit_n=force_limit,
+                                    source_limit_v=source_limit))
     sequence = tmp_path / "short.toml"
     sequence.write_text(SEQUENCE.format(level=level, run=run, specimen=specimen, lo=band[0],
                                         hi=band[1]))
@@ -257,8 +235,7 @@ band_hz = [20.0, 21.0]
 def hard_files(tmp_path, server, *, defaults="", step=""):
     """hard-10 at 2 m/s^2: about 156 N at 20 Hz; the table alone would predict 7 N."""
     station = tmp_path / "station.toml"
-    station.write_text(STATION.format(resource=server.resource, force_limit=100.0,
-                                      source_limit=5.0))
+    station.write_text(station_text(server.resource, preset="hard-10"))
     sequence = tmp_path / "hard.toml"
     sequence.write_text(HARD_SEQUENCE.format(defaults=defaults, step=step))
     return str(sequence), str(station), str(tmp_path / "out.h5")
