@@ -182,3 +182,29 @@ def test_maxwell_orders_compared_from_projected_starts_match_full_fits() -> None
         assert bic - full.bic < 2.0, spec  # and close to it
         assert rms_error == pytest.approx(full.rms_error, rel=0.01), spec
     assert result.bic == pytest.approx(fit("maxwell(2)", data, fixed=TABLE).bic, abs=1e-6)
+
+
+def test_maxwell_with_effect_terms_never_keeps_a_dead_arm() -> None:
+    """A stiff two-arm rubber behind a load cell, with a fixture mode, paper-like noise; fitted
+    with the order open. A three-arm fit can mimic two arms with K_0 switched off and its
+    slowest arm standing in as a spring; that order is the order below in disguise, and the
+    two-arm fit restarted from its live arms beats it."""
+    from viscorig.fitting.arms import DEAD_ARM_CONTRIBUTION, arm_contributions, dead_arms
+
+    arms = [[1.5e5, 1.5e5 / (2 * np.pi * 150)], [6.0e4, 6.0e4 / (2 * np.pi * 30)]]
+    device = {**MAXWELL, "mass_kg": 0.15, "static_stiffness_n_per_m": 1.0e6, "arms": arms}
+    fixture = {"frequency_hz": 92.0, "damping_ratio": 0.02, "mass_kg": 0.002}
+    quiet = {name: value / 10 for name, value in DEFAULT_NOISE.items()}
+    rig = rig_text(device, load_cell_n_per_m=1.0e7, fixtures=[fixture], noise=quiet)
+    data = simulate_run(rig, seed=17).frf_data()
+    result = fit("maxwell+load_cell+fixture(92)", data, fixed=TABLE)
+    assert result.spec == "maxwell(2)+load_cell+fixture(92)", result.candidates
+    assert dead_arms(result) == {}
+    contributions = arm_contributions(result.model, result.values, result.frequency_hz)
+    assert np.all(contributions > 10 * DEAD_ARM_CONTRIBUTION), contributions
+    truth = {"K_0": 1.0e6, "K_1": arms[0][0], "C_1": arms[0][1], "K_2": arms[1][0],
+             "C_2": arms[1][1], "K_c": 1.0e7}  # fmt: skip
+    for name, value in truth.items():
+        assert result.values[name] == pytest.approx(value, rel=0.02), name
+    scores = {spec: bic for spec, bic, _ in result.candidates}
+    assert min(scores, key=scores.get) == result.spec  # the lower order was not left stuck

@@ -21,6 +21,13 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult, least_squares
 
 from viscorig.errors import InputError
+from viscorig.fitting.arms import (
+    arm_contributions,
+    dead_arms,
+    extended_start,
+    maxwell_order,
+    reduced_start,
+)
 from viscorig.fitting.data import FrfData
 from viscorig.fitting.jacobian import stiffness_derivatives
 from viscorig.fitting.noise import noise_floor
@@ -121,23 +128,102 @@ def fit(
     floor = noise_floor([band.frf(name) for name in chosen])
     if not model.is_open:
         return _fit_concrete(model, band, chosen, fixed, start, floor)
-    # Candidates come in order of growing complexity (maxwell(1), (2), ...): forward selection,
-    # stopping at the first candidate whose BIC does not improve on the best so far.
+    return _select_order(model, band, chosen, fixed, start, floor)
+
+
+def _select_order(
+    model: Model,
+    data: FrfData,
+    frfs: tuple[str, ...],
+    fixed: Mapping[str, float],
+    start: Mapping[str, float] | None,
+    floor: float,
+) -> FitResult:
+    """Fit the candidates of an open model and return the refined one of lowest BIC.
+
+    Candidates come in order of growing complexity (maxwell(1), (2), ...): forward selection,
+    stopping at the first candidate whose BIC does not improve on the best so far. A Maxwell
+    order with a dead arm (:mod:`viscorig.fitting.arms`) is the order below in disguise: it is
+    never chosen, and the order below is refitted from its surviving arms when that start is
+    better than the order's own fit, so that orders are compared between fits that converged.
+    """
     projected = _maxwell_order_search(model, fixed, start)
-    results: list[FitResult] = []
-    for candidate in model.candidates():
+    by_spec = {candidate.spec: candidate for candidate in model.candidates()}
+    by_order = {maxwell_order(candidate): candidate for candidate in by_spec.values()}
+    results: dict[str, FitResult] = {}
+    degenerate: dict[str, str] = {}
+
+    def search_fit(candidate: Model, values: Mapping[str, float] | None) -> FitResult:
+        if projected and values is None:
+            lower = [r for r in results.values() if r.spec not in degenerate]
+            return _fit_maxwell_candidate(candidate, data, frfs, fixed, floor, lower)
         if projected:
-            result = _fit_maxwell_candidate(candidate, band, chosen, fixed, floor, results)
-        else:
-            result = _fit_concrete(candidate, band, chosen, fixed, start, floor, tolerance=1e-6)
-        best_so_far = min((r.bic for r in results), default=np.inf)
-        results.append(result)
-        if result.bic >= best_so_far:
+            return _fit_concrete(
+                candidate, data, frfs, fixed, values, floor, tolerance=1e-6,
+                max_evaluations=ORDER_SEARCH_EVALUATIONS, bounded_fallback=False,
+            )  # fmt: skip
+        return _fit_concrete(candidate, data, frfs, fixed, values or start, floor, tolerance=1e-6)
+
+    def reduce(result: FitResult) -> None:
+        """Refit the order below ``result``'s from its surviving arms; keep the better fit."""
+        dead = dead_arms(result)
+        if not dead:
+            return
+        degenerate[result.spec] = "; ".join(dead.values())
+        order = maxwell_order(result.model) or 0
+        if len(dead) >= order:  # keep the strongest arm: order 1 is the lowest there is
+            contributions = arm_contributions(result.model, result.values, result.frequency_hz)
+            dead = {i: why for i, why in dead.items() if i != int(np.argmax(contributions)) + 1}
+        lower = by_order.get(order - len(dead))
+        if lower is None or not dead:
+            return
+        existing = results.get(lower.spec)
+        refitted = search_fit(lower, reduced_start(result, list(dead), lower))
+        if existing is None or refitted.bic < existing.bic:
+            results[lower.spec] = refitted
+            reduce(refitted)
+
+    for candidate in by_spec.values():
+        order = maxwell_order(candidate)
+        result = search_fit(candidate, None)
+        reduce(result)
+        below = results.get(by_order[order - 1].spec) if order and order > 1 else None
+        if (
+            below is not None
+            and not projected
+            and (result.rms_error >= below.rms_error or result.spec in degenerate)
+        ):
+            # Order N can represent order N-1 exactly: a worse or degenerate fit is stuck.
+            degenerate.pop(result.spec, None)
+            warm = search_fit(candidate, extended_start(below, candidate))
+            if (not dead_arms(warm), -warm.bic) > (not dead_arms(result), -result.bic):
+                result = warm
+            reduce(result)
+        best_so_far = min(
+            (r.bic for r in results.values() if r.spec not in degenerate), default=np.inf
+        )
+        results[candidate.spec] = result
+        if result.spec in degenerate or result.bic >= best_so_far:
             break
-    chosen_one = min(results, key=lambda result: result.bic)
-    # The comparison needs only coarse convergence; the chosen variant is then refined.
-    best = _fit_concrete(chosen_one.model, band, chosen, fixed, chosen_one.values, floor)
-    best.candidates = [(r.spec, r.bic, r.rms_error) for r in results]
+    eligible = [r for r in results.values() if r.spec not in degenerate]
+    chosen_one = min(eligible or list(results.values()), key=lambda result: result.bic)
+    # The comparison needs only coarse convergence; the chosen variant is then refined, and
+    # reduced while the refined fit leaves an arm dead.
+    best = _fit_concrete(chosen_one.model, data, frfs, fixed, chosen_one.values, floor)
+    while (dead := dead_arms(best)) and (maxwell_order(best.model) or 0) > len(dead):
+        degenerate[best.spec] = "; ".join(dead.values())
+        lower = by_order[(maxwell_order(best.model) or 0) - len(dead)]
+        start_values = reduced_start(best, list(dead), lower)
+        best = _fit_concrete(lower, data, frfs, fixed, start_values, floor)
+        if lower.spec not in results or best.bic < results[lower.spec].bic:
+            results[lower.spec] = best
+    ordered = [results[spec] for spec in by_spec if spec in results]
+    best.candidates = [(r.spec, r.bic, r.rms_error) for r in ordered]
+    best.warnings += [
+        f"{spec} not chosen: {why} (it is the order below in disguise)"
+        for spec, why in degenerate.items()
+        if spec != best.spec
+    ]
     return best
 
 
