@@ -111,7 +111,21 @@ def identify_run(
     result, table
         The fit, and the table parameters it used (``None`` for a bare-table run).
     """
-    run = campaign.run(run_name)
+    return _identify(campaign, campaign.run(run_name), spec, band_hz=band_hz, frfs=frfs,
+                     table=table)
+
+
+def _identify(
+    campaign: Campaign,
+    run: Run,
+    spec: str | None,
+    *,
+    band_hz: tuple[float, float] | None,
+    frfs: Sequence[str] | None,
+    table: TableSource | None,
+) -> tuple[FitResult, TableSource | None]:
+    """:func:`identify_run` on a run already read (``campaign`` only for the table)."""
+    run_name = run.name
     if not run.points:
         raise InputError("has no measured point", f"run '{run_name}'")
     bare = is_bare_table(run)
@@ -182,7 +196,8 @@ def summarize(
             if table is not None and table.fit is not None and table.source == f"run '{name}'":
                 result = table.fit
             else:
-                result, _ = identify_run(campaign, name, "table")
+                result, _ = _identify(campaign, run, "table", band_hz=None, frfs=None,
+                                      table=None)
             system = None
         else:
             if table is None:
@@ -191,8 +206,8 @@ def summarize(
                     str(campaign.path),
                 )
             band = _band_within(data, band_hz)
-            result, _ = identify_run(
-                campaign, name, "voigt", band_hz=band, frfs=("table",), table=table
+            result, _ = _identify(
+                campaign, run, "voigt", band_hz=band, frfs=("table",), table=table
             )
             system = voigt_system_properties(result.values)
         inside = data.in_band(band)

@@ -220,8 +220,9 @@ def from_campaign(
     started = _started(run)
     pieces = []
     for name in names:
-        data = run_data(campaign.run(name))
-        other = _started(campaign.run(name))
+        piece = run if name == run_name else campaign.run(name)
+        data = run_data(piece)
+        other = _started(piece)
         if name != run_name and data.time_s is not None and started and other:
             offset = (other - started).total_seconds()
             data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
