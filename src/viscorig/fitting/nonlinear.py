@@ -178,6 +178,8 @@ def _select_order(
         if lower is None or not dead:
             return
         existing = results.get(lower.spec)
+        if existing is not None and existing.rms_error <= result.rms_error:
+            return  # the order below already fits better than this order's live arms can
         refitted = search_fit(lower, reduced_start(result, list(dead), lower))
         if existing is None or refitted.bic < existing.bic:
             results[lower.spec] = refitted
