@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -190,5 +192,20 @@ def test_fuzz_values_raise_only_rig_file_error(data) -> None:
     else:
         rendered = str(value)
     lines[index] = f"{key} = {rendered}"
-    with contextlib.suppress(RigFileError):
-        parse_rig("\n".join(lines))
+    try:
+        rig = parse_rig("\n".join(lines))
+    except RigFileError:
+        return
+    # a value the file accepts reaches the simulator as a finite number, never NaN or inf
+    assert all(math.isfinite(number) for number in _numbers(rig)), (key, rendered)
+
+
+def _numbers(value: object) -> list[float]:
+    """Every number inside a parsed rig (dataclasses, tuples), for the check above."""
+    if dataclasses.is_dataclass(value):
+        return [n for f in dataclasses.fields(value) for n in _numbers(getattr(value, f.name))]
+    if isinstance(value, list | tuple):
+        return [n for item in value for n in _numbers(item)]
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return [float(value)]
+    return []
