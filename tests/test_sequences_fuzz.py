@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import math
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -11,7 +12,8 @@ from test_sequences_station import document as station_document
 from tomlwrite import dumps
 
 from viscorig.errors import InputError
-from viscorig.sequences import Sequence, Station, parse_sequence, parse_station
+from viscorig.sequences import Sequence, Station, SweepStep, parse_sequence, parse_station
+from viscorig.storage import layout
 
 text = st.text(st.characters(blacklist_categories=("Cs",)), max_size=40)
 scalars = st.one_of(
@@ -74,6 +76,14 @@ FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCh
 def test_mutated_sequences_give_a_sequence_or_an_input_error(source: str) -> None:
     result = outcome_of(lambda s: parse_sequence(s, source="fuzz.toml"), source)
     assert isinstance(result, Sequence | InputError)
+    if isinstance(result, Sequence):
+        for step in result.steps:
+            if isinstance(step, SweepStep):  # an accepted sweep can be measured as written
+                lo, hi = step.band_hz
+                assert 0 < lo < hi and math.isfinite(hi), step
+                assert math.isfinite(step.level_m_per_s2) and step.level_m_per_s2 > 0, step
+                assert step.settle_cycles > 0 and step.integrate_cycles > 0, step
+                assert layout.NAME.match(step.run), step
 
 
 @FUZZ
