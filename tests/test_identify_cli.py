@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import subprocess
 import sys
@@ -71,6 +72,8 @@ def test_identify_json_follows_the_design_and_stores_the_fit(
         stored = campaign.fits("soft-0")[-1]
     assert stored.model == document["model"]
     assert stored.parameters["K_0"].value == pytest.approx(document["parameters"]["K_0"]["value"])
+    assert stored.parameters["K_0"].stderr == pytest.approx(document["parameters"]["K_0"]["stderr"])
+    assert math.isnan(stored.parameters["M_s"].stderr)  # fixed: unknown, not exactly known
     # the stored spec is accepted as is
     assert main(["identify", str(campaign_file), "--run", "soft-0", "--model", stored.model,
                  "--no-store", "--json"]) == 0  # fmt: skip

@@ -9,6 +9,7 @@ FRF of a linear rig does not depend on the level.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -158,14 +159,21 @@ def _identify(
 
 
 def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
-    """Store a fit under ``/runs/<run>/fits/<id>`` and return its id."""
+    """Store a fit under ``/runs/<run>/fits/<id>`` and return its id.
+
+    A parameter held fixed in the fit (the table's) is stored with ``stderr`` NaN, the
+    campaign file's "unknown": it was not estimated by this fit.
+    """
     return campaign.add_fit(
         run_name,
         model=result.spec,
         band_hz=result.band_hz,
         rms_error=result.rms_error,
         noise_floor=result.noise_floor,
-        parameters={name: tuple(e) for name, e in result.parameters.items()},
+        parameters={
+            name: (e.value, e.stderr if name in result.free else math.nan, e.unit)
+            for name, e in result.parameters.items()
+        },
     )
 
 
