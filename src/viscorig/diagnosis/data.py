@@ -178,21 +178,20 @@ def same_specimen(a: Run, b: Run) -> bool:
     )
 
 
-def companions(campaign: Campaign, run_name: str) -> list[str]:
+def companions(campaign: Campaign, main: Run) -> list[Run]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
     from viscorig.identify import is_bare_table
 
-    main = campaign.run(run_name)
     found = []
     for name in campaign.run_names:
-        if name == run_name:
+        if name == main.name:
             continue
         other = campaign.run(name)
         if not other.points or is_bare_table(other) or not same_specimen(main, other):
             continue
         level_differs = abs(other.metadata.level_m_per_s2 / main.metadata.level_m_per_s2 - 1) > 0.05
         if level_differs or other.metadata.direction != main.metadata.direction:
-            found.append(name)
+            found.append(other)
     return found
 
 
@@ -216,14 +215,14 @@ def from_campaign(
             f"run '{run_name}'",
         )
     table = table_parameters(campaign)
-    names = [run_name] + (companions(campaign, run_name) if with_companions else [])
+    runs = [run] + (companions(campaign, run) if with_companions else [])
     started = _started(run)
     pieces = []
-    for name in names:
-        piece = run if name == run_name else campaign.run(name)
+    for piece in runs:
+        name = piece.name
         data = run_data(piece)
         other = _started(piece)
-        if name != run_name and data.time_s is not None and started and other:
+        if piece is not run and data.time_s is not None and started and other:
             offset = (other - started).total_seconds()
             data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
                            data.reference_amplitude, name=data.name)
