@@ -160,6 +160,7 @@ def test_preload_pairs_are_compared_with_their_uncertainty(quick_report: Path,
     assert k_v.significant and 0.05 < k_v.relative < 0.15  # the rig's preload stiffens K_v
     line = page[page.index("What preload changed"):page.index('<table class="glance">')]
     assert f"K_v {k_v.percent()} (paper +9.31 %)" in line
+    assert f"C_v {c_v.percent()} (paper +9.01 %)" in line
     assert re.search(r"K_v \+\d\.\d+ ± 0\.\d+ %", line)
     assert "K′ of the model reached" in line
     assert 'id="preload"' in page and k_v.words() in page
