@@ -332,20 +332,28 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
         return str(error.detail)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
         return f"diagnosis failed ({type(error).__name__}: {error})"
+    seconds = time.perf_counter() - started
+    last = steps[-1]
+    _log.info("run %s: %d rung(s), %s at %.2f× the noise floor, %.2f s", run_name, len(steps),
+              last.model, last.rms_error / last.noise_floor, seconds)
+    return climb_from(steps, seconds, ladder)
+
+
+def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb:
+    """The plain-data :class:`Climb` of a ladder of :class:`viscorig.diagnosis.Diagnosis`
+    (one element when the ladder was not climbed)."""
     rungs = [Rung(steps[0].model, float(steps[0].rms_error), float(steps[0].noise_floor))]
     for before, after in itertools.pairwise(steps):
+        added = next((f for f in before.findings if f.model == after.model), None)
         rungs.append(Rung(after.model, float(after.rms_error), float(after.noise_floor),
-                          Candidate.of(before.significant[0])))
-    last = steps[-1]
+                          Candidate.of(added) if added is not None else None))
+    first, last = steps[0], steps[-1]
     source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
     final = ModelCurve.from_fit(last.fit, f"{source}, both FRFs")
     final.noise_floor = float(last.noise_floor)
-    seconds = time.perf_counter() - started
-    _log.info("run %s: %d rung(s), %s at %.2f× the noise floor, %.2f s", run_name, len(steps),
-              last.model, last.rms_error / last.noise_floor, seconds)
     return Climb(rungs, final, list(last.failures), [Candidate.of(f) for f in first.findings],
                  [Candidate.of(f) for f in last.significant], list(last.advice), seconds,
-                 ladder)
+                 climbed)
 
 
 def _climb_all(path: str, requests: list[tuple[str, tuple[float, float], str]], ladder: bool,
