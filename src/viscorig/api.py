@@ -369,9 +369,9 @@ class Fit:
 
     def parameter_table(self):
         """The parameters as a DataFrame: ``value``, ``stderr``, ``unit`` by name."""
-        from viscorig.frames import require
+        from viscorig.frames import pandas as load_pandas
 
-        pandas = require("pandas")
+        pandas = load_pandas()
         rows = {name: {"value": v, "stderr": e, "unit": u}
                 for name, (v, e, u) in self.parameters.items()}
         return pandas.DataFrame.from_dict(rows, orient="index").rename_axis("parameter")
@@ -479,10 +479,10 @@ class Diagnosis:
 
     def to_pandas(self):
         """The candidate effects as a DataFrame, best first, with the evidence in words."""
-        from viscorig.frames import require
+        from viscorig.frames import pandas as load_pandas
 
         w = _words()
-        pandas = require("pandas")
+        pandas = load_pandas()
         return pandas.DataFrame([
             {"effect": f.effect, "model": f.model, "rms_error": f.rms_error,
              "delta_bic": f.delta_bic, "significant": f.significant,
@@ -533,9 +533,9 @@ class Comparison:
 
     def to_pandas(self):
         """One row per quantity: before, after (with stderr), relative change and its stderr."""
-        from viscorig.frames import require
+        from viscorig.frames import pandas as load_pandas
 
-        pandas = require("pandas")
+        pandas = load_pandas()
         return pandas.DataFrame([
             {"quantity": c.quantity, "unit": c.unit, "before": c.before,
              "before_stderr": c.before_stderr, "after": c.after, "after_stderr": c.after_stderr,

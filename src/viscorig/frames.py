@@ -8,7 +8,6 @@ xarray are optional (``pip install "viscorig[notebook]"``) and imported only whe
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -30,13 +29,27 @@ RUN_UNITS = {
 }
 
 
-def require(module: str) -> Any:
-    """Import an optional library, or say how to install it."""
+def _missing(module: str) -> InputError:
+    return InputError(f"{module} is not installed; pip install \"viscorig[notebook]\"",
+                      "notebook")
+
+
+def pandas() -> Any:
+    """The pandas module, or an error saying how to install it."""
     try:
-        return importlib.import_module(module)
+        import pandas as module
     except ImportError:
-        raise InputError(f"{module} is not installed; pip install \"viscorig[notebook]\"",
-                         "notebook") from None
+        raise _missing("pandas") from None
+    return module
+
+
+def xarray() -> Any:
+    """The xarray module, or an error saying how to install it."""
+    try:
+        import xarray as module
+    except ImportError:
+        raise _missing("xarray") from None
+    return module
 
 
 def run_columns(run) -> tuple[dict[str, np.ndarray], dict[str, str]]:
@@ -52,9 +65,8 @@ def run_columns(run) -> tuple[dict[str, np.ndarray], dict[str, str]]:
 def to_pandas(frequency_hz: np.ndarray, columns: Mapping[str, np.ndarray],
               units: Mapping[str, str], attributes: Mapping[str, Any]) -> Any:
     """A DataFrame indexed by ``frequency_hz``, with ``attrs["units"]`` and the attributes."""
-    pandas = require("pandas")
-    index = pandas.Index(np.asarray(frequency_hz, dtype=float), name="frequency_hz")
-    frame = pandas.DataFrame(dict(columns), index=index)
+    index = pandas().Index(np.asarray(frequency_hz, dtype=float), name="frequency_hz")
+    frame = pandas().DataFrame(dict(columns), index=index)
     frame.attrs.update(attributes)
     frame.attrs["units"] = {"frequency_hz": "Hz", **units}
     return frame
@@ -67,7 +79,6 @@ def to_xarray(frequency_hz: np.ndarray, columns: Mapping[str, np.ndarray],
 
     ``scalars``: name -> (value, attributes), for fitted parameters.
     """
-    xarray = require("xarray")
     variables: dict[str, Any] = {
         name: ("frequency_hz", np.asarray(values), {"units": units.get(name, "")})
         for name, values in columns.items()
@@ -76,7 +87,7 @@ def to_xarray(frequency_hz: np.ndarray, columns: Mapping[str, np.ndarray],
         variables[name] = ((), value, attrs)
     coordinate = {"frequency_hz": ("frequency_hz", np.asarray(frequency_hz, dtype=float),
                                    {"units": "Hz", "long_name": "frequency"})}
-    return xarray.Dataset(variables, coords=coordinate, attrs=_netcdf_safe(attributes))
+    return xarray().Dataset(variables, coords=coordinate, attrs=_netcdf_safe(attributes))
 
 
 def _netcdf_safe(attributes: Mapping[str, Any]) -> dict[str, Any]:
