@@ -223,14 +223,9 @@ class Run:
 
     def describe(self) -> str:
         """Specimen, hardness, preload and status in a few words."""
-        m = self.stored.metadata
-        if self.bare:
-            text = "bare table"
-        else:
-            text = m.specimen + (f", {m.hardness_shore_a:g} Shore A"
-                                 if math.isfinite(m.hardness_shore_a) else "")
-            text += f", preload {m.preload_strain:g}" if m.preload_strain else ", no preload"
-        return f"{text}, {m.status}"
+        from viscorig.report.headline import describe_specimen
+
+        return f"{describe_specimen(self.stored, self.bare)}, {self.stored.metadata.status}"
 
     def band_text(self) -> str:
         """``"20–120 Hz"``, or ``"–"`` without points."""

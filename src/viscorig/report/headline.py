@@ -18,6 +18,7 @@ from viscorig.report.words import (
     times,
     with_uncertainty,
 )
+from viscorig.storage import Run
 
 #: Names of the FRFs for people.
 FRF_WORDS = {"table": "table FRF ẍ_s/F_e", "support": "disc FRF ẍ_v/F_v"}
@@ -45,15 +46,20 @@ class Headline:
     at_floor: bool = False
 
 
+def describe_specimen(run: Run, bare: bool) -> str:
+    """``"soft, 25 Shore A, preload 0.104"``, or ``"bare table"``."""
+    m = run.metadata
+    if bare:
+        return "bare table"
+    text = m.specimen + (f", {m.hardness_shore_a:g} Shore A"
+                         if math.isfinite(m.hardness_shore_a) else "")
+    return text + (f", preload {m.preload_strain:g}" if m.preload_strain else ", no preload")
+
+
 def describe_run(run: RunAnalysis) -> str:
-    """``"soft, 25 Shore A, preload 0.104"``, plus the status when not complete."""
+    """The specimen in a few words, plus the status when the run is not complete."""
+    text = describe_specimen(run.run, run.bare)
     m = run.run.metadata
-    if run.bare:
-        text = "bare table"
-    else:
-        text = m.specimen + (f", {m.hardness_shore_a:g} Shore A"
-                             if math.isfinite(m.hardness_shore_a) else "")
-        text += f", preload {m.preload_strain:g}" if m.preload_strain else ", no preload"
     if m.status != "complete":
         text += f" ({m.status}, {run.run.points} points)"
     return text
