@@ -47,7 +47,7 @@ class Diagnosis:
         Extra runs that would separate candidates these data cannot tell apart.
     """
 
-    data: DiagnosisData
+    data: DiagnosisData = field(repr=False)
     fit: FitResult
     findings: list[Finding] = field(default_factory=list)
     failures: list[FailureBand] = field(default_factory=list)

@@ -81,7 +81,7 @@ class Finding:
 
     effect: str
     model: str
-    fit: FitResult
+    fit: FitResult = field(repr=False)
     delta_bic: float
     significant: bool
     evidence: str

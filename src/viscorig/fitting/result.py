@@ -59,14 +59,14 @@ class FitResult:
     values: dict[str, float]
     stderr: dict[str, float]
     free: tuple[str, ...]
-    covariance: NDArray[np.float64]
+    covariance: NDArray[np.float64] = field(repr=False)
     rms_error: float
     noise_floor: float
     band_hz: tuple[float, float]
     points: int
     frfs: tuple[str, ...]
-    frequency_hz: NDArray[np.float64]
-    residuals: dict[str, NDArray[np.complex128]]
+    frequency_hz: NDArray[np.float64] = field(repr=False)
+    residuals: dict[str, NDArray[np.complex128]] = field(repr=False)
     bic: float
     nfev: int = 0
     warnings: list[str] = field(default_factory=list)

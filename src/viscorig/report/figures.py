@@ -157,7 +157,7 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
         colours = [MODEL] * len(steps)
         title = f"run {analysis.name}: error as effects are added (ladder)"
     else:
-        found = sorted(analysis.findings, key=lambda f: f.rms_error)[:8]
+        found = sorted(analysis.candidates, key=lambda f: f.rms_error)[:8]
         labels = [steps[0].model] + ["+ " + _added(steps[0].model, f.model) for f in found]
         errors = [steps[0].rms_error] + [f.rms_error for f in found]
         colours = [MODEL] + [MODEL if f.significant else "#aaaaaa" for f in found]
@@ -241,42 +241,55 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
         ax.grid(True, alpha=0.3)
         ax.axhline(0, color="black", lw=0.6)
     stiffness_ax.legend(fontsize=7)
-    figure.suptitle("preload effect (Maxwell models of K* from Eq. 5)", fontsize=11)
+    figure.suptitle("preload effect (K* of the models shown)", fontsize=11)
     return figure
 
 
-def campaign_figures(analysis: CampaignAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
-    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``)."""
+def run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
+    """The figures of one run (FRFs, residual, ladder), by stem."""
+    saved: dict[str, SavedFigure] = {}
+    if not run.run.points:
+        return saved
+    saved[f"frf-{run.name}"] = save(
+        frf_figure(run), folder, f"frf-{run.name}",
+        f"Run {run.name}: measured FRFs and the model shown; shaded: bands where that "
+        "model still fails (diagnosis); crosses: flagged points.")
+    residual = residual_figure(run)
+    if residual is not None:
+        saved[f"residual-{run.name}"] = save(
+            residual, folder, f"residual-{run.name}",
+            f"Run {run.name}: relative residual of the model shown, with the local noise "
+            "estimated from the data and the noise floor.")
+    ladder = ladder_figure(run)
+    if ladder is not None:
+        saved[f"ladder-{run.name}"] = save(
+            ladder, folder, f"ladder-{run.name}",
+            f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
+            "effect is added, step by step (or, without the ladder, each candidate alone).")
+    return saved
+
+
+def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
+                     jobs: int = 1) -> dict[str, SavedFigure]:
+    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``).
+
+    The runs' figures are drawn in ``jobs`` processes at once.
+    """
     from viscorig.report.analysis import rubbers
+    from viscorig.report.parallel import parallel_map
 
     saved: dict[str, SavedFigure] = {}
-    for run in analysis.runs:
-        if not run.run.points:
-            continue
-        saved[f"frf-{run.name}"] = save(
-            frf_figure(run), folder, f"frf-{run.name}",
-            f"Run {run.name}: measured FRFs and the model; shaded: bands where the model "
-            "fails (diagnosis); crosses: flagged points.")
-        residual = residual_figure(run)
-        if residual is not None:
-            saved[f"residual-{run.name}"] = save(
-                residual, folder, f"residual-{run.name}",
-                f"Run {run.name}: relative residual of the model shown, with the local noise "
-                "estimated from the data and the noise floor.")
-        ladder = ladder_figure(run)
-        if ladder is not None:
-            saved[f"ladder-{run.name}"] = save(
-                ladder, folder, f"ladder-{run.name}",
-                f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
-                "effect is added, step by step.")
+    for figures in parallel_map(run_figures, [(run, folder) for run in analysis.runs], jobs):
+        saved.update(figures)
     groups = rubbers(analysis)
     for name, members in groups.items():
         saved[f"moduli-{name}"] = save(
             moduli_figure(name, members, analysis.theta_m), folder, f"moduli-{name}",
             f"{name}: storage {'modulus' if analysis.theta_m else 'stiffness'} and loss factor "
-            "against frequency, Eq. (5) estimates (points) and Maxwell model (lines).")
+            "against frequency, Eq. (5) estimates (points) and the K* of the models shown "
+            "(lines).")
     preload = preload_figure(groups)
     if preload is not None:
         saved["preload"] = save(preload, folder, "preload",
-                                "Preload effect per rubber, from the Maxwell models.")
+                                "Preload effect per rubber, from the K* of the models shown.")
     return saved
