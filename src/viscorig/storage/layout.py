@@ -56,7 +56,7 @@ MAX_FITS = 1_000
 #: Objects in one run group (datasets and ``fits``) or one fit group (parameters).
 MAX_MEMBERS = 64
 #: Attributes of one object, values in one attribute, and the bytes of one attribute.
-MAX_ATTRIBUTES = 64
+MAX_ATTRIBUTES = 256
 MAX_ATTRIBUTE_VALUES = 16
 MAX_ATTRIBUTE_BYTES = 64 * 1024
 #: Characters of a ``/setup`` text (a sequence or station file).
