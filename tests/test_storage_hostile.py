@@ -9,11 +9,7 @@ Before these checks, a run declaring 3·10^8 points made ``show`` allocate 4.9 G
 from __future__ import annotations
 
 import hashlib
-import os
-import resource
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import hostilefiles
@@ -21,6 +17,7 @@ import pytest
 import reliability_tally as tally
 from campaigndata import paper_campaign
 from reliability_campaign import cli, one_clear_line
+from smallcampaign import peak_rss_mb
 
 from viscorig.errors import InputError
 from viscorig.storage import Campaign
@@ -80,31 +77,27 @@ def test_writers_refuse_hostile_files_too(good: Path, tmp_path: Path, name: str)
     assert not list(tmp_path.glob(".campaign.h5.*"))  # no lock or staging file left
 
 
-def _peak_rss_mb(arguments: list[str]) -> tuple[int, float, str]:
-    """Run ``viscorig`` in a child process: (exit status, peak resident memory MB, stderr)."""
-    process = subprocess.Popen([sys.executable, "-m", "viscorig", *arguments],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    err = process.stderr.read() if process.stderr else ""
-    _, status, usage = os.wait4(process.pid, 0)
-    process.returncode = os.waitstatus_to_exitcode(status)
-    return process.returncode, usage.ru_maxrss / 1024, err  # ru_maxrss is in KiB on Linux
-
-
 @pytest.mark.parametrize("name", ["3e8 points", "1e12 points"])
 def test_memory_stays_bounded_whatever_the_file_declares(good: Path, tmp_path: Path,
                                                          name: str) -> None:
     path, words = hostile(good, tmp_path, hostilefiles.REFUSED[name])
-    baseline_status, baseline_mb, _ = _peak_rss_mb(["show", str(good)])
+    baseline_status, baseline_mb, _ = peak_rss_mb(["show", str(good)])
     assert baseline_status == 0
     peaks = []
     for command in ("show", "diagnose"):
-        status, peak_mb, err = _peak_rss_mb([command, str(path), *READERS[command]])
+        status, peak_mb, err = peak_rss_mb([command, str(path), *READERS[command]])
         assert status == 2 and words in err, err
         assert peak_mb < MEMORY_BOUND_MB, f"{command}: {peak_mb:.0f} MB"
         peaks.append(peak_mb)
     print(f"\n{name}: peak resident memory {max(peaks):.0f} MB "
           f"(show of a good file: {baseline_mb:.0f} MB)")
-    assert resource.getrlimit(resource.RLIMIT_AS)  # the bound held without any memory limit
+
+
+def test_the_bound_on_points_is_the_one_a_sequence_accepts() -> None:
+    from viscorig.sequences import sequence
+    from viscorig.storage import layout
+
+    assert layout.MAX_RUN_POINTS == sequence.MAX_RUN_POINTS
 
 
 def test_escape_sequences_never_reach_the_terminal(good: Path, tmp_path: Path) -> None:

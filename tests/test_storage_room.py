@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import reliability_tally as tally
 from reliability_campaign import check_prefix
-from test_storage_writers import GRIDS, SEQUENCE
+from smallcampaign import GRIDS, SEQUENCE
 
 from viscorig.storage import Campaign, room
 

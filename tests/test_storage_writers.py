@@ -21,38 +21,10 @@ import numpy as np
 import pytest
 import reliability_tally as tally
 from reliability_campaign import cli, one_clear_line
+from smallcampaign import GRIDS, SEQUENCE
 
 from viscorig.storage import Campaign, writelock
 from viscorig.storage.writelock import CampaignInUseError, Holder, lock_path
-
-SEQUENCE = """
-name = "writers"
-[defaults]
-resolution_hz = 0.25
-settle_cycles = 20
-integrate_cycles = 20
-level = "1 m/s^2"
-segment_points = 8
-[[steps]]
-type = "prompt"
-message = "Remove the device."
-simulated_rig = "table"
-[[steps]]
-type = "sweep"
-run = "table"
-specimen = "none"
-band_hz = [15.0, 25.0]
-[[steps]]
-type = "prompt"
-message = "Mount the soft specimens."
-simulated_rig = "soft-0"
-[[steps]]
-type = "sweep"
-run = "soft-0"
-specimen = "soft"
-band_hz = [20.0, 40.0]
-"""
-GRIDS = {"table": 15.0 + 0.25 * np.arange(41), "soft-0": 20.0 + 0.25 * np.arange(81)}
 
 HOLDER = textwrap.dedent(
     """
@@ -241,7 +213,7 @@ def test_two_resumes_at_once_one_is_refused_and_nothing_is_duplicated(tmp_path: 
     _wait_for_points(path, run, 9)
     run.send_signal(signal.SIGKILL)
     run.wait()
-    resumes = [viscorig("resume", path, "--yes", "--sim-pace", 300) for _ in range(2)]
+    resumes = [viscorig("resume", path, "--yes", "--sim-pace", 50) for _ in range(2)]
     results = [(process.wait(timeout=120), process.stderr.read()) for process in resumes]
     statuses = sorted(status for status, _ in results)
     assert statuses == [0, 2], results

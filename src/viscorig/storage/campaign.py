@@ -12,6 +12,20 @@ Additions to the contract, both readable by any HDF5 tool:
   ``station_file`` name the original files. ``resume`` needs nothing but the campaign file.
 - Fit ids are four-digit counters per run (``0001``, ``0002``, ...); each parameter is a scalar
   float64 dataset holding the value, with attributes ``stderr`` and ``units``.
+- Dimension scales (HDF5 Dimension Scale specification, as netCDF-4 uses them):
+  ``/runs/<name>/frequency_hz`` is a dimension scale named ``frequency_hz`` (attributes
+  ``CLASS = "DIMENSION_SCALE"``, ``NAME``, ``REFERENCE_LIST``), and every other 1-D dataset of
+  the run has it attached to its only dimension (attribute ``DIMENSION_LIST``). xarray (through
+  h5netcdf), Panoply and MATLAB's ``ncread`` then see frequency as the coordinate of each run.
+  They are attributes only: format_version stays 1, a reader that ignores them reads the file
+  as before, and a file written without them gains them at its next write to that run.
+- Next to the file, while a writer has it: ``.NAME.lock``, the writer lock and a JSON record of
+  who holds it (:mod:`viscorig.storage.writelock`); during a commit, ``.NAME.commit``, the new
+  file before it replaces the old one (:mod:`viscorig.storage.atomic`).
+- Bounds a reader enforces before reading any value (:mod:`viscorig.storage.layout`): at most
+  100,000 points per run and 1,000,000 per file, 1,000 runs, 1,000 fits per run, 64 objects per
+  run or fit, 256 attributes per object, 16 values and 64 KiB per attribute, 1 MiB per setup
+  text, 16 MiB per chunk, 256 MiB per file; only hard links.
 """
 
 from __future__ import annotations
