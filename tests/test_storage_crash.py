@@ -1,7 +1,9 @@
 """A writer killed with SIGKILL at random instants leaves whole segments only.
 
 Each kill starts a fresh writer process that creates a campaign, starts a run and appends
-segments of known content as fast as it can (so most instants fall inside a commit); the test
+segments of known content as fast as it can, on a disk made slow (each ``fsync`` takes 4 ms
+more), so that many instants fall while a commit's new file is on disk but not yet renamed; the
+test
 kills it after a random delay, then checks that the file is absent (killed before the first
 commit) or opens with a whole number of segments, in order, none partial, none twice.
 """
@@ -26,11 +28,20 @@ KILLS = 24
 
 WRITER = textwrap.dedent(
     """
+    import os
     import sys
+    import time
     import numpy as np
     from viscorig.storage import Campaign, RunSettings, Segment
 
     path = sys.argv[1]
+    real_fsync = os.fsync
+
+    def slow_fsync(descriptor):
+        time.sleep(0.004)
+        real_fsync(descriptor)
+
+    os.fsync = slow_fsync
     print("ready", flush=True)
     campaign = Campaign.create(path, sequence_text="name = 'kill'", durable=True)
     campaign.start_run("kill", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
