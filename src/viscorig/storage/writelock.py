@@ -268,7 +268,7 @@ def _lock(lock: Path, path: Path) -> int | None:
         try:
             _os_lock(descriptor)
         except OSError as error:
-            holder = _read_record(descriptor)
+            holder = _current_holder(descriptor) if error.errno in _BUSY else None
             os.close(descriptor)
             if error.errno in _BUSY:
                 raise _refusal(path, holder) from None
@@ -285,6 +285,22 @@ def _lock(lock: Path, path: Path) -> int | None:
             raise
         return descriptor
     raise _refusal(path, None)  # pragma: no cover - twenty holders in a row
+
+
+def _current_holder(descriptor: int, wait_s: float = 1.0) -> Holder | None:
+    """The record of the process that holds the lock on ``descriptor``'s file.
+
+    A new holder writes its record just after taking the lock, so for a moment the file still
+    holds the record of a killed writer (or none): wait briefly for a living one to appear.
+    """
+    deadline = time.monotonic() + wait_s
+    while True:
+        holder = _read_record(descriptor)
+        if holder is not None and (holder.host != socket.gethostname() or _alive(holder)):
+            return holder
+        if time.monotonic() >= deadline:
+            return holder
+        time.sleep(0.02)
 
 
 def _os_lock(descriptor: int) -> None:
