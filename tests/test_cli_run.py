@@ -222,7 +222,10 @@ def test_a_bad_sequence_is_one_line_exit_2_and_nothing_written(tmp_path) -> None
                                                              'level = "1.4"'))
     result = viscorig("run", str(bad), "--yes", cwd=tmp_path)
     assert result.returncode == 2
-    assert result.stderr.count("\n") == 1 and "bad.toml: defaults.level" in result.stderr
+    line = 1 + next(number for number, text in enumerate(bad.read_text().splitlines())
+                    if text.startswith("level ="))
+    assert result.stderr.count("\n") == 1
+    assert f"bad.toml:{line}: defaults.level: '1.4' has no unit" in result.stderr
     assert "Traceback" not in result.stderr
     assert list(tmp_path.iterdir()) == [bad]
 

@@ -16,6 +16,12 @@ from viscorig.acquisition.sweep import SegmentDone
 from viscorig.storage import FLAG_NAMES, count_flags
 
 
+def single_line(text: str) -> str:
+    """A message that spans lines (as some VISA libraries write them) as one line: its lines
+    joined with "; "."""
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
 def format_duration(seconds: float) -> str:
     """``h:mm:ss`` (or ``m:ss`` under an hour)."""
     total = max(round(float(seconds)), 0)

@@ -33,7 +33,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
-from viscorig.acquisition.console import Console
+from viscorig.acquisition.console import Console, single_line
 from viscorig.acquisition.limits import (
     PROBE_LEVEL_FRACTION,
     ForceEstimate,
@@ -266,12 +266,13 @@ class Runner:
             except (KeyboardInterrupt, SweepInterrupted):
                 return RunResult(Outcome.INTERRUPTED, self._interrupted(current), self.records)
             except InstrumentError as error:
-                return RunResult(Outcome.FAULT, self._fault(current, str(error)), self.records)
+                return RunResult(Outcome.FAULT, self._fault(current, single_line(str(error))),
+                                 self.records)
             except Exception as error:
                 if self.options.instrument_errors and isinstance(
                     error, self.options.instrument_errors
                 ):
-                    message = str(error)
+                    message = single_line(str(error))
                     if self.analyser.resource not in message:
                         message = f"{self.analyser.resource}: {message}"
                     return RunResult(Outcome.FAULT, self._fault(current, message), self.records)
