@@ -50,12 +50,29 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "second (default: as fast as the computer allows)")
 
 
+def _fields_epilog() -> str:
+    import textwrap
+
+    from viscorig.sequences.schema import STEP_TYPES
+
+    lines = ["sequence steps and their fields (reference: sequences/README.md, or",
+             "'viscorig check --fields'):"]
+    for name, schema in STEP_TYPES.items():
+        lines.append(textwrap.fill(f"{name}: {', '.join(schema.names)}", 78,
+                                   initial_indent="  ", subsequent_indent="    "))
+    lines.append("  [defaults]: any sweep field but run")
+    return "\n".join(lines)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``run`` and ``resume`` commands."""
     run = subparsers.add_parser(
         "run", help=summary_of("run"),
         description="Run a test sequence (TOML) and record every sweep into a new campaign "
-        "file. Without --station, the embedded simulated rig and analyser are used.")
+        "file. Without --station, the embedded simulated rig and analyser are used. The "
+        "sequence (and station) are checked whole before the first prompt, as 'viscorig "
+        "check' does.",
+        epilog=_fields_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
     run.add_argument("--station", metavar="STATION.toml", default=None,
                      help="the lab's station file (analyser resource, transducers, shaker)")

@@ -100,7 +100,10 @@ def parse_level(text: str) -> float:
         )
     unit = canonical_unit(written)
     if unit is None:
-        close = difflib.get_close_matches(written, UNIT_SPELLINGS, n=1, cutoff=0.5)
+        close = difflib.get_close_matches(
+            written, [unit for unit in UNIT_SPELLINGS if unit.isascii()], n=1, cutoff=0.5)
+        if canonical_unit(written.lower()) is not None:
+            close = [written.lower()]
         hint = f"; did you mean \"{match['number']} {close[0]}\"?" if close else ""
         raise ValueError(
             f"unit {written!r} of {text!r} is not one of {', '.join(UNIT_SPELLINGS)}{hint}"

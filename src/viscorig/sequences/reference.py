@@ -87,6 +87,7 @@ run = "soft-0"
 specimen = "soft"
 hardness_shore_a = 25.0
 ```
+
 """
 
 _LEVELS = f"""\

@@ -206,7 +206,7 @@ class Field:
         return {
             "text": "text", "name": "text", "boolean": "true/false", "integer": "whole number",
             "number": "number", "band": "[low, high]", "level": "text: number and unit",
-            "choice": " \\| ".join(f'"{choice}"' for choice in self.choices),
+            "choice": " | ".join(f'"{choice}"' for choice in self.choices),
         }[self.kind]
 
     def unit_text(self) -> str:
