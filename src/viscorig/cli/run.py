@@ -45,6 +45,11 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "sweep and overrides the sequence; otherwise each sweep's over_limit "
                         "(its step, else [defaults]) applies, and 'refuse' when the sequence "
                         "says nothing")
+    parser.add_argument("--live", action="store_true",
+                        help="serve a live view of the campaign on 127.0.0.1 while it runs "
+                        "(as 'viscorig watch' does) and open it in the browser")
+    parser.add_argument("--no-browser", action="store_true",
+                        help="with --live: only print the live view's address")
     parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
@@ -188,8 +193,14 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
     )
     console = Console(yes=args.yes)
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options)
+    live = contextlib.nullcontext()
+    if args.live:
+        from viscorig.cli.watch import live_view
+
+        live = live_view(campaign.path, open_browser=not args.no_browser, say=console.say)
     try:
-        result = runner.run()
+        with live:
+            result = runner.run()
     except NoAnswer:
         print(f"viscorig: a prompt needs an answer and the input is closed; run with --yes, "
               f"then continue with: viscorig resume {campaign.path}", file=sys.stderr)
