@@ -242,3 +242,18 @@ def test_the_live_page_in_chromium_shows_points_arriving_during_a_simulated_run(
     keep = os.environ.get("VISCORIG_WATCH_SCREENSHOT")
     if keep:  # docs/images/watch.png in the README is made this way
         shutil.copy(shot, keep)
+
+
+def test_a_file_not_yet_written_or_damaged_is_said_and_the_last_state_kept(tmp_path) -> None:
+    path = tmp_path / "later.h5"
+    with WatchServer(path, port=0) as server:
+        answer = json.loads(get(server.url + "state.json")[2])
+        assert answer["snapshot"] is None and "later.h5" in answer["error"]
+        measuring_campaign(path)
+        time.sleep(0.6)
+        answer = json.loads(get(server.url + "state.json")[2])
+        assert answer["error"] is None and answer["snapshot"]["current"] == "soft-0"
+        path.write_bytes(b"not a campaign any more")
+        time.sleep(0.6)
+        damaged = json.loads(get(server.url + f"state.json?version={answer['version']}")[2])
+        assert damaged["unchanged"] and "not a readable HDF5 file" in damaged["error"]

@@ -27,21 +27,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from viscorig.cli import summary_of
+from viscorig.cli.arguments import port_number
 from viscorig.errors import InputError
 
 #: The port a technician can bookmark.
 DEFAULT_PORT = 8765
-
-
-def port_number(text: str) -> int:
-    """An ``argparse`` type: a TCP port, 0 for any free one."""
-    try:
-        port = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
-    if not 0 <= port <= 65535:
-        raise argparse.ArgumentTypeError(f"must be 0-65535, got {port}")
-    return port
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
