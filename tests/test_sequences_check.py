@@ -248,3 +248,13 @@ def test_a_changed_specimen_without_hardness_is_caught_by_its_name(tmp_path, cap
            "rig 'medium-10'" in out
     assert "which run 'medium-10' measured as specimen 'medium'" in out
     assert 'add simulated_rig = "hard-10"' in out
+
+
+def test_a_reversed_fit_band_is_not_told_to_sweep_down(tmp_path) -> None:
+    text = PAPER.read_text(encoding="utf-8").replace(
+        'type = "identify_table"\nrun = "table"\n',
+        'type = "identify_table"\nrun = "table"\nband_hz = [25.0, 15.0]\n')
+    with pytest.raises(FileCheckError) as caught:
+        load_sequence(write(tmp_path, text))
+    [problem] = caught.value.problems
+    assert problem.field == "steps[2].band_hz" and problem.hint == "write band_hz = [15, 25]"

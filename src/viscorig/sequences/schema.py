@@ -179,10 +179,11 @@ class Field:
                 and max(lo, hi) <= high):
             raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy 0 < low < high <= {high:g}")
         if lo > hi:
+            sweep = self.in_defaults  # a sweep's band: its direction says which end is first
             raise FieldError(
                 f"[{lo:g}, {hi:g}] Hz is written high to low",
-                f"write {self.name} = [{hi:g}, {lo:g}] and direction = \"down\" to sweep "
-                "downwards",
+                f"write {self.name} = [{hi:g}, {lo:g}]"
+                + (" and direction = \"down\" to sweep downwards" if sweep else ""),
             )
         if lo == hi:
             raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy 0 < low < high <= {high:g}",
