@@ -257,3 +257,21 @@ def test_a_file_not_yet_written_or_damaged_is_said_and_the_last_state_kept(tmp_p
         time.sleep(0.6)
         damaged = json.loads(get(server.url + f"state.json?version={answer['version']}")[2])
         assert damaged["unchanged"] and "not a readable HDF5 file" in damaged["error"]
+
+
+def test_watch_serves_until_ctrl_c(tmp_path) -> None:
+    import signal
+
+    path = measuring_campaign(tmp_path / "c.h5")
+    process = subprocess.Popen([sys.executable, "-m", "viscorig", "watch", str(path), "--port",
+                                "0", "--no-browser"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        line = process.stdout.readline()
+        url = re.search(r"http://127\.0\.0\.1:\d+/", line).group(0)
+        snapshot = json.loads(get(url + "state.json")[2])["snapshot"]
+        assert snapshot["runs"][1]["points"] == 5
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    assert process.returncode == 0 and "live view stopped" in out and err == ""

@@ -50,6 +50,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=watch_command)
 
 
+def open_in_browser(url: str) -> bool:
+    """Open ``url`` in the desktop's browser; False where there is no desktop (a terminal-only
+    session, where a text browser would take the operator's terminal)."""
+    desktop = sys.platform in ("darwin", "win32") or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if not desktop:
+        return False
+    try:
+        return bool(webbrowser.open(url))
+    except Exception:  # a broken browser setting must not stop the live view
+        return False
+
+
 def serve(path: Path, port: int) -> tuple[object, str]:
     """Start serving ``path``; return the server and its address.
 
@@ -78,9 +91,8 @@ def watch_command(args: argparse.Namespace) -> int:
         raise InputError("folder does not exist", str(path))
     server, url = serve(path, args.port)
     print(f"live view of {path}: {url}  (Ctrl-C stops it)", flush=True)
-    if not args.no_browser:
-        with contextlib.suppress(Exception):
-            webbrowser.open(url)
+    if not args.no_browser and not open_in_browser(url):
+        print(f"no browser could be opened here: open {url} in one", flush=True)
     try:
         server.serve_forever()
     except KeyboardInterrupt:
@@ -124,9 +136,8 @@ def live_view(path: Path, *, open_browser: bool, say=print) -> Iterator[str | No
         say("WARNING: the live view could not start; measuring without it")
     else:
         say(f"live view: {url}")
-        if open_browser:
-            with contextlib.suppress(Exception):
-                webbrowser.open(url)
+        if open_browser and not open_in_browser(url):
+            say(f"(no browser could be opened here: open {url} in one)")
     try:
         yield url
     finally:
