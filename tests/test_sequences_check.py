@@ -258,3 +258,12 @@ def test_a_reversed_fit_band_is_not_told_to_sweep_down(tmp_path) -> None:
         load_sequence(write(tmp_path, text))
     [problem] = caught.value.problems
     assert problem.field == "steps[2].band_hz" and problem.hint == "write band_hz = [15, 25]"
+
+
+def test_run_names_the_first_problem_in_one_line_and_the_command_that_lists_all(tmp_path):
+    path = write(tmp_path, THREE_MISTAKES)
+    result = viscorig("run", str(path), "--yes", "--out", "x.h5", cwd=tmp_path)
+    assert result.returncode == 2 and not (tmp_path / "x.h5").exists()
+    [line] = result.stderr.splitlines()
+    assert line == (f"viscorig: {path}:17: steps[1].specimin: unknown key; did you mean "
+                    f"'specimen'? (and 1 more problem: 'viscorig check {path}' lists them all)")

@@ -112,15 +112,16 @@ def check_files(sequence_path: str, station_path: str | None) -> Checked:
     return check_texts(sequence_text, sequence_path, station_text, station_path or "")
 
 
-def refuse(checked: Checked) -> int:
-    """Print every problem, one line each on stderr (and how many, when more than one);
-    exit status 2."""
-    for problem in checked.problems:
-        print(f"viscorig: {problem}", file=sys.stderr)
-    if len(checked.problems) > 1:
-        print(f"viscorig: {len(checked.problems)} problems; nothing was measured",
-              file=sys.stderr)
-    return 2
+def refuse(checked: Checked, check_command: str | None) -> None:
+    """Stop before anything runs: the first problem in one line, with how many more follow and
+    the command that lists them all (``check_command``, when one can).
+
+    Raises
+    ------
+    FileCheckError
+        Always.
+    """
+    raise FileCheckError(checked.problems, check_command)
 
 
 def check_command(args: argparse.Namespace) -> int:

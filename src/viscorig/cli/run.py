@@ -104,7 +104,8 @@ def run_command(args: argparse.Namespace) -> int:
         raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
     checked = check_files(args.sequence, args.station)
     if not checked.ok:
-        return refuse(checked)
+        station = f" --station {args.station}" if args.station else ""
+        refuse(checked, f"viscorig check {args.sequence}{station}")
     sequence, station = checked.sequence, checked.station
     out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.sequence).stem}.h5"
     if out.exists():
@@ -139,7 +140,7 @@ def resume_command(args: argparse.Namespace) -> int:
     checked = check_texts(sequence_text, f"{args.file}: /setup/sequence_toml", station_text,
                           f"{args.file}: /setup/station_toml")
     if not checked.ok:
-        return refuse(checked)
+        refuse(checked, "")
     sequence, station = checked.sequence, checked.station
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     if all(statuses.get(name) == "complete" for name in sequence.run_names) and _identified(

@@ -160,15 +160,22 @@ def did_you_mean(word: object, known: Iterable[str], cutoff: float = 0.6) -> str
 class FileCheckError(InputError):
     """Every problem found in a file; its message is the first, with how many more follow.
 
-    ``problems`` holds them all, in the order of the file.
+    Parameters
+    ----------
+    problems
+        All of them; kept in file order in ``problems``.
+    check_command
+        The command that lists them all, named in the message when there are more than one
+        (default ``viscorig check FILE`` of the first; "" for none).
     """
 
-    def __init__(self, problems: list[Problem]) -> None:
+    def __init__(self, problems: list[Problem], check_command: str | None = None) -> None:
         self.problems = sorted(problems, key=lambda p: (p.file, p.line or 0))
         first = self.problems[0]
         more = len(self.problems) - 1
-        suffix = (f" (and {more} more problem{'s' if more > 1 else ''}: 'viscorig check "
-                  f"{first.file}' lists them all)") if more else ""
+        command = f"viscorig check {first.file}" if check_command is None else check_command
+        listed = f": '{command}' lists them all" if command else ""
+        suffix = f" (and {more} more problem{'s' if more > 1 else ''}{listed})" if more else ""
         super().__init__(first.text + suffix, first.where)
 
 
