@@ -90,6 +90,7 @@ def watch_command(args: argparse.Namespace) -> int:
     if not path.parent.is_dir():
         raise InputError("folder does not exist", str(path))
     server, url = serve(path, args.port)
+    _lower_priority()
     print(f"live view of {path}: {url}  (Ctrl-C stops it)", flush=True)
     if not args.no_browser and not open_in_browser(url):
         print(f"no browser could be opened here: open {url} in one", flush=True)
@@ -106,10 +107,14 @@ def watch_command(args: argparse.Namespace) -> int:
 FINAL_STATE_S = 2.5
 
 
+#: The watching process runs this much nicer than others: the measurement comes first.
+NICENESS = 10
+
+
 def _lower_priority() -> None:
-    """In the watching process: yield the processor to the measurement."""
+    """Yield the processor to the measurement (where the system allows it)."""
     with contextlib.suppress(AttributeError, OSError):
-        os.nice(10)
+        os.nice(NICENESS)
 
 
 @contextlib.contextmanager
@@ -117,13 +122,14 @@ def live_view(path: Path, *, open_browser: bool, say=print) -> Iterator[str | No
     """Serve the live view of ``path`` from a separate, lower-priority process while the body
     runs; yield its address (None if it could not start: the measurement goes on without).
 
-    A separate process shares nothing with the measurement but the file it reads; it is
-    started in its own session, so the operator's Ctrl-C reaches the run alone.
+    A separate process shares nothing with the measurement but the file it reads, and runs at
+    a lower priority (as ``viscorig watch`` always does); it is started in its own session, so
+    the operator's Ctrl-C reaches the run alone.
     """
     process = subprocess.Popen(
         [sys.executable, "-m", "viscorig", "watch", str(path), "--port", "0", "--no-browser"],
         stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-        start_new_session=True, preexec_fn=_lower_priority,
+        start_new_session=True,
     )
     address: list[str] = []
     reader = threading.Thread(target=lambda: address.append(process.stdout.readline()),
