@@ -273,5 +273,9 @@ def test_watch_serves_until_ctrl_c(tmp_path) -> None:
         assert snapshot["runs"][1]["points"] == 5
     finally:
         process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=30)
+        try:
+            out, err = process.communicate(timeout=30)
+        except subprocess.TimeoutExpired:  # never leave a server behind
+            process.kill()
+            out, err = process.communicate()
     assert process.returncode == 0 and "live view stopped" in out and err == ""
