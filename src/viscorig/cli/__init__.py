@@ -57,6 +57,8 @@ COMMANDS: dict[str, Command] = {
         "exchange", "add a run to a campaign from UFF 58, CSV or 35670A SDF files"
     ),
     "sim": Command("sim", "simulated rig and analyser"),
+    "check": Command("check", "list every problem of a sequence (and station) file at once"),
+    "watch": Command("watch", "live view of a campaign file in the browser, on loopback"),
 }
 
 
