@@ -60,20 +60,38 @@ def handler(args: argparse.Namespace) -> int:
 def format_result(
     run: str, result: FitResult, table: TableSource | None, fit_id: str | None
 ) -> str:
-    """Human-readable report of one fit."""
+    """Human-readable report of one fit: every number with its ±, and what the ± include."""
+    ratio = result.rms_error / result.noise_floor
     lines = [
         f"run {run}: model {result.spec}, {result.band_hz[0]:g}-{result.band_hz[1]:g} Hz, "
         f"{result.points} points, FRFs {', '.join(result.frfs)}",
         f"rms_error {result.rms_error:.3e}   noise_floor {result.noise_floor:.3e}"
-        f"   ({result.rms_error / result.noise_floor:.2f} x floor)",
+        f"   ({ratio:.2f} x floor)",
     ]
+    if result.noise is not None:
+        lines += [f"noise: {text}" for text in result.noise.describe()]
     if table is not None:
-        lines.append(f"table parameters fixed, from {table.source}")
+        inherited = " (with its uncertainty)" if result.inherited else " (exact, as given)"
+        lines.append(f"table parameters fixed at the values from {table.source}{inherited}")
     width = max(len(name) for name in result.parameters)
     for name, estimate in result.parameters.items():
-        fixed = name not in result.free
-        error = "fixed" if fixed else f"± {estimate.stderr:.4g}"
-        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<14} {estimate.unit}")
+        if name in result.free:
+            error = f"± {estimate.stderr:.4g}"
+        elif name in result.inherited:
+            error = f"± {estimate.stderr:.4g} (inherited)"
+        else:
+            error = "fixed"
+        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<24} {estimate.unit}")
+    if result.fits_noise:
+        text = "± are standard uncertainties: the noise (white and drift"
+        text += ", the table's uncertainty" if result.inherited else ""
+        lines.append(text + "), the model fitting to the noise")
+    else:
+        lines.append(
+            f"the model does not fit to the noise ({ratio:.1f} x floor): the ± are those of the "
+            "model's band-average (the noise's, scaled by the misfit, or the residuals' own "
+            "sandwich, whichever is larger), not measurement uncertainties of the specimen"
+        )
     if result.candidates:
         lines.append(
             "order chosen by BIC among: "
