@@ -95,16 +95,22 @@ class TableSource:
         return Known.exact(self.values, self.source)
 
 
-def table_parameters(campaign: Campaign) -> TableSource | None:
+def table_parameters(campaign: Campaign, spec: str = "table") -> TableSource | None:
     """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``.
 
     The bare-table run is fitted over every point it has: its band was chosen to cover the
     table's own resonance (about 19 Hz), which the specimen band (20-120 Hz) leaves out.
+    ``spec`` is the model of the table (``"table+frame(2000)"`` to take out the frame under
+    it); only ``M_s, K_s, C_s`` are passed on, with their covariance.
     """
+    model = parse_spec(spec)
+    if model.modulus_term is None or model.modulus_term.has_disc:
+        raise InputError(f"'{model.spec}' is not a model of the bare table (use 'table+...')",
+                         "table model")
     for name in campaign.run_names:
         run = campaign.run(name)
         if is_bare_table(run) and run.points:
-            result = fit("table", run_data(run))
+            result = fit(model, run_data(run))
             values = {n: result.values[n] for n in TABLE_NAMES}
             return TableSource(values, f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
@@ -285,10 +291,15 @@ def preload_variations(summaries: Sequence[RunSummary]) -> list[Variation]:
 
 
 def summarize(
-    campaign: Campaign, band_hz: tuple[float, float] = PAPER_BAND_HZ
+    campaign: Campaign,
+    band_hz: tuple[float, float] = PAPER_BAND_HZ,
+    table_model: str = "table",
 ) -> tuple[TableSource | None, list[RunSummary]]:
-    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed."""
-    table = table_parameters(campaign)
+    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed.
+
+    ``table_model``: the bare table's model (``"table+frame(2000)"`` takes the frame out of
+    ``K_s``; the specimen fits then stay Voigt, as the paper's)."""
+    table = table_parameters(campaign, table_model)
     summaries = []
     for name in campaign.run_names:
         run = campaign.run(name)
@@ -300,7 +311,7 @@ def summarize(
             if table is not None and table.fit is not None and table.source == f"run '{name}'":
                 result = table.fit
             else:
-                result, _ = _identify(campaign, run, "table", band_hz=None, frfs=None,
+                result, _ = _identify(campaign, run, table_model, band_hz=None, frfs=None,
                                       table=None)
             system = None
         else:

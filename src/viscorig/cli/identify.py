@@ -13,7 +13,13 @@ import json
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.fitting import FitResult
-from viscorig.identify import TableSource, identify_run, store_fit
+from viscorig.identify import (
+    TableSource,
+    identify_run,
+    is_bare_table,
+    store_fit,
+    table_parameters,
+)
 from viscorig.storage import Campaign
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
@@ -37,6 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="FRFs fitted: table (X_s/F_e), support (X_v/F_v) or both (default: all available)",
     )
+    parser.add_argument(
+        "--table-model",
+        default="table",
+        help="model of the bare-table run whose M_s, K_s, C_s (and covariance) a specimen fit "
+        "inherits, e.g. 'table+frame(2000)' for a 2000 kg frame under the table "
+        "(default: table)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--no-store", action="store_true", help="do not store the fit")
     parser.set_defaults(handler=handler)
@@ -48,7 +61,11 @@ def handler(args: argparse.Namespace) -> int:
     frfs = FRF_CHOICES[args.frf] if args.frf else None
     mode = "r" if args.no_store else "a"
     with Campaign.open(args.file, mode) as campaign:
-        result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs)
+        table = None
+        if not is_bare_table(campaign.run(args.run)):
+            table = table_parameters(campaign, args.table_model)
+        result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs,
+                                     table=table)
         fit_id = None if args.no_store else store_fit(campaign, args.run, result)
     if args.json:
         print(json.dumps(result.to_json(args.run)))

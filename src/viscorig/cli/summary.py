@@ -44,6 +44,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--band", default=None, help="band fitted, LO:HI in Hz (default: the paper's 20:120)"
     )
+    parser.add_argument(
+        "--table-model",
+        default="table",
+        help="model of the bare-table run, e.g. 'table+frame(2000)' (default: table)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=handler)
 
@@ -52,7 +57,7 @@ def handler(args: argparse.Namespace) -> int:
     """Run ``summary``."""
     band = parse_band(args.band) or PAPER_BAND_HZ
     with Campaign.open(args.file) as campaign:
-        table, runs = summarize(campaign, band)
+        table, runs = summarize(campaign, band, args.table_model)
     variations = preload_variations(runs)
     if args.json:
         print(json.dumps(summary_json(table, runs, variations, band)))
