@@ -17,8 +17,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from coverage import NOISES, VOIGT
@@ -45,10 +43,7 @@ def main() -> None:
         table_run = simulate_run(rig_text(noise=noise), seed=1, start_hz=12.0, stop_hz=28.0,
                                  step_hz=0.125, settle_cycles=200.0)
         table = fit("table", table_run.frf_data("table"))
-        names = ("M_s", "K_s", "C_s")
-        index = [table.covariance_names.index(name) for name in names]
-        known = Known({n: table.values[n] for n in names}, names,
-                      np.asarray(table.joint_covariance)[np.ix_(index, index)], "run 'table'")
+        known = Known.from_fit(table, ("M_s", "K_s", "C_s"), "run 'table'")
         data = simulate_run(rig_text(VOIGT, noise=noise), seed=2).frf_data("specimen")
         given = estimate_noise(data, ("table", "support"))
         baseline = cpu_fastest(lambda: fit("voigt", data, fixed=known.values, noise=given))  # noqa: B023

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from coverage import NOISES, TRUTH, VOIGT, coverage, replicate
+from coverage import NOISES, TABLE_NAMES, TRUTH, VOIGT, coverage, replicate
 from simdata import rig_text, simulate_run
 
 from viscorig.estimates import parameter_change
@@ -39,10 +39,8 @@ def test_the_table_uncertainty_is_what_k_v_was_missing() -> None:
     for seed in range(12):
         table_run = simulate_run(rig_text(noise=NOISES["white"]), seed=2 * seed + 1,
                                  start_hz=12.0, stop_hz=28.0, step_hz=0.125, settle_cycles=200.0)
-        table = fit("table", table_run.frf_data("table"))
-        values = {name: table.values[name] for name in ("M_s", "K_s", "C_s")}
-        index = [table.covariance_names.index(name) for name in values]
-        known = Known(values, tuple(values), table.joint_covariance[np.ix_(index, index)], "t")
+        known = Known.from_fit(fit("table", table_run.frf_data("table")), TABLE_NAMES, "t")
+        values = known.values
         data = simulate_run(rig_text(VOIGT, noise=NOISES["white"]), seed=2 * seed + 2).frf_data()
         with_table = fit("voigt", data, known=known)
         without = fit("voigt", data, fixed=values)
@@ -60,11 +58,8 @@ def test_a_change_between_two_runs_on_the_same_table_is_honest() -> None:
     for seed in range(20):
         table_run = simulate_run(rig_text(noise=NOISES["white"]), seed=3 * seed + 1,
                                  start_hz=12.0, stop_hz=28.0, step_hz=0.125, settle_cycles=200.0)
-        table = fit("table", table_run.frf_data("table"))
-        values = {name: table.values[name] for name in ("M_s", "K_s", "C_s")}
-        index = [table.covariance_names.index(name) for name in values]
-        known = Known(values, tuple(values), table.joint_covariance[np.ix_(index, index)],
-                      "run 'table'")
+        known = Known.from_fit(fit("table", table_run.frf_data("table")), TABLE_NAMES,
+                               "run 'table'")
         fits = [
             fit("voigt", simulate_run(rig_text(device, noise=NOISES["white"]),
                                       seed=3 * seed + k).frf_data(), known=known)
@@ -99,10 +94,7 @@ def test_paper_campaign_within_three_stderr_where_the_model_is_exact() -> None:
     deviations = {("table", name): (table.values[name] - value) / table.stderr[name]
                   for name, value in {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05, "f_g": 3.0,
                                       "zeta_g": 0.1}.items()}
-    names = ("M_s", "K_s", "C_s")
-    index = [table.covariance_names.index(name) for name in names]
-    known = Known({n: table.values[n] for n in names}, names,
-                  table.joint_covariance[np.ix_(index, index)], "run 'table'")
+    known = Known.from_fit(table, TABLE_NAMES, "run 'table'")
     unframed = []
     for i, (run, (k_v, c_v)) in enumerate(PAPER_TABLE_1.items()):
         device = {"mass_kg": 0.15, "model": "voigt", "stiffness_n_per_m": k_v,

@@ -86,10 +86,7 @@ class TableSource:
     def known(self) -> Known:
         """The values with their covariance, as a specimen fit inherits them."""
         if self.fit is not None:
-            names = [n for n in TABLE_NAMES if n in self.fit.covariance_names]
-            index = [self.fit.covariance_names.index(n) for n in names]
-            covariance = np.asarray(self.fit.joint_covariance)[np.ix_(index, index)]
-            return Known(dict(self.values), tuple(names), covariance, self.source)
+            return Known.from_fit(self.fit, TABLE_NAMES, self.source)
         if self.stderr:
             return Known.with_stderr(self.values, self.stderr, self.source)
         return Known.exact(self.values, self.source)
