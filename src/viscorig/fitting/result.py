@@ -109,11 +109,6 @@ class FitResult:
         return tuple(name for name in self.covariance_names if name not in self.free)
 
     @property
-    def uncertain(self) -> tuple[str, ...]:
-        """Parameters with a standard error: fitted and inherited (the JSON's non-null ones)."""
-        return tuple(self.covariance_names)
-
-    @property
     def spec(self) -> str:
         """Canonical spec of the fitted model."""
         return self.model.spec
