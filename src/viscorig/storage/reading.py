@@ -352,6 +352,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                 parameter = _read_parameter(fit[key], path)
                 if parameter is not None:
                     parameters[key] = parameter
+            correlation = _read_correlation(fit, path)
             result.append(
                 Fit(
                     id=fit_id,
@@ -362,9 +363,27 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                     noise_floor=read_number(fit, "noise_floor", path),
                     created=read_text(fit, "created", path),
                     parameters=parameters,
+                    correlation=correlation,
                 )
             )
     return result
+
+
+def _read_correlation(
+    fit: h5py.Group, path: Path
+) -> tuple[tuple[str, ...], NDArray[np.float64]] | None:
+    """The fit's correlation matrix and its parameter names, if stored (and well formed)."""
+    item = fit.get(layout.FIT_CORRELATION)
+    if not isinstance(item, h5py.Dataset) or item.ndim != 2:
+        return None
+    stored = item.attrs.get("parameters", "")
+    if isinstance(stored, np.ndarray):  # names as an array of texts
+        stored = " ".join(v.decode() if isinstance(v, bytes) else str(v) for v in stored.ravel())
+    names = tuple((stored.decode() if isinstance(stored, bytes) else str(stored)).split())
+    matrix = np.asarray(item[()], dtype=float)
+    if matrix.shape != (len(names), len(names)):
+        raise InputError("correlation does not match its parameter names", f"{path}: {item.name}")
+    return names, matrix
 
 
 def _read_parameter(item: h5py.HLObject, path: Path) -> FitParameter | None:

@@ -1,0 +1,464 @@
+"""Estimating the noise model of an FRF from the data alone (:mod:`viscorig.fitting.noise`).
+
+Work on the dynamic stiffness. With ``ω`` the angular frequency, ``Z = −ω²/H`` is the force per
+displacement the point measured: ``Z = K_s + K* − ω² M + iω C`` on the table FRF with a rigid
+link, ``K* − ω² M_v`` on the support FRF. A resonance of ``H`` is a zero crossing of ``Re Z``,
+so ``Z`` is smooth where ``H`` is not (the bare table's 0.1 Hz wide resonance included), and
+for a Voigt rubber it is a quadratic in ``ω``. Its relative error is that of ``H``:
+``Z_measured ≈ Z (1 − ε)``, so the noise of ``Z`` is ``δZ_i = −Z_i ε_i``.
+
+Finite differences. The m-th difference at lag ``h``, ``d_i = Σ_k b_k Z_{i+kh}`` with binomial
+weights ``b_k = (−1)^k C(m, k)``, removes any polynomial of degree below ``m`` in the point
+index (the grid is uniform or smoothly graded), and keeps of the noise
+``E|d_i|² = Σ_k b_k² |Z_{i+kh}|² w_{i+kh} + (correlated terms)``.
+
+1. White part, lag 1, ``m = 3``. ``e_i = |d_i|² / Σ_k b_k² |Z_{i+kh}|²`` estimates the local
+   ``w`` (``Σ b_k² = C(6, 3) = 20``); the smooth part left is ``(Δω)³`` times the third
+   derivative of ``Z``, far below any noise for a dynamic stiffness that is close to a
+   quadratic over 4 steps. (A higher order keeps less of the smooth part but averages fewer
+   independent looks at the noise: the mean of ``e_i`` is worth ``n/2.3`` independent points
+   at ``m = 3``, ``n/3.2`` at ``m = 6``.) ``|d|²`` of complex Gaussian noise is exponential,
+   whose median is ``ln 2`` times its mean: the running median of ``e_i`` over
+   :data:`WHITE_WINDOW` points, divided by ``ln 2``, is the local ``w_i``. The median ignores a
+   local mode a few points wide. Outlier points (heavy-tailed noise) are found first, by the
+   sixth difference centred on each point (:func:`outlier_points`), and every difference they
+   enter is left out of every statistic: they neither inflate nor collapse the estimate.
+   Where the file has the analyser's normalized variance ``v_i`` (the sum of both channels'),
+   it gives the shape along the band, point by point, and the differences its scale:
+   ``w_i = κ v_i`` with ``κ`` the robust mean of ``|d_i|² / Σ b_k² |Z|² v`` (``κ ≈ 1``
+   when the variance tells the whole truth; above 1 when the points scatter more than each
+   point's integration shows).
+
+2. Correlated part, lags ``h`` of :data:`LAGS`, ``m = 3`` (exact on the quadratic ``Z`` of a
+   Voigt rig). A drift that is slow on the scale of one step cancels in a lag-1 difference; at
+   the lag of its correlation length it shows in full. Project ``d_i`` on the phase of ``Z`` at
+   the window's centre: its real part carries the magnitude error ``Re ε``, its imaginary part
+   the phase error ``Im ε``. For each part, ``s_i(h) = (proj d_i)² / W_i(h)`` with
+   ``W_i(h) = Σ b_k² |Z|² w / 2`` the white expectation; it is ``χ²₁``-distributed with mean
+   ``a + σ² g_i(h; τ)``, where, with ``φ = e^{−Δt/τ}`` for the window's mean step ``Δt``,
+   ``g_i = |Z_c|² (20 − 30φ + 12φ² − 2φ³) / W_i`` (the autocovariances of the binomial weights
+   ``1, −3, 3, −1`` against the Gauss-Markov correlation). For each ``τ`` of a grid spanning the
+   lags' time scales, the pooled means over the points (after dropping those above 9 times their
+   expectation, a robust cut that removes outliers and local modes and is corrected for, the
+   mean of ``χ²₁`` below 9 being 0.973) are fitted by weighted least squares, ``a`` and ``σ²``
+   being linear unknowns; the ``τ`` of least misfit wins. ``a`` absorbs what the lag-1 white
+   estimate and the lag-``h`` statistics disagree on. The correlated part is kept only when it
+   lowers the weighted misfit by :data:`SIGNIFICANCE` (a χ² with two degrees of freedom under
+   white noise: 1 % false alarms). A first look at the shortest and the longest lag alone
+   skips the whole analysis when the longest shows no excess over the shortest (two standard
+   errors): most runs have no drift, and the look costs a fraction of the analysis.
+
+What the data cannot tell. A drift slower than the longest lag looks like a smooth change of
+the FRF: only its rate ``σ²/τ`` shows. Its correlation length is then set at the resolution
+limit (:attr:`FrfNoise.resolution`, about twice the longest lag's time span), which keeps the
+drift's variance within that span and leaves out a constant gain offset, which no single sweep
+can see (a transducer's calibration uncertainty, to be given by the user). Near sharp features
+(a resonance a few steps wide in ``Z``, such as a fixture mode) the large-lag differences see
+the feature, not the noise; the robust cut drops them as long as they cover well under half of
+the band.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import median_filter
+
+from viscorig.fitting.noise import FrfNoise, NoiseModel
+
+#: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
+WHITE_ORDER = 3
+#: Order of the lag-1 difference that finds outlier points (centred on the point).
+OUTLIER_ORDER = 6
+#: Points of the running median of the white part.
+WHITE_WINDOW = 41
+#: A point whose centred lag-1 difference is this many times its expectation is an outlier.
+OUTLIER_LEVEL = 30.0
+#: Order of the differences at several lags that estimate the correlated part.
+LAG_ORDER = 3
+#: Lags (points) of the correlated part's differences (those with enough points are used).
+LAGS = (1, 2, 4, 8, 12)
+#: A statistic above this multiple of its expectation is left out (χ²₁: 0.27 % of pure noise).
+REJECT = 9.0
+#: Mean of an exponential variable below :data:`REJECT` times its mean, relative to its mean.
+_EXP_TRUNCATED_MEAN = 0.9988891746764844
+#: Mean of χ²₁ below :data:`REJECT`, relative to its full mean.
+_CHI2_1_TRUNCATED_MEAN = 0.9733369246698526
+#: Autocovariances of the weights 1, −3, 3, −1 at offsets 0..3 (doubled beyond 0).
+_LAG_AUTOCOVARIANCE = np.array([20.0, -30.0, 12.0, -2.0])
+#: Variance of a lag's pooled mean of χ²₁ statistics times the number of windows: ``2 (1 + 2 Σ
+#: ρ_k²)``, the windows overlapping with correlations −0.75, 0.3, −0.05 at offsets 1 to 3 lags.
+_MEAN_VARIANCE = 4.62
+#: Least drop of the weighted misfit (a χ² with two degrees of freedom under white noise) for a
+#: correlated part to be kept: 1 % false alarms.
+SIGNIFICANCE = 9.2
+#: Width of the bins (in natural log) of the windows' mean steps along the axis.
+_STEP_BIN = 0.05
+#: Correlation lengths tried, relative to the data's mean step on the axis.
+_TAU_GRID = np.geomspace(0.3, 30.0, 13)
+#: Fewest points for an estimate of the correlated part.
+MIN_CORRELATION_POINTS = 40
+
+
+def _binomial(order: int) -> NDArray[np.float64]:
+    return np.array([(-1) ** k * math.comb(order, k) for k in range(order + 1)], dtype=float)
+
+
+def _lagged(values: NDArray, weights: NDArray[np.float64], lag: int) -> NDArray:
+    """``Σ_k weights[k] · values[i + k·lag]`` for every window (slices, no gathering)."""
+    order = weights.size - 1
+    n = values.size - order * lag
+    total = weights[0] * values[:n]
+    for k in range(1, order + 1):
+        total = total + weights[k] * values[k * lag : k * lag + n]
+    return total
+
+
+def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
+    """Median over ``window`` points centred on each point (the band's ends mirrored)."""
+    size = min(window, values.size)
+    return median_filter(values, size=size | 1, mode="mirror")
+
+
+def _centred(values: NDArray[np.float64], size: int, order: int) -> NDArray[np.float64]:
+    """Values of the lag-1 differences put on the point at each window's centre."""
+    pad = order // 2
+    return np.concatenate(
+        [np.full(pad, values[0]), values, np.full(size - values.size - pad, values[-1])]
+    )
+
+
+def _outlier_statistic(
+    z: NDArray[np.complex128], white: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centred sixth differences: their ratio to the white expectation, and the power of the
+    centre point's own error they imply, ``(|d|² − Σ_{k≠c} b_k² |Z_k|² w_k) / (b_c² |Z_c|²)``,
+    both put on the centre points (zero at the ends)."""
+    weights = _binomial(OUTLIER_ORDER)
+    modulus2 = z.real**2 + z.imag**2
+    d = _lagged(z, weights, 1)
+    difference = d.real**2 + d.imag**2
+    expected = _lagged(modulus2 * white, weights**2, 1)
+    centre = OUTLIER_ORDER // 2
+    count = difference.size
+    centre_power = (modulus2 * white)[centre : centre + count]
+    others = expected - weights[centre] ** 2 * centre_power
+    own = (difference - others) / (weights[centre] ** 2 * modulus2[centre : centre + count])
+    ratio, own_power = np.zeros(z.size), np.zeros(z.size)
+    ratio[centre : centre + count] = difference / expected
+    own_power[centre : centre + count] = own
+    return ratio, own_power
+
+
+def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Points that stand alone far outside the noise (heavy-tailed noise, a glitch).
+
+    The lag-1 sixth difference centred on a point weighs it by 20 and its neighbours by at most
+    15: a point whose centred difference exceeds :data:`OUTLIER_LEVEL` times its expectation
+    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``; the expectation from the white
+    part, or the local median level of the differences when that is higher) and exceeds those
+    centred on both neighbours is an outlier. A feature several points wide (a mode) is not: its
+    neighbours' differences are as large.
+    """
+    centred, _ = _outlier_statistic(z, white)
+    # Against the statistic's own local level, so that roughness the white part does not hold
+    # (a drift's) does not make ordinary points stand out.
+    centred = centred / np.maximum(running_median(centred, WHITE_WINDOW) / math.log(2.0), 1.0)
+    peak = np.zeros(z.size, dtype=bool)
+    peak[1:-1] = (centred[1:-1] > centred[:-2]) & (centred[1:-1] > centred[2:])
+    return peak & (centred > OUTLIER_LEVEL)
+
+
+
+
+def white_power(
+    z: NDArray[np.complex128],
+    variance: NDArray[np.float64] | None = None,
+    window: int = WHITE_WINDOW,
+    skip: NDArray[np.bool_] | None = None,
+    frequency_known: bool = True,
+) -> tuple[NDArray[np.float64], str]:
+    """Local white power ``w_i`` of ``ε`` from the dynamic stiffness ``z`` (frequency order).
+
+    ``skip`` marks outlier points: the differences they enter are left out (replaced by the
+    local median, which leaves it unchanged). Without the frequency (``z`` then the inverse
+    accelerance, smooth but not a polynomial) the sixth difference is used. Returns the power
+    and its source (``"differences"`` or ``"analyser variance"``).
+    """
+    order = WHITE_ORDER if frequency_known else OUTLIER_ORDER
+    weights = _binomial(order)
+    modulus2 = z.real**2 + z.imag**2
+    d = _lagged(z, weights, 1)
+    difference = d.real**2 + d.imag**2
+    clean = np.ones(difference.size, dtype=bool)
+    if skip is not None:
+        clean = _lagged(skip.astype(float), np.ones(order + 1), 1) == 0
+    if not np.any(clean):
+        clean[:] = True
+    if variance is not None:
+        expected = _lagged(modulus2 * variance, weights**2, 1)
+        ratio = (difference / expected)[clean]
+        kept = ratio < REJECT * np.median(ratio) / math.log(2.0)
+        kappa = float(np.mean(ratio[kept])) / _EXP_TRUNCATED_MEAN
+        return variance * kappa, "analyser variance"
+    local = _centred(difference / _lagged(modulus2, weights**2, 1), z.size, order)
+    median = running_median(local, window)
+    if not np.all(clean):
+        dirty = _centred((~clean).astype(float), z.size, order) > 0
+        local = np.where(dirty, median, local)
+        median = running_median(local, window)
+    return median / math.log(2.0), "differences"
+
+
+def _without_leak(
+    white: NDArray[np.float64], power: float, tau: float, axis: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The white part without what the correlated part adds to the lag-1 differences:
+    ``σ² Σ_l (−1)^l C(2m, m+l) φ^|l| / C(2m, m)`` with ``φ = e^{−Δt/τ}`` for the local step
+    (never below a tenth of the estimate)."""
+    step = np.gradient(axis) if axis.size > 1 else np.ones_like(axis)
+    phi = np.exp(-np.abs(step) / tau)
+    m = WHITE_ORDER
+    leak = sum((-1) ** abs(k) * math.comb(2 * m, m + k) * phi ** abs(k) for k in range(-m, m + 1))
+    leak = leak / math.comb(2 * m, m)
+    return np.maximum(white - power * leak, 0.1 * white)
+
+
+def _correlated_part(
+    z: NDArray[np.complex128],
+    white: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    skip: NDArray[np.bool_],
+) -> tuple[tuple[float, float], float, float]:
+    """``((σ_re², σ_im²), τ, resolution)`` of the correlated part (see the module text)."""
+    n = z.size
+    steps = np.abs(np.diff(axis))
+    mean_step = float(np.mean(steps)) if steps.size else 1.0
+    lags = [h for h in LAGS if n - LAG_ORDER * h >= MIN_CORRELATION_POINTS // 2]
+    resolution = 2.0 * mean_step * (lags[-1] if lags else 1)
+    if n < MIN_CORRELATION_POINTS or len(lags) < 3 or not mean_step > 0:
+        return (0.0, 0.0), mean_step, resolution
+    taus = _TAU_GRID * mean_step
+    taus = taus[taus <= resolution]
+    modulus2 = z.real**2 + z.imag**2
+    noise2 = modulus2 * white
+    # A first look at the shortest and the longest lag: white noise shows the same mean there
+    # (within 2 standard errors, a loose screen: the full test below decides).
+    first_look = _lag_statistics(z, noise2, axis, skip, [lags[0], lags[-1]])
+    stats, lag_of, clean = first_look[0], first_look[3], first_look[4]
+    drift = False
+    for values in stats:
+        kept = (values < REJECT) & clean
+        count = np.maximum(np.bincount(lag_of[kept], minlength=2), 1)
+        means = np.bincount(lag_of[kept], values[kept], 2) / count
+        drift |= bool(means[1] - means[0] > 2.0 * np.sqrt(_MEAN_VARIANCE * np.sum(1.0 / count)))
+    if not drift:
+        return (0.0, 0.0), float(taus[-1]), resolution
+    # The lags in between, stacked after the first two (their order does not matter below).
+    rest = _lag_statistics(z, noise2, axis, skip, lags[1:-1])
+    lags = [lags[0], lags[-1], *lags[1:-1]]
+    stats, step, expected, _, clean, modulus_centre2 = (
+        np.concatenate([a, b], axis=-1) for a, b in zip(first_look, rest, strict=True)
+    )
+    lag_of = np.concatenate([first_look[3], rest[3] + 2])
+    sizes = [n - LAG_ORDER * h for h in lags]
+    step = np.maximum(step / LAG_ORDER, 1e-12)
+    level = np.floor(np.log(step) / _STEP_BIN).astype(np.intp)
+    lowest = int(level.min())
+    step_of = level - lowest
+    bins = int(step_of.max()) + 1
+    cell = step_of * len(lags) + lag_of  # (step, lag) cell of each window
+    scale = modulus_centre2 / expected  # the gain is kernel(φ) times this
+    bin_steps = np.exp((lowest + 0.5 + np.arange(bins)) * _STEP_BIN)
+    kernel = _kernel(np.exp(-bin_steps[None, :] / taus[:, None]))  # (τ, step)
+    weight = np.array(sizes, dtype=float) / _MEAN_VARIANCE  # 1 / variance of each lag's mean
+
+    def pooled(values, expectation):
+        """Per τ: the fit of the lags' robust means, and the white-only misfit."""
+        kept = (values < REJECT * expectation) & clean
+        count = np.maximum(np.bincount(lag_of[kept], minlength=len(lags)), 1)
+        means = np.bincount(lag_of[kept], values[kept], len(lags)) / count
+        means /= _CHI2_1_TRUNCATED_MEAN
+        summed = np.bincount(cell[kept], scale[kept], bins * len(lags)).reshape(bins, -1)
+        g = kernel @ summed / count[None, :]  # (τ, lags): mean gain of the kept windows
+        a, sigma2, score = _linear_fit(means, g, weight)
+        flat = means - (weight @ means) / weight.sum()
+        return a, sigma2, score, float(weight @ flat**2)
+
+    first = [pooled(stats[part], 1.0) for part in range(2)]
+    total = first[0][2] + first[1][2]
+    choice = int(np.argmin(total))
+    if first[0][3] + first[1][3] - total[choice] < SIGNIFICANCE:
+        return (0.0, 0.0), float(taus[choice]), resolution
+    # Redo the robust cut against the expectation of the first fit (a strong drift makes
+    # large-lag statistics legitimately large), then choose τ again.
+    second = []
+    for part in range(2):
+        a, sigma2, score, _ = first[part]
+        best = int(np.argmin(score))
+        if sigma2[best] <= 0.0:  # no drift on this part: the first cut stands
+            second.append(first[part])
+            continue
+        expectation = a[best] + sigma2[best] * kernel[best, step_of] * scale
+        second.append(pooled(stats[part], expectation))
+    total = second[0][2] + second[1][2]
+    choice = int(np.argmin(total))
+    found = (float(second[0][1][choice]), float(second[1][1][choice]))
+    return found, float(taus[choice]), resolution
+
+
+def _lag_statistics(
+    z: NDArray[np.complex128],
+    noise2: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    skip: NDArray[np.bool_],
+    lags: list[int],
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray | bool, NDArray]:
+    """For every window of every lag (stacked): the two parts' statistics ``s`` (real and
+    imaginary projections of the third difference over their white expectation), the window's
+    span along the axis, its white expectation, its lag (position in ``lags``), whether it
+    holds no outlier, and ``|Z|²`` at its centre."""
+    n = z.size
+    weights = _binomial(LAG_ORDER)
+    bad = skip.astype(float) if np.any(skip) else None
+    parts: dict[str, list] = {"d": [], "centre": [], "expected": [], "clean": [], "step": []}
+    for h in lags:
+        size = n - LAG_ORDER * h
+        parts["d"].append(_lagged(z, weights, h))
+        parts["centre"].append(0.5 * (z[h : h + size] + z[2 * h : 2 * h + size]))
+        parts["expected"].append(_lagged(noise2, weights**2, h) / 2.0)
+        if bad is not None:
+            parts["clean"].append(_lagged(bad, np.ones(LAG_ORDER + 1), h) == 0)
+        parts["step"].append(np.abs(axis[LAG_ORDER * h :] - axis[:size]))
+    d, centre, expected, step = (np.concatenate(parts[key]) for key in
+                                 ("d", "centre", "expected", "step"))
+    clean = np.concatenate(parts["clean"]) if bad is not None else np.ones(d.size, dtype=bool)
+    lag_of = np.repeat(np.arange(len(lags)), [n - LAG_ORDER * h for h in lags])
+    modulus_centre2 = centre.real**2 + centre.imag**2
+    rotated = d * centre.conj() / np.sqrt(np.maximum(modulus_centre2, 1e-300))
+    stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
+    return stats, step, expected, lag_of, clean, modulus_centre2
+
+
+def _kernel(phi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``Σ_jk b_j b_k φ^|j−k|`` for the weights ``1, −3, 3, −1``."""
+    c = _LAG_AUTOCOVARIANCE
+    return c[0] + phi * (c[1] + phi * (c[2] + phi * c[3]))
+
+
+def _linear_fit(
+    means: NDArray[np.float64], g: NDArray[np.float64], weight: NDArray[np.float64]
+) -> tuple[NDArray, NDArray, NDArray]:
+    """For every ``τ`` (rows of ``g``): ``means ≈ a + σ² g`` by weighted least squares with
+    ``σ² ≥ 0``; returns ``a, σ², weighted misfit``."""
+    sw, sy = weight.sum(), weight @ means
+    sg, sgg, sgy = g @ weight, (g * g) @ weight, g @ (weight * means)
+    det = sw * sgg - sg**2
+    safe = np.where(det > 0, det, 1.0)
+    sigma2 = np.where(det > 0, np.maximum((sw * sgy - sg * sy) / safe, 0.0), 0.0)
+    a = (sy - sigma2 * sg) / sw
+    residual = means[None, :] - a[:, None] - sigma2[:, None] * g
+    return a, sigma2, (residual**2) @ weight
+
+
+def estimate_frf_noise(
+    frf: NDArray[np.complex128],
+    frequency_hz: NDArray[np.float64] | None = None,
+    time_s: NDArray[np.float64] | None = None,
+    variance: NDArray[np.float64] | None = None,
+    *,
+    name: str = "frf",
+    window: int = WHITE_WINDOW,
+    correlated: bool = True,
+) -> FrfNoise:
+    """The noise model of one FRF (see the module text).
+
+    Parameters
+    ----------
+    frf
+        Measured accelerance, one value per point (any point order; at least 10 points).
+    frequency_hz
+        Frequency of each point. Without it the points are taken as equally spaced in
+        frequency order, the inverse accelerance stands in for the dynamic stiffness, and only
+        the white part is estimated (the larger lags need the dynamic stiffness).
+    time_s
+        Test time of each point: the axis of the correlated part (default: the point index).
+    variance
+        The analyser's normalized variance of the FRF at each point (relative power), if known.
+    name
+        FRF name stored in the result.
+    window
+        Points of the running median of the white part.
+    correlated
+        Estimate the correlated part (``False``: white only).
+    """
+    frf = np.asarray(frf, dtype=complex)
+    if frf.size < 10:
+        raise ValueError("the noise estimate needs at least 10 points")
+    if frequency_hz is None:
+        order = np.arange(frf.size)
+        z = 1.0 / frf
+    else:
+        frequency = np.asarray(frequency_hz, dtype=float)
+        steps = np.diff(frequency)
+        order = (np.arange(frf.size) if np.all(steps > 0)
+                 else np.argsort(frequency, kind="stable"))
+        omega = 2 * np.pi * frequency[order]
+        z = -(omega**2) / frf[order]
+    var = None
+    if variance is not None:
+        var = np.asarray(variance, dtype=float)[order]
+        if not np.all(np.isfinite(var) & (var > 0)):
+            var = None
+    known = frequency_hz is not None
+    white_sorted, source = white_power(z, var, window, None, known)
+    skip = outlier_points(z, white_sorted)
+    if np.any(skip):
+        white_sorted, source = white_power(z, var, window, skip, known)
+    axis_unit = "point"
+    axis_sorted = np.arange(frf.size, dtype=float)
+    if time_s is not None:
+        time = np.asarray(time_s, dtype=float)[order]
+        steps = np.diff(time)
+        if np.all(np.isfinite(time)) and (np.all(steps > 0) or np.all(steps < 0)
+                                          or np.unique(time).size == time.size):
+            axis_sorted, axis_unit = time, "s"
+    powers, tau, resolution = (0.0, 0.0), 1.0, math.inf
+    if correlated and frequency_hz is not None:
+        powers, tau, resolution = _correlated_part(z, white_sorted, axis_sorted, skip)
+        if powers[0] + powers[1] > 0:
+            white_sorted = _without_leak(white_sorted, powers[0] + powers[1], tau, axis_sorted)
+    if np.any(skip):
+        # An outlier carries its own error: the floor a perfect model reaches includes it.
+        _, own = _outlier_statistic(z, white_sorted)
+        white_sorted = np.where(skip, np.maximum(white_sorted, own), white_sorted)
+    white = np.empty_like(white_sorted)
+    white[order] = white_sorted
+    outliers = np.empty_like(skip)
+    outliers[order] = skip
+    axis = np.empty_like(axis_sorted)
+    axis[order] = axis_sorted
+    return FrfNoise(name, white, powers, tau, axis, axis_unit, resolution, source, outliers)
+
+
+def estimate_noise(data, frfs: Sequence[str] | None = None, *, correlated: bool = True):
+    """The :class:`~viscorig.fitting.noise.NoiseModel` of a run's FRFs (an
+    :class:`~viscorig.fitting.FrfData`), from its points alone (and the analyser's variance
+    where the data carry it)."""
+    frfs = data.available if frfs is None else tuple(frfs)
+    noises = []
+    for name in frfs:
+        noises.append(
+            estimate_frf_noise(
+                data.frf(name),
+                data.frequency_hz,
+                data.time_s,
+                data.variance(name),
+                name=name,
+                correlated=correlated,
+            )
+        )
+    return NoiseModel.of(*noises)
