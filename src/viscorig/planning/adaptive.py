@@ -108,8 +108,8 @@ class AdaptiveSettings:
         The shaker's force limit, if known.
     look_points
         Points of the first look.
-    look_integrate_cycles
-        Integration of the first look and of the coverage points.
+    look_integrate_cycles, cover_integrate_cycles
+        Integration of the first look's points and of the coverage points.
     prior_damping_ratio
         Damping assumed (at the band's lower edge) to settle the first look.
     look_noise
@@ -144,6 +144,7 @@ class AdaptiveSettings:
     force_limit_n: float | None = None
     look_points: int = 10
     look_integrate_cycles: int = 10
+    cover_integrate_cycles: int = 5
     prior_damping_ratio: float = 0.05
     look_noise: float = 5e-4
     coverage_damping_ratio: float | None = 0.02
@@ -311,6 +312,7 @@ class AdaptivePlan:
         self._info: InformationModel | None = None
         self._modes: list[Mode] = []
         self._calibration: NDArray[np.float64] | None = None
+        self._held: NDArray[np.float64] | None = None
         self._covered = False
         self._batches = 0
         self._settle_factor = 1.0
@@ -434,8 +436,8 @@ class AdaptivePlan:
         )  # fmt: skip
         self._modes = identified_modes(result.model, result.values, s.band_hz)
         self._check_settle()
-        held = self._info.of_points(self.points.frequency_hz, self.points.integrate_s)
-        predicted = np.diag(np.linalg.pinv(held))
+        self._held = self._info.of_measured(self.points.frequency_hz, power)
+        predicted = np.diag(np.linalg.pinv(self._held))
         index = [result.free.index(name) for name in s.targets]
         reported = np.array([self._relative_stderr()[name] for name in s.targets]) ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -534,13 +536,19 @@ class AdaptivePlan:
             calibration = np.clip(self._calibration, 0.25, 100.0)
         return index, wanted / np.sqrt(calibration)
 
-    def _allocation(self, fraction: float) -> tuple[NDArray, NDArray, float]:
-        """Candidate frequencies and the integration time the next batch gives each."""
+    def _allocation(
+        self, fraction: float, cover: list[tuple[float, int]]
+    ) -> tuple[NDArray, NDArray, float]:
+        """Candidate frequencies and the integration time the next batch gives each, counting
+        what is held and what the batch's ``cover`` points will add."""
         s = self.settings
         info = self._info
-        assert info is not None and self.points is not None
+        assert info is not None and self.points is not None and self._held is not None
         candidates = s.limits.grid(s.band_hz, s.resolution_hz)
-        held = info.of_points(self.points.frequency_hz, self.points.integrate_s)
+        held = self._held
+        if cover:
+            f = np.array([c[0] for c in cover])
+            held = held + info.of_points(f, np.array([c[1] for c in cover]) / f)
         index, wanted = self._design_targets()
         design = minimum_time_design(candidates, info.rate(candidates), index, wanted, prior=held)
         support = design.support(1e-4)
@@ -558,10 +566,6 @@ class AdaptivePlan:
         s = self.settings
         assert self.points is not None and self._info is not None
         fraction = s.first_fraction if not self._covered else 1.0
-        if choose:
-            frequency, integrate, remaining = self._allocation(fraction)
-        else:
-            frequency, integrate, remaining = np.zeros(0), np.zeros(0), 0.0
         cover: list[tuple[float, int]] = []
         if not self._covered and s.coverage_damping_ratio is not None:
             grid = coverage_grid(
@@ -569,8 +573,12 @@ class AdaptivePlan:
                 narrowest_damping_ratio=s.coverage_damping_ratio,
                 points_per_bandwidth=s.points_per_bandwidth, limits=s.limits,
             )  # fmt: skip
-            cycles = min(s.look_integrate_cycles, s.integrate_cap)
+            cycles = min(s.cover_integrate_cycles, s.integrate_cap)
             cover = [(float(f), cycles) for f in grid]
+        if choose:
+            frequency, integrate, remaining = self._allocation(fraction, cover)
+        else:
+            frequency, integrate, remaining = np.zeros(0), np.zeros(0), 0.0
         room = np.inf if s.dwell_limit_s is None else s.dwell_limit_s - used
         room = min(room, s.max_batch_s)
         if integrate.sum() > room:  # no batch beyond the room left: scale it down first

@@ -29,6 +29,9 @@ from viscorig.planning.noise import model_amplitudes
 from viscorig.planning.points import PlannedPoint
 from viscorig.planning.transient import Mode, settle_s, step_mismatch
 
+#: A point at least this long always gets a lead-in (a second pass of it would be costly).
+LONG_POINT_CYCLES = 20
+
 __all__ = [
     "PointContext",
     "allocation_points",
@@ -115,11 +118,12 @@ def settle_points(
 
     Where the source level must change by more than the auto-level tolerance, the controller
     measures a point twice (settle and integration each time); where the last level was near
-    the tolerance's edge a small change does it too. So at every new frequency a short
-    *lead-in* point (``lead_cycles`` of integration, the settle the next point needs) takes the
-    controller's passes, and the long point follows in one pass without settling (the rig is in
-    its steady state at a level within tolerance): one cycle more than without it, and never a
-    second pass of a long point. ``settle_factor`` lengthens
+    the tolerance's edge a small change does it too. So before a long point, or where the level
+    moves by more than half the tolerance, a short *lead-in* point at the same frequency
+    (``lead_cycles`` of integration, the settle the next point needs) takes the controller's
+    passes, and the point follows in one pass without settling (the rig is in its steady state
+    at a level within tolerance): one cycle more than without it, and never a second pass of a
+    long point. ``settle_factor`` lengthens
     every settle (a transient seen in the data decays slower than the identified modes say).
     """
     if not points:
@@ -148,7 +152,10 @@ def settle_points(
             continue
         ratio = source_ratio[i] if np.isfinite(source_ratio[i]) else 1.0
         mismatch = step_mismatch(f[i], last, context.response, ratio, timing.tolerance_db)
-        lead = cycles[i] > 2 * lead_cycles
+        # a lead-in costs one cycle more; it pays where a second pass is likely (the level
+        # moves by more than half the tolerance) or would be costly (a long point)
+        likely = abs(change_db[i]) > 0.5 * timing.tolerance_db
+        lead = cycles[i] > 2 * lead_cycles and (likely or cycles[i] >= LONG_POINT_CYCLES)
         wait = settle_s(
             f[i], last, list(context.modes), mismatch=mismatch, noise_sd=float(noise[i]),
             integrate_s=float(integrate[i]), bias_fraction=bias_fraction,

@@ -12,8 +12,9 @@ Fisher information of the points (the efficiency the design counts on).
 :func:`weighted_fit` starts from the core's own fit (:func:`viscorig.fitting.fit`: same model,
 same start, same bounds), refines it on the residual divided by each point's noise standard
 deviation, and gives the covariance of that estimate under the same noise, ``(JᵀWJ)⁻¹ JᵀWΣWJ
-(JᵀWJ)⁻¹`` with ``W = Σ⁻¹``, scaled up by the misfit when the model leaves more than noise
-(``χ²/(n − k)`` above 1), so a wrong model never reports the precision of a right one.
+(JᵀWJ)⁻¹`` with ``W = Σ⁻¹``, scaled up by the misfit when the model leaves more than the noise
+can explain (``χ²/ν`` more than three of its standard deviations above 1), so a wrong model
+never reports the precision of a right one.
 """
 
 from __future__ import annotations
@@ -89,8 +90,11 @@ def weighted_fit(
     r = ratio(x)
     jac = solution.jac if x is solution.x else _jacobian(whitened, x)
     n, k = jac.shape
-    chi2 = float(np.sum(whitened(x) ** 2))
-    misfit = max(1.0, chi2 / max(n - k, 1))
+    dof = max(n - k, 1)
+    reduced = float(np.sum(whitened(x) ** 2)) / dof
+    # scaled only by a misfit the noise cannot explain (χ²/ν beyond 3 of its standard
+    # deviations, sqrt(2/ν)): a model at the noise floor keeps the noise's own covariance
+    misfit = reduced if reduced > 1.0 + 3.0 * np.sqrt(2.0 / dof) else 1.0
     inverse = np.linalg.pinv(jac.T @ jac)
     derivative = np.where(log, fitted, 1.0)
     covariance = inverse * misfit * np.outer(derivative, derivative)

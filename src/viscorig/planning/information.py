@@ -84,6 +84,23 @@ class InformationModel:
         rate = self.rate(frequency_hz)
         return np.einsum("p,pij->ij", np.atleast_1d(np.asarray(integrate_s, float)), rate)
 
+    def of_measured(
+        self, frequency_hz: ArrayLike, power: Mapping[str, ArrayLike]
+    ) -> NDArray[np.float64]:
+        """Total information (k, k) of measured points whose noise power ``E|ε_i|²`` of each
+        FRF is known point by point (the analyser's variance): what a noise-weighted fit of
+        exactly these points holds."""
+        f = np.atleast_1d(np.asarray(frequency_hz, dtype=float))
+        sensitivity = log_sensitivities(
+            self.model, self.values, self.names, f, level_m_per_s2=self.level_m_per_s2
+        )
+        total = np.zeros((len(self.names), len(self.names)))
+        for frf, j in sensitivity.items():
+            if frf in power:
+                weight = 2.0 / np.asarray(power[frf], dtype=float)
+                total += np.einsum("p,pi,pj->ij", weight, j.conj(), j).real
+        return total
+
     def relative_values(self) -> NDArray[np.float64]:
         """``|p̂_k|`` (1 where the value is 0): the scale of the relative coordinates."""
         v = np.array([abs(float(self.values[n])) for n in self.names])
