@@ -15,6 +15,7 @@ from viscorig.planning import (
     AdaptiveSettings,
     MeasureRequest,
     State,
+    shared_noise,
     sweep_segments,
 )
 
@@ -120,9 +121,9 @@ def test_a_custom_fit_function_is_what_the_targets_are_judged_by():
     rig = SimulatedRig(VOIGT_RIG, 1.4, seed=6)
     calls = []
 
-    def core_fit(points):
+    def core_fit(points):  # the core's own estimate, under the points' measured noise
         calls.append(len(points))
-        return fit("voigt", points.frf_data(), fixed=TABLE)
+        return fit("voigt", points.frf_data(), fixed=TABLE, noise=shared_noise(points))
 
     outcome = AdaptivePlan(_settings(targets={"K_v": 3e-3, "C_v": 3e-3}), core_fit).run(rig)
     assert outcome.targets_met and calls and calls[-1] == len(outcome.points)

@@ -14,7 +14,7 @@ from viscorig.planning import InformationModel, design_bound, estimate_noise, po
 def rig_model():
     points = paper_sweep(SimulatedRig(VOIGT_RIG, 1.4, seed=2), step_hz=1.0)
     result = fit("voigt", points.frf_data(), fixed=TABLE)
-    power, source = point_noise_power(points, result)
+    power, source = point_noise_power(points)
     return result, estimate_noise(points, power, source)
 
 

@@ -32,7 +32,7 @@ def context():
     rig = SimulatedRig(VOIGT_RIG, 1.4, seed=1)
     look = rig.measure(log_grid((20.0, 120.0), 30), 300, 10)
     result = fit("voigt", look.frf_data(), fixed=TABLE)
-    power, source = point_noise_power(look, result)
+    power, source = point_noise_power(look)
     info = InformationModel(result.model, result.values, result.free,
                             estimate_noise(look, power, source), 1.4, 100.0)  # fmt: skip
     modes = identified_modes(result.model, result.values, (20.0, 120.0))

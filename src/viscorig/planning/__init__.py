@@ -31,6 +31,7 @@ from viscorig.planning.noise import (
     measured_amplitudes,
     model_amplitudes,
     point_noise_power,
+    shared_noise,
 )
 from viscorig.planning.points import (
     MeasuredPoints,
@@ -74,6 +75,7 @@ __all__ = [
     "model_amplitudes",
     "point_noise_power",
     "settle_s",
+    "shared_noise",
     "step_mismatch",
     "sweep_segments",
 ]

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult, fit
+from viscorig.fitting import FitResult
 from viscorig.models import parse_spec
 from viscorig.planning.batch import (
     allocation_points,
@@ -57,7 +57,7 @@ from viscorig.planning.instrument import (
     AnalyserLimits,
     PointTiming,
 )
-from viscorig.planning.noise import estimate_noise, measured_amplitudes, point_noise_power
+from viscorig.planning.noise import estimate_noise, point_noise_power, shared_noise
 from viscorig.planning.points import MeasuredPoints, MeasureFunction, PlannedPoint
 from viscorig.planning.transient import Mode, identified_modes, settle_s
 
@@ -260,31 +260,13 @@ FitFunction = Callable[[MeasuredPoints], FitResult]
 
 
 def weighted_fit_function(spec: str, fixed: Mapping[str, float]) -> FitFunction:
-    """The noise-weighted fit of ``spec`` (:mod:`~viscorig.planning.estimator`), each point
-    weighted by its analyser variance, or, without one, by the noise model fitted to the
-    residuals of the core's unweighted fit."""
+    """The noise-weighted fit of ``spec`` (:mod:`~viscorig.planning.estimator`) under the core's
+    noise model of the points (:func:`~viscorig.planning.noise.shared_noise`)."""
 
     def run(points: MeasuredPoints) -> FitResult:
-        data = points.frf_data()
-        order = np.argsort(points.frequency_hz, kind="stable")
-        power, source = point_noise_power(points, None) if _has_variance(points) else (
-            point_noise_power(points, fit(spec, data, fixed=dict(fixed)))
-        )
-        if source != "analyser variance":
-            noise = estimate_noise(points, power, source)
-            amplitudes = measured_amplitudes(points)
-            power = {name: noise.power(name, amplitudes, points.integrate_s) for name in power}
-        return weighted_fit(spec, data, {name: p[order] for name, p in power.items()},
-                            fixed=fixed)  # fmt: skip
+        return weighted_fit(spec, points.frf_data(), shared_noise(points), fixed=fixed)
 
     return run
-
-
-def _has_variance(points: MeasuredPoints) -> bool:
-    variances = [points.variance_table]
-    if points.accelerance_support is not None:
-        variances.append(points.variance_support)
-    return all(v is not None and np.all(np.isfinite(v) & (v > 0)) for v in variances)
 
 
 class AdaptivePlan:
@@ -428,7 +410,7 @@ class AdaptivePlan:
                 f"targets {', '.join(missing)} are not fitted by '{result.spec}'", "adaptive plan"
             )
         self.result = result
-        power, source = point_noise_power(self.points, result)
+        power, source = point_noise_power(self.points, result.noise)
         noise = estimate_noise(self.points, power, source)
         self._info = InformationModel(
             result.model, dict(result.values), tuple(result.free), noise, s.level_m_per_s2,
@@ -599,7 +581,8 @@ class AdaptivePlan:
             return [], 0.0, "dwell limit"
         self._covered = True
         if not planned:
-            return [], 0.0, "dwell limit" if choose and np.isfinite(room) else "no progress"
+            limited = choose and s.dwell_limit_s is not None and room < s.max_batch_s
+            return [], 0.0, "dwell limit" if limited else "no progress"
         chosen = ", ".join(f"{f:.2f}" for f in np.unique(frequency[integrate > 0]))
         note = f"batch of {len(planned)} points ({len(refine)} chosen, {len(cover)} coverage)"
         if chosen:

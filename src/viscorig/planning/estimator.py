@@ -1,20 +1,21 @@
 """The noise-weighted (maximum-likelihood) fit a plan needs.
 
 The identification core minimises the design's error measure, the plain mean of
-``|H_model/H_measured − 1|²``, in which every point weighs the same. A plan spends its time
-unevenly on purpose (long integrations where the targets are learnt, short looks elsewhere), so
-its points differ in noise by orders of magnitude, and an unweighted estimate lets the noisiest
-points set the parameters: on the paper's own sweep it already uses about a twentieth of the
-information the points hold, and on a plan far less. The estimate a plan is judged by is the
-weighted one, ``min Σ |r_i|²/σ_i²`` with ``σ_i²`` each point's noise power, which reaches the
-Fisher information of the points (the efficiency the design counts on).
+``|H_model/H_measured − 1|²``, in which every point weighs the same, and gives the honest
+covariance of that estimate under the noise model. A plan spends its time unevenly on purpose
+(long integrations where the targets are learnt, short looks elsewhere), so its points differ in
+noise by orders of magnitude, and an unweighted estimate lets the noisiest points set the
+parameters: on the paper's own sweep it uses about a twentieth of the information the points
+hold, and on a plan far less. The estimate a plan is judged by is the generalised least-squares
+one under the core's noise model (:class:`viscorig.fitting.NoiseModel`), ``min ‖L⁻¹ r‖²`` with
+``LLᵀ = Σ`` (the residual *whitened* by the noise, drift included), which reaches the Fisher
+information of the points (the efficiency the design counts on).
 
-:func:`weighted_fit` starts from the core's own fit (:func:`viscorig.fitting.fit`: same model,
-same start, same bounds), refines it on the residual divided by each point's noise standard
-deviation, and gives the covariance of that estimate under the same noise, ``(JᵀWJ)⁻¹ JᵀWΣWJ
-(JᵀWJ)⁻¹`` with ``W = Σ⁻¹``, scaled up by the misfit when the model leaves more than the noise
-can explain (``χ²/ν`` more than three of its standard deviations above 1), so a wrong model
-never reports the precision of a right one.
+:func:`weighted_fit` starts from the core's own fit (:func:`viscorig.fitting.fit`, same model,
+start, bounds and noise model), refines it on the whitened residual, and gives that estimate's
+covariance under the same noise, ``(J_wᵀ J_w)⁻¹`` with ``J_w`` the whitened Jacobian, scaled up
+by the misfit when the model leaves more than the noise can explain (``χ²/ν`` more than three of
+its standard deviations above 1), so a wrong model never reports the precision of a right one.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, NoiseModel, fit
 
 __all__ = ["weighted_fit"]
 
@@ -34,31 +35,29 @@ __all__ = ["weighted_fit"]
 def weighted_fit(
     spec: str,
     data: FrfData,
-    noise_power: Mapping[str, NDArray[np.float64]],
+    noise: NoiseModel,
     *,
     fixed: Mapping[str, float] | None = None,
 ) -> FitResult:
-    """Fit ``spec`` to ``data`` weighting each point by its noise.
+    """Fit ``spec`` to ``data`` by generalised least squares under ``noise``.
 
     Parameters
     ----------
     spec
         Model spec.
     data
-        The points (any order).
-    noise_power
-        ``{frf: E|ε_i|²}`` of every point of ``data``, in its order.
+        The points.
+    noise
+        The core's noise model of exactly these points (in their order).
     fixed
         Parameters held fixed.
     """
-    start = fit(spec, data, fixed=dict(fixed or {}))
+    start = fit(spec, data, fixed=dict(fixed or {}), noise=noise)
     model, free, frfs = start.model, start.free, start.frfs
     if not free:
         return start
     ctx = data.context()
-    measured = [data.frf(name) for name in frfs]
-    power = np.concatenate([np.asarray(noise_power[name], dtype=float) for name in frfs])
-    sigma = np.sqrt(np.maximum(power / 2.0, 1e-300))  # each of Re, Im carries half
+    measured = {name: data.frf(name) for name in frfs}
     parameters = [model.by_name[name] for name in free]
     log = np.array([p.log for p in parameters])
     lower = np.array([np.log(p.lower) if p.log else p.lower for p in parameters])
@@ -68,14 +67,13 @@ def weighted_fit(
     def to_values(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(log, np.exp(np.clip(x, -700, 700)), x)
 
-    def ratio(x: NDArray[np.float64]) -> NDArray[np.complex128]:
+    def ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
         values.update(zip(free, to_values(x), strict=True))
         predicted = model.predict(ctx, values)
-        return np.concatenate([predicted[n] / h for n, h in zip(frfs, measured, strict=True)]) - 1
+        return {name: predicted[name] / measured[name] - 1 for name in frfs}
 
     def whitened(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = ratio(x)
-        return np.concatenate([r.real / sigma, r.imag / sigma])
+        return noise.whiten(ratio(x))
 
     x0 = np.array([start.values[name] for name in free])
     x0 = np.where(log, np.log(np.abs(x0) + 1e-300), x0)
@@ -84,41 +82,44 @@ def weighted_fit(
     with np.errstate(all="ignore"):
         solution = least_squares(whitened, x0, bounds=(lower, upper), x_scale="jac",
                                  method="trf", ftol=1e-12, xtol=1e-12, gtol=1e-12)  # fmt: skip
-    x = solution.x if solution.cost <= 0.5 * float(np.sum(whitened(x0) ** 2)) else x0
+    better = solution.cost <= 0.5 * float(np.sum(whitened(x0) ** 2))
+    x = solution.x if better else x0
+    jac = solution.jac if better else _jacobian(whitened, x)
     fitted = to_values(x)
     values.update(zip(free, fitted, strict=True))
-    r = ratio(x)
-    jac = solution.jac if x is solution.x else _jacobian(whitened, x)
-    n, k = jac.shape
-    dof = max(n - k, 1)
+    residuals = ratio(x)
+    dof = max(noise.effective_points(frfs) - len(free), 1.0)
     reduced = float(np.sum(whitened(x) ** 2)) / dof
-    # scaled only by a misfit the noise cannot explain (χ²/ν beyond 3 of its standard
-    # deviations, sqrt(2/ν)): a model at the noise floor keeps the noise's own covariance
     misfit = reduced if reduced > 1.0 + 3.0 * np.sqrt(2.0 / dof) else 1.0
-    inverse = np.linalg.pinv(jac.T @ jac)
     derivative = np.where(log, fitted, 1.0)
-    covariance = inverse * misfit * np.outer(derivative, derivative)
+    noise_only = np.linalg.pinv(jac.T @ jac, hermitian=True) * np.outer(derivative, derivative)
+    covariance = noise_only * misfit
     stderr = dict.fromkeys(model.names, 0.0)
     stderr.update(zip(free, np.sqrt(np.abs(np.diag(covariance))), strict=True))
-    points = data.frequency_hz.size
+    everything = np.concatenate([residuals[name] for name in frfs])
+    rms_error = float(np.sqrt(np.mean(np.abs(everything) ** 2)))
+    warnings = list(start.warnings)
+    if misfit > 1.0:
+        warnings.append(f"the model leaves {misfit:.2g} times the noise: standard errors scaled up")
     return replace(
         start,
         values={name: float(v) for name, v in values.items()},
         stderr=stderr,
         covariance=covariance,
-        rms_error=float(np.sqrt(np.mean(np.abs(r) ** 2))),
-        residuals={name: r[i * points : (i + 1) * points] for i, name in enumerate(frfs)},
+        covariance_names=free,
+        joint_covariance=covariance,
+        noise_covariance=noise_only,
+        misfit_scale=float(misfit),
+        fits_noise=rms_error <= MISFIT_RATIO * noise.floor_of(frfs),
+        rms_error=rms_error,
+        residuals=residuals,
         nfev=start.nfev + int(solution.nfev),
-        warnings=[*start.warnings, *(
-            [f"the model leaves {misfit:.2g} times the noise: standard errors scaled up"]
-            if misfit > 1.5 else []
-        )],
-    )  # fmt: skip
+        warnings=warnings,
+    )
 
 
 def _jacobian(function, x: NDArray[np.float64]) -> NDArray[np.float64]:
     """Central-difference Jacobian."""
-    base = function(x)
     columns = []
     for i in range(x.size):
         step = 1e-6 * max(1.0, abs(x[i]))
@@ -126,4 +127,4 @@ def _jacobian(function, x: NDArray[np.float64]) -> NDArray[np.float64]:
         up[i] += step
         down[i] -= step
         columns.append((function(up) - function(down)) / (2 * step))
-    return np.column_stack(columns) if columns else np.zeros((base.size, 0))
+    return np.column_stack(columns)

@@ -18,11 +18,12 @@ specimen's stiffness against the disc's inertia), ``|F_e|`` dips at the system's
 is why the information lies where it does, and why integration time buys least at the top of
 the band.
 
-Estimate. ``S_F``, ``S_a`` and ``r`` of each FRF are fitted to per-point noise powers of points
-already measured (a first look at known cycles): the analyser's normalized variance where the
-instrument gives it, else the squared residuals of a fit (:func:`point_noise_power`). The fit is
-a gamma quasi-likelihood with a linear, non-negative mean (iteratively reweighted non-negative
-least squares), because a single point's noise power scatters like an exponential variable.
+Estimate. ``S_F``, ``S_a`` and ``r`` of each FRF are fitted to the per-point noise powers of
+points already measured (a first look at known cycles), as the core's noise model gives them
+(:func:`shared_noise`: the analyser's normalized variance where the instrument gives it, else
+the core's estimate from the data). The fit is a gamma quasi-likelihood with a linear,
+non-negative mean (iteratively reweighted non-negative least squares), because a single point's
+noise power scatters like an exponential variable.
 The channel amplitudes at frequencies not yet measured come from a fitted model of the rig
 (:func:`model_amplitudes`).
 """
@@ -36,10 +37,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
-from viscorig.fitting import FitResult
+from viscorig.fitting import FrfNoise as SharedFrfNoise
+from viscorig.fitting import NoiseModel as SharedNoiseModel
+from viscorig.fitting import estimate_noise as estimate_shared_noise
 from viscorig.models import Context, Model
 from viscorig.planning.points import MeasuredPoints
-from viscorig.planning.sensitivity import log_sensitivities
 
 __all__ = [
     "ChannelAmplitudes",
@@ -49,6 +51,7 @@ __all__ = [
     "measured_amplitudes",
     "model_amplitudes",
     "point_noise_power",
+    "shared_noise",
 ]
 
 
@@ -201,59 +204,40 @@ def _force_scale(force_e: NDArray[np.float64], limit: float | None) -> NDArray[n
     return np.minimum(1.0, limit / np.maximum(force_e, 1e-300))
 
 
-def point_noise_power(
-    points: MeasuredPoints, fit: FitResult | None = None, *, iterations: int = 4
-) -> tuple[dict[str, NDArray[np.float64]], str]:
-    """Per-point relative noise power ``|ε_i|²`` of each FRF, and where it comes from.
+def shared_noise(points: MeasuredPoints) -> NoiseModel:
+    """The core's noise model (:class:`viscorig.fitting.NoiseModel`) of measured points, in
+    the order of :meth:`MeasuredPoints.frf_data` (frequency order).
 
-    The analyser's normalized variance where every point has it (a measurement of the
-    scatter within each point's integration). Otherwise the residuals of ``fit`` (made on
-    exactly these points): an unweighted fit lets the noisiest points move the parameters, so
-    that the residuals of the quiet points show the noisy ones' error, not their own; the
-    residuals are therefore those of a noise-weighted fit, reached from ``fit`` by linearised
-    reweighted steps (the weights from the noise model of the previous step), and inflated by
-    ``n/(n − k)`` for the parameters they used up.
+    Where every point carries the analyser's normalized variance, that is each point's white
+    noise power as measured, taken at face value: a plan's points are not a dense, even grid,
+    and the core's estimate from differences of neighbouring points (which scales the variance)
+    would read the FRF's shape between sparse points as noise. A scatter beyond the variance
+    still shows in a fit's χ² (:mod:`viscorig.planning.estimator` scales its covariance by a
+    significant misfit). Without a variance: the core's estimate from the data
+    (:func:`viscorig.fitting.estimate_noise`).
     """
-    variances = {"table": points.variance_table, "support": points.variance_support}
-    frfs = ["table"] if points.accelerance_support is None else ["table", "support"]
-    if all(variances[name] is not None and np.all(np.isfinite(variances[name])) for name in frfs):
-        return {name: np.asarray(variances[name], dtype=float) for name in frfs}, (
-            "analyser variance"
-        )
-    if fit is None:
-        raise ValueError("the points carry no analyser variance: a fit is needed")
+    data = points.frf_data()
+    frfs = data.available
+    if all(data.variance(name) is not None for name in frfs):
+        return SharedNoiseModel.of(*(
+            SharedFrfNoise(name, data.variance(name), axis=data.time_s, axis_unit="s",
+                           source="analyser variance")
+            for name in frfs
+        ))  # fmt: skip
+    return estimate_shared_noise(data, frfs)
+
+
+def point_noise_power(
+    points: MeasuredPoints, noise: SharedNoiseModel | None = None
+) -> tuple[dict[str, NDArray[np.float64]], str]:
+    """Per-point relative noise power ``E|ε_i|²`` of each FRF, in measurement order, from the
+    core's noise model of the points (:func:`shared_noise` unless given), and its source."""
+    noise = shared_noise(points) if noise is None else noise
     order = np.argsort(points.frequency_hz, kind="stable")
     back = np.empty_like(order)
     back[order] = np.arange(order.size)
-    frfs = [name for name in frfs if name in fit.residuals]
-    residual = {name: np.asarray(fit.residuals[name])[back] for name in frfs}
-    jacobian = log_sensitivities(fit.model, fit.values, fit.free, points.frequency_hz)
-    k = len(fit.free)
-    n = 2 * sum(r.size for r in residual.values())
-    inflation = n / max(n - k, 1)
-    power = {name: np.abs(r) ** 2 * inflation for name, r in residual.items()}
-    for _ in range(iterations):
-        noise = estimate_noise(points, power)
-        amplitudes = measured_amplitudes(points)
-        rows, targets, weights = [], [], []
-        for name in frfs:
-            sigma2 = noise.power(name, amplitudes, points.integrate_s)
-            rows.append(jacobian[name])
-            targets.append(residual[name])
-            weights.append(1.0 / np.maximum(sigma2, 1e-300))
-        j = np.concatenate(rows)
-        r = np.concatenate(targets)
-        w = np.concatenate(weights)
-        real_j = np.concatenate([j.real, j.imag]) * np.sqrt(np.concatenate([w, w]))[:, None]
-        real_r = np.concatenate([r.real, r.imag]) * np.sqrt(np.concatenate([w, w]))
-        step, *_ = np.linalg.lstsq(real_j, real_r, rcond=None)
-        start = 0
-        for name in frfs:
-            size = residual[name].size
-            moved = residual[name] - jacobian[name] @ step
-            power[name] = np.abs(moved) ** 2 * inflation
-            start += size
-    return power, "fit residuals"
+    sources = {block.source for blocks in noise.blocks.values() for block in blocks}
+    return {name: noise.power(name)[back] for name in noise.frfs}, ", ".join(sorted(sources))
 
 
 def estimate_noise(

@@ -128,15 +128,21 @@ class MeasuredPoints:
         return MeasuredPoints(**values)
 
     def frf_data(self, name: str = "plan") -> FrfData:
-        """The points as :class:`~viscorig.fitting.FrfData`, sorted by frequency (stable)."""
+        """The points as :class:`~viscorig.fitting.FrfData`, sorted by frequency (stable), with
+        the test time at the end of each point and the analyser's variance where there is one."""
         order = np.argsort(self.frequency_hz, kind="stable")
-        support = None if self.accelerance_support is None else self.accelerance_support[order]
+
+        def pick(values: NDArray | None) -> NDArray | None:
+            return None if values is None else values[order]
+
         return FrfData(
             self.frequency_hz[order],
             self.accelerance_table[order],
-            support,
+            pick(self.accelerance_support),
             np.cumsum(self.duration_s)[order],
             self.reference_amplitude[order],
+            variance_table=pick(self.variance_table),
+            variance_support=pick(self.variance_support),
             name=name,
         )
 
