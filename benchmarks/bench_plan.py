@@ -18,7 +18,7 @@ such a run today, with the core's noise estimate and with the analyser's varianc
 model). Then a loose target (0.2 % on K_v and C_v, a damper datasheet's need), and the
 floor for each rig preset of the paper (``sim/rigs``).
 
-Run: ``python benchmarks/bench_plan.py [--repeats N]`` (needs the project installed; uses
+Run: ``python benchmarks/bench_plan.py [--repeats N] [--ladder]`` (needs the project installed; uses
 tests/planning_rig).
 """
 
@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from planning_rig import TABLE, VOIGT_RIG, VOIGT_TRUTH, SimulatedRig, paper_sweep
 from rigsim.rigfile import load_preset
 
+from viscorig.diagnosis import diagnose
 from viscorig.fitting import fit
 from viscorig.planning import (
     AdaptivePlan,
@@ -186,13 +187,37 @@ def presets() -> None:
                                            if flagged else ""))  # fmt: skip
 
 
+def coverage(ladder: bool) -> None:
+    """Diagnosis on what the adaptive plan measured (one point per frequency: repeats joined)
+    against diagnosis on the paper's full sweep, for every preset. Voigt misfits these rubbers,
+    so the plan stops after its first look and the band's coverage ("model misfit")."""
+    print("Diagnosis on the adaptive plan's points vs the paper's sweep (first effect"
+          + (", then the diagnose --auto ladder" if ladder else "") + ")")
+    for name in PRESETS:
+        paper = paper_sweep(SimulatedRig(name, LEVEL, seed=3))
+        full = diagnose(paper.frf_data(name), table=TABLE)
+        plan = AdaptivePlan(settings({"K_v": 2e-5, "C_v": 2e-4}))
+        outcome = plan.run(SimulatedRig(name, LEVEL, seed=4))
+        merged = outcome.points.merged()
+        mine = diagnose(merged.frf_data(name), table=TABLE)
+        line = (f"  {name:10s} paper {paper.test_time_s:6.0f} s: {full.findings[0].effect}; "
+                f"adaptive {outcome.test_time_s:4.0f} s ({outcome.reason}, {len(merged)} "
+                f"frequencies): {mine.findings[0].effect}")
+        if ladder:
+            line += (f"\n{'':14s}ladder: paper {full.auto()[-1].model}; "
+                     f"adaptive {mine.auto()[-1].model}")
+        print(line)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument("--ladder", action="store_true", help="climb diagnose's ladder too")
     arguments = parser.parse_args()
     voigt_rig(arguments.repeats)
     loose_target(max(3, arguments.repeats // 4))
     presets()
+    coverage(arguments.ladder)
 
 
 if __name__ == "__main__":

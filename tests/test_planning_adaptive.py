@@ -82,7 +82,9 @@ def test_points_stay_in_the_band_and_within_the_instruments_limits(seed):
     settle = np.array([p.settle_cycles for p in requested])
     assert np.all((integrate >= 1) & (integrate <= min(234, max_integrate)))
     assert np.all((settle >= 0) & (settle <= max_settle))
-    assert plan.outcome is not None and plan.outcome.reason in {"dwell limit", "batch limit"}
+    # a settle capped below what the transient needs leaves bias: the data then misfit
+    assert plan.outcome is not None
+    assert plan.outcome.reason in {"dwell limit", "batch limit", "model misfit"}
     # the limit is kept to the accuracy of the time prediction (a few per cent)
     assert plan.outcome.test_time_s <= 150.0 * 1.1
 

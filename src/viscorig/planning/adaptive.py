@@ -19,8 +19,9 @@ States::
   from the points (:mod:`~viscorig.planning.noise`), the modes are read off the fitted model,
   the timing is calibrated from the measured point times, and the information the points hold
   is predicted and compared with the fit's own covariance (a calibration of the prediction).
-- DECIDE: stop when every target's relative standard error (the fit's own) is met or the dwell
-  limit is reached; otherwise solve the minimum-time design given what is known
+- DECIDE: stop when every target's relative standard error (the fit's own) is met, when the
+  model does not fit to the noise (its targets would be the precision of a biased value), or at
+  the dwell limit; otherwise solve the minimum-time design given what is known
   (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the first
   batch a fraction, to refit on better estimates before committing the rest), with the band's
   coverage points (:func:`~viscorig.planning.coverage.coverage_grid`) the first time.
@@ -42,6 +43,7 @@ from viscorig.fitting import FitResult
 from viscorig.models import parse_spec
 from viscorig.planning.batch import (
     allocation_points,
+    landing_db,
     merge_neighbours,
     order_points,
     point_context,
@@ -128,6 +130,10 @@ class AdaptiveSettings:
         Chosen batches at most.
     max_batch_s
         Rig time of one batch at most (a refit at least that often).
+    misfit_limit
+        Stop (once the band is covered) when the fit's covariance had to be scaled by more than
+        this for the model's misfit (:attr:`~viscorig.fitting.FitResult.misfit_scale`): the
+        model is wrong for this specimen, and diagnosis says which one is right.
     timing, limits
         Point timing and analyser limits.
     """
@@ -154,6 +160,7 @@ class AdaptiveSettings:
     aim: float = 0.99
     max_batches: int = 12
     max_batch_s: float = 4 * 3600.0
+    misfit_limit: float = 4.0
     timing: PointTiming = SIMULATED_TIMING
     limits: AnalyserLimits = ANALYSER
 
@@ -229,7 +236,8 @@ class PlanOutcome:
     Attributes
     ----------
     reason
-        ``"targets met"``, ``"dwell limit"``, ``"batch limit"`` or ``"no progress"``.
+        ``"targets met"``, ``"model misfit"``, ``"dwell limit"``, ``"batch limit"`` or
+        ``"no progress"``.
     points
         Every point measured, in measurement order.
     fit
@@ -411,7 +419,7 @@ class AdaptivePlan:
             )
         self.result = result
         power, source = point_noise_power(self.points, result.noise)
-        noise = estimate_noise(self.points, power, source)
+        noise = estimate_noise(self.points, power, source).calibrated(self.points, power)
         self._info = InformationModel(
             result.model, dict(result.values), tuple(result.free), noise, s.level_m_per_s2,
             s.force_limit_n,
@@ -490,6 +498,12 @@ class AdaptivePlan:
         if met and not wants_cover:
             self._finish("targets met")
             return None
+        # a model that leaves far more than the noise is wrong: time spent on its targets
+        # buys the precision of a biased value; measure the coverage for diagnosis and stop
+        misfit = self.result is not None and self.result.misfit_scale > s.misfit_limit
+        if misfit and not wants_cover:
+            self._finish("model misfit")
+            return None
         used = self.points.test_time_s
         if s.dwell_limit_s is not None and used >= s.dwell_limit_s:
             self._finish("dwell limit")
@@ -497,7 +511,7 @@ class AdaptivePlan:
         if self._batches >= s.max_batches:
             self._finish("batch limit")
             return None
-        planned, seconds, note = self._batch(used, choose=not met)
+        planned, seconds, note = self._batch(used, choose=not (met or misfit))
         if not planned:
             self._finish(note)
             return None
@@ -565,6 +579,7 @@ class AdaptivePlan:
         room = min(room, s.max_batch_s)
         if integrate.sum() > room:  # no batch beyond the room left: scale it down first
             integrate = integrate * room / integrate.sum()
+        integrate = self._for_landing(frequency, integrate, cover)
         refine = allocation_points(
             frequency, integrate, max_integrate_cycles=s.integrate_cap, limits=s.limits
         )
@@ -589,6 +604,31 @@ class AdaptivePlan:
             note += f" at {chosen} Hz; predicted integration still needed {remaining:.1f} s"
         return planned, float(seconds.sum()), note
 
+    def _reference_db(self) -> float:
+        """Where the last point's reference stood from the level, dB."""
+        assert self.points is not None
+        level = self.settings.level_m_per_s2
+        return float(20.0 * np.log10(self.points.reference_amplitude[-1] / level))
+
+    def _for_landing(
+        self, frequency: NDArray, integrate: NDArray, cover: list[tuple[float, int]]
+    ) -> NDArray[np.float64]:
+        """The allocation lengthened (or shortened) where the auto level will land below (or
+        above) the level asked for (:func:`~viscorig.planning.batch.landing_db`), so that each
+        frequency gets the information the design gave it."""
+        assert self.points is not None and self._info is not None
+        if not integrate.size:
+            return integrate
+        last = float(self.points.frequency_hz[-1])
+        tagged = [(f, 1, "refine") for f, t in zip(frequency, integrate, strict=True) if t > 0]
+        ordered = order_points(tagged + [(f, c, "cover") for f, c in cover], last)
+        landing, _ = landing_db(ordered, last, point_context(self._info, self._modes),
+                                self._timing, self._reference_db())  # fmt: skip
+        factor = {p[0]: 10.0 ** (-x / 10.0) for p, x in zip(ordered, landing, strict=True)
+                  if p[2] == "refine"}  # fmt: skip
+        return np.array([t * factor.get(f, 1.0) for f, t in zip(frequency, integrate,
+                                                                  strict=True)])  # fmt: skip
+
     def _settled(
         self, refine: list[tuple[float, int]], cover: list[tuple[float, int]]
     ) -> tuple[list[PlannedPoint], NDArray[np.float64]]:
@@ -600,4 +640,5 @@ class AdaptivePlan:
             order_points(tagged, last), last, point_context(self._info, self._modes),
             bias_fraction=s.bias_fraction, max_settle_cycles=s.max_settle_cycles,
             timing=self._timing, limits=s.limits, settle_factor=self._settle_factor,
+            start_db=self._reference_db(),
         )  # fmt: skip

@@ -35,6 +35,7 @@ LONG_POINT_CYCLES = 20
 __all__ = [
     "PointContext",
     "allocation_points",
+    "landing_db",
     "merge_neighbours",
     "order_points",
     "point_context",
@@ -100,6 +101,42 @@ def order_points(points: Sequence[tuple], previous_hz: float | None) -> list[tup
     return ordered
 
 
+def landing_db(
+    points: Sequence[tuple],
+    previous_hz: float | None,
+    context: PointContext,
+    timing: PointTiming = SIMULATED_TIMING,
+    start_db: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Where the auto level lands at each point (dB from the level asked for), and the
+    controller's passes.
+
+    The controller accepts a point whose reference is within its tolerance and otherwise
+    corrects the source (exactly, on a linear rig) and measures again. Starting ``start_db``
+    from the level (the last point's reference, measured), a change of the needed source level
+    by ``x`` dB leaves the reference at ``start − x``: kept when within the tolerance (one
+    pass), corrected to 0 otherwise (two passes). From rest the controller always corrects.
+    A point measured ``y`` dB from the level carries ``10^(y/10)`` of the information it would
+    at the level (the sensors' noise does not follow the signal).
+    """
+    f = np.array([p[0] for p in points], dtype=float)
+    if f.size == 0:
+        return np.zeros(0), np.zeros(0)
+    frequencies = np.concatenate([[previous_hz if previous_hz else f[0]], f])
+    force = context.source(frequencies)
+    change = 20.0 * np.log10(force[1:] / force[:-1])
+    landing, passes = np.zeros(f.size), np.ones(f.size)
+    offset = start_db
+    for i in range(f.size):
+        error = offset - change[i]
+        if (i == 0 and previous_hz is None) or abs(error) > timing.tolerance_db:
+            offset, passes[i] = 0.0, 2.0
+        else:
+            offset = error
+        landing[i] = offset
+    return landing, passes
+
+
 def settle_points(
     points: Sequence[tuple[float, int, str]],
     previous_hz: float | None,
@@ -111,6 +148,7 @@ def settle_points(
     limits: AnalyserLimits = ANALYSER,
     lead_cycles: int = 1,
     settle_factor: float = 1.0,
+    start_db: float = 0.0,
 ) -> tuple[list[PlannedPoint], NDArray[np.float64]]:
     """Planned points with their settle cycles, in the given order, and each one's rig time.
 
@@ -124,7 +162,8 @@ def settle_points(
     passes, and the point follows in one pass without settling (the rig is in its steady state
     at a level within tolerance): one cycle more than without it, and never a second pass of a
     long point. ``settle_factor`` lengthens
-    every settle (a transient seen in the data decays slower than the identified modes say).
+    every settle (a transient seen in the data decays slower than the identified modes say);
+    ``start_db`` is where the last point's reference stands from the level (:func:`landing_db`).
     """
     if not points:
         return [], np.zeros(0)
@@ -136,10 +175,7 @@ def settle_points(
     frequencies = np.concatenate([[previous_hz if previous_hz else f[0]], f])
     force = context.source(frequencies)
     source_ratio = force[1:] / force[:-1]
-    if previous_hz is None:
-        source_ratio[0] = np.inf  # from rest: the controller always corrects
-    change_db = 20.0 * np.log10(np.where(np.isfinite(source_ratio), source_ratio, 1e6))
-    passes = timing.passes(change_db)
+    _, passes = landing_db(points, previous_hz, context, timing, start_db)
     planned: list[PlannedPoint] = []
     seconds: list[float] = []
     cap = limits.max_settle_cycles if max_settle_cycles is None else max_settle_cycles
@@ -152,10 +188,9 @@ def settle_points(
             continue
         ratio = source_ratio[i] if np.isfinite(source_ratio[i]) else 1.0
         mismatch = step_mismatch(f[i], last, context.response, ratio, timing.tolerance_db)
-        # a lead-in costs one cycle more; it pays where a second pass is likely (the level
-        # moves by more than half the tolerance) or would be costly (a long point)
-        likely = abs(change_db[i]) > 0.5 * timing.tolerance_db
-        lead = cycles[i] > 2 * lead_cycles and (likely or cycles[i] >= LONG_POINT_CYCLES)
+        # a lead-in costs one cycle more; it pays where a second pass is expected or would be
+        # costly (a long point: the prediction may be off by the reference's own scatter)
+        lead = cycles[i] > 2 * lead_cycles and (passes[i] > 1 or cycles[i] >= LONG_POINT_CYCLES)
         wait = settle_s(
             f[i], last, list(context.modes), mismatch=mismatch, noise_sd=float(noise[i]),
             integrate_s=float(integrate[i]), bias_fraction=bias_fraction,

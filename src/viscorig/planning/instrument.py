@@ -105,17 +105,13 @@ class PointTiming:
     overhead_s
         Time the instrument adds per point beyond settle and integration.
     tolerance_db
-        The auto-level tolerance: a change of the needed source level larger than this between
-        two points costs one more controller pass.
+        The auto-level tolerance (``SOUR:VOLT:REF:TOL``): the controller accepts a reference
+        within it and otherwise corrects the source and measures again
+        (:func:`~viscorig.planning.batch.landing_db`).
     """
 
     overhead_s: float = 0.0
     tolerance_db: float = 1.0
-
-    def passes(self, source_change_db: ArrayLike) -> NDArray[np.float64]:
-        """Controller passes of each point, from the change of the needed source level."""
-        change = np.abs(np.asarray(source_change_db, dtype=float))
-        return np.where(change > self.tolerance_db, 2.0, 1.0)
 
     def point_s(
         self,

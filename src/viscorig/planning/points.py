@@ -127,6 +127,50 @@ class MeasuredPoints:
                 values[item.name] = np.concatenate([mine, theirs])
         return MeasuredPoints(**values)
 
+    def merged(self) -> MeasuredPoints:
+        """One point per frequency, in frequency order: repeats at a frequency joined as one
+        point integrated over their summed cycles (each FRF the inverse-variance weighted mean,
+        its variance ``1/Σ(1/v)``; without variances, weighted by integration time). For tools
+        that expect distinct frequencies."""
+        f = self.frequency_hz
+        unique, inverse = np.unique(f, return_inverse=True)
+        count = unique.size
+
+        def total(values: NDArray) -> NDArray:
+            return np.bincount(inverse, weights=values, minlength=count)
+
+        def weights_of(variance: NDArray | None) -> NDArray:
+            return self.integrate_s if variance is None else 1.0 / variance
+
+        def mean(values: NDArray, variance: NDArray | None) -> NDArray:
+            w = weights_of(variance)
+            if np.iscomplexobj(values):
+                return (total(values.real * w) + 1j * total(values.imag * w)) / total(w)
+            return total(values * w) / total(w)
+
+        def joined_variance(variance: NDArray | None) -> NDArray | None:
+            return None if variance is None else 1.0 / total(1.0 / variance)
+
+        first = np.zeros(count, dtype=int)
+        first[inverse[::-1]] = np.arange(f.size)[::-1]
+        support = self.accelerance_support
+        return MeasuredPoints(
+            frequency_hz=unique,
+            accelerance_table=mean(self.accelerance_table, self.variance_table),
+            accelerance_support=None if support is None else mean(support, self.variance_support),
+            reference_amplitude=mean(self.reference_amplitude, None),
+            force_amplitude=mean(self.force_amplitude, None),
+            settle_cycles=self.settle_cycles[first],
+            integrate_cycles=total(self.integrate_cycles.astype(float)).astype(np.int64),
+            duration_s=total(self.duration_s),
+            variance_table=joined_variance(self.variance_table),
+            variance_support=joined_variance(self.variance_support),
+            flags=None if self.flags is None else np.bitwise_or.reduceat(
+                self.flags[np.argsort(inverse, kind="stable")],
+                np.r_[0, np.cumsum(np.bincount(inverse))[:-1]],
+            ).astype(np.uint16),
+        )  # fmt: skip
+
     def frf_data(self, name: str = "plan") -> FrfData:
         """The points as :class:`~viscorig.fitting.FrfData`, sorted by frequency (stable), with
         the test time at the end of each point and the analyser's variance where there is one."""
