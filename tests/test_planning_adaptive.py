@@ -3,6 +3,8 @@ band and the analyser's limits, respects the dwell limit, and shows its states."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from planning_rig import TABLE, VOIGT_RIG, VOIGT_TRUTH, SimulatedRig
@@ -141,3 +143,68 @@ def test_linear_runs_become_sweeps_and_the_rest_manual_points():
     assert segments[0].start_hz == 20.0 and segments[0].stop_hz == 21.25
     assert segments[0].resolution_hz == pytest.approx(0.25)
     assert len(segments[1].points) == 3
+
+
+def _first_batch(seed: int):
+    plan = AdaptivePlan(_settings(targets={"K_v": 2e-6, "C_v": 1e-5}))
+    rig = SimulatedRig(VOIGT_RIG, 1.4, seed=seed)
+    plan.deliver(rig(plan.request.points))
+    request = plan.request
+    return plan, request, rig(request.points)
+
+
+def test_a_transient_left_in_the_first_long_point_of_a_visit_lengthens_later_settles():
+    plan, _, measured = _first_batch(7)
+    long = np.nonzero(measured.integrate_cycles > 1)[0]
+    visit = long[measured.frequency_hz[long] == measured.frequency_hz[long[0]]]
+    assert visit.size >= 3
+    first = visit[0]
+    bumped = measured.accelerance_table.copy()
+    bumped[first] *= 1 + 6 * np.sqrt(measured.variance_table[first])  # what a transient leaves
+    plan.deliver(replace(measured, accelerance_table=bumped))
+    assert any("transient left" in step.note for step in plan.history)
+    assert plan.request is not None
+    assert plan._settle_factor == 2.0
+
+
+def test_repeats_within_their_noise_leave_the_settles_alone():
+    plan, _, measured = _first_batch(7)
+    plan.deliver(measured)
+    assert not any("transient left" in step.note for step in plan.history)
+
+
+def test_repeats_join_into_one_point_per_frequency():
+    rig = SimulatedRig(VOIGT_RIG, 1.4, seed=9)
+    points = rig.measure([30.0, 30.0, 30.0, 40.0], [200, 0, 0, 100], [10, 20, 30, 10])
+    merged = points.merged()
+    assert merged.frequency_hz.tolist() == [30.0, 40.0]
+    assert merged.integrate_cycles.tolist() == [60, 10]
+    assert merged.duration_s.sum() == pytest.approx(points.duration_s.sum())
+    v = points.variance_table[:3]
+    assert merged.variance_table[0] == pytest.approx(1 / np.sum(1 / v))
+    weights = (1 / v) / np.sum(1 / v)
+    expected = np.sum(weights * points.accelerance_table[:3])
+    assert merged.accelerance_table[0] == pytest.approx(expected)
+
+
+def test_the_plan_predicts_where_the_auto_level_lands():
+    from viscorig.planning.batch import landing_db, point_context
+
+    plan, request, measured = _first_batch(3)
+    points = [(p.frequency_hz, p.integrate_cycles, p.purpose) for p in request.points]
+    previous = float(plan.points.frequency_hz[-1])
+    landing, passes = landing_db(points, previous, point_context(plan._info, plan._modes),
+                                 plan._timing, plan._reference_db())  # fmt: skip
+    achieved = 20 * np.log10(measured.reference_amplitude / 1.4)
+    assert np.allclose(landing, achieved, atol=0.05)
+    # a second controller pass costs a second settle and integration
+    single = (measured.settle_cycles + measured.integrate_cycles) / measured.frequency_hz
+    assert np.allclose(measured.duration_s, passes * single)
+
+
+def test_a_model_that_misfits_stops_once_the_band_is_covered():
+    plan = AdaptivePlan(_settings(targets={"K_v": 2e-5, "C_v": 2e-4}))
+    outcome = plan.run(SimulatedRig("hard-10", 1.4, seed=2))  # a fractional rubber, K_c, fixtures
+    assert outcome.reason == "model misfit"
+    assert {p.purpose for p in plan.planned} == {"look", "cover"}
+    assert outcome.fit.misfit_scale > 4.0
