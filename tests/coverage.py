@@ -17,20 +17,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from simdata import rig_text, simulate_run
+from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.fitting import Known, fit
 
 VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
 TRUTH = {"K_v": 1.5e5, "C_v": 114.59, "M_v": 0.25}
+TABLE_NAMES = ("M_s", "K_s", "C_s")
 
 #: White sensor noise of the coverage rigs (relative FRF scatter of about 1e-4 to 1e-3).
-WHITE = {
-    "excitation_force_n_per_sqrt_hz": 2e-3,
-    "table_acceleration_m_per_s2_per_sqrt_hz": 2e-4,
-    "device_force_n_per_sqrt_hz": 2e-3,
-    "disc_acceleration_m_per_s2_per_sqrt_hz": 2e-4,
-}
+WHITE = dict(DEFAULT_NOISE)
 #: The same, plus each transducer's sensitivity drifting by 0.1 % rms with a 30 s correlation
 #: time: on the paper's sweep (3.6 s per point on average) the drift dominates the scatter.
 CORRELATED = {**WHITE, "sensitivity_drift_rms": 1e-3, "sensitivity_drift_time_s": 30.0}
@@ -53,13 +49,7 @@ def replicate(noise: dict, seed: int, frfs: tuple[str, ...] | None = None) -> Re
         settle_cycles=200.0,
     )  # fmt: skip
     table = fit("table", table_run.frf_data("table"))
-    index = [table.covariance_names.index(name) for name in ("M_s", "K_s", "C_s")]
-    known = Known(
-        {name: table.values[name] for name in ("M_s", "K_s", "C_s")},
-        ("M_s", "K_s", "C_s"),
-        np.asarray(table.joint_covariance)[np.ix_(index, index)],
-        "run 'table'",
-    )
+    known = Known.from_fit(table, TABLE_NAMES, "run 'table'")
     specimen = simulate_run(rig_text(VOIGT, noise=noise), seed=2 * seed + 2)
     result = fit("voigt", specimen.frf_data("specimen"), frfs=frfs, known=known)
     return Replicate(

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
+from viscorig.models import Context
 
 
 def kstar_from_table(
@@ -131,3 +132,215 @@ def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> Measu
     upper = np.interp(level, [magnitude[k], magnitude[k - 1]], [f[k], f[k - 1]])
     bandwidth = float(upper - lower)
     return MeasuredResonance(float(peak_hz), bandwidth, bandwidth / (2 * float(peak_hz)))
+
+
+# -- the same quantities with their uncertainty -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A number with its standard uncertainty and unit."""
+
+    value: float
+    stderr: float
+    unit: str = ""
+
+    def text(self, digits: str = ".4g") -> str:
+        """``"39.41 ± 0.02 Hz"`` (the uncertainty to two significant digits)."""
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.value:{digits}} ± {self.stderr:.2g}{unit}"
+
+    def to_json(self) -> dict[str, float | str]:
+        """``{"value", "stderr", "unit"}`` as in the fits' JSON."""
+        return {"value": float(self.value), "stderr": float(self.stderr), "unit": self.unit}
+
+
+def _gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np.float64]:
+    """Central differences of a scalar or array ``function(values)`` by the named values."""
+    columns = []
+    for name in names:
+        step = 1e-6 * max(abs(values[name]), 1e-30)
+        up, down = dict(values), dict(values)
+        up[name] += step
+        down[name] -= step
+        columns.append((np.asarray(function(up)) - np.asarray(function(down))) / (2 * step))
+    return np.stack(columns, axis=-1) if columns else np.zeros((0,))
+
+
+def derived(result, function, unit: str = "") -> Quantity:
+    """A function of a fit's parameters, with its uncertainty (first order, every parameter with
+    a standard error: fitted and inherited, with their correlations)."""
+    names = list(result.covariance_names)
+    value = float(function(result.values))
+    if not names:
+        return Quantity(value, 0.0, unit)
+    g = _gradient(function, dict(result.values), names)
+    variance = float(g @ np.asarray(result.joint_covariance) @ g)
+    return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
+
+
+def natural_frequency(values: dict[str, float]) -> float:
+    """``f_r`` (Hz) of the Voigt system, Table 2."""
+    return system_properties(values).natural_frequency_hz
+
+
+def damping_factor(values: dict[str, float]) -> float:
+    """``ξ`` of the Voigt system, Table 2."""
+    return system_properties(values).damping_factor
+
+
+def bandwidth(values: dict[str, float]) -> float:
+    """``B_r = 2 ξ f_r`` (Hz), Table 2."""
+    return system_properties(values).bandwidth_hz
+
+
+#: Table 2's quantities: name -> (function of the parameters, unit).
+TABLE_2_QUANTITIES = {
+    "f_r": (natural_frequency, "Hz"),
+    "xi": (damping_factor, ""),
+    "B_r": (bandwidth, "Hz"),
+}
+
+
+def system_properties_with_uncertainty(result) -> dict[str, Quantity]:
+    """Table 2 (``f_r``, ``xi``, ``B_r``) of a Voigt fit, each with its uncertainty."""
+    return {name: derived(result, function, unit)
+            for name, (function, unit) in TABLE_2_QUANTITIES.items()}
+
+
+def _joint(before, after) -> tuple[list[str], NDArray[np.float64]]:
+    """Joint covariance of two fits' parameters (names prefixed ``a:`` and ``b:``).
+
+    Two fits that inherited the same parameters from the same source (the table, from the same
+    bare-table run) share those variables: their fitted parameters are correlated through
+    them, ``cov(p_a, p_b) = C_aq C_qq⁻¹ C_qb`` (both moved by the same table error).
+    """
+    shared = []
+    if before.inherited_from and before.inherited_from == after.inherited_from:
+        shared = [n for n in before.inherited if n in after.inherited]
+    ca, cb = np.asarray(before.joint_covariance), np.asarray(after.joint_covariance)
+    na, nb = list(before.covariance_names), list(after.covariance_names)
+    names = [f"a:{n}" for n in na] + [f"b:{n}" for n in nb if n not in shared]
+    index_b = [len(na) + [n for n in nb if n not in shared].index(n) if n not in shared
+               else na.index(n) for n in nb]
+    joint = np.zeros((len(names), len(names)))
+    joint[: len(na), : len(na)] = ca
+    for i, gi in enumerate(index_b):
+        for j, gj in enumerate(index_b):
+            if nb[i] in shared and nb[j] in shared:
+                continue  # the shared block is a's (the same numbers)
+            joint[gi, gj] = cb[i, j]
+    if shared:
+        qa = [na.index(n) for n in shared]
+        qb = [nb.index(n) for n in shared]
+        pa = [i for i, n in enumerate(na) if n not in shared]
+        pb = [i for i, n in enumerate(nb) if n not in shared]
+        inverse = np.linalg.pinv(ca[np.ix_(qa, qa)])
+        cross = ca[np.ix_(pa, qa)] @ inverse @ cb[np.ix_(qb, pb)]
+        for r, i in enumerate(pa):
+            for c, j in enumerate(pb):
+                joint[i, index_b[j]] = joint[index_b[j], i] = cross[r, c]
+    return names, joint
+
+
+def relative_change(before, after, function, unit: str = "%") -> Quantity:
+    """``function(after)/function(before) − 1`` in percent, with its uncertainty.
+
+    ``function`` maps a fit's parameter values to a number (``lambda v: v["C_v"]``, or
+    :func:`natural_frequency`). Both fits' uncertainties enter, with the correlation of a
+    shared inherited table (:func:`_joint`).
+    """
+    names, joint = _joint(before, after)
+    values = {f"a:{n}": v for n, v in before.values.items()}
+    values.update({f"b:{n}": v for n, v in after.values.items()})
+    shared = {n for n in after.covariance_names if f"b:{n}" not in names}
+    for n in shared:
+        values[f"b:{n}"] = values[f"a:{n}"]
+
+    def change(v: dict[str, float]) -> float:
+        a = function({n[2:]: x for n, x in v.items() if n.startswith("a:")})
+        b_values = {n[2:]: x for n, x in v.items() if n.startswith("b:")}
+        b_values.update({n: v[f"a:{n}"] for n in shared})
+        return 100.0 * (function(b_values) / a - 1.0)
+
+    value = change(values)
+    g = _gradient(change, values, names)
+    variance = float(g @ joint @ g) if names else 0.0
+    return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
+
+
+def parameter_change(before, after, name: str) -> Quantity:
+    """Relative change of one parameter between two fits, in percent."""
+    return relative_change(before, after, lambda values: values[name])
+
+
+def change_text(name: str, change: Quantity, condition: str = "") -> str:
+    """``"C_v rose 9.0 ± 0.4 % with preload"``; says when the change is within 2 stderr."""
+    verb = "rose" if change.value > 0 else "fell"
+    text = f"{name} {verb} {abs(change.value):.2g} ± {change.stderr:.1g} %"
+    if abs(change.value) >= 10:
+        text = f"{name} {verb} {abs(change.value):.1f} ± {change.stderr:.1g} %"
+    if condition:
+        text += f" {condition}"
+    if abs(change.value) < 2 * change.stderr:
+        text += " (within twice its uncertainty: not a clear change)"
+    return text
+
+
+@dataclass(frozen=True)
+class ModulusBand:
+    """``E'(f)`` and ``η(f)`` of a fitted model with their standard uncertainties.
+
+    Attributes
+    ----------
+    frequency_hz
+        Where they are evaluated.
+    storage_modulus, storage_modulus_stderr
+        ``E' = Re K*/θ`` and its uncertainty (Pa).
+    loss_factor, loss_factor_stderr
+        ``η = Im K*/Re K*`` and its uncertainty.
+    """
+
+    frequency_hz: NDArray[np.float64]
+    storage_modulus: NDArray[np.float64]
+    storage_modulus_stderr: NDArray[np.float64]
+    loss_factor: NDArray[np.float64]
+    loss_factor_stderr: NDArray[np.float64]
+
+
+def modulus_band(result, frequency_hz: ArrayLike, theta_m: float) -> ModulusBand:
+    """``E'`` and ``η`` of a fit's ``K*`` on any grid, with uncertainty bands (first order,
+    through every parameter with a standard error; θ taken as exact)."""
+    f = np.asarray(frequency_hz, dtype=float)
+    names = list(result.covariance_names)
+
+    def parts(values: dict[str, float]) -> NDArray[np.float64]:
+        kstar = result.model.kstar(Context(f), values)
+        return np.concatenate([kstar.real / theta_m, kstar.imag / kstar.real])
+
+    centre = parts(dict(result.values))
+    if names:
+        g = _gradient(parts, dict(result.values), names)
+        variance = np.einsum("ij,jk,ik->i", g, np.asarray(result.joint_covariance), g)
+    else:
+        variance = np.zeros_like(centre)
+    sigma = np.sqrt(np.maximum(variance, 0.0))
+    n = f.size
+    return ModulusBand(f, centre[:n], sigma[:n], centre[n:], sigma[n:])
+
+
+def kstar_from_support_with_uncertainty(
+    frequency_hz: ArrayLike,
+    accelerance_support: ArrayLike,
+    noise_power: ArrayLike,
+    disc_mass: Quantity,
+) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
+    """Eq. (5) point by point with uncertainty: ``K*``, and the standard uncertainties of its
+    real and imaginary parts, from the noise of the support FRF (``noise_power`` is the noise
+    model's ``E|ε_i|²``, split equally between its real and imaginary parts) and ``M_v``'s."""
+    kstar = kstar_from_support(frequency_hz, accelerance_support, disc_mass.value)
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    dynamic = accelerance_to_dynamic_stiffness(frequency_hz, accelerance_support)
+    noise = np.abs(dynamic) ** 2 * np.asarray(noise_power, dtype=float) / 2.0
+    real = np.sqrt(noise + (omega**2 * disc_mass.stderr) ** 2)
+    return kstar, real, np.sqrt(noise)

@@ -79,6 +79,17 @@ class Known:
         return cls(dict(values), (), np.zeros((0, 0)), source)
 
     @classmethod
+    def from_fit(cls, result, names: Sequence[str], source: str = "") -> Known:
+        """Some of a fit's values, with their joint covariance (fitted or themselves
+        inherited), as another fit inherits them (the table's from the bare-table run)."""
+        names = tuple(names)
+        known = [name for name in names if name in result.covariance_names]
+        index = [result.covariance_names.index(name) for name in known]
+        covariance = np.asarray(result.joint_covariance)[np.ix_(index, index)]
+        return cls({name: float(result.values[name]) for name in names}, tuple(known),
+                   covariance, source)
+
+    @classmethod
     def with_stderr(
         cls, values: Mapping[str, float], stderr: Mapping[str, float], source: str = ""
     ) -> Known:

@@ -22,7 +22,7 @@ from viscorig.models.base import (
     register_term,
     stage_methods,
 )
-from viscorig.models.effects import EFFECTS, Amplitude, Delay, Drift, Fixture, LoadCell
+from viscorig.models.effects import EFFECTS, Amplitude, Delay, Drift, Fixture, Frame, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "Drift",
     "Fixture",
     "Fractional",
+    "Frame",
     "LoadCell",
     "Maxwell",
     "Model",
