@@ -208,3 +208,27 @@ def test_a_model_that_misfits_stops_once_the_band_is_covered():
     assert outcome.reason == "model misfit"
     assert {p.purpose for p in plan.planned} == {"look", "cover"}
     assert outcome.fit.misfit_scale > 4.0
+
+
+def test_the_expected_time_brackets_what_the_plan_takes():
+    from planning_rig import paper_sweep
+
+    from viscorig.planning import design_bound, estimate_noise, expected_time_s, point_noise_power
+
+    targets = {"K_v": 2e-6, "C_v": 1e-5}
+    settings = _settings(targets=targets)
+    # the floor of a similar specimen, known from an earlier sweep of it
+    earlier = paper_sweep(SimulatedRig(VOIGT_RIG, 1.4, seed=10), step_hz=1.0)
+    result = fit("voigt", earlier.frf_data(), fixed=TABLE)
+    power, source = point_noise_power(earlier)
+    bound = design_bound(result.model, result.values, result.free,
+                         estimate_noise(earlier, power, source), 1.4, (20.0, 120.0), targets,
+                         force_limit_n=100.0)  # fmt: skip
+    low, high = expected_time_s(settings, bound.plan_time_s)
+    outcome = AdaptivePlan(settings).run(SimulatedRig(VOIGT_RIG, 1.4, seed=11))
+    assert low <= outcome.test_time_s <= high
+    loose = _settings(targets={"K_v": 2e-3, "C_v": 2e-3})
+    low, high = expected_time_s(loose)
+    outcome = AdaptivePlan(loose).run(SimulatedRig(VOIGT_RIG, 1.4, seed=12))
+    assert low <= outcome.test_time_s and high == np.inf
+    assert expected_time_s(_settings(dwell_limit_s=30.0))[1] <= 30.0

@@ -17,10 +17,13 @@ from viscorig.planning.adaptive import (
     PlanOutcome,
     State,
     StepRecord,
+    expected_time_s,
+    weighted_fit_function,
 )
 from viscorig.planning.bound import DesignBound, design_bound
 from viscorig.planning.coverage import coverage_grid, coverage_ratio, log_grid
 from viscorig.planning.design import Design, minimum_time_design
+from viscorig.planning.estimator import weighted_fit
 from viscorig.planning.information import InformationModel, log_sensitivities
 from viscorig.planning.instrument import ANALYSER, AnalyserLimits, PointTiming
 from viscorig.planning.noise import (
@@ -67,6 +70,7 @@ __all__ = [
     "coverage_ratio",
     "design_bound",
     "estimate_noise",
+    "expected_time_s",
     "identified_modes",
     "log_grid",
     "log_sensitivities",
@@ -78,4 +82,6 @@ __all__ = [
     "shared_noise",
     "step_mismatch",
     "sweep_segments",
+    "weighted_fit",
+    "weighted_fit_function",
 ]

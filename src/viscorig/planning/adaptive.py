@@ -70,6 +70,7 @@ __all__ = [
     "PlanOutcome",
     "State",
     "StepRecord",
+    "expected_time_s",
     "weighted_fit_function",
 ]
 
@@ -275,6 +276,46 @@ def weighted_fit_function(spec: str, fixed: Mapping[str, float]) -> FitFunction:
         return weighted_fit(spec, points.frf_data(), shared_noise(points), fixed=fixed)
 
     return run
+
+
+def expected_time_s(
+    settings: AdaptiveSettings, floor_s: float | None = None
+) -> tuple[float, float]:
+    """The rig time an adaptive step is expected to take, before anything is measured.
+
+    The first look's time is known exactly (its points, cycles and prior settles); the band's
+    coverage between ``Σ cycles/f`` (no settle, one pass) and two passes with the first look's
+    settles. The chosen points need about the floor of a known rig (``floor_s``: the
+    :attr:`~viscorig.planning.bound.DesignBound.plan_time_s` of a similar specimen, or
+    ``None`` when nothing is known): between 0.9 and 1.3 times it. The longest is capped at
+    the step's dwell limit; without a floor and without a limit it is unbounded.
+
+    Returns
+    -------
+    (shortest, longest)
+        Seconds of rig time.
+    """
+    plan = AdaptivePlan(settings, fit_function=lambda points: None)  # type: ignore[arg-type]
+    look = plan.request
+    assert look is not None
+    low = high = look.predicted_s
+    if settings.coverage_damping_ratio is not None:
+        f_look = np.array([p.frequency_hz for p in look.points])
+        cover = coverage_grid(
+            settings.band_hz, f_look, narrowest_damping_ratio=settings.coverage_damping_ratio,
+            points_per_bandwidth=settings.points_per_bandwidth, limits=settings.limits,
+        )  # fmt: skip
+        cycles = min(settings.cover_integrate_cycles, settings.integrate_cap)
+        settle = max(p.settle_cycles / p.frequency_hz for p in look.points)
+        low += float(np.sum(cycles / cover))
+        high += float(np.sum(2.0 * (settle + cycles / cover)))
+    if floor_s is not None:
+        low, high = low + 0.9 * floor_s, high + 1.3 * floor_s
+    else:
+        high = np.inf
+    if settings.dwell_limit_s is not None:
+        low, high = min(low, settings.dwell_limit_s), min(high, settings.dwell_limit_s)
+    return float(low), float(high)
 
 
 class AdaptivePlan:
