@@ -103,3 +103,20 @@ def test_the_force_limit_scales_every_channel_down():
     assert limited.excitation_force[0] == pytest.approx(5.0)
     scale = 5.0 / free.excitation_force[0]
     assert limited.disc_acceleration[0] == pytest.approx(1.4 * scale)
+
+
+@pytest.mark.parametrize("level", [0.3, 5.0])
+def test_the_noise_follows_the_level_within_what_one_level_can_tell(look, level):
+    # At one level the accelerometers' noise and the converters' range-relative floor both
+    # look constant relative to the held reference; another level tells them apart, so the
+    # prediction there is good to a factor, not to the sampling scatter.
+    _, points, result = look
+    power, source = point_noise_power(points)
+    info = InformationModel(result.model, result.values, result.free,
+                            estimate_noise(points, power, source), level, 100.0)  # fmt: skip
+    rig = SimulatedRig(VOIGT_RIG, level, seed=6)
+    for frequency in (22.0, 60.0, 118.0):
+        measured = _scatter(rig, frequency, 20)
+        predicted = info.noise_power([frequency], [20 / frequency])
+        for name in measured:
+            assert 1 / 2.5 < measured[name] / predicted[name][0] < 2.5

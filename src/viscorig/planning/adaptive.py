@@ -11,20 +11,27 @@ States::
 
     LOOK ──► MEASURE ──► FIT ──► DECIDE ──► MEASURE ──► FIT ──► ... ──► DONE
                                    │
-                                   └── targets met, dwell limit, or nothing left to gain ──► DONE
+                                   └─ targets met, model misfit, dwell limit ──► DONE
 
-- LOOK: a sparse logarithmic look over the band (:func:`~viscorig.planning.coverage.log_grid`),
-  settled for a prior damping (the mode is not known yet).
-- FIT: the project's identification core fits every point so far; the noise model is estimated
-  from the points (:mod:`~viscorig.planning.noise`), the modes are read off the fitted model,
-  the timing is calibrated from the measured point times, and the information the points hold
-  is predicted and compared with the fit's own covariance (a calibration of the prediction).
+- LOOK: a sparse logarithmic look over the band, on the coverage grid
+  (:func:`~viscorig.planning.coverage.log_grid`), settled for a prior damping (the mode is not
+  known yet).
+- FIT: every point so far is fitted by the noise-weighted estimate a plan is judged by
+  (:mod:`~viscorig.planning.estimator`, under the core's noise model of the points); the
+  planning noise model is fitted to the points' noise (:mod:`~viscorig.planning.noise`), the
+  modes are read off the fitted model, the instrument's time per point is calibrated from
+  repeats, the information the points hold is computed from their measured noise (and compared
+  with the fit's own covariance), and a visit's first long point is checked against its repeats
+  for a transient the settle left.
 - DECIDE: stop when every target's relative standard error (the fit's own) is met, when the
   model does not fit to the noise (its targets would be the precision of a biased value), or at
   the dwell limit; otherwise solve the minimum-time design given what is known
   (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the first
   batch a fraction, to refit on better estimates before committing the rest), with the band's
-  coverage points (:func:`~viscorig.planning.coverage.coverage_grid`) the first time.
+  coverage points (:func:`~viscorig.planning.coverage.coverage_grid`) the first time, each
+  frequency's integration adjusted for where the auto level will land
+  (:func:`~viscorig.planning.batch.landing_db`), settled by the transient model, in one
+  direction, with short lead-in points taking the controller's passes.
 """
 
 from __future__ import annotations
