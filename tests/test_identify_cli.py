@@ -180,3 +180,18 @@ def test_identify_says_what_the_uncertainty_includes(
                  "--model", "fractional+load_cell+fixture(38)+fixture(58)+fixture(92)"]) == 0
     out = capsys.readouterr().out
     assert "± are standard uncertainties" in out, out
+
+
+def test_identify_says_what_the_uncertainty_leaves_out(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store", "--json",
+                 "--frf", "table"]) == 0
+    excludes = json.loads(capsys.readouterr().out)["uncertainty"]["excludes"]
+    assert any("calibration" in text for text in excludes)
+    assert any("frame(M_f)" in text for text in excludes)
+    assert any("load_cell" in text for text in excludes)  # X_s/F_e alone cannot tell
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store", "--json",
+                 "--model", "voigt+load_cell+frame(2000)"]) == 0
+    excludes = json.loads(capsys.readouterr().out)["uncertainty"]["excludes"]
+    assert len(excludes) == 1 and "calibration" in excludes[0]

@@ -109,6 +109,7 @@ def format_result(
             "model's band-average (the noise's, scaled by the misfit, or the residuals' own "
             "sandwich, whichever is larger), not measurement uncertainties of the specimen"
         )
+    lines += [f"not in the ±: {text}" for text in result.excludes]
     if result.candidates:
         lines.append(
             "order chosen by BIC among: "

@@ -141,6 +141,7 @@ class FrfNoise:
     _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
         default_factory=dict, repr=False, compare=False
     )
+    _effective: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.white_power = np.maximum(np.asarray(self.white_power, dtype=float), 1e-300)
@@ -223,6 +224,8 @@ class FrfNoise:
         so white noise gives ``2n`` and a part dominated by a drift of correlation length ``ℓ``
         points gives about ``n/ℓ`` (the participation ratio of its eigenvalues).
         """
+        if self._effective is not None:
+            return self._effective
         n = self.size
         total = 0.0
         for part in PARTS:
@@ -236,6 +239,7 @@ class FrfNoise:
             np.fill_diagonal(off, 0.0)
             scaled = off / np.sqrt(np.outer(diagonal, diagonal))
             total += n * n / (n + float(np.sum(scaled**2)))
+        self._effective = total
         return total
 
     def select(self, index: NDArray) -> FrfNoise:

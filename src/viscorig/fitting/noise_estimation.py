@@ -42,7 +42,11 @@ index (the grid is uniform or smoothly graded), and keeps of the noise
    expectation, a robust cut that removes outliers and local modes and is corrected for, the
    mean of ``χ²₁`` below 9 being 0.973) are fitted by weighted least squares, ``a`` and ``σ²``
    being linear unknowns; the ``τ`` of least misfit wins. ``a`` absorbs what the lag-1 white
-   estimate and the lag-``h`` statistics disagree on.
+   estimate and the lag-``h`` statistics disagree on. The correlated part is kept only when it
+   lowers the weighted misfit by :data:`SIGNIFICANCE` (a χ² with two degrees of freedom under
+   white noise: 1 % false alarms). A first look at the shortest and the longest lag alone
+   skips the whole analysis when the longest shows no excess over the shortest (two standard
+   errors): most runs have no drift, and the look costs a fraction of the analysis.
 
 What the data cannot tell. A drift slower than the longest lag looks like a smooth change of
 the FRF: only its rate ``σ²/τ`` shows. Its correlation length is then set at the resolution
@@ -154,11 +158,15 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDA
 
     The lag-1 sixth difference centred on a point weighs it by 20 and its neighbours by at most
     15: a point whose centred difference exceeds :data:`OUTLIER_LEVEL` times its expectation
-    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``) and exceeds those centred on
-    both neighbours is an outlier. A feature several points wide (a mode) is not: its
+    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``; the expectation from the white
+    part, or the local median level of the differences when that is higher) and exceeds those
+    centred on both neighbours is an outlier. A feature several points wide (a mode) is not: its
     neighbours' differences are as large.
     """
     centred, _ = _outlier_statistic(z, white)
+    # Against the statistic's own local level, so that roughness the white part does not hold
+    # (a drift's) does not make ordinary points stand out.
+    centred = centred / np.maximum(running_median(centred, WHITE_WINDOW) / math.log(2.0), 1.0)
     peak = np.zeros(z.size, dtype=bool)
     peak[1:-1] = (centred[1:-1] > centred[:-2]) & (centred[1:-1] > centred[2:])
     return peak & (centred > OUTLIER_LEVEL)
@@ -233,31 +241,30 @@ def _correlated_part(
     resolution = 2.0 * mean_step * (lags[-1] if lags else 1)
     if n < MIN_CORRELATION_POINTS or len(lags) < 3 or not mean_step > 0:
         return (0.0, 0.0), mean_step, resolution
-    weights = _binomial(LAG_ORDER)
     taus = _TAU_GRID * mean_step
     taus = taus[taus <= resolution]
-    # Every window of every lag at once, each labelled with its lag and with its mean step
-    # along the axis binned by 5 % (the correlation enters through that step alone).
-    sizes = [n - LAG_ORDER * h for h in lags]
-    lag_of = np.repeat(np.arange(len(lags)), sizes)
     modulus2 = z.real**2 + z.imag**2
     noise2 = modulus2 * white
-    bad = skip.astype(float) if np.any(skip) else None
-    parts = {"d": [], "centre": [], "expected": [], "clean": [], "step": []}
-    for h in lags:
-        parts["d"].append(_lagged(z, weights, h))
-        parts["centre"].append(0.5 * (z[h : h + n - LAG_ORDER * h]
-                                      + z[2 * h : 2 * h + n - LAG_ORDER * h]))
-        parts["expected"].append(_lagged(noise2, weights**2, h) / 2.0)
-        if bad is not None:
-            parts["clean"].append(_lagged(bad, np.ones(LAG_ORDER + 1), h) == 0)
-        parts["step"].append(np.abs(axis[LAG_ORDER * h :] - axis[: n - LAG_ORDER * h]))
-    d, centre, expected, step = (np.concatenate(parts[key]) for key in
-                                 ("d", "centre", "expected", "step"))
-    clean = np.concatenate(parts["clean"]) if bad is not None else True
-    modulus_centre2 = centre.real**2 + centre.imag**2
-    rotated = d * centre.conj() / np.sqrt(np.maximum(modulus_centre2, 1e-300))
-    stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
+    # A first look at the shortest and the longest lag: white noise shows the same mean there
+    # (within 2 standard errors, a loose screen: the full test below decides).
+    first_look = _lag_statistics(z, noise2, axis, skip, [lags[0], lags[-1]])
+    stats, lag_of, clean = first_look[0], first_look[3], first_look[4]
+    drift = False
+    for values in stats:
+        kept = (values < REJECT) & clean
+        count = np.maximum(np.bincount(lag_of[kept], minlength=2), 1)
+        means = np.bincount(lag_of[kept], values[kept], 2) / count
+        drift |= bool(means[1] - means[0] > 2.0 * np.sqrt(_MEAN_VARIANCE * np.sum(1.0 / count)))
+    if not drift:
+        return (0.0, 0.0), float(taus[-1]), resolution
+    # The lags in between, stacked after the first two (their order does not matter below).
+    rest = _lag_statistics(z, noise2, axis, skip, lags[1:-1])
+    lags = [lags[0], lags[-1], *lags[1:-1]]
+    stats, step, expected, _, clean, modulus_centre2 = (
+        np.concatenate([a, b], axis=-1) for a, b in zip(first_look, rest, strict=True)
+    )
+    lag_of = np.concatenate([first_look[3], rest[3] + 2])
+    sizes = [n - LAG_ORDER * h for h in lags]
     step = np.maximum(step / LAG_ORDER, 1e-12)
     level = np.floor(np.log(step) / _STEP_BIN).astype(np.intp)
     lowest = int(level.min())
@@ -292,12 +299,48 @@ def _correlated_part(
     for part in range(2):
         a, sigma2, score, _ = first[part]
         best = int(np.argmin(score))
+        if sigma2[best] <= 0.0:  # no drift on this part: the first cut stands
+            second.append(first[part])
+            continue
         expectation = a[best] + sigma2[best] * kernel[best, step_of] * scale
         second.append(pooled(stats[part], expectation))
     total = second[0][2] + second[1][2]
     choice = int(np.argmin(total))
     found = (float(second[0][1][choice]), float(second[1][1][choice]))
     return found, float(taus[choice]), resolution
+
+
+def _lag_statistics(
+    z: NDArray[np.complex128],
+    noise2: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    skip: NDArray[np.bool_],
+    lags: list[int],
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray | bool, NDArray]:
+    """For every window of every lag (stacked): the two parts' statistics ``s`` (real and
+    imaginary projections of the third difference over their white expectation), the window's
+    span along the axis, its white expectation, its lag (position in ``lags``), whether it
+    holds no outlier, and ``|Z|²`` at its centre."""
+    n = z.size
+    weights = _binomial(LAG_ORDER)
+    bad = skip.astype(float) if np.any(skip) else None
+    parts: dict[str, list] = {"d": [], "centre": [], "expected": [], "clean": [], "step": []}
+    for h in lags:
+        size = n - LAG_ORDER * h
+        parts["d"].append(_lagged(z, weights, h))
+        parts["centre"].append(0.5 * (z[h : h + size] + z[2 * h : 2 * h + size]))
+        parts["expected"].append(_lagged(noise2, weights**2, h) / 2.0)
+        if bad is not None:
+            parts["clean"].append(_lagged(bad, np.ones(LAG_ORDER + 1), h) == 0)
+        parts["step"].append(np.abs(axis[LAG_ORDER * h :] - axis[:size]))
+    d, centre, expected, step = (np.concatenate(parts[key]) for key in
+                                 ("d", "centre", "expected", "step"))
+    clean = np.concatenate(parts["clean"]) if bad is not None else np.ones(d.size, dtype=bool)
+    lag_of = np.repeat(np.arange(len(lags)), [n - LAG_ORDER * h for h in lags])
+    modulus_centre2 = centre.real**2 + centre.imag**2
+    rotated = d * centre.conj() / np.sqrt(np.maximum(modulus_centre2, 1e-300))
+    stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
+    return stats, step, expected, lag_of, clean, modulus_centre2
 
 
 def _kernel(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -360,7 +403,9 @@ def estimate_frf_noise(
         z = 1.0 / frf
     else:
         frequency = np.asarray(frequency_hz, dtype=float)
-        order = np.argsort(frequency, kind="stable")
+        steps = np.diff(frequency)
+        order = (np.arange(frf.size) if np.all(steps > 0)
+                 else np.argsort(frequency, kind="stable"))
         omega = 2 * np.pi * frequency[order]
         z = -(omega**2) / frf[order]
     var = None
@@ -377,7 +422,9 @@ def estimate_frf_noise(
     axis_sorted = np.arange(frf.size, dtype=float)
     if time_s is not None:
         time = np.asarray(time_s, dtype=float)[order]
-        if np.all(np.isfinite(time)) and np.unique(time).size == time.size:
+        steps = np.diff(time)
+        if np.all(np.isfinite(time)) and (np.all(steps > 0) or np.all(steps < 0)
+                                          or np.unique(time).size == time.size):
             axis_sorted, axis_unit = time, "s"
     powers, tau, resolution = (0.0, 0.0), 1.0, math.inf
     if correlated and frequency_hz is not None:

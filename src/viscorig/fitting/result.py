@@ -109,11 +109,6 @@ class FitResult:
         return tuple(name for name in self.covariance_names if name not in self.free)
 
     @property
-    def uncertain(self) -> tuple[str, ...]:
-        """Parameters with a standard error: fitted and inherited (the JSON's non-null ones)."""
-        return tuple(self.covariance_names)
-
-    @property
     def spec(self) -> str:
         """Canonical spec of the fitted model."""
         return self.model.spec
@@ -149,6 +144,23 @@ class FitResult:
         """The fitted ``K*`` (after modifiers) on any frequency grid, N/m."""
         return self.model.kstar(Context(np.asarray(frequency_hz, dtype=float)), self.values)
 
+    @property
+    def excludes(self) -> list[str]:
+        """What the ± cannot include: effects the data cannot tell that this model leaves out."""
+        out = ["a constant calibration error of the transducers (no sweep can see it)"]
+        if not any(term.keyword == "frame" for term in self.model.effects):
+            out.append(
+                "the inertial frame under the table: springs to it read (M_s+M_v)/M_f stiffer "
+                "(0.17 % for 3.4 kg on 2000 kg) at the noise floor; model it with frame(M_f)"
+            )
+        keywords = {term.keyword for term in self.model.effects}
+        if self.frfs == ("table",) and "support" in self.model.frfs and "load_cell" not in keywords:
+            out.append(
+                "a link between table and device that is not rigid (X_s/F_e alone cannot tell): "
+                "K* reads low by about |K*|²/K_c; fit both FRFs or add load_cell"
+            )
+        return out
+
     def to_json(self, run: str) -> dict[str, Any]:
         """The ``identify --json`` object of design.md, plus ``frfs``, ``fits_noise``,
         ``uncertainty`` (what the ± include) and ``correlation``.
@@ -182,6 +194,7 @@ class FitResult:
                 "inherited": list(self.inherited),
                 "inherited_from": self.inherited_from or None,
                 "noise": self.noise.describe() if self.noise is not None else [],
+                "excludes": self.excludes,
             },
             "correlation": {
                 "parameters": names,

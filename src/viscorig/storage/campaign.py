@@ -404,7 +404,8 @@ class Campaign:
             name -> (value, stderr, unit); stderr NaN when unknown.
         correlation
             (names, matrix): the correlation matrix of the named parameters, stored as the
-            2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order).
+            2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order,
+            separated by spaces).
 
         Returns
         -------
@@ -444,7 +445,7 @@ class Campaign:
                 dataset.attrs["units"] = unit
             if matrix is not None:
                 dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
-                dataset.attrs["parameters"] = np.array(names, dtype=h5py.string_dtype())
+                dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
                 dataset.attrs["units"] = "1"
             return fit_id
 

@@ -296,9 +296,10 @@ def _read_correlation(
     item = fit.get(layout.FIT_CORRELATION)
     if not isinstance(item, h5py.Dataset) or item.ndim != 2:
         return None
-    names = tuple(
-        n.decode() if isinstance(n, bytes) else str(n) for n in item.attrs.get("parameters", [])
-    )
+    stored = item.attrs.get("parameters", "")
+    if isinstance(stored, np.ndarray):  # names as an array of texts
+        stored = " ".join(v.decode() if isinstance(v, bytes) else str(v) for v in stored.ravel())
+    names = tuple((stored.decode() if isinstance(stored, bytes) else str(stored)).split())
     matrix = np.asarray(item[()], dtype=float)
     if matrix.shape != (len(names), len(names)):
         raise InputError("correlation does not match its parameter names", f"{path}: {item.name}")
