@@ -265,7 +265,8 @@ class CommandTree:
         self.common: dict[str, _Node] = {}
         self.patterns: list[str] = []
 
-    def add(self, pattern: str, setter: Handler | None = None, query: Handler | None = None) -> None:
+    def add(self, pattern: str, setter: Handler | None = None,
+            query: Handler | None = None) -> None:
         """Register a header pattern (``[SENSe:]FREQuency:STARt``, ``INPut#[:STATe]``, ``*IDN``)."""
         self.patterns.append(pattern)
         if pattern.startswith("*"):
@@ -471,7 +472,8 @@ def parse_choice(param: str, choices: Sequence[str]) -> str:
     raise ScpiError(-141, f"{param[:40]} is not one of {shown}")
 
 
-_NUMBER = re.compile(r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:\s*[eE]\s*[+-]?\d+)?)\s*([A-Za-z/%_0-9^.]*)\s*$")
+_NUMBER = re.compile(
+    r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:\s*[eE]\s*[+-]?\d+)?)\s*([A-Za-z/%_0-9^.]*)\s*$")
 
 #: SI multipliers of suffixes (SCPI 1999 volume 1, 7.7.3). ``M`` is milli; ``MA`` mega.
 SI_PREFIXES: dict[str, float] = {

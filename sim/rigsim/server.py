@@ -37,6 +37,7 @@ import select
 import socket
 import sys
 import threading
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -288,6 +289,8 @@ class _PrologixAdapter:
         self.reset()
         self.device = _GpibDevice(analyser, faults, on_drop, limits.queued_messages)
         self.buffer = bytearray()
+        #: The adapter commands received (``++`` removed), the latest last (bounded).
+        self.log: deque[str] = deque(maxlen=1000)
 
     def reset(self) -> None:
         self.settings = {"mode": 1, "auto": 0, "read_tmo_ms": 500, "eos": 0, "eoi": 1,
@@ -369,6 +372,7 @@ class _PrologixAdapter:
         self.send(text.encode("latin-1") + b"\r\n")
 
     def _command(self, line: str) -> None:
+        self.log.append(line)
         name, _, arg = line.partition(" ")
         name, arg = name.lower(), arg.strip()
         if name == "read":
@@ -489,6 +493,7 @@ class SimulatedAnalyserServer:
         self.limits = limits or ServiceLimits()
         self.read_timeout_floor_s = read_timeout_floor_s
         self.refused = 0
+        self._adapter_log: deque[str] = deque(maxlen=1000)
         self.host = host
         self.gpib_address = gpib_address
         self._port = port
@@ -568,6 +573,12 @@ class SimulatedAnalyserServer:
         self.close()
 
     # ---------------------------------------------------------------- resources
+
+    @property
+    def adapter_log(self) -> list[str]:
+        """Prologix adapter commands received (``++`` removed), closed connections first."""
+        with self._lock:
+            return [*self._adapter_log, *(line for a in self._adapters for line in a.log)]
 
     @property
     def interface_resource(self) -> str | None:
@@ -672,6 +683,7 @@ class SimulatedAnalyserServer:
             adapter.close()
             with self._lock:
                 self._adapters.remove(adapter)
+                self._adapter_log.extend(adapter.log)
 
     # ---------------------------------------------------------------- pseudo-terminal
 

@@ -55,7 +55,8 @@ MAX_PREROLL_S = 20.0
 OVERSAMPLING = 16
 
 
-def window(kind: str, samples: int, fs_hz: float, force_s: float, exponential_s: float) -> np.ndarray:
+def window(kind: str, samples: int, fs_hz: float, force_s: float,
+           exponential_s: float) -> np.ndarray:
     """A window of the 35670A (``WIND`` HANN, FLAT, UNIF, FORC, EXP)."""
     t = np.arange(samples) / fs_hz
     if kind == "HANN":
@@ -222,25 +223,22 @@ class FftMeasurement:
         start, stop = float(get("freq.start")), float(get("freq.stop"))
         span = stop - start
         record_s = lines / span
-        if start <= 0.0:
-            fs = 2.56 * span
-        else:
-            fs = 2.56 * stop
-        samples = int(round(fs * record_s))
+        fs = 2.56 * span if start <= 0.0 else 2.56 * stop
+        samples = round(fs * record_s)
         if samples * OVERSAMPLING > MAX_RECORD_SAMPLES:
             raise ScpiError(-221, "Invalid program state change requested.")
         if start <= 0.0:
-            stored = int(round(lines * 1.28)) + 1
+            stored = round(lines * 1.28) + 1
             bins = np.arange(stored)
         else:
-            first = int(round(start * record_s))
+            first = round(start * record_s)
             bins = first + np.arange(lines + 1)
         frequencies = bins / record_s
         force_s, exp_s = float(get("wind.forc")), float(get("wind.exp"))
         windows = np.array([window(str(get("wind.type", (n,))), samples, fs, force_s, exp_s)
                             for n in range(1, CHANNELS + 1)])
         overlap = int(get("swe.over")) if start <= 0 else 0
-        hop = max(1, int(round(samples * (1 - overlap / 100.0))))
+        hop = max(1, round(samples * (1 - overlap / 100.0)))
         averaging = bool(get("aver.state"))
         kind = str(get("aver.type")) if averaging else "OFF"
         return _Plan(

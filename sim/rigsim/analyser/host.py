@@ -68,5 +68,5 @@ class Host(Protocol):
     def settings_changed(self, what: str) -> None:
         """A measurement setting changed (the mode's limits may move)."""
 
-    def request_calibration(self) -> None:
-        """Run an auto-calibration at the next opportunity."""
+    def calibrate_now(self) -> None:
+        """``*CAL?``, ``CAL:AUTO ONCE``: calibrate now (between points if measuring)."""

@@ -22,7 +22,7 @@ CHANNELS = 4
 
 def snap_range_dbvrms(value_dbvrms: float) -> float:
     """The input range at or above a level (ranges not allowed round up, chapter 18)."""
-    candidates = INPUT_RANGES_DBVRMS[INPUT_RANGES_DBVRMS >= value_dbvrms - 1e-9]
+    candidates = INPUT_RANGES_DBVRMS[value_dbvrms - 1e-9 <= INPUT_RANGES_DBVRMS]
     return float(candidates[-1]) if candidates.size else float(INPUT_RANGES_DBVRMS[0])
 
 

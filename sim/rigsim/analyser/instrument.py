@@ -10,6 +10,7 @@ from typing import Any
 
 from rigsim.analyser.commands import register_all
 from rigsim.analyser.fft import FftMeasurement
+from rigsim.analyser.frequency import allowed_span
 from rigsim.analyser.inputs import CHANNELS, InputView
 from rigsim.analyser.limits import (
     AUTOCAL_DURATION_S,
@@ -21,7 +22,6 @@ from rigsim.analyser.limits import (
     fft_max_span_hz,
     sine_max_frequency_hz,
 )
-from rigsim.analyser.frequency import allowed_span
 from rigsim.analyser.run import Run
 from rigsim.analyser.session import ScpiSession
 from rigsim.analyser.settings import SettingStore
@@ -235,13 +235,18 @@ class VirtualAnalyser:
 
     # ---------------------------------------------------------------- auto-calibration
 
-    def request_calibration(self) -> None:
-        """An auto-calibration at the next point or record (now, if nothing is measured)."""
+    def calibrate_now(self) -> None:
+        """``*CAL?``, ``CAL:AUTO ONCE``: a calibration now (between points if measuring)."""
         with self.lock:
             if self.run.state == "IDLE":
                 self.status.oper.pulse(OPER_CALIBRATING)
             else:
                 self._calibration_requested = True
+
+    def request_calibration(self) -> None:
+        """An auto-calibration before the next point or record (a fault to inject)."""
+        with self.lock:
+            self._calibration_requested = True
 
     def _calibration_due(self) -> bool:
         clock = float(self.simulator.clock_s)

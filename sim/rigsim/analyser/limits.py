@@ -53,7 +53,7 @@ POINT_OVERHEAD_S = 0.45
 #: (service guide); the times within the first hour and the duration are **(inferred)**.
 AUTOCAL_SCHEDULE_S = (300.0, 900.0, 1800.0, 3600.0)
 AUTOCAL_PERIOD_S = 140 * 60.0
-AUTOCAL_DURATION_S = 4.0
+AUTOCAL_DURATION_S = 15.0
 
 
 def sine_max_frequency_hz(channels: int) -> float:

@@ -280,7 +280,7 @@ class SettingStore:
             return (new, new_unit)
         value = self._resolve(spec, q, float(current))
         if kind == "int":
-            return int(round(value))
+            return round(value)
         return value
 
     def _resolve(self, spec: Spec, q: Any, current: float) -> float:

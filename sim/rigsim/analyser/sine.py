@@ -344,10 +344,7 @@ class SweptSine:
             elif change < plan.mch / 2.0:
                 step = min(plan.max_step, step * 2.0 if not plan.log else step * step)
         sign = -1.0 if plan.descending else 1.0
-        if plan.log:
-            following = last * step ** sign
-        else:
-            following = last + sign * step
+        following = last * step ** sign if plan.log else last + sign * step
         beyond = following > plan.stop_hz * (1 + 1e-12) if not plan.descending else (
             following < plan.stop_hz * (1 - 1e-12))
         at_end = abs(last - plan.stop_hz) < 1e-9

@@ -112,7 +112,7 @@ def parse_feed(text: str) -> Feed:
         channels = tuple(int(a) for a in args.split(",")) if args.strip() else ()
     except ValueError:
         raise ScpiError(-151, f"'{stripped[:40]}'") from None
-    if arity and len(channels) != arity or any(not 1 <= c <= 4 for c in channels):
+    if (arity and len(channels) != arity) or any(not 1 <= c <= 4 for c in channels):
         raise ScpiError(-151, f"'{stripped[:40]}'")
     text = f"{_SHORT.get(kind, ':'.join(words))} {','.join(map(str, channels))}".strip()
     return Feed(kind, channels, text)
@@ -238,7 +238,7 @@ def fft_trace(feed: Feed, result: FftResult | None, lines: int) -> Register:
     """The data an FFT trace shows (all marker when nothing is measured yet)."""
     kind = feed.kind
     if result is None:
-        count = int(round(lines * 1.28)) + 1
+        count = round(lines * 1.28) + 1
         empty = np.full(count, np.nan)
         if kind in ("TIME", "WTIME", "ORBIT"):
             return Register(feed.text, np.full(count, np.nan), empty, domain="time", kind=kind)

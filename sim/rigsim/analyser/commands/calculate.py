@@ -7,6 +7,7 @@ FFT-only state.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -17,17 +18,17 @@ from rigsim.analyser.settings import Spec, check_option, one
 from rigsim.analyser.traces import FORMATS, check_feed, encode, formatted, parse_feed
 from rigsim.scpi import (
     Call,
-    block_payload,
-    definite_block,
-    parse_quantity,
     CommandTree,
     ScpiError,
+    block_payload,
+    definite_block,
     format_bool,
     format_int,
     format_real,
     format_string,
     parse_choice,
     parse_number,
+    parse_quantity,
     unquote,
 )
 
@@ -380,7 +381,7 @@ def _limits(t: CommandTree, a: Host) -> None:
             x, values = trace_values(a, _trace(call))
             good = np.flatnonzero(np.isfinite(x) & np.isfinite(values[: x.size]))
             rows = []
-            for i, j in zip(good[:-1], good[1:], strict=True):
+            for i, j in itertools.pairwise(good):
                 rows += [x[i], values[i], x[j], values[j]]
             store.set(key, ",".join(repr(float(v)) for v in rows), (_trace(call),))
 

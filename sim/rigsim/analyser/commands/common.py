@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import time
 
-from rigsim.analyser.commands.table import action, boolean, choice, declare, integer, real
+from rigsim.analyser.commands.table import action, boolean, choice, declare, integer
 from rigsim.analyser.host import Host
 from rigsim.analyser.settings import one
 from rigsim.scpi import (
@@ -81,7 +81,7 @@ def register(tree: CommandTree, a: Host) -> None:
     t.add("*PCB", setter=lambda c: _numbers(c, len(c.params) or 1, [(0, 30)] * (
         len(c.params) or 1)) and None)
     t.add("*TST", query=lambda c: format_int(0))
-    t.add("*CAL", query=lambda c: (a.request_calibration(), format_int(0))[1])
+    t.add("*CAL", query=lambda c: (a.calibrate_now(), format_int(0))[1])
     t.add("*OPC", setter=lambda c: status.operation_complete(idle=a.run.state == "IDLE"))
     t.add("*TRG", setter=lambda c: _trigger(a))
 

@@ -17,13 +17,13 @@ def register(tree: CommandTree, a: Host) -> None:
     declare(tree, a.store, [
         ("INITiate:CONTinuous", "init.cont", boolean(True, rst=False)),
     ], after=lambda name, value, index: a.set_continuous(bool(value)))
-    tree.add("CALibration[:ALL]", query=lambda c: (a.request_calibration(), format_int(0))[1])
+    tree.add("CALibration[:ALL]", query=lambda c: (a.calibrate_now(), format_int(0))[1])
     a.store.define("cal.auto", Spec("bool", True, rst=False))
 
     def set_auto(call: Call) -> None:
         word = one(call).strip().upper()
         if word == "ONCE":
-            a.request_calibration()
+            a.calibrate_now()
             return
         try:
             value = parse_bool(word)

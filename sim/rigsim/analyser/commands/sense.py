@@ -527,7 +527,7 @@ def register(tree: CommandTree, a: Host) -> None:
             value = q.value * 100.0 if q.unit == "" and 0 < q.value < 1 else q.value
         if not 0 <= round(value) <= 99:
             raise ScpiError(-222, OUT_OF_RANGE)
-        store.set("swe.over", int(round(value)))
+        store.set("swe.over", round(value))
 
     t.add("[SENSe:]SWEep:OVERlap", setter=set_overlap,
           query=_guarded(a, lambda c: format_int(int(store.get("swe.over"))),

@@ -6,7 +6,7 @@ import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from rigsim.analyser.settings import Spec, SettingStore, bind, check_option
+from rigsim.analyser.settings import SettingStore, Spec, bind, check_option
 from rigsim.scpi import Call, CommandTree, ScpiError, parse_quantity
 
 __all__ = ["Row", "action", "boolean", "choice", "declare", "integer", "pair", "real", "text"]
