@@ -147,12 +147,14 @@ class MessageFramer:
                 i, self._skip = header
                 continue
             elif byte == 0x0A:
+                if i - start > self.max_bytes:
+                    break
                 messages.append(bytes(buf[start:i]))
                 start = i + 1
             i += 1
         del buf[:start]
         self._scan = i - start
-        if len(buf) > self.max_bytes:
+        if self._scan > self.max_bytes or len(buf) > self.max_bytes:
             self._buffer = bytearray()
             self._scan = self._skip = self._quote = 0
             raise MessageTooLong(f"message longer than {self.max_bytes} bytes")

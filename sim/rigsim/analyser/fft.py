@@ -169,10 +169,42 @@ class _RigStream:
                 fs / 2.0)
         slowest = np.min(np.abs(lam.real)) if lam.size else 1.0
         self.settle_s = min(MAX_PREROLL_S, 5.0 / max(slowest, 1e-3))
+        # the analyser's anti-alias filter (INP:FILT, on by default): flat to the span's edge
+        # (0.39 of the sample rate), 90 dB down before anything can fold into the span
+        self.anti_alias = signal.ellip(8, 0.01, 90.0, 0.4 * fs, fs=fs * OVERSAMPLING,
+                                       output="sos")
+        self.filter_state = np.zeros((CHANNELS, self.anti_alias.shape[0], 2))
 
-    def run(self, force_n: np.ndarray) -> np.ndarray:
+    def _response(self, z: np.ndarray) -> np.ndarray:
+        """(modes, len(z)) discrete response of each mode's recursion to ``z**k`` inputs."""
+        inverse = 1.0 / z[None, :]
+        c1, c0 = self.taps[0][:, None], self.taps[1][:, None]
+        return (c1 + c0 * inverse) / (1.0 - self.decay[:, None] * inverse)
+
+    def settle_periodic(self, force_period: np.ndarray, start: int) -> None:
+        """Put the rig in its periodic steady state for a force repeating ``force_period``
+        (fine samples); ``start``: the index in the period of the next sample to be run."""
+        count = force_period.size
+        spectrum = np.fft.fft(force_period)
+        z = np.exp(2j * np.pi * np.arange(count) / count)
+        modal = np.fft.ifft(self._response(z) * spectrum[None, :], axis=1)
+        self.zi = modal[:, start] - self.taps[0] * force_period[start]
+
+    def settle_sine(self, amplitude: float, omega: float, phase: float, offset: float) -> None:
+        """Steady state for ``offset + amplitude sin(omega k + phase)`` (k: the fine sample
+        index of the next sample run, omega in radians per fine sample)."""
+        z = np.exp(1j * np.array([omega, -omega, 0.0]))
+        response = self._response(z)
+        state = (amplitude / 2j) * (response[:, 0] * np.exp(1j * phase)
+                                    - response[:, 1] * np.exp(-1j * phase))
+        state = state + offset * response[:, 2]
+        force = offset + amplitude * math.sin(phase)
+        self.zi = state - self.taps[0] * force
+
+    def run(self, force_n: np.ndarray, filtered: np.ndarray | None = None) -> np.ndarray:
         """Transducer volts (4, N) at the analyser's rate for a force given at
-        :data:`OVERSAMPLING` times that rate (N × OVERSAMPLING samples); the state carries."""
+        :data:`OVERSAMPLING` times that rate (N × OVERSAMPLING samples); the state carries.
+        ``filtered``: inputs whose anti-alias filter is on (all by default)."""
         q_out = np.empty((self.zi.size, force_n.size), complex)
         for m in range(self.zi.size):
             q_out[m], zf = signal.lfilter(self.taps[:, m], [1.0, -self.decay[m]], force_n,
@@ -180,6 +212,10 @@ class _RigStream:
             self.zi[m] = zf[0]
         space = self.modal.space
         fine = (self.modal.c_modal @ q_out).real + space.d[:, None] * force_n[None, :]
+        for channel in range(CHANNELS):
+            if filtered is None or filtered[channel]:
+                fine[channel], self.filter_state[channel] = signal.sosfilt(
+                    self.anti_alias, fine[channel], zi=self.filter_state[channel])
         volts = fine[:, OVERSAMPLING - 1::OVERSAMPLING] * self.sensitivity[:, None]
         volts += self.sensor_sigma[:, None] * self.rng.standard_normal(volts.shape)
         return volts
@@ -336,8 +372,10 @@ class FftMeasurement:
                 self._stream = _RigStream(rig, plan.fs, self.rng)
             stream = self._stream
         gain, limit = rig.shaker.force_n_per_v, rig.shaker.force_limit_n
-        preroll = int(stream.settle_s * plan.fs) if plan.source["on"] else plan.samples
-        buffer = self._acquire(stream, plan, max(preroll, plan.samples), gain, limit)
+        preroll = plan.samples
+        if not self._steady(stream, plan, gain, limit) and plan.source["on"]:
+            preroll = max(preroll, int(stream.settle_s * plan.fs))
+        buffer = self._acquire(stream, plan, preroll, gain, limit)
         ranges = self._autorange(buffer)
         result = self.result if more and self.result is not None else self._empty(plan)
         target = result.averages + plan.averages
@@ -368,10 +406,37 @@ class FftMeasurement:
             self.status.volt.set_condition(0)
         self.simulator.idle(elapsed)
 
+    def _steady(self, stream: _RigStream, plan: _Plan, gain: float, limit: float) -> bool:
+        """A periodic source (sine, chirps) has been driving the rig: start it in its steady
+        state. Random sources have none: the rig runs a while first (the caller's pre-roll)."""
+        src = plan.source
+        if not src["on"] or src["function"] not in ("SIN", "PCH", "BCH"):
+            return False
+        fine = plan.fs * OVERSAMPLING
+        position = self._source_state.get("position", 0)
+        if src["function"] == "SIN" and src["level"] * gain <= limit:
+            omega = 2 * np.pi * src["frequency"] / fine
+            stream.settle_sine(gain * src["level"], omega, omega * position,
+                               gain * src["offset"])
+            return True
+        record = src["samples"] * OVERSAMPLING
+        lo, hi = src["band"]
+        hi = min(hi, 0.45 * plan.fs)
+        if src["function"] == "SIN":
+            wave = src["level"] * np.sin(2 * np.pi * src["frequency"] * np.arange(record) / fine)
+        else:
+            burst = src["burst"] if src["function"] == "BCH" else 1.0
+            wave = src["level"] * self._chirp(record, fine, lo, hi, burst)
+        force = np.clip(gain * (wave + src["offset"]), -limit, limit)
+        stream.settle_periodic(force, position % record)
+        return src["function"] != "SIN"
+
     def _acquire(self, stream: _RigStream, plan: _Plan, samples: int, gain: float,
                  limit: float) -> np.ndarray:
         force = np.clip(gain * self._source(plan, samples * OVERSAMPLING), -limit, limit)
-        volts = self.front_end.apply(stream.run(force).T).T
+        filtered = np.array([bool(self.store.get("inp.filt", (n,)))
+                             for n in range(1, CHANNELS + 1)])
+        volts = self.front_end.apply(stream.run(force, filtered).T).T
         return volts
 
     def _autorange(self, record: np.ndarray) -> np.ndarray:

@@ -272,12 +272,12 @@ class SweptSine:
         zero = plan.start_vpk <= 0.0
         self.run.start(lambda generation: self._measure(generation, plan), paused=zero)
         if zero:
-            self.status.push_error(-221, ZERO_SOURCE_MESSAGE)
+            self.status.push_error(-221, ScpiError(-221, ZERO_SOURCE_MESSAGE).message)
 
     def resume(self) -> None:
         """``INIT:CONT ON`` on a paused sweep (a 0 V source keeps it paused)."""
         if self.run.state == "PAUSED" and float(self.store.get("sour.volt").vpk) <= 0.0:
-            self.status.push_error(-221, ZERO_SOURCE_MESSAGE)
+            self.status.push_error(-221, ScpiError(-221, ZERO_SOURCE_MESSAGE).message)
             return
         self.run.resume()
 
