@@ -309,7 +309,7 @@ def test_swept_sine_measures_the_rigs_frequency_response(inst, server) -> None:
 # -- FFT mode ------------------------------------------------------------------------------------
 
 def fft_setup(inst, source: str, window: str, averages: int = 20, span: float = 200.0) -> None:
-    inst.write("*RST;:INP4 ON")
+    inst.write("*RST;:INP4 ON;:REF PAIR")
     inst.write(f"FREQ:SPAN:LINK STAR;:FREQ:STAR 0;:FREQ:SPAN {span} HZ;:FREQ:RES 400")
     inst.write(f"SOUR:FUNC {source};:SOUR:FREQ 25;:SOUR:VOLT 0.5 VPK;:OUTP ON;:WIND {window}")
     inst.write(f"AVER ON;:AVER:COUN {averages};:FORM REAL,64")

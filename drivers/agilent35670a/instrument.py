@@ -564,7 +564,17 @@ class Agilent35670A(Subsystem):
                                  f"{points} were asked for", self.resource)
         frf_21 = traces.data("XFR:POW:RAT 2,1", count)
         frf_43 = None
-        if 3 in channels and 4 in channels:
+        extras: dict[str, np.ndarray] = {}
+        if self.sweep.sent.get("reference_pairing") == "SING":
+            # input 1 is every input's reference: 4/3 is the ratio of the two responses
+            for number in (3, 4):
+                if number in channels:
+                    traces.show(f"XFR:POW:RAT {number},1")
+                    extras[f"frf_{number}1"] = traces.data(f"XFR:POW:RAT {number},1", count)
+            if "frf_31" in extras and "frf_41" in extras:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    frf_43 = extras["frf_41"] / extras["frf_31"]
+        elif 3 in channels and 4 in channels:
             traces.show("XFR:POW:RAT 4,3")
             frf_43 = traces.data("XFR:POW:RAT 4,3", count)
         amplitude, variance = {}, {}
@@ -582,7 +592,7 @@ class Agilent35670A(Subsystem):
             frequency_hz=frequency_hz, frf_21=frf_21, frf_43=frf_43, amplitude_eu=amplitude,
             variance=variance, eu_labels=labels, overload_channels=overload,
             half_range_channels=half_range, started_at_s=started, finished_at_s=finished,
-            no_data=missing,
+            no_data=missing, extras=extras,
         )
 
     def read_trace(self, feed: str, points: int | None = None, *, real: bool = False,
@@ -679,6 +689,7 @@ def _picked(segment: SweepSegment, index: int) -> SweepSegment:
         half_range_channels=segment.half_range_channels, started_at_s=segment.started_at_s,
         finished_at_s=segment.finished_at_s,
         no_data=None if segment.no_data is None else segment.no_data[pick],
+        extras={name: values[pick] for name, values in segment.extras.items()},
     )
 
 
@@ -702,4 +713,5 @@ def _joined(pieces: list[SweepSegment]) -> SweepSegment:
         started_at_s=first.started_at_s,
         finished_at_s=pieces[-1].finished_at_s,
         no_data=stack(lambda p: p.no_data if p.no_data is not None else np.zeros(len(p), bool)),
+        extras={name: stack(lambda p, n=name: p.extras[n]) for name in first.extras},
     )

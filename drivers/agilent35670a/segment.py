@@ -69,6 +69,9 @@ class SweepSegment:
     no_data
         Points where the analyser's trace held its no-data marker in any quantity read (their
         values are NaN); all false for a complete sweep.
+    extras
+        Further data by name: with ``REF SING`` (input 1 the reference of every input),
+        ``frf_31`` and ``frf_41``, the responses of inputs 3 and 4 over input 1.
 
     Notes
     -----

@@ -136,12 +136,12 @@ def check_feed(feed: Feed, mode: str, channel_count: int, reference: str) -> Non
                               "channels")
     if feed.kind in ("RAT", "CROS", "COH", "ORBIT") and len(set(channels)) != 2:
         raise ScpiError(-224, "the two channels must differ")
-    if feed.kind == "RAT":
-        allowed = {(2, 1), (4, 3)} if reference == "PAIR" else {(2, 1), (3, 1), (4, 1), (4, 3)}
+    if feed.kind == "RAT":  # REF SING: input 1 is every input's reference (chapter 18)
+        allowed = {(2, 1), (4, 3)} if reference == "PAIR" else {(2, 1), (3, 1), (4, 1)}
         if channels not in allowed:
             raise ScpiError(-224, f"XFR:POW:RAT {channels[0]},{channels[1]} with REF {reference}")
     if feed.kind in ("CROS", "COH"):
-        pairs = {(1, 2), (3, 4)} if reference == "PAIR" else {(1, 2), (1, 3), (1, 4), (3, 4)}
+        pairs = {(1, 2), (3, 4)} if reference == "PAIR" else {(1, 2), (1, 3), (1, 4)}
         if channels not in pairs:
             raise ScpiError(-224, f"channels {channels[0]},{channels[1]} with REF {reference}")
 

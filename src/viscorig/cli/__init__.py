@@ -50,6 +50,7 @@ COMMANDS: dict[str, Command] = {
         "exchange", "add a run to a campaign from UFF 58, CSV or 35670A SDF files"
     ),
     "sim": Command("sim", "simulated rig and analyser"),
+    "bench": Command("bench", "check the test station in a minute before a campaign"),
 }
 
 
