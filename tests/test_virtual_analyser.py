@@ -318,6 +318,15 @@ def fft_setup(inst, source: str, window: str, averages: int = 20, span: float = 
     assert inst.query("*OPC?") == "+1"
 
 
+def read_h1(inst) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies, complex H1 (trace A) and coherence (trace B) of the finished measurement."""
+    inst.write("CALC1:FORM REAL")
+    real = real64(inst, "CALC1:DATA?")
+    inst.write("CALC1:FORM IMAG")
+    imag = real64(inst, "CALC1:DATA?")
+    return real64(inst, "CALC1:X:DATA?"), real + 1j * imag, real64(inst, "CALC2:DATA?")
+
+
 def test_fft_h1_with_a_periodic_chirp_is_the_rigs_response(rm) -> None:
     """A periodic chirp through the noiseless rig, uniform window: H1 is the rig's response
     line by line and the coherence is one (the record holds whole periods)."""
@@ -325,22 +334,16 @@ def test_fft_h1_with_a_periodic_chirp_is_the_rigs_response(rm) -> None:
     with SimulatedAnalyserServer(rig, seed=1) as srv:
         inst = open_socket(rm, srv)
         fft_setup(inst, "PCH", "UNIF", averages=4)
-        inst.write("CALC1:FORM REAL")
-        real = real64(inst, "CALC1:DATA?")
-        inst.write("CALC1:FORM IMAG")
-        imag = real64(inst, "CALC1:DATA?")
-        x = real64(inst, "CALC1:X:DATA?")
-        coherence = real64(inst, "CALC2:DATA?")
+        x, h1, coherence = read_h1(inst)
         inst.write("TRAC:DATA D1,TRAC1")
         stored = real64(inst, "TRAC:X? D1")
         found = codes(inst)
         inst.close()
-    assert x.size == real.size == 401 and x[-1] == pytest.approx(200.0)
+    assert x.size == h1.size == 401 and x[-1] == pytest.approx(200.0)
     assert stored.size == 513  # the stored trace holds the alias lines (chapter 23)
     band = (x >= 2) & (x <= 180)
     expected = frf(rig, x[band], 4, 3)
-    measured = (real + 1j * imag)[band]
-    assert np.max(np.abs(measured / expected - 1)) < 2e-3
+    assert np.max(np.abs(h1[band] / expected - 1)) < 2e-3
     assert np.min(coherence[band]) > 0.999
     assert found == []
 
@@ -349,16 +352,11 @@ def test_fft_h1_with_random_noise_and_a_hann_window(inst, server) -> None:
     """Random excitation, Hann window, 20 averages on the noisy rig: H1 within a few per cent
     where the coherence is high."""
     fft_setup(inst, "RAND", "HANN")
-    inst.write("CALC1:FORM REAL")
-    real = real64(inst, "CALC1:DATA?")
-    inst.write("CALC1:FORM IMAG")
-    imag = real64(inst, "CALC1:DATA?")
-    x = real64(inst, "CALC1:X:DATA?")
-    coherence = real64(inst, "CALC2:DATA?")
+    x, h1, coherence = read_h1(inst)
     good = (x >= 20) & (x <= 180) & (coherence > 0.95)
     assert good.sum() > 200
     expected = frf(server.analyser.simulator.rig, x[good], 4, 3)
-    assert np.median(np.abs((real + 1j * imag)[good] / expected - 1)) < 0.03
+    assert np.median(np.abs(h1[good] / expected - 1)) < 0.03
 
 
 def test_fft_noise_floor_with_the_source_off_is_the_transducers_noise(inst, server) -> None:

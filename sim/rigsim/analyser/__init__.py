@@ -38,8 +38,8 @@ limits        identity, limits, timings
 
 from rigsim.analyser.instrument import VirtualAnalyser, build_simulator
 from rigsim.analyser.limits import DEFAULT_IDN, DEFAULT_OPTIONS, MARKER, MAX_POINTS
+from rigsim.analyser.run import Simulator
 from rigsim.analyser.session import ScpiSession
-from rigsim.analyser.sine import Simulator
 from rigsim.analyser.traces import Feed, Register, parse_feed
 
 __all__ = [

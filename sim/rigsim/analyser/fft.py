@@ -22,22 +22,19 @@ rig's nominal linear model is used), the anti-alias filter's roll-off.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy import signal
 
-from rigsim.analyser.inputs import CHANNELS, InputView, snap_range_dbvrms
+from rigsim.analyser.inputs import CHANNELS, snap_range_dbvrms
 from rigsim.analyser.limits import FFT_LINES
-from rigsim.analyser.run import Run
-from rigsim.analyser.settings import SettingStore
-from rigsim.analyser.sine import Simulator, voltage_bits
-from rigsim.analyser.status import OPER_AVERAGING, OPER_MEASURING, StatusRegisters
+from rigsim.analyser.run import Measurement
+from rigsim.analyser.sine import voltage_bits
+from rigsim.analyser.status import OPER_AVERAGING, OPER_MEASURING
 from rigsim.dynamics import ModalSystem, build_state_space
 from rigsim.engine import AUTORANGE_HEADROOM
-from rigsim.faults import FrontEnd
 from rigsim.measurement import INPUT_RANGES_VPK
 from rigsim.scpi import ScpiError
 
@@ -221,28 +218,14 @@ class _RigStream:
         return volts
 
 
-class FftMeasurement:
+class FftMeasurement(Measurement):
     """FFT measurements on a rig simulator.
 
-    Parameters
-    ----------
-    store, status, run, simulator, front_end
-        The instrument's settings, status registers, measurement thread, rig simulator and
-        wiring.
-    calibrate
-        Called between records (an auto-calibration may be due).
+    Parameters: those of :class:`~rigsim.analyser.run.Measurement`.
     """
 
-    def __init__(self, store: SettingStore, status: StatusRegisters, run: Run,
-                 simulator: Simulator, front_end: FrontEnd,
-                 calibrate: Callable[[int], None]) -> None:
-        self.store = store
-        self.status = status
-        self.run = run
-        self.simulator = simulator
-        self.front_end = front_end
-        self.calibrate = calibrate
-        self.inputs = InputView(store)
+    def __init__(self, *parts: Any) -> None:
+        super().__init__(*parts)
         self.result: FftResult | None = None
         self.rng = np.random.default_rng()
         self._stream: _RigStream | None = None

@@ -22,10 +22,10 @@ from rigsim.analyser.limits import (
     fft_max_span_hz,
     sine_max_frequency_hz,
 )
-from rigsim.analyser.run import Run
+from rigsim.analyser.run import Run, Simulator
 from rigsim.analyser.session import ScpiSession
 from rigsim.analyser.settings import SettingStore
-from rigsim.analyser.sine import Simulator, SweptSine
+from rigsim.analyser.sine import SweptSine
 from rigsim.analyser.status import (
     DEV_AUTOCAL_OFF,
     ESR_PON,

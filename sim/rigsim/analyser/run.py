@@ -16,10 +16,34 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from typing import Any, Protocol
 
+from rigsim.analyser.inputs import InputView
+from rigsim.analyser.settings import SettingStore
 from rigsim.analyser.status import OPER_MEASURING, StatusRegisters
+from rigsim.faults import FrontEnd
+from rigsim.measurement import SweepRecord, SweepRequest
 
-__all__ = ["Aborted", "Run"]
+__all__ = ["Aborted", "Measurement", "Run", "Simulator"]
+
+
+class Simulator(Protocol):
+    """What the analyser needs of the rig simulator (``rigsim.engine.RigSimulator``)."""
+
+    clock_s: float
+
+    @property
+    def rig(self) -> Any:
+        """The rig mounted (its transducers, shaker and noise)."""
+
+    def sweep(self, request: SweepRequest) -> SweepRecord:
+        """Measure the request's points, volts at the analyser inputs."""
+
+    def mount(self, rig: Any) -> None:
+        """Replace the rig (new specimens); the clock restarts."""
+
+    def idle(self, duration_s: float) -> None:
+        """Let time pass with the source off."""
 
 
 class Aborted(Exception):  # noqa: N818 - a signal that the worker's generation is over
@@ -142,3 +166,31 @@ class Run:
                 self.check(generation)
                 if bits is not None:
                     self.set_operation(bits)
+
+
+class Measurement:
+    """What a measurement (swept sine, FFT) works with.
+
+    Parameters
+    ----------
+    store, status, run
+        The instrument's settings, status registers and measurement thread.
+    simulator
+        The rig simulator.
+    front_end
+        The wiring between the rig's transducers and the inputs.
+    calibrate
+        Called between points or records with the worker's generation (an auto-calibration
+        may be due).
+    """
+
+    def __init__(self, store: SettingStore, status: StatusRegisters, run: Run,
+                 simulator: Simulator, front_end: FrontEnd,
+                 calibrate: Callable[[int], None]) -> None:
+        self.store = store
+        self.status = status
+        self.run = run
+        self.simulator = simulator
+        self.front_end = front_end
+        self.calibrate = calibrate
+        self.inputs = InputView(store)

@@ -23,24 +23,21 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from rigsim.analyser.frequency import point_count, sweep_frequencies
-from rigsim.analyser.inputs import CHANNELS, InputView
+from rigsim.analyser.inputs import CHANNELS
 from rigsim.analyser.limits import MAX_POINTS, MIN_DWELL_S, POINT_OVERHEAD_S, display_points
-from rigsim.analyser.run import Run
-from rigsim.analyser.settings import SettingStore
+from rigsim.analyser.run import Measurement, Simulator
 from rigsim.analyser.status import (
     OPER_AVERAGING,
     OPER_MEASURING,
     OPER_RANGING,
     OPER_SETTLING,
-    StatusRegisters,
 )
 from rigsim.engine import AUTORANGE_HEADROOM
-from rigsim.faults import FrontEnd
 from rigsim.measurement import (
     INPUT_RANGES_VPK,
     SourceControl,
@@ -53,25 +50,6 @@ __all__ = ["ZERO_SOURCE_MESSAGE", "MeasuredPoints", "Simulator", "SweptSine", "v
 
 ZERO_SOURCE_MESSAGE = "SOURCE LEVEL is 0 Volts, measurement paused."
 _RANGES_ASCENDING = np.sort(INPUT_RANGES_VPK)
-
-
-class Simulator(Protocol):
-    """What the analyser needs of the rig simulator (``rigsim.engine.RigSimulator``)."""
-
-    clock_s: float
-
-    @property
-    def rig(self) -> Any:
-        """The rig mounted (its transducers, shaker and noise)."""
-
-    def sweep(self, request: SweepRequest) -> SweepRecord:
-        """Measure the request's points, volts at the analyser inputs."""
-
-    def mount(self, rig: Any) -> None:
-        """Replace the rig (new specimens); the clock restarts."""
-
-    def idle(self, duration_s: float) -> None:
-        """Let time pass with the source off."""
 
 
 def voltage_bits(overload: np.ndarray, half_range: np.ndarray) -> int:
@@ -134,31 +112,15 @@ class _Plan:
     mch: float = 2.0
 
 
-class SweptSine:
+class SweptSine(Measurement):
     """Swept-sine measurements on a rig simulator.
 
-    Parameters
-    ----------
-    store, status, run
-        The instrument's settings, status registers and measurement thread.
-    simulator
-        The rig simulator.
-    front_end
-        The wiring between transducers and inputs.
-    on_point
-        Called (lock held) with the number of points measured after each point.
+    Parameters: those of :class:`~rigsim.analyser.run.Measurement`. ``on_point`` is called
+    (lock held) with the number of points measured after each point.
     """
 
-    def __init__(self, store: SettingStore, status: StatusRegisters, run: Run,
-                 simulator: Simulator, front_end: FrontEnd,
-                 calibrate: Callable[[int], None]) -> None:
-        self.store = store
-        self.status = status
-        self.run = run
-        self.simulator = simulator
-        self.front_end = front_end
-        self.calibrate = calibrate
-        self.inputs = InputView(store)
+    def __init__(self, *parts: Any) -> None:
+        super().__init__(*parts)
         self.points = MeasuredPoints()
         self.on_point: Callable[[int], None] | None = None
         self.forced_overload: dict[int, int | None] = {}
