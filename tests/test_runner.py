@@ -259,7 +259,7 @@ def test_a_hard_specimen_is_probed_and_refused_before_anything_is_measured(
     assert "from a probe of the mounted rig at 20 and 21 Hz" in line
     assert 'over_limit in the sequence is "refuse"' in line and "--over-limit reduce" in line
     assert Campaign.open(out).run_names == []  # nothing measured for the run
-    assert rig.analyser.source.output is False
+    assert rig.analyser.source_on is False
     # the probe itself stayed at a tenth of the level: about 16 N, far below the limit
     forces = probe_forces(captured.out)
     assert len(forces) == 2 and max(forces) < 20.0
@@ -357,7 +357,7 @@ def test_a_fault_during_the_probe_stops_before_the_run_and_resume_probes_again(
     assert "newly mounted; probing" in captured.out
     assert "hardware fault" in captured.err and "before run 'soft-0' started" in captured.err
     assert Campaign.open(out).run_names == []
-    assert rig.analyser.source.output is False
+    assert rig.analyser.source_on is False
 
     rig.analyser.on_point = None
     assert main(["resume", out, "--yes"]) == 0
