@@ -63,6 +63,7 @@ def _opened(args: argparse.Namespace) -> Iterator[Any]:
 
     table = load_preset(preset).table
     with simulated_station(sequence) as opened:
+        opened.mount(preset)  # the embedded rig starts bare; a prompt would mount the preset
         opened.station = dataclasses.replace(opened.station, table=TableParameters(
             table.mass_kg, table.stiffness_n_per_m, table.damping_ns_per_m))
         yield opened
