@@ -36,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from planning_rig import TABLE, VOIGT_RIG, VOIGT_TRUTH, SimulatedRig, paper_sweep
 from rigsim.rigfile import load_preset
+from viscorig.planning.estimator import weighted_fit
 
 from viscorig.diagnosis import diagnose
 from viscorig.fitting import fit
@@ -49,7 +50,6 @@ from viscorig.planning import (
     shared_noise,
 )
 from viscorig.planning.adaptive import weighted_fit_function
-from viscorig.planning.estimator import weighted_fit
 
 LEVEL = 1.4
 BAND = (20.0, 120.0)

@@ -34,16 +34,19 @@ def test_standard_errors_cover_the_truth(noise: str) -> None:
 
 def test_the_table_uncertainty_is_what_k_v_was_missing() -> None:
     """Held exact, the table's values leave K_v's standard error too small (the flaw this
-    propagation fixes): the same replicates without it cover far less."""
+    propagation fixes): the same replicates without it cover far less. With the paper's
+    uniform weighting of both runs, where the table's uncertainty weighs most; weighted by the
+    noise, the bare-table run pins the table down so well that it hardly matters."""
     inherited, exact = [], []
     for seed in range(12):
         table_run = simulate_run(rig_text(noise=NOISES["white"]), seed=2 * seed + 1,
                                  start_hz=12.0, stop_hz=28.0, step_hz=0.125, settle_cycles=200.0)
-        known = Known.from_fit(fit("table", table_run.frf_data("table")), TABLE_NAMES, "t")
+        table = fit("table", table_run.frf_data("table"), weighting="uniform")
+        known = Known.from_fit(table, TABLE_NAMES, "t")
         values = known.values
         data = simulate_run(rig_text(VOIGT, noise=NOISES["white"]), seed=2 * seed + 2).frf_data()
-        with_table = fit("voigt", data, known=known)
-        without = fit("voigt", data, fixed=values)
+        with_table = fit("voigt", data, known=known, weighting="uniform")
+        without = fit("voigt", data, fixed=values, weighting="uniform")
         inherited.append((with_table.values["K_v"] - TRUTH["K_v"]) / with_table.stderr["K_v"])
         exact.append((without.values["K_v"] - TRUTH["K_v"]) / without.stderr["K_v"])
     assert np.sqrt(np.mean(np.square(exact))) > 1.5 * np.sqrt(np.mean(np.square(inherited)))

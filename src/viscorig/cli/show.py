@@ -71,6 +71,7 @@ def fit_lines(fit: Fit) -> list[str]:
     lines = [
         f"  {fit.run}/{fit.id}  {fit.model}  {lo:g}-{hi:g} Hz  rms_error {_number(fit.rms_error)}"
         f"  noise_floor {_number(fit.noise_floor)}  {fit.created}"
+        + (f"  weighted by {fit.weighting}" if fit.weighting else "")
     ]
     for name, parameter in fit.parameters.items():
         stderr = "" if math.isnan(parameter.stderr) else f" ± {parameter.stderr:.3g}"
@@ -139,6 +140,7 @@ def fit_json(fit: Fit) -> dict[str, Any]:
         "band_hz": [_finite(fit.band_hz[0]), _finite(fit.band_hz[1])],
         "rms_error": _finite(fit.rms_error),
         "noise_floor": _finite(fit.noise_floor),
+        "weighting": fit.weighting or None,
         "created": fit.created,
         "parameters": {
             name: {"value": _finite(p.value), "stderr": _finite(p.stderr), "unit": p.unit}

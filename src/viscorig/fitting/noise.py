@@ -363,6 +363,15 @@ class NoiseModel:
             out[rows] = getattr(block, operation)(part, values[rows])
         return out
 
+    def stacked_variance(self, frfs: Sequence[str]) -> NDArray[np.float64]:
+        """``diag Σ`` in the stacked layout of ``frfs``: each real component's own variance
+        (white part plus the correlated part's variance)."""
+        out = []
+        for part, _, block in self._segments(frfs):
+            white, sigma2 = block.part_variance(part)
+            out.append(white + sigma2)
+        return np.concatenate(out)
+
     def whiten_stacked(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
         """``Σ^{-1/2} values`` for a real vector or matrix in the stacked layout of ``frfs``."""
         return self._blockwise(values, frfs, "whiten_part")

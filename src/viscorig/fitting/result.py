@@ -71,6 +71,10 @@ class FitResult:
         measurement uncertainties. Otherwise they are those of the model's band-average.
     inherited_from
         Where the inherited parameters came from (``"run 'table'"``), or ``""``.
+    weighting
+        How the points were weighted: ``"noise"`` (the project's estimate, generalised least
+        squares under :attr:`noise`) or ``"uniform"`` (the paper's method)
+        (:mod:`viscorig.fitting.nonlinear`).
     """
 
     model: Model
@@ -96,6 +100,7 @@ class FitResult:
     misfit_scale: float = 1.0
     fits_noise: bool = True
     inherited_from: str = ""
+    weighting: str = "uniform"
 
     def __post_init__(self) -> None:
         if not self.covariance_names:
@@ -188,6 +193,7 @@ class FitResult:
                 }
                 for name, e in self.parameters.items()
             },
+            "weighting": self.weighting,
             "uncertainty": {
                 "basis": "noise" if self.fits_noise else "band-average (misfit)",
                 "misfit_scale": float(self.misfit_scale),

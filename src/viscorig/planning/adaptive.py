@@ -16,8 +16,8 @@ States::
 - LOOK: a sparse logarithmic look over the band, on the coverage grid
   (:func:`~viscorig.planning.coverage.log_grid`), settled for a prior damping (the mode is not
   known yet).
-- FIT: every point so far is fitted by the noise-weighted estimate a plan is judged by
-  (:mod:`~viscorig.planning.estimator`, under the core's noise model of the points); the
+- FIT: every point so far is fitted by the project's estimator (:func:`viscorig.fitting.fit`,
+  noise-weighted under the core's noise model of the points, as ``identify`` fits the run); the
   planning noise model is fitted to the points' noise (:mod:`~viscorig.planning.noise`), the
   modes are read off the fitted model, the instrument's time per point is calibrated from
   repeats, the information the points hold is computed from their measured noise (and compared
@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult
+from viscorig.fitting import FitResult, fit
 from viscorig.models import parse_spec
 from viscorig.planning.batch import (
     allocation_points,
@@ -58,7 +58,6 @@ from viscorig.planning.batch import (
 )
 from viscorig.planning.coverage import coverage_grid, coverage_ratio, log_grid
 from viscorig.planning.design import minimum_time_design
-from viscorig.planning.estimator import weighted_fit
 from viscorig.planning.information import InformationModel
 from viscorig.planning.instrument import (
     ANALYSER,
@@ -276,11 +275,12 @@ FitFunction = Callable[[MeasuredPoints], FitResult]
 
 
 def weighted_fit_function(spec: str, fixed: Mapping[str, float]) -> FitFunction:
-    """The noise-weighted fit of ``spec`` (:mod:`~viscorig.planning.estimator`) under the core's
-    noise model of the points (:func:`~viscorig.planning.noise.shared_noise`)."""
+    """The project's fit of ``spec`` (:func:`viscorig.fitting.fit`, weighted by the noise) under
+    the core's noise model of the points (:func:`~viscorig.planning.noise.shared_noise`)."""
 
     def run(points: MeasuredPoints) -> FitResult:
-        return weighted_fit(spec, points.frf_data(), shared_noise(points), fixed=fixed)
+        return fit(spec, points.frf_data(), fixed=dict(fixed), noise=shared_noise(points),
+                   weighting="noise")
 
     return run
 
