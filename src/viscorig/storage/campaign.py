@@ -277,6 +277,13 @@ class Campaign:
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}/{name}"):
             return reading.read_run(h5, name, self.path)
 
+    def run_attributes(self, name: str) -> dict[str, object]:
+        """Every attribute of run ``name``: its settings and lifecycle, and the annotations a
+        writer added (``test_time_s``, the limits it ran under, an adaptive plan's outcome)."""
+        where = f"/{layout.RUNS_GROUP}/{name}"
+        with self._reading() as h5, reading.guarded(self.path, where):
+            return reading.attributes(reading.run_group(h5, name, self.path), self.path)
+
     def runs(self) -> Iterator[Run]:
         """Every run, in the order they were started."""
         for name in self.run_names:
