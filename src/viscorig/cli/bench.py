@@ -61,9 +61,10 @@ def _opened(args: argparse.Namespace) -> Iterator[Any]:
 
     from viscorig.sequences.station import TableParameters
 
-    table = load_preset(preset).table
+    rig = load_preset(preset)
+    table = rig.table
     with simulated_station(sequence) as opened:
-        opened.mount(preset)  # the embedded rig starts bare; a prompt would mount the preset
+        opened.mount(rig)  # the embedded rig starts bare; the check needs every transducer
         opened.station = dataclasses.replace(opened.station, table=TableParameters(
             table.mass_kg, table.stiffness_n_per_m, table.damping_ns_per_m))
         yield opened
