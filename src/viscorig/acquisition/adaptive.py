@@ -81,7 +81,8 @@ def _fixed(session: Session, step: SweepStep) -> dict[str, float] | None:
     if step.bare_table or session.table is None:
         return None
     table = session.table
-    return {"M_s": table.mass_kg, "K_s": table.stiffness_n_per_m, "C_s": table.damping_ns_per_m}
+    return {"M_s": table.table_mass_kg, "K_s": table.table_stiffness_n_per_m,
+            "C_s": table.table_damping_ns_per_m}
 
 
 def check_adaptive(session: Session, step: SweepStep) -> Plan:
@@ -97,6 +98,12 @@ def check_adaptive(session: Session, step: SweepStep) -> Plan:
         raise RunRefused(f"run '{step.run}': plan = \"adaptive\" needs an analyser that "
                          "measures chosen frequencies (manual sweep mode); this driver has no "
                          "measure_points. Nothing was measured")
+    if session.station.shaker_gain_n_per_v is None:
+        raise RunRefused(f"run '{step.run}': an adaptive plan starts each point's auto-level "
+                         "controller at the source level the point needs (the force it needs "
+                         "over the shaker's gain), so that the rig is steady when it comes back "
+                         "to a frequency: give [shaker] gain_n_per_v in the station file. "
+                         "Nothing was measured")
     if not step.bare_table and session.table is None:
         raise RunRefused(f"run '{step.run}': an adaptive plan fits the specimen with the table's "
                          "M_s, K_s, C_s fixed, and they are unknown: add an identify_table step "
@@ -163,7 +170,10 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
             integrate = np.array([p.integrate_cycles for p in group.points], dtype=np.int64)
             base_s = (settle + integrate) / f
             left = max(left - float(base_s.sum()), 0.0)
-            call = MeasureRequest(step.run, session.resource, f, base_s, left, _call(group))
+            so_far = _joined([*([] if plan.points is None else [plan.points]), *measured])
+            levels = start_levels(f, plan, so_far, settings, session)
+            call = MeasureRequest(step.run, session.resource, f, base_s, left,
+                                  _call(group, levels))
             segment_measured, remeasured = yield from stubs.measure_segment(
                 call, lambda m, f=f: check_axis(m, f, session.resource), "adaptive")
             rig_s = point_times_s(segment_measured, base_s, sweep.time_base)
@@ -191,9 +201,8 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
                     flags=np.asarray(joined.flags, dtype=np.uint16), remeasured=remeasured,
                     seconds_left=left)), step="adaptive")
                 pending, pending_s = [], 0.0
-        delivered = measured[0]
-        for more in measured[1:]:
-            delivered = delivered.concatenate(more)
+        delivered = _joined(measured)
+        assert delivered is not None
         plan.deliver(delivered)
     for entry in plan.history[said:]:
         yield from stubs.say(f"  {entry.state.value}: {entry.note}", "adaptive")
@@ -327,21 +336,74 @@ def analyser_groups(points: tuple[PlannedPoint, ...] | list[PlannedPoint]) -> li
     return groups
 
 
-def _call(group: SweepSegment):
-    """The driver call that measures one group."""
+def _joined(pieces: list[MeasuredPoints]) -> MeasuredPoints | None:
+    """Points measured one after the other, as one (``None`` for none)."""
+    if not pieces:
+        return None
+    joined = pieces[0]
+    for more in pieces[1:]:
+        joined = joined.concatenate(more)
+    return joined
+
+
+#: Lowest start level an adaptive plan sets, V peak (a start of 0 V would pause the sweep).
+MIN_START_LEVEL_V = 1e-3
+
+
+def start_levels(frequency_hz: np.ndarray, plan: AdaptivePlan, measured: MeasuredPoints | None,
+                 settings: AdaptiveSettings, session: Session) -> np.ndarray | None:
+    """The source level each point's auto-level controller starts from: the force the point
+    needs over the shaker's gain, within the source limit.
+
+    The analyser starts every measurement at its source level; started where the controller
+    will land, a point finds the rig steady when the one before it was at the same frequency
+    and level (what the plan's lead-in points and repeats count on). The force needed is the
+    fitted model's under the controller's level (:func:`viscorig.planning.model_amplitudes`),
+    or, before the first fit, the nearest point measured, scaled to the level. ``None``: nothing
+    known yet (the analyser's own start).
+    """
+    from viscorig.planning import model_amplitudes
+
+    gain = session.station.shaker_gain_n_per_v
+    if gain is None:
+        return None
+    level = settings.level_m_per_s2
+    result = plan.result
+    if result is not None:
+        force = model_amplitudes(result.model, result.values, frequency_hz, level,
+                                 force_limit_n=settings.force_limit_n).excitation_force
+    elif measured is not None and len(measured):
+        reached = np.asarray(measured.reference_amplitude, dtype=float)
+        usable = np.isfinite(reached) & (reached > 0) & np.isfinite(measured.force_amplitude)
+        if not np.any(usable):
+            return None
+        known = measured.frequency_hz[usable]
+        scaled = measured.force_amplitude[usable] * level / reached[usable]
+        nearest = np.argmin(np.abs(np.log(frequency_hz[:, None] / known[None, :])), axis=1)
+        force = scaled[nearest]
+    else:
+        return None
+    return np.clip(np.asarray(force, dtype=float) / gain, MIN_START_LEVEL_V,
+                   session.source_limit_v())
+
+
+def _call(group: SweepSegment, levels: np.ndarray | None):
+    """The driver call that measures one group (each point started at its level)."""
     first = group.points[0]
     settle, integrate = first.settle_cycles, first.integrate_cycles
     frequencies = [p.frequency_hz for p in group.points]
+    starts = None if levels is None else [float(v) for v in levels]
 
     def call(analyser, progress, poll_interval_s):
         if group.kind == "linear":
             return analyser.measure(group.start_hz, group.stop_hz,
                                     resolution_hz=group.resolution_hz, settle_cycles=settle,
-                                    integrate_cycles=integrate, progress=progress,
-                                    poll_interval_s=poll_interval_s)
+                                    integrate_cycles=integrate,
+                                    start_level_vpk=None if starts is None else starts[0],
+                                    progress=progress, poll_interval_s=poll_interval_s)
         return analyser.measure_points(frequencies, settle_cycles=settle,
-                                       integrate_cycles=integrate, progress=progress,
-                                       poll_interval_s=poll_interval_s)
+                                       integrate_cycles=integrate, start_levels_vpk=starts,
+                                       progress=progress, poll_interval_s=poll_interval_s)
 
     return call
 

@@ -131,9 +131,6 @@ def forecast_sequence(
     status
         A run's status in the campaign file (a run already measured is not probed again).
     """
-    from viscorig.acquisition.adaptive import adaptive_settings  # planning: only when needed
-    from viscorig.planning import expected_time_s
-
     floors = floors or {}
     out = []
     for index, step in enumerate(sequence.steps):
@@ -152,6 +149,9 @@ def forecast_sequence(
             out.append(StepForecast(index, "sweep", step.run, seconds, seconds, probe,
                                     note=f"{step.points} points"))
             continue
+        from viscorig.acquisition.adaptive import adaptive_settings  # scipy: only when needed
+        from viscorig.planning import expected_time_s
+
         settings = adaptive_settings(step, step.level_m_per_s2, None, force_limit_n)
         floor = floors.get(step.run)
         if floor is not None and floor.misfit:  # look and coverage only: no chosen point

@@ -271,12 +271,14 @@ def segment_of(
 def point_times_s(
     measured: MeasuredSegment, durations_s: NDArray[np.float64], time_base: str
 ) -> NDArray[np.float64]:
-    """Rig time each point took: its settle and integration on a simulated rig's test clock,
-    the segment's wall-clock time shared out in proportion to them on a real one."""
+    """Rig time each point took: its settle and integration on a simulated rig's test clock;
+    on a real one the segment's wall-clock time shared out in proportion to them, never less
+    than them (no point takes less than its settle and integration; an analyser that answers
+    faster is a simulation)."""
     durations = np.asarray(durations_s, dtype=float)
     if time_base == "test":
         return durations
     wall = float(measured.finished_at_s) - float(measured.started_at_s)
     if not (math.isfinite(wall) and wall > 0):
         return durations
-    return wall * durations / durations.sum()
+    return np.maximum(wall * durations / durations.sum(), durations)
