@@ -105,7 +105,9 @@ def test_an_adaptive_step_meets_its_targets_and_identify_reads_them_back(
         assert abs(value - VOIGT_TRUTH[name]) < 4 * stderr, name
     # show and summary read it as any run
     assert main(["show", out]) == 0
-    assert "voigt" in capsys.readouterr().out
+    listing = capsys.readouterr().out
+    assert re.search(rf"voigt: adaptive plan for voigt \(K_v=2e-05 C_v=0.0001\): targets met; "
+                     rf"{run.points} points at {merged.points} frequencies, rig time", listing)
     assert main(["summary", out, "--json"]) == 0
 
 
@@ -147,3 +149,27 @@ def test_an_adaptive_step_keeps_to_its_dwell_limit(tmp_path, voigt_rig, capsys) 
     assert attributes["plan_reason"] == "dwell limit"
     assert attributes["test_time_s"] <= 60.0
     assert "adaptive plan: dwell limit" in capsys.readouterr().out
+
+
+def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp_path,
+                                                                               capsys) -> None:
+    """The virtual analyser as a separate network service (``viscorig sim serve``), as a lab's
+    analyser behind a socket is reached."""
+    from simserve import sim_serve
+
+    rig = tmp_path / "voigt.toml"
+    rig.write_text(VOIGT_RIG)
+    with sim_serve("--rig", str(rig), "--seed", "3") as (_, _, resource, _):
+        station = tmp_path / "station.toml"
+        station.write_text(station_text(resource, preset="soft-0"))
+        sequence = tmp_path / "adaptive.toml"
+        sequence.write_text(SEQUENCE.format(extra="", K_v=1e-4, C_v=5e-4))
+        out = tmp_path / "out.h5"
+        assert main(["run", str(sequence), "--station", str(station), "--out", str(out),
+                     "--yes"]) == 0
+    assert "adaptive plan: targets met" in capsys.readouterr().out
+    campaign = Campaign.open(out)
+    run = campaign.run("voigt")
+    assert run.metadata.resource == resource and run.metadata.status == "complete"
+    assert campaign.run_attributes("voigt")["plan_reason"] == "targets met"
+    assert run.points > np.unique(run.frequency_hz).size >= 40  # look, coverage, repeats

@@ -14,6 +14,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
@@ -107,10 +109,14 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
              "flagged"]]
     problems: list[str] = []
     fits: list[str] = []
+    plans: list[str] = []
     for name in campaign.run_names:
         try:
             run = campaign.run(name)
             rows.append(run_row(run))
+            plan = plan_line(run, campaign.run_attributes(name))
+            if plan:
+                plans.append(plan)
             for fit in campaign.fits(name):
                 fits.extend(fit_lines(fit))
         except InputError as error:
@@ -121,9 +127,28 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
     else:
         lines.append("")
         lines.extend(table(rows))
+    if plans:
+        lines.extend(["", *plans])
     if fits:
         lines.extend(["", "fits", *fits])
     return lines, problems
+
+
+def plan_line(run: Run, attributes: dict[str, Any]) -> str:
+    """One line on a run an adaptive plan measured (``""`` for a full sweep)."""
+    if attributes.get("plan") != "adaptive":
+        return ""
+    from viscorig.acquisition import format_duration
+
+    reason = attributes.get("plan_reason") or f"stopped while {attributes.get('plan_state')}"
+    frequencies = np.unique(run.frequency_hz).size
+    rig_time = attributes.get("test_time_s")
+    text = (f"{run.name}: adaptive plan for {attributes.get('plan_model', '?')} "
+            f"({attributes.get('plan_targets', '')}): {reason}; {run.points} points at "
+            f"{frequencies} frequencies")
+    if isinstance(rig_time, int | float) and math.isfinite(rig_time):
+        text += f", rig time {format_duration(float(rig_time))}"
+    return text
 
 
 def _finite(value: float) -> float | None:
@@ -170,6 +195,7 @@ def run_json(run: Run, fits: list[Fit]) -> dict[str, Any]:
         "finished": m.finished,
         "flagged_points": int(run.flagged().sum()) if run.points else 0,
         "flags": {FLAG_NAMES[flag]: int(n) for flag, n in counts.items()},
+        "frequencies": int(np.unique(run.frequency_hz).size),
         "fits": [fit_json(fit) for fit in fits],
     }
 
