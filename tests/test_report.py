@@ -317,3 +317,14 @@ def test_every_runs_headline_is_on_the_first_screen(quick_report: Path, tmp_path
                         size=(1280, 800))
     assert result.returncode == 0 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     _keep(shot)
+
+
+def test_the_finding_names_a_missing_fixture_mode_with_or_without_its_frequency():
+    from viscorig.report.words import finding_sentence
+
+    at_58 = finding_sentence("voigt", [("load_cell_compliance", "load_cell")], {"K_c": 1e7},
+                             2e-3, 1e-3, ("fixture_resonance", "fixture(58)"), True)
+    assert at_58.endswith("next most likely: a fixture mode at 58 Hz.")
+    unplaced = finding_sentence("voigt", [], {}, 3e-2, 1e-3, "fixture_resonance", True)
+    assert unplaced == "voigt is far above the noise: 30× the floor; most likely missing: a " \
+        "fixture mode."

@@ -331,6 +331,9 @@ class Pair:
                               "is counted twice)")
         else:
             self.basis.append("the two runs' noise independent")
+        if self.a.spec != self.b.spec:
+            self.basis.append(f"two models ({self.a.spec}; {self.b.spec}): how far their "
+                              "forms differ is not in the ±")
 
     def _shared(self) -> tuple[str, ...]:
         """Parameters both fits hold at the same inherited values (the same variables)."""

@@ -154,7 +154,7 @@ def format_summary(
             text += f" {paper['f_r']:>9.2f} {paper['xi']:>6.3f} {paper['B_r']:>6.3f}"
         lines.append(text)
     if variations:
-        lines += ["", "Preload: change against the same specimen without preload (%)"]
+        lines += ["", "Preload: change against the same specimen without preload"]
         header = f"  {'run':<22}" + "".join(f" {name:>16}" for name in variations[0].changes)
         lines.append(header)
         for variation in variations:

@@ -185,7 +185,10 @@ def preload_summary(analysis: CampaignAnalysis) -> str:
         stiff = [c for c in reached if c.quantity.startswith("K'")]
         stiff = [stiff[0], stiff[-1]] if len(stiff) > 2 else stiff
         if stiff:
-            parts.append("K′ of the model reached " + ", ".join(
+            same = base.shown.spec == other.shown.spec
+            parts.append(("K′ of the model reached " if same else
+                          "K′ of the models reached (not the same model in both runs) ")
+                         + ", ".join(
                 f"{c.percent()} at {c.quantity.split(' at ')[1]}" for c in stiff))
         level = ("" if abs(m1.level_m_per_s2 / m0.level_m_per_s2 - 1) < 0.05 else
                  f" (measured at {m1.level_m_per_s2:.3g} against {m0.level_m_per_s2:.3g} m/s²)")
