@@ -67,16 +67,14 @@ def replicate(noise: dict, seed: int, frfs: tuple[str, ...] | None = None) -> Re
 def coverage(replicates: Iterable[Replicate]) -> dict[str, dict[str, float]]:
     """Per parameter: fraction within 1 and 2 stderr, rms of error/stderr, and the count."""
     replicates = list(replicates)
-    table = {}
-    for name in TRUTH:
-        z = np.array([r.deviation[name] for r in replicates])
-        table[name] = {
-            "within_1": float(np.mean(np.abs(z) < 1.0)),
+    return {name: _within(np.array([r.deviation[name] for r in replicates])) for name in TRUTH}
+
+
+def _within(z: np.ndarray) -> dict[str, float]:
+    """Fraction of ``|z|`` below 1 and 2, rms of ``z``, and the count."""
+    return {"within_1": float(np.mean(np.abs(z) < 1.0)),
             "within_2": float(np.mean(np.abs(z) < 2.0)),
-            "rms": float(np.sqrt(np.mean(z**2))),
-            "count": int(z.size),
-        }
-    return table
+            "rms": float(np.sqrt(np.mean(z**2))), "count": int(z.size)}
 
 
 # -- the change between two runs on one table --------------------------------------------------
@@ -133,15 +131,11 @@ def change_coverage(replicates: Iterable[ChangeReplicate]) -> dict[str, dict[str
     replicates = list(replicates)
     table = {}
     for name in TRUE_CHANGE:
-        z = np.array([r.deviation[name] for r in replicates])
         alone = np.array([r.independent[name] for r in replicates])
         table[name] = {
-            "within_1": float(np.mean(np.abs(z) < 1.0)),
-            "within_2": float(np.mean(np.abs(z) < 2.0)),
-            "rms": float(np.sqrt(np.mean(z**2))),
+            **_within(np.array([r.deviation[name] for r in replicates])),
             "independent_rms": float(np.sqrt(np.mean(alone**2))),
             "stderr_ratio": float(np.mean([r.stderr_ratio[name] for r in replicates])),
             "rms_over_floor": float(np.mean([r.rms_over_floor for r in replicates])),
-            "count": int(z.size),
         }
     return table

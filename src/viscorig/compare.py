@@ -205,9 +205,6 @@ class Estimates:
         state.pop("model", None)  # a Model keys its terms by id(): rebuilt after unpickling
         return state
 
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-
     @cached_property
     def model(self) -> Model:
         """The model, rebuilt from the spec."""

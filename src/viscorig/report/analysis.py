@@ -25,7 +25,6 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -113,15 +112,10 @@ class ModelCurve:
         return cls(model.spec, f"stored fit {stored.id}", values, known, tuple(known),
                    estimates, stored.rms_error, stored.noise_floor)
 
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state.pop("model", None)  # a Model keys its terms by id(): rebuilt after unpickling
-        return state
-
-    @cached_property
+    @property
     def model(self) -> Model:
-        """The model, rebuilt from the spec."""
-        return parse_spec(self.spec)
+        """The model, rebuilt from the spec (once, by :attr:`estimates`)."""
+        return self.estimates.model
 
     @property
     def has_disc(self) -> bool:
