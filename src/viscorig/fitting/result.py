@@ -71,6 +71,11 @@ class FitResult:
         measurement uncertainties. Otherwise they are those of the model's band-average.
     inherited_from
         Where the inherited parameters came from (``"run 'table'"``), or ``""``.
+    influence
+        First-order response of the fitted parameters (SI) to the stacked relative residual
+        ``[Re; Im]`` of the points (``free × 2N``, FRFs in the order of ``frfs``, points in the
+        order of ``frequency_hz``): ``δp = −influence @ ε``. Two fits of runs measured at the
+        same frequencies are compared through it (:mod:`viscorig.compare`).
     """
 
     model: Model
@@ -96,6 +101,7 @@ class FitResult:
     misfit_scale: float = 1.0
     fits_noise: bool = True
     inherited_from: str = ""
+    influence: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not self.covariance_names:
