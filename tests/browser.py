@@ -44,10 +44,14 @@ def chromium_flags(profile: Path) -> list[str]:
     return [CHROMIUM, *HEADLESS_FLAGS, f"--user-data-dir={profile}"]
 
 
-def dump_dom(url: str, profile: Path, timeout_s: float = 120) -> subprocess.CompletedProcess:
-    """Load ``url`` and return Chromium's run: the DOM after load on stdout, its log on stderr."""
-    return subprocess.run([*chromium_flags(profile), "--enable-logging=stderr", "--v=0",
-                           "--dump-dom", url], capture_output=True, text=True, timeout=timeout_s)
+def dump_dom(url: str, profile: Path, timeout_s: float = 120,
+             size: tuple[int, int] | None = None) -> subprocess.CompletedProcess:
+    """Load ``url`` and return Chromium's run: the DOM after load on stdout, its log on stderr
+    (``size``: the window's width and height in pixels, for a page that measures its layout)."""
+    window = [f"--window-size={size[0]},{size[1]}"] if size else []
+    return subprocess.run([*chromium_flags(profile), *window, "--enable-logging=stderr",
+                           "--v=0", "--dump-dom", url], capture_output=True, text=True,
+                          timeout=timeout_s)
 
 
 def console_problems(stderr: str) -> list[str]:

@@ -1,4 +1,5 @@
-"""Quantities derived from fits carry the fits' uncertainty: Table 2, E' and η, comparisons.
+"""Quantities derived from fits carry the fits' uncertainty: Table 2, E' and η (comparisons of
+two fits: ``test_compare.py``).
 
 First-order propagation is checked against the spread of the same quantity over parameter
 vectors drawn from the fit's own joint covariance (so the check is of the derivatives and the
@@ -17,8 +18,6 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.cli import main
 from viscorig.estimates import (
-    Quantity,
-    change_text,
     modulus_band,
     natural_frequency,
     system_properties,
@@ -71,14 +70,6 @@ def test_storage_modulus_and_loss_factor_bands(result) -> None:
                        rtol=0.06)
     # With the table's uncertainty in the model's K*: K_v's stderr sets E' at every frequency.
     assert band.storage_modulus_stderr[0] == pytest.approx(result.stderr["K_v"] / 0.01, rel=1e-3)
-
-
-def test_change_statements_read_as_a_technician_would_say_them() -> None:
-    assert change_text("C_v", Quantity(9.04, 0.41, "%"), "with preload") == (
-        "C_v rose 9 ± 0.4 % with preload")
-    assert change_text("K_v", Quantity(12.66, 0.36, "%")) == "K_v rose 12.7 ± 0.4 %"
-    text = change_text("xi", Quantity(-0.19, 2.5, "%"), "with preload")
-    assert text.startswith("xi fell 0.19 ± 2 % with preload") and "not a clear change" in text
 
 
 def _campaign(path: Path, rig: dict) -> None:

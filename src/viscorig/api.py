@@ -133,21 +133,23 @@ class Campaign:
 
         Runs given by name are fitted with ``model`` over ``band_hz`` first. The changes are
         those of the parameters both fits share and, when a K* depends on frequency, of ``K'``
-        and ``η`` at ``frequencies_hz`` (default: both ends and the middle of the band).
+        and ``η`` at ``frequencies_hz`` (default: both ends and the middle of the band). Their ±
+        are :mod:`viscorig.compare`'s, as the report and ``summary`` give them: the table both
+        fits inherit counted once, a misfit both runs share paired out point by point.
         """
         from viscorig.compare import compare_fits, kstar_changes
 
         fits = [x if isinstance(x, Fit) else self.identify(x, model, band_hz=band_hz)
                 for x in (before, after)]
         shared = [name for name in fits[0].curve.free if name in fits[1].curve.free]
-        changes = compare_fits(fits[0].curve, fits[1].curve, shared)
+        changes = compare_fits(fits[0], fits[1], shared)
         frequency_dependent = any(f.curve.model.modulus_term.keyword != "voigt" for f in fits)
         if fits[0].curve.has_disc and fits[1].curve.has_disc and frequency_dependent:
             if frequencies_hz is None:
                 lo = max(f.band_hz[0] for f in fits)
                 hi = min(f.band_hz[1] for f in fits)
                 frequencies_hz = [lo, round((lo + hi) / 2, 1), hi]
-            changes += kstar_changes(fits[0].curve, fits[1].curve, frequencies_hz)
+            changes += kstar_changes(fits[0], fits[1], frequencies_hz)
         return Comparison(fits[0], fits[1], changes)
 
     def report(self, out_dir: str | Path, **options: Any) -> Path:
@@ -322,6 +324,12 @@ class Fit:
     def parameters(self) -> dict[str, tuple[float, float, str]]:
         """``{name: (value, stderr, unit)}``; stderr NaN for a parameter held fixed."""
         return self.curve.parameters
+
+    @property
+    def estimates(self):
+        """What a comparison needs (:class:`viscorig.compare.Estimates`): ``viscorig.compare``
+        functions take this fit as it is."""
+        return self.curve.estimates
 
     def predict(self, frequency_hz) -> dict[str, np.ndarray]:
         """The model's accelerances (m/s²/N) on any frequency grid (Hz)."""
@@ -546,8 +554,10 @@ class Comparison:
         rows = "".join(f"<tr><td style=\"text-align:left\">{_e(c.quantity)}</td>"
                        f"<td>{_e(c.percent())}</td><td style=\"text-align:left\">"
                        f"{_e(c.words())}</td></tr>" for c in self.changes)
+        basis = "; ".join(self.changes[0].basis) if self.changes else ""
         return (f"<b>{_e(self.after.run.name)} against {_e(self.before.run.name)}</b> "
-                f"(<code>{_e(self.before.model)}</code> fits; ± one standard error)"
+                f"(<code>{_e(self.before.model)}</code> fits; ± one standard uncertainty: "
+                f"{_e(basis)})"
                 f"<table><thead><tr><th>quantity</th><th>change</th><th>in words</th></tr>"
                 f"</thead><tbody>{rows}</tbody></table>")
 

@@ -1,4 +1,6 @@
-"""Direct estimates (no model fitting): K* from Eq. (4) and (5), E' and η, C_v, Table 2.
+"""Direct estimates (no model fitting): K* from Eq. (4) and (5), E' and η, C_v, Table 2; and
+the same quantities of one fit with their uncertainty (first-order propagation through the
+fit's joint covariance). Changes between two fits are in :mod:`viscorig.compare`.
 
 Signs and conventions of ``shared/docs/physics.md``: time dependence e^{iωt}, accelerances as
 stored, frequencies in Hz at the interface.
@@ -155,8 +157,9 @@ class Quantity:
         return {"value": float(self.value), "stderr": float(self.stderr), "unit": self.unit}
 
 
-def _gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np.float64]:
-    """Central differences of a scalar or array ``function(values)`` by the named values."""
+def gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np.float64]:
+    """Central differences of a scalar or array ``function(values)`` by the named values
+    (relative step 1e-6); the last axis runs over ``names``."""
     columns = []
     for name in names:
         step = 1e-6 * max(abs(values[name]), 1e-30)
@@ -174,7 +177,7 @@ def derived(result, function, unit: str = "") -> Quantity:
     value = float(function(result.values))
     if not names:
         return Quantity(value, 0.0, unit)
-    g = _gradient(function, dict(result.values), names)
+    g = gradient(function, dict(result.values), names)
     variance = float(g @ np.asarray(result.joint_covariance) @ g)
     return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
 
@@ -206,85 +209,6 @@ def system_properties_with_uncertainty(result) -> dict[str, Quantity]:
     """Table 2 (``f_r``, ``xi``, ``B_r``) of a Voigt fit, each with its uncertainty."""
     return {name: derived(result, function, unit)
             for name, (function, unit) in TABLE_2_QUANTITIES.items()}
-
-
-def _joint(before, after) -> tuple[list[str], NDArray[np.float64]]:
-    """Joint covariance of two fits' parameters (names prefixed ``a:`` and ``b:``).
-
-    Two fits that inherited the same parameters from the same source (the table, from the same
-    bare-table run) share those variables: their fitted parameters are correlated through
-    them, ``cov(p_a, p_b) = C_aq C_qq⁻¹ C_qb`` (both moved by the same table error).
-    """
-    shared = []
-    if before.inherited_from and before.inherited_from == after.inherited_from:
-        shared = [n for n in before.inherited if n in after.inherited]
-    ca, cb = np.asarray(before.joint_covariance), np.asarray(after.joint_covariance)
-    na, nb = list(before.covariance_names), list(after.covariance_names)
-    names = [f"a:{n}" for n in na] + [f"b:{n}" for n in nb if n not in shared]
-    index_b = [len(na) + [n for n in nb if n not in shared].index(n) if n not in shared
-               else na.index(n) for n in nb]
-    joint = np.zeros((len(names), len(names)))
-    joint[: len(na), : len(na)] = ca
-    for i, gi in enumerate(index_b):
-        for j, gj in enumerate(index_b):
-            if nb[i] in shared and nb[j] in shared:
-                continue  # the shared block is a's (the same numbers)
-            joint[gi, gj] = cb[i, j]
-    if shared:
-        qa = [na.index(n) for n in shared]
-        qb = [nb.index(n) for n in shared]
-        pa = [i for i, n in enumerate(na) if n not in shared]
-        pb = [i for i, n in enumerate(nb) if n not in shared]
-        inverse = np.linalg.pinv(ca[np.ix_(qa, qa)])
-        cross = ca[np.ix_(pa, qa)] @ inverse @ cb[np.ix_(qb, pb)]
-        for r, i in enumerate(pa):
-            for c, j in enumerate(pb):
-                joint[i, index_b[j]] = joint[index_b[j], i] = cross[r, c]
-    return names, joint
-
-
-def relative_change(before, after, function, unit: str = "%") -> Quantity:
-    """``function(after)/function(before) − 1`` in percent, with its uncertainty.
-
-    ``function`` maps a fit's parameter values to a number (``lambda v: v["C_v"]``, or
-    :func:`natural_frequency`). Both fits' uncertainties enter, with the correlation of a
-    shared inherited table (:func:`_joint`).
-    """
-    names, joint = _joint(before, after)
-    values = {f"a:{n}": v for n, v in before.values.items()}
-    values.update({f"b:{n}": v for n, v in after.values.items()})
-    shared = {n for n in after.covariance_names if f"b:{n}" not in names}
-    for n in shared:
-        values[f"b:{n}"] = values[f"a:{n}"]
-
-    def change(v: dict[str, float]) -> float:
-        a = function({n[2:]: x for n, x in v.items() if n.startswith("a:")})
-        b_values = {n[2:]: x for n, x in v.items() if n.startswith("b:")}
-        b_values.update({n: v[f"a:{n}"] for n in shared})
-        return 100.0 * (function(b_values) / a - 1.0)
-
-    value = change(values)
-    g = _gradient(change, values, names)
-    variance = float(g @ joint @ g) if names else 0.0
-    return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
-
-
-def parameter_change(before, after, name: str) -> Quantity:
-    """Relative change of one parameter between two fits, in percent."""
-    return relative_change(before, after, lambda values: values[name])
-
-
-def change_text(name: str, change: Quantity, condition: str = "") -> str:
-    """``"C_v rose 9.0 ± 0.4 % with preload"``; says when the change is within 2 stderr."""
-    verb = "rose" if change.value > 0 else "fell"
-    text = f"{name} {verb} {abs(change.value):.2g} ± {change.stderr:.1g} %"
-    if abs(change.value) >= 10:
-        text = f"{name} {verb} {abs(change.value):.1f} ± {change.stderr:.1g} %"
-    if condition:
-        text += f" {condition}"
-    if abs(change.value) < 2 * change.stderr:
-        text += " (within twice its uncertainty: not a clear change)"
-    return text
 
 
 @dataclass(frozen=True)
@@ -320,7 +244,7 @@ def modulus_band(result, frequency_hz: ArrayLike, theta_m: float) -> ModulusBand
 
     centre = parts(dict(result.values))
     if names:
-        g = _gradient(parts, dict(result.values), names)
+        g = gradient(parts, dict(result.values), names)
         variance = np.einsum("ij,jk,ik->i", g, np.asarray(result.joint_covariance), g)
     else:
         variance = np.zeros_like(centre)

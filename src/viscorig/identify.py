@@ -18,16 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscorig.compare import Change, compare_fits, system_changes
 from viscorig.errors import InputError
 from viscorig.estimates import (
-    TABLE_2_QUANTITIES,
     MeasuredResonance,
     Quantity,
     SystemProperties,
-    change_text,
     measured_resonance,
-    parameter_change,
-    relative_change,
     system_properties_with_uncertainty,
 )
 from viscorig.estimates import system_properties as voigt_system_properties
@@ -257,18 +254,24 @@ class RunSummary:
 class Variation:
     """What preload changed: a run against the same specimen without preload.
 
-    ``changes`` maps ``K_v``, ``C_v``, ``f_r``, ``xi``, ``B_r`` to their relative change in
-    percent, with its uncertainty (both fits' uncertainty and the table they share).
+    ``changes`` maps ``K_v``, ``C_v``, ``f_r``, ``xi``, ``B_r`` to their relative change with
+    its uncertainty (:mod:`viscorig.compare`: both fits' uncertainty, the table they share
+    counted once, the misfit they share paired point by point).
     """
 
     run: str
     base: str
-    changes: dict[str, Quantity]
+    changes: dict[str, Change]
 
     def statements(self) -> list[str]:
-        """``"C_v rose 9.0 ± 0.4 % with preload"``, one per quantity."""
-        return [change_text(name, change, f"with preload ({self.base} → {self.run})")
-                for name, change in self.changes.items()]
+        """``"C_v rose 9.0 ± 0.4 % with preload (soft-0 → soft-10)"``, one per quantity."""
+        return [change.words(f"with preload ({self.base} → {self.run})")
+                for change in self.changes.values()]
+
+    @property
+    def basis(self) -> tuple[str, ...]:
+        """How the two fits' errors were related, in words."""
+        return next(iter(self.changes.values())).basis if self.changes else ()
 
 
 def _same_specimen(a: RunSummary, b: RunSummary) -> bool:
@@ -288,9 +291,9 @@ def preload_variations(summaries: Sequence[RunSummary]) -> list[Variation]:
                      and _same_specimen(b, run)), None)
         if base is None:
             continue
-        changes = {name: parameter_change(base.fit, run.fit, name) for name in ("K_v", "C_v")}
-        for name, (function, _) in TABLE_2_QUANTITIES.items():
-            changes[name] = relative_change(base.fit, run.fit, function)
+        found = compare_fits(base.fit, run.fit, ("K_v", "C_v")) + system_changes(base.fit,
+                                                                                 run.fit)
+        changes = {change.quantity: change for change in found}
         variations.append(Variation(run.run, base.run, changes))
     return variations
 

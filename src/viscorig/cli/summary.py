@@ -18,6 +18,7 @@ from typing import Any
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
+from viscorig.compare import Change
 from viscorig.estimates import Quantity
 from viscorig.identify import (
     PAPER_BAND_HZ,
@@ -78,8 +79,8 @@ def _q(quantity: Quantity, digits: str) -> str:
     return _pm(quantity.value, quantity.stderr, digits)
 
 
-def _change(quantity: Quantity) -> str:
-    return f"{quantity.value:+.2f} ± {quantity.stderr:.2f} %"
+def _change(change: Change) -> str:
+    return change.percent()
 
 
 def format_summary(
@@ -170,7 +171,7 @@ def format_summary(
             text += f" {paper['f_r']:>9.2f} {paper['xi']:>6.3f} {paper['B_r']:>6.3f}"
         lines.append(text)
     if variations:
-        lines += ["", "Preload: change against the same specimen without preload (%)"]
+        lines += ["", "Preload: change against the same specimen without preload"]
         header = f"  {'run':<22}" + "".join(f" {name:>16}" for name in variations[0].changes)
         lines.append(header)
         for variation in variations:
@@ -183,8 +184,10 @@ def format_summary(
             if paper is not None:
                 lines.append(
                     f"  {'  paper':<22}"
-                    + "".join(f" {paper[name]:>+16.2f}" for name in variation.changes)
+                    + "".join(f" {paper[name]:>+14.2f} %" for name in variation.changes)
                 )
+        bases = dict.fromkeys(phrase for v in variations for phrase in v.basis)
+        lines.append(f"  ± of a change: {'; '.join(bases)}")
     if paper_names:
         lines += ["", "Notes on the paper's numbers:"]
         lines += [f"  - {note}" for note in consistency_notes(present)]
@@ -247,6 +250,7 @@ def summary_json(
             "base": v.base,
             "changes": {name: q.to_json() for name, q in v.changes.items()},
             "statements": v.statements(),
+            "basis": list(v.basis),
             "paper": paper_variation(v.run, v.base),
         }
         for v in variations

@@ -75,6 +75,11 @@ class FitResult:
         How the points were weighted: ``"noise"`` (the project's estimate, generalised least
         squares under :attr:`noise`) or ``"uniform"`` (the paper's method)
         (:mod:`viscorig.fitting.nonlinear`).
+    influence
+        First-order response of the fitted parameters (SI) to the stacked relative residual
+        ``[Re; Im]`` of the points (``free × 2N``, FRFs in the order of ``frfs``, points in the
+        order of ``frequency_hz``): ``δp = −influence @ ε``. Two fits of runs measured at the
+        same frequencies are compared through it (:mod:`viscorig.compare`).
     """
 
     model: Model
@@ -101,6 +106,7 @@ class FitResult:
     fits_noise: bool = True
     inherited_from: str = ""
     weighting: str = "uniform"
+    influence: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not self.covariance_names:

@@ -12,8 +12,10 @@ diagnosis, the latest stored fit, else the Table 1 Voigt fit.
 The ladders of different runs are independent, so they are climbed in parallel processes
 (``jobs``); each returns plain data (:class:`Climb`), never the fitted objects themselves.
 
-Also computed once: Table 1 and 2 (:func:`viscorig.identify.summarize`) and, per specimen run,
-``K*`` from Eq. (5) for ``E'`` and ``η`` against frequency.
+Also computed once: Table 1 and 2 (:func:`viscorig.identify.summarize`, the numbers ``summary``
+prints) and, per specimen run, ``K*`` from Eq. (5) for ``E'`` and ``η`` against frequency with
+the model's uncertainty band (:func:`viscorig.estimates.modulus_band`), and each FRF's residual
+against the local σ of the noise model of the run (the one every fit uses).
 """
 
 from __future__ import annotations
@@ -23,14 +25,14 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 
+from viscorig.compare import Estimates
 from viscorig.errors import InputError
-from viscorig.estimates import kstar_from_support
-from viscorig.fitting import FitResult, local_noise_power
+from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
+from viscorig.fitting import FitResult, estimate_noise
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -67,9 +69,11 @@ class ModelCurve:
     stderr
         Standard error of every parameter the fit estimated (NaN when unknown).
     free
-        Names of the estimated parameters, in the order of ``covariance``.
-    covariance
-        Their covariance (SI); diagonal for a stored fit, whose file keeps standard errors only.
+        Names of the estimated parameters.
+    estimates
+        What comparisons and uncertainty bands need (:class:`viscorig.compare.Estimates`): the
+        joint covariance of the fitted and inherited parameters (for a stored fit, from its
+        standard errors and correlation matrix), and a fit's residuals and their influence.
     rms_error, noise_floor
         As fitted (or stored).
     frfs
@@ -81,7 +85,7 @@ class ModelCurve:
     values: dict[str, float]
     stderr: dict[str, float]
     free: tuple[str, ...]
-    covariance: NDArray[np.float64]
+    estimates: Estimates
     rms_error: float
     noise_floor: float
     frfs: tuple[str, ...] = ("table", "support")
@@ -91,8 +95,8 @@ class ModelCurve:
         """From a fit made here."""
         return cls(result.spec, source, {k: float(v) for k, v in result.values.items()},
                    {name: float(result.stderr.get(name, math.nan)) for name in result.free},
-                   tuple(result.free), np.array(result.covariance, dtype=float),
-                   float(result.rms_error), float(result.noise_floor), tuple(result.frfs))
+                   tuple(result.free), Estimates.of(result), float(result.rms_error),
+                   float(result.noise_floor), tuple(result.frfs))
 
     @classmethod
     def from_stored(cls, stored: Fit) -> ModelCurve:
@@ -103,21 +107,15 @@ class ModelCurve:
         if missing:
             raise InputError(f"stored fit {stored.id} lacks {', '.join(missing)}",
                              f"run '{stored.run}'")
-        known = {name: p.stderr for name, p in stored.parameters.items()
-                 if math.isfinite(p.stderr) and p.stderr > 0}
+        estimates = Estimates.of(stored)
+        known = {name: estimates.stderr(name) for name in estimates.covariance_names}
         return cls(model.spec, f"stored fit {stored.id}", values, known, tuple(known),
-                   np.diag([value**2 for value in known.values()]), stored.rms_error,
-                   stored.noise_floor)
+                   estimates, stored.rms_error, stored.noise_floor)
 
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state.pop("model", None)  # a Model keys its terms by id(): rebuilt after unpickling
-        return state
-
-    @cached_property
+    @property
     def model(self) -> Model:
-        """The model, rebuilt from the spec."""
-        return parse_spec(self.spec)
+        """The model, rebuilt from the spec (once, by :attr:`estimates`)."""
+        return self.estimates.model
 
     @property
     def has_disc(self) -> bool:
@@ -205,12 +203,16 @@ class FrfResidual:
     frequency_hz: NDArray[np.float64]
     magnitude: NDArray[np.float64]
     noise: NDArray[np.float64]
-    """Local relative noise ``σ_i`` (:func:`viscorig.fitting.local_noise_power`)."""
+    """Local relative noise ``σ_i``: ``NoiseModel.scale(frf)`` of the run's noise model."""
+    floor: float
+    """The noise floor of this FRF (``NoiseModel.floor_of``)."""
 
 
 @dataclass
 class ModulusCurves:
-    """``K*`` of a specimen run against frequency: Eq. (5) estimates and a model's."""
+    """``K*`` of a specimen run against frequency: Eq. (5) estimates and a model's, with the
+    model's ``K'`` and ``η`` uncertainty band (``band``, ``K'`` in N/m: θ = 1) and what a
+    comparison of two runs' models needs (``estimates``)."""
 
     frequency_hz: NDArray[np.float64]
     measured: NDArray[np.complex128]
@@ -218,6 +220,8 @@ class ModulusCurves:
     spec: str
     source: str
     disc_mass_kg: float
+    band: ModulusBand | None = None
+    estimates: Estimates | None = None
 
 
 @dataclass
@@ -292,17 +296,22 @@ def _in_band(run: Run, band: tuple[float, float]) -> NDArray[np.intp]:
 
 
 def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[FrfResidual]:
-    index = _in_band(run, band)
-    f = run.frequency_hz[index]
-    predicted = curve.predict(f, run.time_s[index], run.reference_amplitude[index])
-    out = []
-    for name, measured in (("table", run.accelerance_table), ("support", run.accelerance_support)):
-        values = measured[index]
-        if name not in predicted or f.size < 10 or not np.all(np.isfinite(values)):
-            continue
-        noise = np.sqrt(local_noise_power(values))
-        out.append(FrfResidual(name, f, np.abs(predicted[name] / values - 1.0), noise))
-    return out
+    """The shown model's residual of each FRF, beside the local σ of the run's noise model
+    (estimated on the same points as a fit of the band estimates it)."""
+    data = run_data(run).in_band(band)
+    if data.frequency_hz.size < 10:
+        return []
+    order = np.argsort(data.frequency_hz, kind="stable")
+    f = data.frequency_hz[order]
+    predicted = curve.predict(data.frequency_hz, data.time_s, data.reference_amplitude)
+    frfs = [name for name in ("table", "support") if name in predicted
+            and data.frf(name) is not None and np.all(np.isfinite(data.frf(name)))
+            and np.all(data.frf(name) != 0)]
+    if not frfs:
+        return []
+    noise = estimate_noise(data, tuple(frfs))
+    return [FrfResidual(name, f, np.abs(predicted[name] / data.frf(name) - 1.0)[order],
+                        noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
 
 
 def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
@@ -311,7 +320,9 @@ def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
     f = run.frequency_hz[index]
     mass = float(curve.values["M_v"])
     measured = kstar_from_support(f, run.accelerance_support[index], mass)
-    return ModulusCurves(f, measured, curve.kstar(f), curve.spec, source, mass)
+    grid = np.linspace(f.min(), f.max(), 121) if f.size else f
+    return ModulusCurves(f, measured, curve.kstar(f), curve.spec, source, mass,
+                         modulus_band(curve.estimates, grid, 1.0), curve.estimates)
 
 
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,

@@ -131,7 +131,7 @@ def finding(run: RunAnalysis) -> str:
         return "Not diagnosed."
     climb = run.climb
     effects = [(rung.added.effect, rung.added.term) for rung in climb.rungs[1:] if rung.added]
-    missing = climb.missing[0].effect if climb.missing else None
+    missing = (climb.missing[0].effect, climb.missing[0].term) if climb.missing else None
     return finding_sentence(climb.rungs[0].model, effects, climb.final.values,
                             climb.final.rms_error, climb.final.noise_floor, missing,
                             climb.climbed)

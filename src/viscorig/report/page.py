@@ -17,11 +17,13 @@ from datetime import UTC, datetime
 
 from viscorig import __version__
 from viscorig.compare import compare_fits, kstar_changes
+from viscorig.identify import Variation, preload_variations
 from viscorig.paper import (
     PAPER_TABLE_1,
     PAPER_TABLE_2,
     PAPER_TABLE_PARAMETERS,
     consistency_notes,
+    paper_variation,
 )
 from viscorig.report.analysis import (
     CampaignAnalysis,
@@ -162,10 +164,9 @@ def _pair_changes(base: RunAnalysis, other: RunAnalysis, band: tuple[float, floa
     return voigt, reached
 
 
-def _paper_change(base: str, other: str, column: int) -> str:
-    if base in PAPER_TABLE_1 and other in PAPER_TABLE_1:
-        return f"{(PAPER_TABLE_1[other][column] / PAPER_TABLE_1[base][column] - 1) * 100:+.2f} %"
-    return ""
+def _paper_change(base: str, other: str, name: str) -> str:
+    """The paper's own change of ``name`` from ``base`` to ``other`` ("" when not its runs)."""
+    return _paper_percent(paper_variation(other, base), name)
 
 
 def preload_summary(analysis: CampaignAnalysis) -> str:
@@ -177,14 +178,17 @@ def preload_summary(analysis: CampaignAnalysis) -> str:
             continue
         m0, m1 = base.run.metadata, other.run.metadata
         parts = []
-        for change, column in zip(voigt, (0, 1), strict=False):
-            paper = _paper_change(base.name, other.name, column)
+        for change in voigt:
+            paper = _paper_change(base.name, other.name, change.quantity)
             parts.append(f"{change.quantity} {change.percent()}"
                          + (f" (paper {paper})" if paper else ""))
         stiff = [c for c in reached if c.quantity.startswith("K'")]
         stiff = [stiff[0], stiff[-1]] if len(stiff) > 2 else stiff
         if stiff:
-            parts.append("K′ of the model reached " + ", ".join(
+            same = base.shown.spec == other.shown.spec
+            parts.append(("K′ of the model reached " if same else
+                          "K′ of the models reached (not the same model in both runs) ")
+                         + ", ".join(
                 f"{c.percent()} at {c.quantity.split(' at ')[1]}" for c in stiff))
         level = ("" if abs(m1.level_m_per_s2 / m0.level_m_per_s2 - 1) < 0.05 else
                  f" (measured at {m1.level_m_per_s2:.3g} against {m0.level_m_per_s2:.3g} m/s²)")
@@ -194,20 +198,20 @@ def preload_summary(analysis: CampaignAnalysis) -> str:
     if not items:
         return ""
     return ("<p class=\"lead\"><b>What preload changed</b> (Table 1 Voigt fits and the models "
-            "reached; ± one standard error, the two fits taken as independent; "
-            "<a href=\"#preload\">details</a>):</p>"
+            "reached; ± one standard uncertainty of the change, the table and the misfit the "
+            "two runs share counted once; <a href=\"#preload\">details</a>):</p>"
             f"<ul class=\"changes\">{''.join(items)}</ul>")
 
 
 def preload_section(analysis: CampaignAnalysis) -> str:
     """Every change a preload pair shows, with the paper's where it has one."""
-    parts = []
+    parts, bases = [], {}
     for base, other in preload_pairs(analysis):
         voigt, reached = _pair_changes(base, other, other.band_hz)
         rows = []
-        for change, column in zip(voigt, (0, 1), strict=False):
+        for change in voigt:
             rows.append([f"{_e(change.quantity)} (Table 1 Voigt)", _e(change.percent()),
-                         _e(_paper_change(base.name, other.name, column) or "–"),
+                         _e(_paper_change(base.name, other.name, change.quantity) or "–"),
                          _e(change.words())])
         for change in reached:
             rows.append([f"{_e(change.quantity)} (model reached)", _e(change.percent()), "–",
@@ -216,11 +220,21 @@ def preload_section(analysis: CampaignAnalysis) -> str:
             parts.append(f"<h3>{_e(other.name)} against {_e(base.name)}</h3>")
             parts.append(_table(["quantity", "change", "paper", "in words"], rows,
                                 text_columns=1, text_last=True))
+            for kind, changes in (("Table 1 Voigt fits", voigt), ("models reached", reached)):
+                if changes:
+                    bases[f"{other.name} against {base.name}, {kind}"] = changes[0].basis
     if not parts:
         return ""
-    return ("<p>Each change is <i>after/before − 1</i>; its ± is one standard error, from the "
-            "covariance of each fit (first-order propagation), the two runs' errors taken as "
-            "independent. A change is called a change beyond twice its ±.</p>" + "".join(parts))
+    how = "".join(f"<li>{_e(pair)}: {_e('; '.join(basis))}</li>" for pair, basis in bases.items())
+    return ("<p>Each change is <i>after/before − 1</i>; its ± is one standard uncertainty, "
+            "propagated to first order from both fits' covariances (<code>viscorig.compare"
+            "</code>): a table both fits inherited from the same bare-table run is counted "
+            "once, and where both runs were measured at the same frequencies their residuals "
+            "are paired point by point, so a misfit the same model shows in both runs does not "
+            "count as an uncertainty of the change; fits known to be no better than "
+            "independent are said to be taken as independent. A change is called a change "
+            "beyond twice its ±.</p>"
+            f"<ul class=\"changes\">{how}</ul>" + "".join(parts))
 
 
 # -- the paper's tables -------------------------------------------------------------------------
@@ -231,16 +245,20 @@ def _pm(value: float, stderr: float, unit: str = "") -> str:
 
 
 def tables(analysis: CampaignAnalysis) -> str:
-    """The table suspension, Table 1 and Table 2, beside the paper's values for its runs."""
+    """The table suspension, Table 1 and Table 2, beside the paper's values for its runs: the
+    numbers ``viscorig summary`` prints (the same fits, the same propagation, the same
+    preload variations)."""
     parts = []
     summaries = [r.summary for r in analysis.runs if r.summary is not None]
     paper = any(s.run in PAPER_TABLE_1 for s in summaries)
     if analysis.table is not None:
         t = analysis.table
+        known = t.known
         rows = []
         for name, unit in (("M_s", "kg"), ("K_s", "N/m"), ("C_s", "N·s/m")):
-            stderr = t.fit.stderr.get(name, math.nan) if t.fit is not None else math.nan
-            row = [name, _pm(t.values[name], stderr, unit)]
+            stderr = known.stderr(name)
+            row = [name, _pm(t.values[name], math.nan if stderr is None else stderr, unit)
+                   + ("" if stderr is not None else " (given, no uncertainty)")]
             if paper:
                 row.append(_num(PAPER_TABLE_PARAMETERS[name], "g") + f" {unit}")
             rows.append(row)
@@ -249,58 +267,73 @@ def tables(analysis: CampaignAnalysis) -> str:
                             rows, text_columns=1))
     specimen = [s for s in summaries if not s.bare]
     if specimen:
+        variations = {v.run: v for v in preload_variations(summaries)}
         parts.append("<h3>Table 1: Voigt fit of X_s/F_e, table fixed "
                      f"({analysis.band_hz[0]:g}–{analysis.band_hz[1]:g} Hz)</h3>")
         rows, classes = [], []
-        pairs = {other.name: base for base, other in preload_pairs(analysis)}
         for s in specimen:
             p = s.fit.parameters
-            variation = ["", ""]
-            if s.run in pairs and pairs[s.run].summary is not None:
-                changes = compare_fits(pairs[s.run].summary.fit, s.fit, ["K_v", "C_v"])
-                variation = [_e(c.percent()) for c in changes]
-            rows.append([_e(s.run), _pm(p["K_v"].value, p["K_v"].stderr), variation[0],
-                         _pm(p["C_v"].value, p["C_v"].stderr), variation[1],
-                         _pm(p["M_v"].value, p["M_v"].stderr),
+            variation = variations.get(s.run)
+            rows.append([_e(s.run), _pm(p["K_v"].value, p["K_v"].stderr),
+                         _variation(variation, "K_v"), _pm(p["C_v"].value, p["C_v"].stderr),
+                         _variation(variation, "C_v"), _pm(p["M_v"].value, p["M_v"].stderr),
                          _e(error_words(s.fit.rms_error, s.fit.noise_floor))])
             classes.append("")
             if s.run in PAPER_TABLE_1:
                 pk, pc = PAPER_TABLE_1[s.run]
-                base = s.run.split("-")[0] + "-0"
-                pv = ["", ""]
-                if s.run != base and base in PAPER_TABLE_1:
-                    pv = [_paper_change(base, s.run, 0), _paper_change(base, s.run, 1)]
-                rows.append([f"paper {_e(s.run)}", _num(pk, ".8g"), pv[0], _num(pc, ".5g"), pv[1],
-                             "–", "–"])
+                published = paper_variation(s.run, variation.base) if variation else None
+                rows.append([f"paper {_e(s.run)}", _num(pk, ".8g"),
+                             _paper_percent(published, "K_v"), _num(pc, ".5g"),
+                             _paper_percent(published, "C_v"), "–", "–"])
                 classes.append("paper")
         parts.append(_table(["run", "K_v [N/m]", "variation", "C_v [N·s/m]", "variation",
                              "M_v [kg]", "error"], rows, classes=classes, text_last=True))
         parts.append("<h3>Table 2: natural frequency, damping factor, half-power bandwidth</h3>")
         rows, classes = [], []
         for s in specimen:
-            if s.system is None:
+            if s.system_uncertain is None:
                 continue
-            sy, me = s.system, s.measured
-            rows.append([_e(s.run), _num(sy.natural_frequency_hz, ".2f"),
-                         _num(sy.damping_factor, ".4f"), _num(sy.bandwidth_hz, ".3f"),
-                         _num(me.peak_hz, ".2f"), _num(me.bandwidth_hz, ".3f")])
+            sy, me, variation = s.system_uncertain, s.measured, variations.get(s.run)
+            rows.append([_e(s.run), _pm(sy["f_r"].value, sy["f_r"].stderr, "Hz"),
+                         _variation(variation, "f_r"), _pm(sy["xi"].value, sy["xi"].stderr),
+                         _variation(variation, "xi"), _pm(sy["B_r"].value, sy["B_r"].stderr, "Hz"),
+                         _variation(variation, "B_r"), _num(me.peak_hz, ".2f"),
+                         _num(me.bandwidth_hz, ".3f")])
             classes.append("")
             if s.run in PAPER_TABLE_2:
                 f_r, xi, b_r = PAPER_TABLE_2[s.run]
-                rows.append([f"paper {_e(s.run)}", _num(f_r, ".2f"), _num(xi, ".3f"),
-                             _num(b_r, ".3f"), "–", "–"])
+                published = paper_variation(s.run, variation.base) if variation else None
+                rows.append([f"paper {_e(s.run)}", _num(f_r, ".2f"),
+                             _paper_percent(published, "f_r"), _num(xi, ".3f"),
+                             _paper_percent(published, "xi"), _num(b_r, ".3f"),
+                             _paper_percent(published, "B_r"), "–", "–"])
                 classes.append("paper")
-        parts.append(_table(["run", "f_r [Hz]", "ξ", "B_r = 2ξf_r [Hz]", "peak measured [Hz]",
-                             "B_r measured [Hz]"], rows, classes=classes))
+        parts.append(_table(["run", "f_r", "variation", "ξ", "variation", "B_r = 2ξf_r",
+                             "variation", "peak measured [Hz]", "B_r measured [Hz]"], rows,
+                            classes=classes))
+        basis = next((v.basis for v in variations.values()), ())
         parts.append("<p>f_r, ξ and B_r follow from the Voigt parameters "
-                     "(f_r = √((K_s+K_v)/(M_s+M_v))/2π, ξ = (C_s+C_v)/(2√((K_s+K_v)(M_s+M_v)))); "
-                     "the measured columns are read off |X_s/F_e| directly. A Voigt model is "
-                     "far from the noise on these rubbers; the models reached are in the "
-                     "runs' sections.</p>")
+                     "(f_r = √((K_s+K_v)/(M_s+M_v))/2π, ξ = (C_s+C_v)/(2√((K_s+K_v)(M_s+M_v)))), "
+                     "their ± propagated from the fit's covariance, the table's included; "
+                     "the measured columns are read off |X_s/F_e| directly. Variations: "
+                     "against the same specimen without preload"
+                     + (f" ({_e('; '.join(basis))})" if basis else "")
+                     + ". A Voigt model is far from the noise on these rubbers; the models "
+                     "reached are in the runs' sections.</p>")
     if paper:
         notes = "".join(f"<li>{_e(note)}</li>" for note in consistency_notes())
         parts.append(f"<div class=\"note\"><b>On the paper's numbers</b><ul>{notes}</ul></div>")
     return "\n".join(parts)
+
+
+def _variation(variation: Variation | None, name: str) -> str:
+    if variation is None or name not in variation.changes:
+        return ""
+    return _e(variation.changes[name].percent())
+
+
+def _paper_percent(published: dict[str, float] | None, name: str) -> str:
+    return "" if published is None else f"{published[name]:+.2f} %"
 
 
 # -- one run ------------------------------------------------------------------------------------

@@ -102,12 +102,15 @@ def effect_phrases(effects: Sequence[tuple[str, str]], values: dict[str, float])
     parameter values; fixture modes are grouped into one phrase."""
     phrases: list[str] = []
     fixtures: list[float] = []
+    unplaced_fixture = False
     seen: set[str] = set()
     for effect, term in effects:
         match = _FIXTURE.match(term)
         if effect == "fixture_resonance" or match:
             if match:
                 fixtures.append(float(match.group(1)))
+            else:
+                unplaced_fixture = True
             continue
         if effect in seen:
             continue
@@ -132,6 +135,8 @@ def effect_phrases(effects: Sequence[tuple[str, str]], values: dict[str, float])
         where = _spoken_list([f"{f:.0f}" for f in sorted(fixtures)])
         phrases.append(f"{'a fixture mode' if len(fixtures) == 1 else 'fixture modes'} at "
                        f"{where} Hz")
+    elif unplaced_fixture:
+        phrases.append("a fixture mode")
     return phrases
 
 
@@ -142,7 +147,7 @@ def capitalised(text: str) -> str:
 
 def finding_sentence(first_model: str, effects: Sequence[tuple[str, str]],
                      values: dict[str, float], rms_error: float, noise_floor: float,
-                     missing: str | None, climbed: bool) -> str:
+                     missing: str | tuple[str, str] | None, climbed: bool) -> str:
     """The finding of one run in one sentence.
 
     Parameters
@@ -156,24 +161,27 @@ def finding_sentence(first_model: str, effects: Sequence[tuple[str, str]],
     rms_error, noise_floor
         Of the model reached.
     missing
-        The effect most likely still missing (the best significant candidate), if any.
+        The effect most likely still missing (the best significant candidate), if any: its
+        name, or ``(effect, term)``.
     climbed
         The ladder was climbed (else the run was diagnosed once).
     """
     phrases = effect_phrases(effects, values)
     reached = at_floor(rms_error, noise_floor)
+    if isinstance(missing, str):
+        missing = (missing, missing)
     if not phrases:
         if reached:
             return f"{first_model} explains the measurements to the noise."
         if missing:
             tail = "" if climbed else " (the ladder was not climbed)"
             return (f"{first_model} is {error_words(rms_error, noise_floor)}; most likely "
-                    f"missing: {effect_phrases([(missing, missing)], values)[0]}{tail}.")
+                    f"missing: {effect_phrases([missing], values)[0]}{tail}.")
         return (f"{first_model} is {error_words(rms_error, noise_floor)} and no effect of the "
                 "vocabulary explains the rest.")
     found = capitalised(_spoken_list(phrases))
     if reached:
         return f"{found}: with them the model reaches the noise floor."
-    rest = f"; next most likely: {effect_phrases([(missing, missing)], values)[0]}" if missing \
+    rest = f"; next most likely: {effect_phrases([missing], values)[0]}" if missing \
         else "; no effect of the vocabulary explains the rest"
     return f"{found}; the model is still {error_words(rms_error, noise_floor)}{rest}."
