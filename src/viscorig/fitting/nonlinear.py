@@ -10,8 +10,8 @@ each point's residual by the inverse of its noise standard deviation from the da
 model (:mod:`viscorig.fitting.noise`: noise changing along the band by orders of magnitude):
 every point counts for the information it holds, and under white noise it is the
 maximum-likelihood estimate (:mod:`viscorig.fitting.uncertainty` says why a drift's
-correlation enters its covariance but not its weights). It starts from the uniform solution and
-refines it. ``"uniform"`` (the default of :func:`fit`) stops at the uniform solution: the
+correlation enters its covariance but not its weights): from the same linear start, it solves
+the weighted problem directly. ``"uniform"`` (the default of :func:`fit`) stops at the uniform solution: the
 paper's method, every point weighing the same, which reproduces the paper's Table 1 and
 minimises the error measure ``rms_error`` that diagnosis compares candidate models by.
 
@@ -391,18 +391,9 @@ def _fit_concrete(
     x0 = coordinates.to_x(np.array([values[name] for name in free]))
     lower, upper = coordinates.bounds()
     x0 = np.clip(x0, lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
-    solution = _least_squares(
-        residual,
-        jacobian if analytic else None,
-        x0,
-        (lower, upper),
-        tolerance,
-        max_evaluations or 50 + 20 * len(free),
-        bounded_fallback,
-    )
     weighted = weighting == "noise" and bool(free)
     weights = None
-    if weighted:
+    if weighted:  # each point by its noise, from the same start
         weights = 1.0 / np.sqrt(noise.stacked_variance(frfs))
 
         def weighted_residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -412,10 +403,15 @@ def _fit_concrete(
             return jacobian(x) * weights[:, None]
 
         solution = _least_squares(
-            weighted_residual, weighted_jacobian if analytic else None, solution.x,
-            (lower, upper), tolerance, max_evaluations or 50 + 20 * len(free), bounded_fallback,
+            weighted_residual, weighted_jacobian if analytic else None, x0, (lower, upper),
+            tolerance, max_evaluations or 50 + 20 * len(free), bounded_fallback,
         )  # fmt: skip
         solution.jac = solution.jac / weights[:, None]  # back to ∂r/∂x
+    else:
+        solution = _least_squares(
+            residual, jacobian if analytic else None, x0, (lower, upper), tolerance,
+            max_evaluations or 50 + 20 * len(free), bounded_fallback,
+        )  # fmt: skip
     fitted = coordinates.to_values(solution.x)
     values.update(zip(free, fitted, strict=True))
     r = residual(solution.x)
