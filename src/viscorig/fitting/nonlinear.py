@@ -11,9 +11,9 @@ model (:mod:`viscorig.fitting.noise`: noise changing along the band by orders of
 every point counts for the information it holds, and under white noise it is the
 maximum-likelihood estimate (:mod:`viscorig.fitting.uncertainty` says why a drift's
 correlation enters its covariance but not its weights): from the same linear start, it solves
-the weighted problem directly. ``"uniform"`` (the default of :func:`fit`) stops at the uniform solution: the
-paper's method, every point weighing the same, which reproduces the paper's Table 1 and
-minimises the error measure ``rms_error`` that diagnosis compares candidate models by.
+the weighted problem directly. ``"uniform"`` (the default of :func:`fit`) is the paper's
+method, every point weighing the same, which reproduces the paper's Table 1 and minimises the
+error measure ``rms_error`` that diagnosis compares candidate models by.
 
 Standard errors (:mod:`viscorig.fitting.uncertainty`): the covariance of the estimate under
 the noise model, scaled up by the misfit when the model does not reach the noise floor, plus
