@@ -23,15 +23,15 @@ States::
   repeats, the information the points hold is computed from their measured noise (and compared
   with the fit's own covariance), and a visit's first long point is checked against its repeats
   for a transient the settle left.
-- DECIDE: stop when every target's relative standard error (the fit's own) is met, when the
-  model does not fit to the noise (its targets would be the precision of a biased value), or at
-  the dwell limit; otherwise solve the minimum-time design given what is known
-  (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the first
-  batch a fraction, to refit on better estimates before committing the rest), with the band's
+- DECIDE: stop when every target's relative standard error (the fit's own) is met, when the model
+  does not fit to the noise (its targets would be the precision of a biased value), or at the dwell
+  limit (within :data:`DWELL_MARGIN` of it); otherwise solve the minimum-time design given what is
+  known (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the
+  first batch a fraction, to refit on better estimates before committing the rest), with the band's
   coverage points (:func:`~viscorig.planning.coverage.coverage_grid`) the first time, each
   frequency's integration adjusted for where the auto level will land
-  (:func:`~viscorig.planning.batch.landing_db`), settled by the transient model, in one
-  direction, with short lead-in points taking the controller's passes.
+  (:func:`~viscorig.planning.batch.landing_db`), settled by the transient model, in one direction,
+  with short lead-in points taking the controller's passes.
 """
 
 from __future__ import annotations
@@ -79,6 +79,11 @@ __all__ = [
     "expected_time_s",
     "weighted_fit_function",
 ]
+
+
+#: A plan stops at its dwell limit once less than this fraction of it is left: a batch that
+#: small would be mostly settling (and each one costs a refit).
+DWELL_MARGIN = 0.1
 
 
 class State(StrEnum):
@@ -553,7 +558,7 @@ class AdaptivePlan:
             self._finish("model misfit")
             return None
         used = self.points.test_time_s
-        if s.dwell_limit_s is not None and used >= s.dwell_limit_s:
+        if s.dwell_limit_s is not None and used >= (1.0 - DWELL_MARGIN) * s.dwell_limit_s:
             self._finish("dwell limit")
             return None
         if self._batches >= s.max_batches:
