@@ -173,3 +173,27 @@ def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp
     assert run.metadata.resource == resource and run.metadata.status == "complete"
     assert campaign.run_attributes("voigt")["plan_reason"] == "targets met"
     assert run.points > np.unique(run.frequency_hz).size >= 40  # look, coverage, repeats
+
+
+def test_the_example_sequence_on_the_embedded_rig_reads_as_any_run(tmp_path, capsys) -> None:
+    """``sequences/adaptive.toml`` on the embedded simulated rig (the virtual analyser through
+    the driver): a Voigt plan on the paper's soft rubber stops once the band is covered, and
+    every command reads the run (diagnose names the effect the full sweep's diagnosis names
+    first, the report draws it)."""
+    out = tmp_path / "adaptive.h5"
+    example = Path(__file__).resolve().parents[1] / "sequences" / "adaptive.toml"
+    assert main(["run", str(example), "--yes", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.index("predicted test time:") < printed.index(">>> Remove the damper")
+    assert "adaptive plan: model misfit" in printed
+    attributes = Campaign.open(out).run_attributes("soft-0")
+    assert attributes["plan_reason"] == "model misfit" and attributes["test_time_s"] < 120.0
+    assert main(["diagnose", str(out), "--run", "soft-0", "--json"]) == 0
+    import json
+
+    diagnosis = json.loads(capsys.readouterr().out)
+    first = next(item for item in diagnosis["findings"] if item["significant"])
+    assert first["effect"] == "frequency_dependent_modulus"
+    assert main(["summary", str(out)]) == 0
+    assert main(["report", str(out), "--out", str(tmp_path / "report"), "--no-diagnosis"]) == 0
+    assert (tmp_path / "report" / "frf-soft-0.png").exists()

@@ -403,7 +403,7 @@ def analyse_campaign(
     started = time.perf_counter()
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
-    runs = [campaign.run(name) for name in campaign.run_names]
+    runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
     for run in runs:
         if 0 < run.points < 10:
             notes.append(f"run {run.name}: {run.points} points, too few to fit; shown as measured")
