@@ -279,40 +279,35 @@ def _usable(values: np.ndarray | None) -> np.ndarray | None:
     return values if np.all(np.isfinite(values) & (values > 0)) else None
 
 
-def _points(segment: Segment, rig_s: np.ndarray, bare: bool) -> MeasuredPoints:
-    """A stored segment as the plan's measured points."""
+def _as_points(source: Segment | Run, settle, integrate, durations_s, bare: bool
+               ) -> MeasuredPoints:
+    """A stored segment or run as the plan's measured points."""
     return MeasuredPoints(
-        frequency_hz=np.asarray(segment.frequency_hz, dtype=float),
-        accelerance_table=np.asarray(segment.accelerance_table, dtype=complex),
-        accelerance_support=None if bare else np.asarray(segment.accelerance_support, complex),
-        reference_amplitude=np.asarray(segment.reference_amplitude, dtype=float),
-        force_amplitude=np.asarray(segment.force_amplitude, dtype=float),
-        settle_cycles=np.asarray(segment.settle_cycles, dtype=np.int64),
-        integrate_cycles=np.asarray(segment.integrate_cycles, dtype=np.int64),
-        duration_s=np.asarray(rig_s, dtype=float),
-        variance_table=_usable(segment.variance_table),
-        variance_support=None if bare else _usable(segment.variance_support),
-        flags=np.asarray(segment.flags, dtype=np.uint16),
+        frequency_hz=np.asarray(source.frequency_hz, dtype=float),
+        accelerance_table=np.asarray(source.accelerance_table, dtype=complex),
+        accelerance_support=None if bare else np.asarray(source.accelerance_support, complex),
+        reference_amplitude=np.asarray(source.reference_amplitude, dtype=float),
+        force_amplitude=np.asarray(source.force_amplitude, dtype=float),
+        settle_cycles=np.asarray(settle, dtype=np.int64),
+        integrate_cycles=np.asarray(integrate, dtype=np.int64),
+        duration_s=np.asarray(durations_s, dtype=float),
+        variance_table=_usable(source.variance_table),
+        variance_support=None if bare else _usable(source.variance_support),
+        flags=np.asarray(source.flags, dtype=np.uint16),
     )
+
+
+def _points(segment: Segment, rig_s: np.ndarray, bare: bool) -> MeasuredPoints:
+    """A segment just measured as the plan's measured points."""
+    return _as_points(segment, segment.settle_cycles, segment.integrate_cycles, rig_s, bare)
 
 
 def stored_points(run: Run) -> MeasuredPoints:
     """An adaptive run's points as stored, in measurement order, as the plan was given them
     (each point's rig time from the running sum ``time_s``)."""
     bare = str(run.metadata.specimen).strip().lower() in ("none", "")
-    settle, integrate = run.cycles
     durations = np.diff(np.concatenate([[0.0], np.asarray(run.time_s, dtype=float)]))
-    return MeasuredPoints(
-        frequency_hz=np.asarray(run.frequency_hz, dtype=float),
-        accelerance_table=np.asarray(run.accelerance_table, dtype=complex),
-        accelerance_support=None if bare else np.asarray(run.accelerance_support, complex),
-        reference_amplitude=np.asarray(run.reference_amplitude, dtype=float),
-        force_amplitude=np.asarray(run.force_amplitude, dtype=float),
-        settle_cycles=settle, integrate_cycles=integrate, duration_s=durations,
-        variance_table=_usable(run.variance_table),
-        variance_support=None if bare else _usable(run.variance_support),
-        flags=np.asarray(run.flags, dtype=np.uint16),
-    )
+    return _as_points(run, *run.cycles, durations, bare)
 
 
 def analyser_groups(points: tuple[PlannedPoint, ...] | list[PlannedPoint]) -> list[SweepSegment]:
