@@ -197,3 +197,8 @@ def test_the_example_sequence_on_the_embedded_rig_reads_as_any_run(tmp_path, cap
     assert main(["summary", str(out)]) == 0
     assert main(["report", str(out), "--out", str(tmp_path / "report"), "--no-diagnosis"]) == 0
     assert (tmp_path / "report" / "frf-soft-0.png").exists()
+    from viscorig.watch.snapshot import read_snapshot  # the live view of such a run
+
+    soft = next(run for run in read_snapshot(out)["runs"] if run["name"] == "soft-0")
+    assert soft["planned"] == soft["points"] and soft["left_s"] == 0.0
+    assert soft["frequency_hz"] == sorted(soft["frequency_hz"])
