@@ -20,6 +20,7 @@ from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 
 from viscorig.cli import main
 from viscorig.diagnosis import Diagnosis, diagnose, diagnose_run
+from viscorig.models import EFFECTS
 from viscorig.storage import Campaign, RunSettings, Segment
 
 TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
@@ -209,14 +210,15 @@ def test_diagnose_json_follows_the_design(
     assert document["run"] == "soft-0" and document["model"] == "voigt"
     for band in document["failures"]:
         assert set(band) >= {"band_hz", "frf", "what"} and len(band["band_hz"]) == 2
-    vocabulary = {"frequency_dependent_modulus", "load_cell_compliance", "fixture_resonance",
-                  "sensor_delay", "amplitude_dependence", "thermal_drift"}  # fmt: skip
+    vocabulary = set(EFFECTS)
     for finding in document["findings"]:
         assert set(finding) >= {"effect", "model", "rms_error", "delta_bic", "significant",
                                 "explanation", "parameters"}  # fmt: skip
         assert finding["effect"] in vocabulary
-    bics = [finding["delta_bic"] for finding in document["findings"]]
-    assert bics == sorted(bics)
+    marks = [finding["significant"] for finding in document["findings"]]
+    assert marks == sorted(marks, reverse=True)  # the significant ones first
+    rest = [finding["delta_bic"] for finding in document["findings"] if not finding["significant"]]
+    assert rest == sorted(rest)
     best = document["findings"][0]
     assert best["effect"] == "fixture_resonance" and best["significant"]
     assert document["ladder"][0]["model"] == "voigt"

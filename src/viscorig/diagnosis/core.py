@@ -13,9 +13,11 @@ from dataclasses import dataclass, field
 
 from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
-from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with
+from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with, identify_fit
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
+from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
+from viscorig.diagnosis.weighted import Likelihood, ml_refit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, fit
 from viscorig.models import parse_spec
@@ -38,7 +40,11 @@ class Diagnosis:
     data
         The runs diagnosed (:class:`~viscorig.diagnosis.data.DiagnosisData`).
     fit
-        The fit of the model diagnosed.
+        The fit of the model diagnosed (as ``identify`` makes it).
+    likelihood
+        Its maximum-likelihood fit on the whitened residual, which the tests compare.
+    scan
+        The scan for local modes (peaks, length, threshold).
     findings
         Candidate effects, fitted and tested, lowest ΔBIC first.
     failures
@@ -49,6 +55,8 @@ class Diagnosis:
 
     data: DiagnosisData
     fit: FitResult
+    likelihood: Likelihood
+    scan: ScanResult | None = None
     findings: list[Finding] = field(default_factory=list)
     failures: list[FailureBand] = field(default_factory=list)
     advice: list[str] = field(default_factory=list)
@@ -89,15 +97,20 @@ class Diagnosis:
         or a whole spec (``"fractional+delay"``).
         """
         if isinstance(effect, Finding):
-            return analyse(self.data, effect.fit, effect.bic)
+            return self._with_finding(effect)
         text = effect.strip()
         for finding in self.findings:
             if finding.term == text:
-                return analyse(self.data, finding.fit, finding.bic)
+                return self._with_finding(finding)
         if "+" in text:
             return diagnose(self.data, text)
         candidate_spec(self.fit.model, text)  # checks the term
         return analyse(self.data, fit_with(self.fit, self.data, text))
+
+    def _with_finding(self, finding: Finding) -> Diagnosis:
+        if finding.fit is None:
+            finding.fit = identify_fit(finding.likelihood, self.data)
+        return analyse(self.data, finding.fit, finding.likelihood)
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
         """Add the best significant effect and refit, until the noise floor or nothing is left.
@@ -134,10 +147,22 @@ class Diagnosis:
         return document
 
 
-def analyse(data: DiagnosisData, result: FitResult, bic: float | None = None) -> Diagnosis:
-    """Failures, screening and confirmed findings of a fit already made on ``data``."""
+def analyse(
+    data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None
+) -> Diagnosis:
+    """Failures, screening and confirmed findings of a fit already made on ``data``.
+
+    ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
+    """
     result.noise_floor = data.noise_floor
-    findings = confirm(result, data, screen(result, data), bic)
+    current = ml_refit(result, data) if likelihood is None else likelihood
+    residual = Residual(current, data)
+    existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
+    peaks = scan(current, data, existing)
+    findings = confirm(current, data, screen(current, data, residual, peaks))
+    best = next((finding for finding in findings if finding.significant), None)
+    if best is not None and best.fit is None:
+        best.fit = identify_fit(best.likelihood, data)
     advice: list[str] = []
     for finding in findings:
         finding.explanation = explain(finding, data)
@@ -147,7 +172,7 @@ def analyse(data: DiagnosisData, result: FitResult, bic: float | None = None) ->
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    return Diagnosis(data, result, findings, failure_bands(result, data), advice)
+    return Diagnosis(data, result, current, peaks, findings, failure_bands(result, data), advice)
 
 
 def diagnose(

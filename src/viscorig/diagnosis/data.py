@@ -87,6 +87,24 @@ class DiagnosisData:
         """``sqrt(mean σ_i²)`` over every point of every FRF: the rms a perfect model reaches."""
         return float(np.sqrt(np.mean(np.concatenate(list(self.noise_power.values())))))
 
+    @property
+    def residual_count(self) -> int:
+        """Real residuals a fit of every FRF has (real and imaginary part of every point)."""
+        return 2 * sum(self.noise_power[frf].size for frf in self.frfs)
+
+    def whiten(self, residuals: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
+        """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, any number of
+        columns) as real numbers of unit variance when they are noise: the real and imaginary
+        parts of every FRF, in ``frfs`` order, each divided by its standard deviation."""
+        parts = []
+        for frf in self.frfs:
+            r = residuals[frf]
+            scale = np.sqrt(self.noise_power[frf] / 2.0)
+            if r.ndim > 1:
+                scale = scale[:, None]
+            parts += [r.real / scale, r.imag / scale]
+        return np.concatenate(parts)
+
 
 def _direction(frequency_hz: NDArray[np.float64]) -> str:
     return "down" if frequency_hz.size > 1 and frequency_hz[-1] < frequency_hz[0] else "up"

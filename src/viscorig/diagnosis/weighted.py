@@ -1,70 +1,210 @@
-"""Maximum-likelihood polish of a fit: least squares on the residual whitened by the noise.
+"""Maximum-likelihood fits on the residual whitened by the noise model.
 
-The fitter minimises the design's error measure, the plain mean of ``|H_model/H_measured − 1|²``,
-in which the noisiest points (high frequency, where the force is small) weigh most. Comparing
-models by a noise-whitened χ² is only calibrated when each model minimises that χ²: fitted
-otherwise, one more parameter can move the curve at the quiet points by more than noise allows
-and fake an improvement. So every fit diagnosis compares is polished here, from the fitter's
-solution, on ``(H_model/H_measured − 1)/σ_i``; ``rms_error`` stays the design's measure.
+The fitter of ``identify`` minimises the design's error measure, the plain mean of
+``|H_model/H_measured − 1|²``, in which the noisiest points (high frequency, where the force is
+small) weigh most. Comparing models by a likelihood is only calibrated when each model maximises
+that likelihood: fitted otherwise, one more parameter can move the curve at the quiet points by
+more than noise allows and fake an improvement. So every model diagnosis compares is fitted
+here, on the residual whitened by the noise model (:meth:`DiagnosisData.whiten`), with a Huber
+loss (quadratic within :data:`HUBER_SCALE` standard deviations, linear beyond) so that an
+outlier point, which heavy-tailed noise makes, neither drives a fit nor fakes a finding.
+
+The statistic is ``χ² = Σ ρ(e_i)`` over the whitened residual ``e`` (``ρ(e) = e²`` inside the
+Huber scale): a chi-square with as many degrees of freedom as real residuals, less the
+parameters, when the model is right. ``rms_error`` stays the design's measure.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.fitting import FitResult
+from viscorig.models import Model
+
+#: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
+HUBER_SCALE = 3.0
 
 
-def polish(result: FitResult, data: DiagnosisData) -> FitResult:
-    """``result`` refitted to minimise ``Σ |r_i|²/σ_i²`` (its free parameters, same model)."""
-    model, free, frfs = result.model, result.free, result.frfs
-    if not free:
-        return result
-    ctx = data.data.context()
-    measured = [data.data.frf(name) for name in frfs]
-    weight = np.concatenate([1.0 / np.sqrt(data.noise_power[name]) for name in frfs])
+def huber(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``ρ(e)``: ``e²`` within :data:`HUBER_SCALE`, ``2c|e| − c²`` beyond."""
+    a = np.abs(e)
+    c = HUBER_SCALE
+    return np.where(a <= c, e * e, 2 * c * a - c * c)
+
+
+def winsorized(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``e`` clipped at ±:data:`HUBER_SCALE` (the Huber loss's ``ψ``): what a linear test sees."""
+    return np.clip(e, -HUBER_SCALE, HUBER_SCALE)
+
+
+@dataclass
+class Likelihood:
+    """A model fitted by maximum likelihood to the whitened residual.
+
+    Attributes
+    ----------
+    model
+        The fitted (concrete) model.
+    values
+        Every parameter's value by global name (the table's held fixed).
+    free
+        Names of the model's free parameters (every one but the table's).
+    chi2
+        ``Σ ρ(e_i)`` at the optimum.
+    whitened
+        The whitened residual ``e`` at the optimum.
+    jacobian
+        ``∂e/∂x`` at the optimum, ``x`` the fitted coordinates (logarithms of positive
+        parameters, the values of the others), one column per name of ``fitted``.
+    residuals
+        ``H_model/H_measured − 1`` per FRF.
+    """
+
+    model: Model
+    values: dict[str, float]
+    free: tuple[str, ...]
+    chi2: float
+    whitened: NDArray[np.float64]
+    jacobian: NDArray[np.float64]
+    residuals: dict[str, NDArray[np.complex128]]
+    fitted: tuple[str, ...] = ()
+    """Names of the parameters the fit moved (``free`` unless it held some at their start)."""
+
+    def __post_init__(self) -> None:
+        if not self.fitted:
+            self.fitted = self.free
+
+    @property
+    def spec(self) -> str:
+        """Canonical spec of the fitted model."""
+        return self.model.spec
+
+    @property
+    def rms_error(self) -> float:
+        """The design's error measure at these values."""
+        return float(np.sqrt(np.mean(np.concatenate(
+            [np.abs(r) ** 2 for r in self.residuals.values()]))))
+
+    def stderr(self) -> dict[str, float]:
+        """Standard error of every fitted parameter (SI), from the whitened Jacobian."""
+        if not self.fitted:
+            return {}
+        jac = self.jacobian
+        try:
+            inverse = np.linalg.pinv(jac.T @ jac)
+        except np.linalg.LinAlgError:
+            return dict.fromkeys(self.fitted, float("nan"))
+        spread = np.sqrt(np.abs(np.diag(inverse)))
+        out = {}
+        for name, s in zip(self.fitted, spread, strict=True):
+            value = self.values[name]
+            out[name] = float(s * abs(value)) if self.model.by_name[name].log else float(s)
+        return out
+
+
+def _coordinates(model: Model, free: tuple[str, ...]):
     parameters = [model.by_name[name] for name in free]
-    log = np.array([p.log for p in parameters])
+    log = np.array([p.log for p in parameters], dtype=bool)
     lower = np.array([np.log(p.lower) if p.log else p.lower for p in parameters])
     upper = np.array([np.log(p.upper) if p.log else p.upper for p in parameters])
-    values = dict(result.values)
+    return log, lower, upper
 
-    def to_values(x: np.ndarray) -> np.ndarray:
+
+def ml_fit(
+    model: Model,
+    data: DiagnosisData,
+    start: Mapping[str, float],
+    *,
+    only: Collection[str] | None = None,
+    max_steps: int = 40,
+) -> Likelihood:
+    """Fit ``model``'s free parameters (every one but the table's, or those of them in
+    ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
+    whitened residual; ``start`` holds a value for every parameter."""
+    fixed = dict(data.table or {})
+    every = tuple(name for name in model.names if name not in fixed)
+    free = every if only is None else tuple(name for name in every if name in only)
+    values = {**model.defaults(), **dict(start), **fixed}
+    ctx = data.data.context()
+    measured = {name: data.data.frf(name) for name in data.frfs}
+    log, lower, upper = _coordinates(model, free)
+
+    def to_values(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(log, np.exp(np.clip(x, -700, 700)), x)
 
-    def ratio(x: np.ndarray) -> np.ndarray:
-        values.update(zip(free, to_values(x), strict=True))
-        predicted = model.predict(ctx, values)
-        return np.concatenate([predicted[n] / h for n, h in zip(frfs, measured, strict=True)]) - 1
+    def ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        current = dict(values)
+        current.update(zip(free, to_values(x), strict=True))
+        with np.errstate(all="ignore"):
+            predicted = model.predict(ctx, current)
+            return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        r = ratio(x) * weight
-        return np.concatenate([r.real, r.imag])
+    def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        e = data.whiten(ratio(x))
+        return np.where(np.isfinite(e), e, 1e6)
 
-    start = np.array([result.values[name] for name in free])
-    x0 = np.where(log, np.log(np.abs(start) + 1e-300), start)
+    start_values = np.array([values[name] for name in free], dtype=float)
+    x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
     span = upper - lower
     x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
-    with np.errstate(all="ignore"):
-        solution = least_squares(
-            residual, x0, bounds=(lower, upper), x_scale="jac", method="trf",
-            ftol=1e-6, xtol=1e-8, gtol=1e-8, max_nfev=10 + 2 * len(free),
-        )
-    if not solution.cost * 2 <= float(np.sum(residual(x0) ** 2)):
-        values.update(zip(free, start, strict=True))
-        return result
-    fitted = to_values(solution.x)
-    values.update(zip(free, fitted, strict=True))
-    r = ratio(solution.x)
-    points = data.data.frequency_hz.size
-    return replace(
-        result,
-        values={name: float(v) for name, v in values.items()},
-        rms_error=float(np.sqrt(np.mean(np.abs(r) ** 2))),
-        residuals={name: r[i * points : (i + 1) * points] for i, name in enumerate(frfs)},
-        nfev=result.nfev + int(solution.nfev),
+    if free:
+        with np.errstate(all="ignore"):
+            solution = least_squares(
+                residual, x0, bounds=(lower, upper), x_scale="jac", method="trf",
+                loss="huber", f_scale=HUBER_SCALE, ftol=1e-6, xtol=1e-8, gtol=1e-8,
+                max_nfev=max_steps,
+            )
+        x = solution.x
+        jacobian = np.asarray(solution.jac, dtype=float)
+    else:
+        x = x0
+        jacobian = np.zeros((residual(x0).size, 0))
+    fitted = dict(values)
+    fitted.update(zip(free, (float(v) for v in to_values(x)), strict=True))
+    residuals = ratio(x)
+    whitened = data.whiten(residuals)
+    return Likelihood(
+        model, fitted, every, float(np.sum(huber(whitened))), whitened, jacobian, residuals, free
     )
+
+
+def ml_refit(result: FitResult | Likelihood, data: DiagnosisData) -> Likelihood:
+    """The maximum-likelihood fit of a fitted model, started from its values."""
+    return ml_fit(result.model, data, result.values)
+
+
+def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> Likelihood:
+    """The likelihood of ``model`` at ``values`` (no fit), with a finite-difference Jacobian
+    weighted as the Huber loss weighs each residual."""
+    fixed = dict(data.table or {})
+    free = tuple(name for name in model.names if name not in fixed)
+    values = {**dict(values), **fixed}
+    ctx = data.data.context()
+    measured = {name: data.data.frf(name) for name in data.frfs}
+    log, _, _ = _coordinates(model, free)
+
+    def ratio(current: Mapping[str, float]) -> dict[str, NDArray[np.complex128]]:
+        with np.errstate(all="ignore"):
+            predicted = model.predict(ctx, current)
+            return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
+
+    residuals = ratio(values)
+    whitened = data.whiten(residuals)
+    columns = []
+    for name, is_log in zip(free, log, strict=True):
+        value = values[name]
+        step = 1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
+        moved = dict(values)
+        moved[name] = value * np.exp(step) if is_log else value + step
+        columns.append((data.whiten(ratio(moved)) - whitened) / step)
+    jacobian = np.stack(columns, axis=1) if columns else np.zeros((whitened.size, 0))
+    weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
+    return Likelihood(model, dict(values), free, float(np.sum(huber(whitened))), whitened,
+                      jacobian * weight[:, None], residuals)
+
