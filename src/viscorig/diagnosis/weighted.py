@@ -122,7 +122,7 @@ def ml_fit(
     start: Mapping[str, float],
     *,
     only: Collection[str] | None = None,
-    max_steps: int = 40,
+    max_steps: int = 200,
 ) -> Likelihood:
     """Fit ``model``'s free parameters (every one but the table's, or those of them in
     ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
