@@ -99,13 +99,23 @@ def format_diagnosis(
                 f"{band.what}"
             )
     if d.findings:
-        lines.append("candidate effects (best first; significant = beyond noise):")
+        lines.append(
+            "candidate effects (* significant: its χ² drop beyond its threshold, next to the "
+            "ones before it):"
+        )
         for finding in d.findings:
             mark = "*" if finding.significant else " "
             lines.append(
                 f" {mark} {finding.effect:<28} {finding.model:<36} rms {finding.rms_error:.3e}"
-                f"  ΔBIC {finding.delta_bic:+.4g}"
+                f"  ΔBIC {finding.delta_bic:+.4g}  Δχ² {finding.delta_chi2:.4g}"
+                f" (needs {finding.threshold:.3g})"
             )
+    if d.scan is not None:
+        lines.append(
+            f"scan for local modes: {d.scan.templates} frequencies and widths, "
+            f"{d.scan.length:.0f} correlation lengths; a mode needs Δχ² > {d.scan.threshold:.1f} "
+            f"({d.scan.threshold ** 0.5:.1f} standard errors) after looking everywhere"
+        )
     best = d.significant[0] if d.significant else None
     if best is None:
         lines.append(

@@ -60,6 +60,8 @@ class Diagnosis:
     findings: list[Finding] = field(default_factory=list)
     failures: list[FailureBand] = field(default_factory=list)
     advice: list[str] = field(default_factory=list)
+    together: Likelihood | None = None
+    """Likelihood fit of the model with every significant finding added."""
 
     @property
     def model(self) -> str:
@@ -112,17 +114,26 @@ class Diagnosis:
             finding.fit = identify_fit(finding.likelihood, self.data)
         return analyse(self.data, finding.fit, finding.likelihood)
 
-    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
-        """Add the best significant effect and refit, until the noise floor or nothing is left.
+    def with_significant(self) -> Diagnosis:
+        """The diagnosis of this model with every significant finding added (each paid for
+        itself next to those before it)."""
+        found = self.significant
+        if len(found) == 1 or self.together is None:
+            return self.with_effect(found[0])
+        return analyse(self.data, identify_fit(self.together, self.data))
 
-        Returns the ladder: this diagnosis, then one per effect added.
+    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
+        """Add the significant effects and refit, until the noise floor or nothing is left.
+
+        Returns the ladder: this diagnosis, then one per step; a step adds every effect found
+        significant (each next to the ones before it).
         """
         ladder = [self]
         while len(ladder) <= max_steps:
             current = ladder[-1]
             if current.at_noise_floor or not current.significant:
                 break
-            ladder.append(current.with_effect(current.significant[0]))
+            ladder.append(current.with_significant())
         return ladder
 
     def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
@@ -159,7 +170,7 @@ def analyse(
     residual = Residual(current, data)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
     peaks = scan(current, data, existing)
-    findings = confirm(current, data, screen(current, data, residual, peaks))
+    findings, together = confirm(current, data, screen(current, data, residual, peaks))
     best = next((finding for finding in findings if finding.significant), None)
     if best is not None and best.fit is None:
         best.fit = identify_fit(best.likelihood, data)
@@ -172,7 +183,8 @@ def analyse(
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    return Diagnosis(data, result, current, peaks, findings, failure_bands(result, data), advice)
+    return Diagnosis(data, result, current, peaks, findings, failure_bands(result, data), advice,
+                     together)
 
 
 def diagnose(

@@ -317,10 +317,10 @@ def _test(before: Likelihood, after: Likelihood, needed: float):
 
 def confirm(
     current: Likelihood, data: DiagnosisData, candidates: list[Candidate]
-) -> list[Finding]:
+) -> tuple[list[Finding], Likelihood]:
     """Fit every candidate, rank them (lowest ΔBIC first; among those the data cannot tell
     apart, by :data:`PRIORITY`), test each next to the ones found significant before it, and
-    return them significant first."""
+    return them significant first, with the fit of the model holding every significant one."""
     n = current.whitened.size
     findings: list[Finding] = []
     for candidate in candidates:
@@ -331,7 +331,8 @@ def confirm(
             except (InputError, ValueError, np.linalg.LinAlgError):
                 continue
             bic = result.chi2 + len(result.free) * np.log(n)
-            if best is None or bic < best[0]:
+            # an alternative replaces the first term only when the data clearly prefer it
+            if best is None or bic < best[0] - candidate.threshold:
                 best = (bic, result, term)
         if best is None:
             continue
@@ -351,10 +352,10 @@ def confirm(
     findings.sort(key=lambda finding: finding.delta_bic)
     ties = _ties(findings)
     findings[: len(ties)] = sorted(ties, key=_priority)
-    _forward(current, data, findings)
+    best = _forward(current, data, findings)
     _mark_ambiguities(findings, ties)
     findings.sort(key=lambda finding: not finding.significant)  # stable: ranks kept within
-    return findings
+    return findings, best
 
 
 def _priority(finding: Finding) -> int:
@@ -378,8 +379,9 @@ def _ties(findings: list[Finding]) -> list[Finding]:
     return tied
 
 
-def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> None:
-    """Mark significant the findings that pay for themselves next to those before them."""
+def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
+    """Mark significant the findings that pay for themselves next to those before them; the fit
+    of the model with all of them."""
     base, accepted = current, []
     for finding in findings:
         if not finding.passes_alone:
@@ -409,6 +411,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
                 f"next to {names} it no longer pays for itself (Δχ² {delta / phi:.1f}, needs "
                 f"{finding.threshold:.1f})"
             )
+    return base
 
 
 def _mark_ambiguities(findings: list[Finding], ties: list[Finding]) -> None:

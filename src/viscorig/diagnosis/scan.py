@@ -127,12 +127,12 @@ class Residual:
 
     def estimate(self, change: dict[str, NDArray[np.complex128]]) -> tuple[float, float, float]:
         """Least-squares size of one effect whose unit changes ``log H`` by ``change``: its
-        value, standard error and the drop of ``χ²`` (on the clipped residual) it brings."""
+        value, standard error and the drop of ``χ²`` it brings, to first order."""
         t = self.template(change)
         norm2 = float(t @ t)
         if not norm2 > 0:
             return 0.0, float("inf"), 0.0
-        inner = float(self.clipped @ t)
+        inner = float(self.e @ t)
         return -inner / norm2, 1.0 / np.sqrt(norm2), inner**2 / norm2
 
 

@@ -67,7 +67,8 @@ class Candidate:
     start
         Start values of the new term's parameters (local names).
     alternatives
-        Other terms for the same effect; the one that fits best is the finding.
+        Other terms for the same effect; one replaces :attr:`term` when it fits clearly better
+        (its ``χ²`` lower by more than :attr:`threshold`).
     dof
         Parameters the candidate adds.
     identifiable
@@ -159,6 +160,14 @@ def screen_fixtures(scan: ScanResult) -> list[Candidate]:
     return candidates
 
 
+def _pm(value: float, stderr: float) -> str:
+    """``value ± stderr`` to the stderr's first two digits."""
+    if not (np.isfinite(stderr) and stderr > 0):
+        return f"{value:+.3g}"
+    digits = max(0, 1 - int(np.floor(np.log10(stderr))))
+    return f"{value:+.{digits}f} ± {stderr:.{digits}f}"
+
+
 def _frf_words(frf: str) -> str:
     return {"table": "table FRF (ẍ_s/F_e)", "support": "support FRF (ẍ_v/F_v)"}[frf]
 
@@ -175,7 +184,7 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
             out.append(Candidate(
                 "sensor_delay", "delay",
                 f"both FRFs' phase errors grow linearly with frequency alike "
-                f"({tau * 1e6:+.1f} ± {stderr * 1e6:.1f} µs)",
+                f"({_pm(tau * 1e6, stderr * 1e6)} µs)",
                 need, {"tau_d": tau}))
     for frf in data.frfs:
         response, force = response_channel(frf), force_channel(frf)
@@ -185,7 +194,7 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
             out.append(Candidate(
                 "sensor_delay", f"delay({lagging.name})",
                 f"the {_frf_words(frf)} phase error grows linearly with frequency "
-                f"({tau * 1e6:+.1f} ± {stderr * 1e6:.1f} µs)",
+                f"({_pm(tau * 1e6, stderr * 1e6)} µs)",
                 threshold(1, FAMILY_ALPHA / 2), {f"tau_{lagging.name}": abs(tau)},
                 alternatives=(f"lowpass({lagging.name})",)))
         corner, stderr, gain = residual.estimate({frf: 2j * np.pi / omega})
@@ -194,7 +203,7 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
             out.append(Candidate(
                 "sensor_highpass", f"highpass({filtered.name})",
                 f"the {_frf_words(frf)} phase error falls as 1/f, a "
-                f"{'lead' if corner > 0 else 'lag'} of {abs(corner):.2g} ± {stderr:.1g} Hz / f",
+                f"{'lead' if corner > 0 else 'lag'} of ({_pm(abs(corner), stderr)} Hz)/f",
                 need, {f"f_hp_{filtered.name}": float(np.clip(abs(corner), 1e-3, 50.0))}))
         if len(data.frfs) < 2:
             continue  # one FRF alone cannot tell a gain from K* and M_v
@@ -203,7 +212,7 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
             out.append(Candidate(
                 "sensor_gain", f"gain({response.name})",
                 f"the {_frf_words(frf)} magnitude is off by a constant "
-                f"{ratio * 100:+.2f} ± {stderr * 100:.2f} % against the other FRF",
+                f"{_pm(ratio * 100, stderr * 100)} % against the other FRF",
                 need, {f"gain_{response.name}": float(np.clip(1.0 + ratio, 0.6, 1.6))}))
     return out
 
