@@ -34,7 +34,10 @@ def within(result, truth: dict[str, float], sigmas: float = 4.0) -> dict[str, fl
 
 
 def test_bare_table_is_recovered_within_its_uncertainty() -> None:
-    run = simulate_run(rig_text(noise=DEFAULT_NOISE), seed=11)
+    # 300 settle periods: the table's own resonance (19.3 Hz, 0.09 Hz wide) sits just below
+    # the band, and 100 periods leave its start transient in the first points (a misfit the
+    # error measure shows).
+    run = simulate_run(rig_text(noise=DEFAULT_NOISE), seed=11, settle_cycles=300)
     result = fit("table", run.frf_data())
     deviations = within(result, TABLE)
     assert max(deviations.values()) < 4.0, deviations

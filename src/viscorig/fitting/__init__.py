@@ -1,23 +1,34 @@
 """Fitting: linear starts, bounded nonlinear least squares, uncertainties, order selection.
 
-``fit(model_or_spec, FrfData(...), frfs=..., band_hz=..., fixed=...) -> FitResult``; no user
-guess is ever needed. The noise floor method is in :mod:`viscorig.fitting.noise`.
+``fit(model_or_spec, FrfData(...), frfs=..., band_hz=..., fixed=..., known=...) -> FitResult``;
+no user guess is ever needed. The noise model shared by the whole core (noise floor, standard
+errors, significance tests) is in :mod:`viscorig.fitting.noise` (estimated from the data by
+:mod:`viscorig.fitting.noise_estimation`); how it and the inherited parameters enter the
+standard errors is in :mod:`viscorig.fitting.uncertainty`.
 """
 
 from viscorig.fitting.baseline import nelder_mead_fit
 from viscorig.fitting.data import MIN_POINTS, FrfData
-from viscorig.fitting.noise import local_noise_power, noise_floor
+from viscorig.fitting.noise import FrfNoise, NoiseModel, local_noise_power, noise_floor
+from viscorig.fitting.noise_estimation import estimate_frf_noise, estimate_noise
 from viscorig.fitting.nonlinear import CORRELATION_WARNING, fit
 from viscorig.fitting.result import Estimate, FitResult
 from viscorig.fitting.starts import disc_stiffness_samples, linear_start, table_linear_fit
+from viscorig.fitting.uncertainty import MISFIT_RATIO, Known
 
 __all__ = [
     "CORRELATION_WARNING",
     "MIN_POINTS",
+    "MISFIT_RATIO",
     "Estimate",
     "FitResult",
     "FrfData",
+    "FrfNoise",
+    "Known",
+    "NoiseModel",
     "disc_stiffness_samples",
+    "estimate_frf_noise",
+    "estimate_noise",
     "fit",
     "linear_start",
     "local_noise_power",

@@ -12,6 +12,8 @@ from viscorig.models import FRF_NAMES, Context
 
 #: Fewest frequency points a fit accepts in its band.
 MIN_POINTS = 8
+#: Optional real per-point fields.
+_REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support")
 
 
 def _complex_or_none(values: ArrayLike | None) -> NDArray[np.complex128] | None:
@@ -37,6 +39,9 @@ class FrfData:
         Seconds since the run's start at each point, or ``None``.
     reference_amplitude
         Achieved reference acceleration amplitude at each point (m/s²), or ``None``.
+    variance_table, variance_support
+        The analyser's normalized variance of each FRF at each point (relative power
+        ``E|δH/H|²`` within the point's integration), or ``None``.
     name
         Where the data comes from (run name), used in error messages.
     """
@@ -47,17 +52,19 @@ class FrfData:
     time_s: NDArray[np.float64] | None = None
     reference_amplitude: NDArray[np.float64] | None = None
     name: str = "data"
+    variance_table: NDArray[np.float64] | None = None
+    variance_support: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         frequency = np.atleast_1d(np.asarray(self.frequency_hz, dtype=float))
         object.__setattr__(self, "frequency_hz", frequency)
         object.__setattr__(self, "table", _complex_or_none(self.table))
         object.__setattr__(self, "support", _complex_or_none(self.support))
-        for field in ("time_s", "reference_amplitude"):
+        for field in _REAL_FIELDS:
             value = getattr(self, field)
             if value is not None:
                 object.__setattr__(self, field, np.atleast_1d(np.asarray(value, dtype=float)))
-        for field in ("table", "support", "time_s", "reference_amplitude"):
+        for field in ("table", "support", *_REAL_FIELDS):
             value = getattr(self, field)
             if value is not None and value.shape != frequency.shape:
                 raise InputError(
@@ -81,6 +88,13 @@ class FrfData:
             raise InputError(f"has no {FRF_NAMES[name]} (bare table run?)", self.name)
         return value
 
+    def variance(self, name: str) -> NDArray[np.float64] | None:
+        """The analyser's normalized variance of one FRF, or ``None`` when not all finite."""
+        value = getattr(self, f"variance_{name}", None)
+        if value is None or not np.all(np.isfinite(value) & (value > 0)):
+            return None
+        return value
+
     def context(self) -> Context:
         """The model context at these points."""
         return Context(self.frequency_hz, self.time_s, self.reference_amplitude)
@@ -89,7 +103,7 @@ class FrfData:
         """The data at the selected points."""
         pick = {
             field: None if getattr(self, field) is None else getattr(self, field)[index]
-            for field in ("table", "support", "time_s", "reference_amplitude")
+            for field in ("table", "support", *_REAL_FIELDS)
         }
         return replace(self, frequency_hz=self.frequency_hz[index], **pick)
 

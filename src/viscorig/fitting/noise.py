@@ -1,73 +1,459 @@
-"""The noise floor: the ``rms_error`` a perfect model would reach, estimated from the data alone.
+"""The noise model of a measured FRF, shared by the whole core.
 
-Method (local roughness of the FRF). A perfect model leaves the residual
-``H_model/H_measured − 1 ≈ −ε``, where ``ε`` is the relative measurement error of each point.
-Write ``L_i = log H_i`` (complex log, so relative errors become additive and a resonance's large
-dynamic range does not matter). ``L`` is smooth on the scale of the frequency step (a resonance
-half-power width of a few Hz spans many 0.25 Hz steps), so the sixth finite difference
-``Δ⁶L_i`` (binomial coefficients 1, −6, 15, −20, 15, −6, 1) removes the smooth part (a quintic
-exactly; the remaining bias scales as ``(Δf/B)⁶``, below 1e-5 for a 2 Hz wide resonance at
-0.25 Hz steps) and keeps ``924 σ_i²`` of independent noise (``Σ c_k² = C(12, 6)``). The
-differences are of ratios ``log(H_{i+1}/H_i)``, so no phase unwrapping is needed.
+What it describes. A measured accelerance is ``H_i = H_true,i (1 + ε_i)``; ``ε_i`` is the
+relative error of point ``i`` (complex: ``Re ε`` the relative magnitude error, ``Im ε`` the
+phase error in radians). A perfect model leaves the residual ``H_model/H_measured − 1 ≈ −ε``,
+so the model of ``ε`` is what the error measure, the standard errors and the significance tests
+all need. Per FRF, ``ε`` is modelled as the sum of two independent Gaussian parts:
 
-The noise power changes along the band (with constant acceleration the forces, and so their
-relative noise, change by orders of magnitude, and sharply near a resonance where the driving
-force dips), so ``σ_i²`` is estimated locally: the running mean, over 21 points, of
-``log(|Δ⁶L_i|²/924)``. Working on the log makes the estimate
-insensitive to isolated features that are *model* error and not noise (a fixture resonance a few
-points wide, a single bad point) and gives every point equal say; ``|d|²`` of complex Gaussian
-noise is exponential, and ``E[log X] = log E[X] − γ`` (Euler's γ), so ``γ`` is added back. The
-floor is ``sqrt(mean σ_i²)`` over all points of all FRFs fitted, the same pooling as
-``rms_error``.
+- *white*: independent from point to point, circular (real and imaginary parts each carry half),
+  with a power ``w_i = E|ε_w,i|²`` that changes along the band (under constant-acceleration
+  control the forces, and so their relative noise, change by orders of magnitude);
+- *correlated*: a stationary Gauss-Markov (Ornstein-Uhlenbeck) process in the test time ``t``,
+  with variance ``σ_re²`` on the real and ``σ_im²`` on the imaginary part and correlation
+  ``exp(−|t_i − t_j|/τ)``: the slow drift of a transducer's sensitivity or of a conditioning
+  phase during the sweep. Its variance does not depend on the signal level (a relative gain).
 
-Assumption, stated: neighbouring points have independent errors. The analyser's normalized
-variance (``variance_table``, ``variance_support``) measures scatter within one point's
-integration only, and misses point-to-point scatter (level control, drift), which a model sees;
-that is why the floor is estimated from the FRF itself.
+Where the data carry no test time, the point index stands for it (``axis_unit`` "point").
+The covariance of the stacked real residual ``[Re ε; Im ε]`` is block diagonal:
+``Σ_re = diag(w/2) + σ_re² R``, ``Σ_im = diag(w/2) + σ_im² R``, ``R_ij = exp(−|t_i − t_j|/τ)``.
+
+What it offers (:class:`NoiseModel`, one or more FRFs): the total power per point
+(:meth:`NoiseModel.power`, the local ``σ_i²``), the noise floor (:attr:`NoiseModel.floor`), the
+whitening of residual vectors and Jacobians (:meth:`NoiseModel.whiten`, Cholesky factors of the
+blocks, so that ``‖whiten(r)‖² = rᵀ Σ⁻¹ r``), the Gaussian log-likelihood, χ² and BIC of a
+residual, the effective number of independent points, and the sandwich covariance of a
+least-squares estimate under this noise (:meth:`NoiseModel.sandwich`).
+
+The estimation from the data alone is in :mod:`viscorig.fitting.noise_estimation`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg import cho_factor, solve_triangular
 
-#: Order of the finite difference and its noise gain Σ c_k² = C(2·order, order).
-_ORDER = 6
-_GAIN = float(math.comb(2 * _ORDER, _ORDER))
+#: Parts of the relative error, in the order of the fitter's stacked real residual.
+PARTS = ("re", "im")
 
 
-def local_noise_power(frf: NDArray[np.complex128], window: int = 21) -> NDArray[np.float64]:
-    """Estimated ``E|ε_i|²`` at each point of one FRF (relative error power).
+def exponential_kernel_apply(
+    axis: NDArray[np.float64], tau: float, values: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``R @ values`` with ``R_ij = exp(−|t_i − t_j|/τ)``, in O(n) per column.
+
+    ``R`` is the covariance of a Gauss-Markov process: it splits into a causal and an
+    anti-causal exponential filter, ``y_i = Σ_{j≤i} e^{−(t_i−t_j)/τ} x_j + Σ_{j≥i} … − x_i``,
+    each a cumulative sum after scaling by ``e^{±t/τ}`` (in blocks short enough not to
+    overflow).
 
     Parameters
     ----------
-    frf
-        Complex FRF, points in frequency order, at least 10 of them.
-    window
-        Points of the running mean of ``log |Δ⁶ log H|²`` (odd; shrinks at the band's edges).
+    axis
+        ``t_i`` in any order (``values`` rows follow it).
+    tau
+        Correlation length, in the unit of ``axis``.
+    values
+        ``(n,)`` or ``(n, k)`` real array.
     """
-    frf = np.asarray(frf, dtype=complex)
-    if frf.size < 10:
-        raise ValueError("the noise estimate needs at least 10 points")
-    steps = np.log(frf[1:] / frf[:-1])  # first difference of log H, no unwrapping needed
-    difference = np.diff(steps, n=_ORDER - 1)  # Δ⁶ log H, centred on points 3..n-4
-    log_power = np.log(np.abs(difference) ** 2 / _GAIN + 1e-300)
-    pad = _ORDER // 2
-    log_power = np.concatenate(
-        [np.full(pad, log_power[0]), log_power, np.full(pad, log_power[-1])]
+    x = np.asarray(values, dtype=float)
+    flat = x.ndim == 1
+    if flat:
+        x = x[:, None]
+    order = np.argsort(axis, kind="stable")
+    s = np.asarray(axis, dtype=float)[order] / tau
+    xs = x[order]
+    forward = _causal_exponential(s, xs)
+    backward = _causal_exponential(-s[::-1], xs[::-1])[::-1]
+    result = np.empty_like(xs)
+    result[order] = forward + backward - xs
+    return result[:, 0] if flat else result
+
+
+#: Largest span of ``t/τ`` handled in one cumulative sum (``e^300`` is far from overflow).
+_BLOCK_SPAN = 300.0
+
+
+def _causal_exponential(s: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``y_i = Σ_{j≤i} e^{−(s_i − s_j)} x_j`` for non-decreasing ``s``."""
+    n = s.size
+    y = np.empty_like(x)
+    start, carry, s_carry = 0, None, 0.0
+    while start < n:
+        stop = int(np.searchsorted(s, s[start] + _BLOCK_SPAN, side="right"))
+        stop = max(stop, start + 1)
+        offset = s[start:stop] - s[start]
+        scale = np.exp(offset)[:, None]
+        block = np.cumsum(x[start:stop] * scale, axis=0) / scale
+        if carry is not None:
+            block += carry[None, :] * np.exp(-(s[start:stop] - s_carry))[:, None]
+        y[start:stop] = block
+        carry, s_carry = block[-1], s[stop - 1]
+        start = stop
+    return y
+
+
+@dataclass
+class FrfNoise:
+    """The noise of one FRF of one run (see the module text for the model).
+
+    Attributes
+    ----------
+    frf
+        Name of the FRF (``"table"``, ``"support"``).
+    white_power
+        ``w_i = E|ε_w,i|²`` at each point (both parts together), in the data's point order.
+    correlated_power
+        ``(σ_re², σ_im²)``: variance of the correlated part on the real (magnitude) and the
+        imaginary (phase) part of ``ε``.
+    correlation_length
+        ``τ``, in the unit of ``axis`` (seconds of test time, or points).
+    axis
+        ``t_i`` of each point (test time ``time_s``, or the point index).
+    axis_unit
+        ``"s"`` or ``"point"``.
+    resolution
+        Longest correlation length the data could resolve (same unit); a drift slower than
+        this is indistinguishable from the FRF's own shape (see the estimation module).
+    source
+        How the white part was obtained (``"differences"`` or ``"analyser variance"``).
+    outliers
+        Points that stand alone far outside the noise (heavy-tailed noise), left out of the
+        estimate; ``None`` when none were looked for. Their white power is the local one: a
+        consumer that wants to ignore them must do so itself (a whitened residual there is
+        large by construction).
+    """
+
+    frf: str
+    white_power: NDArray[np.float64]
+    correlated_power: tuple[float, float] = (0.0, 0.0)
+    correlation_length: float = 1.0
+    axis: NDArray[np.float64] | None = None
+    axis_unit: str = "point"
+    resolution: float = math.inf
+    source: str = "differences"
+    outliers: NDArray[np.bool_] | None = None
+    _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
+        default_factory=dict, repr=False, compare=False
     )
-    half = min(window, frf.size) // 2
-    cumulative = np.concatenate([[0.0], np.cumsum(log_power)])
-    index = np.arange(frf.size)
-    lo, hi = np.maximum(index - half, 0), np.minimum(index + half + 1, frf.size)
-    local_mean = (cumulative[hi] - cumulative[lo]) / (hi - lo)
-    # E[log X] = log E[X] - γ for an exponential X: add γ back to get the mean power.
-    return np.exp(local_mean + np.euler_gamma)
+
+    def __post_init__(self) -> None:
+        self.white_power = np.maximum(np.asarray(self.white_power, dtype=float), 1e-300)
+        if self.axis is None:
+            self.axis = np.arange(self.white_power.size, dtype=float)
+        self.axis = np.asarray(self.axis, dtype=float)
+        re, im = (max(float(v), 0.0) for v in self.correlated_power)
+        self.correlated_power = (re, im)
+
+    @property
+    def size(self) -> int:
+        """Number of points."""
+        return int(self.white_power.size)
+
+    @property
+    def correlated(self) -> bool:
+        """The model has a correlated part."""
+        return max(self.correlated_power) > 0.0
+
+    def power(self) -> NDArray[np.float64]:
+        """``E|ε_i|²`` at each point: white plus correlated (both parts)."""
+        return self.white_power + sum(self.correlated_power)
+
+    def part_variance(self, part: str) -> tuple[NDArray[np.float64], float]:
+        """Diagonal (white) variance and correlated variance of one part (``"re"``/``"im"``)."""
+        return self.white_power / 2.0, self.correlated_power[PARTS.index(part)]
+
+    def covariance(self, part: str) -> NDArray[np.float64]:
+        """Dense covariance matrix of one part of ``ε`` (``n × n``)."""
+        white, sigma2 = self.part_variance(part)
+        matrix = np.diag(white)
+        if sigma2 > 0.0:
+            lag = np.abs(self.axis[:, None] - self.axis[None, :])
+            matrix = matrix + sigma2 * np.exp(-lag / self.correlation_length)
+        return matrix
+
+    def apply_covariance(self, part: str, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``Σ_part @ values`` (rows: points) without forming ``Σ``."""
+        white, sigma2 = self.part_variance(part)
+        values = np.asarray(values, dtype=float)
+        out = white.reshape((-1,) + (1,) * (values.ndim - 1)) * values
+        if sigma2 > 0.0:
+            out = out + sigma2 * exponential_kernel_apply(
+                self.axis, self.correlation_length, values
+            )
+        return out
+
+    def _factor(self, part: str) -> tuple[NDArray[np.float64], bool]:
+        """Lower Cholesky factor of ``Σ_part`` (or the diagonal's square root), cached."""
+        if part not in self._factors:
+            white, sigma2 = self.part_variance(part)
+            if sigma2 > 0.0:
+                lower, _ = cho_factor(self.covariance(part), lower=True, check_finite=False)
+                self._factors[part] = (np.tril(lower), True)
+            else:
+                self._factors[part] = (np.sqrt(white), False)
+        return self._factors[part]
+
+    def whiten_part(self, part: str, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``L⁻¹ values`` with ``Σ_part = L Lᵀ`` (rows: points; a vector or a matrix)."""
+        factor, dense = self._factor(part)
+        values = np.asarray(values, dtype=float)
+        if dense:
+            return solve_triangular(factor, values, lower=True, check_finite=False)
+        return values / factor.reshape((-1,) + (1,) * (values.ndim - 1))
+
+    def logdet(self) -> float:
+        """``log det Σ`` of both parts."""
+        total = 0.0
+        for part in PARTS:
+            factor, dense = self._factor(part)
+            diagonal = np.diag(factor) if dense else factor
+            total += 2.0 * float(np.sum(np.log(diagonal)))
+        return total
+
+    def effective_points(self) -> float:
+        """Independent real observations the FRF is worth: ``Σ_parts n² / ‖C_part‖_F²``.
+
+        ``C`` is the correlation matrix of the part (covariance scaled to a unit diagonal),
+        so white noise gives ``2n`` and a part dominated by a drift of correlation length ``ℓ``
+        points gives about ``n/ℓ`` (the participation ratio of its eigenvalues).
+        """
+        n = self.size
+        total = 0.0
+        for part in PARTS:
+            white, sigma2 = self.part_variance(part)
+            if sigma2 <= 0.0:
+                total += n
+                continue
+            diagonal = white + sigma2
+            lag = np.abs(self.axis[:, None] - self.axis[None, :])
+            off = sigma2 * np.exp(-lag / self.correlation_length)
+            np.fill_diagonal(off, 0.0)
+            scaled = off / np.sqrt(np.outer(diagonal, diagonal))
+            total += n * n / (n + float(np.sum(scaled**2)))
+        return total
+
+    def select(self, index: NDArray) -> FrfNoise:
+        """The same noise at a subset of the points."""
+        return FrfNoise(
+            self.frf,
+            self.white_power[index],
+            self.correlated_power,
+            self.correlation_length,
+            self.axis[index],
+            self.axis_unit,
+            self.resolution,
+            self.source,
+            None if self.outliers is None else self.outliers[index],
+        )
+
+    def describe(self) -> str:
+        """One line for humans: white level, drift level and correlation length."""
+        text = f"{self.frf}: white rms {math.sqrt(float(np.mean(self.white_power))):.2g}"
+        if self.correlated:
+            re, im = (math.sqrt(v) for v in self.correlated_power)
+            text += (
+                f", correlated rms {re:.2g} (magnitude) / {im:.2g} (phase) over "
+                f"{self.correlation_length:.3g} {self.axis_unit}"
+            )
+        count = 0 if self.outliers is None else int(np.count_nonzero(self.outliers))
+        if count:
+            text += f", {count} outlier point{'s' if count > 1 else ''}"
+        return text + f" ({self.source})"
 
 
-def noise_floor(frfs: list[NDArray[np.complex128]], window: int = 21) -> float:
+@dataclass
+class NoiseModel:
+    """The noise of every FRF fitted together: one or more blocks per FRF.
+
+    ``blocks[frf]`` holds the :class:`FrfNoise` of consecutive segments of that FRF's points
+    (one per run when runs are diagnosed together); the points of an FRF are the concatenation
+    of its blocks, in the order the data hold them. Blocks are independent of each other.
+    Residual vectors in the fitter's layout stack the real parts of every FRF, then the
+    imaginary parts (``[Re r_table, Re r_support, Im r_table, Im r_support]``).
+    """
+
+    blocks: dict[str, list[FrfNoise]]
+
+    @classmethod
+    def of(cls, *noises: FrfNoise) -> NoiseModel:
+        """A model of single-block FRFs."""
+        return cls({noise.frf: [noise] for noise in noises})
+
+    @classmethod
+    def join(cls, models: Sequence[NoiseModel]) -> NoiseModel:
+        """Runs side by side: the blocks of each FRF concatenated in the order given."""
+        blocks: dict[str, list[FrfNoise]] = {}
+        for model in models:
+            for frf, parts in model.blocks.items():
+                blocks.setdefault(frf, []).extend(parts)
+        return cls(blocks)
+
+    @property
+    def frfs(self) -> tuple[str, ...]:
+        """The FRFs described."""
+        return tuple(self.blocks)
+
+    def points(self, frf: str) -> int:
+        """Points of one FRF."""
+        return sum(block.size for block in self.blocks[frf])
+
+    def power(self, frf: str) -> NDArray[np.float64]:
+        """``E|ε_i|²`` at every point of one FRF (white plus correlated): the local ``σ_i²``."""
+        return np.concatenate([block.power() for block in self.blocks[frf]])
+
+    def scale(self, frf: str) -> NDArray[np.float64]:
+        """``σ_i``: the rms relative error of each point of one FRF."""
+        return np.sqrt(self.power(frf))
+
+    def floor_of(self, frfs: Sequence[str] | None = None) -> float:
+        """Noise floor of the error measure over the given FRFs (default all)."""
+        frfs = self.frfs if frfs is None else tuple(frfs)
+        return float(np.sqrt(np.mean(np.concatenate([self.power(frf) for frf in frfs]))))
+
+    @property
+    def floor(self) -> float:
+        """``sqrt(mean σ_i²)`` over every point of every FRF: the ``rms_error`` a perfect model
+        would reach (design.md), the same pooling as ``rms_error``."""
+        return self.floor_of()
+
+    @property
+    def correlated(self) -> bool:
+        """Some block has a correlated part."""
+        return any(block.correlated for blocks in self.blocks.values() for block in blocks)
+
+    def effective_points(self, frfs: Sequence[str] | None = None) -> float:
+        """Independent real observations (see :meth:`FrfNoise.effective_points`)."""
+        frfs = self.frfs if frfs is None else tuple(frfs)
+        return float(sum(b.effective_points() for frf in frfs for b in self.blocks[frf]))
+
+    # -- residual vectors ---------------------------------------------------------------------
+    def _segments(self, frfs: Sequence[str]) -> list[tuple[str, int, FrfNoise]]:
+        """``(part, offset, block)`` of every block in the stacked real layout."""
+        out = []
+        offset = 0
+        for part in PARTS:
+            for frf in frfs:
+                for block in self.blocks[frf]:
+                    out.append((part, offset, block))
+                    offset += block.size
+        return out
+
+    def stack(self, residuals: Mapping[str, NDArray[np.complex128]], frfs=None) -> NDArray:
+        """Complex residuals per FRF in the fitter's stacked real layout."""
+        frfs = tuple(residuals) if frfs is None else tuple(frfs)
+        joined = np.concatenate([np.asarray(residuals[frf]) for frf in frfs], axis=0)
+        return np.concatenate([joined.real, joined.imag], axis=0)
+
+    def whiten_stacked(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
+        """``Σ^{-1/2} values`` for a real vector or matrix in the stacked layout of ``frfs``."""
+        values = np.asarray(values, dtype=float)
+        out = np.empty_like(values)
+        for part, offset, block in self._segments(frfs):
+            rows = slice(offset, offset + block.size)
+            out[rows] = block.whiten_part(part, values[rows])
+        return out
+
+    def whiten(self, residuals: Mapping[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
+        """Whitened residual: a real vector whose squared norm is ``rᵀ Σ⁻¹ r`` (unit variance,
+        independent components when the model is right)."""
+        frfs = tuple(residuals)
+        return self.whiten_stacked(self.stack(residuals, frfs), frfs)
+
+    def whiten_jacobian(
+        self, jacobian: Mapping[str, NDArray[np.complex128]]
+    ) -> NDArray[np.float64]:
+        """Whitened Jacobian: complex ``∂r/∂p`` per FRF (points × parameters) to the real,
+        stacked, whitened ``(2N × k)`` matrix matching :meth:`whiten`."""
+        frfs = tuple(jacobian)
+        return self.whiten_stacked(self.stack(jacobian, frfs), frfs)
+
+    def apply_covariance(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
+        """``Σ @ values`` for a real vector or matrix in the stacked layout of ``frfs``."""
+        values = np.asarray(values, dtype=float)
+        out = np.empty_like(values)
+        for part, offset, block in self._segments(frfs):
+            rows = slice(offset, offset + block.size)
+            out[rows] = block.apply_covariance(part, values[rows])
+        return out
+
+    def chi2(self, residuals: Mapping[str, NDArray[np.complex128]]) -> float:
+        """``rᵀ Σ⁻¹ r``: chi-square with (real observations − parameters) degrees of freedom
+        for a maximum-likelihood fit of a right model."""
+        return float(np.sum(self.whiten(residuals) ** 2))
+
+    def logdet(self, frfs: Sequence[str] | None = None) -> float:
+        """``log det Σ`` over the given FRFs (default all)."""
+        frfs = self.frfs if frfs is None else tuple(frfs)
+        return float(sum(block.logdet() for frf in frfs for block in self.blocks[frf]))
+
+    def log_likelihood(self, residuals: Mapping[str, NDArray[np.complex128]]) -> float:
+        """Gaussian log-likelihood of the residuals: ``−(χ² + log det Σ + n log 2π)/2``."""
+        n = 2 * sum(np.asarray(r).size for r in residuals.values())
+        return -0.5 * (self.chi2(residuals) + self.logdet(tuple(residuals)) + n * math.log(
+            2 * math.pi))
+
+    def bic(self, residuals: Mapping[str, NDArray[np.complex128]], parameters: int) -> float:
+        """``χ² + k ln n_eff``: the Bayesian information criterion with this (known) noise,
+        without the constant terms (they cancel between models of the same data). ``n_eff`` is
+        :meth:`effective_points`: with correlated noise, fewer independent observations."""
+        n_eff = max(self.effective_points(tuple(residuals)), 2.0)
+        return self.chi2(residuals) + parameters * math.log(n_eff)
+
+    def sandwich(
+        self,
+        jacobian: NDArray[np.float64],
+        frfs: Sequence[str],
+        weights: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.float64]:
+        """Covariance of a least-squares estimate under this noise.
+
+        For the estimate minimising ``‖V r(p)‖²`` (``V = diag(weights)``, default 1) with the
+        stacked real Jacobian ``J = ∂r/∂p``: ``A⁻¹ Jᵀ V Σ V J A⁻¹`` with ``A = Jᵀ V² J``
+        (exact to first order whatever ``V``; ``V = Σ^{-1/2}`` would give ``A⁻¹``).
+        """
+        jac = np.asarray(jacobian, dtype=float)
+        vj = jac if weights is None else jac * weights[:, None]
+        a = vj.T @ vj
+        meat = vj.T @ self.apply_covariance(vj, frfs)
+        inverse = np.linalg.pinv(a, rcond=1e-14, hermitian=True)
+        return inverse @ meat @ inverse
+
+    def select(self, frf: str, index: NDArray) -> NoiseModel:
+        """The model of one single-block FRF at a subset of its points (and the other FRFs)."""
+        blocks = dict(self.blocks)
+        if len(blocks[frf]) != 1:
+            raise ValueError("select works on single-block FRFs")
+        blocks[frf] = [blocks[frf][0].select(index)]
+        return NoiseModel(blocks)
+
+    def describe(self) -> list[str]:
+        """One line per block."""
+        return [block.describe() for blocks in self.blocks.values() for block in blocks]
+
+
+def local_noise_power(
+    frf: NDArray[np.complex128],
+    window: int = 31,
+    frequency_hz: NDArray[np.float64] | None = None,
+    time_s: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """``E|ε_i|²`` at each point of one FRF (white plus correlated), from the data alone.
+
+    Kept for callers that hold one FRF as an array; see
+    :func:`viscorig.fitting.noise_estimation.estimate_frf_noise` for the model behind it.
+    """
+    from viscorig.fitting.noise_estimation import estimate_frf_noise
+
+    return estimate_frf_noise(frf, frequency_hz, time_s, window=window).power()
+
+
+def noise_floor(frfs: list[NDArray[np.complex128]], window: int = 31) -> float:
     """Noise floor of the error measure: ``sqrt(mean σ_i²)`` over every point of every FRF."""
     power = np.concatenate([local_noise_power(frf, window) for frf in frfs])
     return float(np.sqrt(np.mean(power)))

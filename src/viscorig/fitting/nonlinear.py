@@ -5,11 +5,11 @@ point of every FRF fitted. Positive parameters are fitted as ``log(value)``, the
 to their bounds, and ``scipy.optimize.least_squares`` (trust-region reflective) scales the steps
 by the Jacobian, so stiffnesses of 10⁵ N/m and masses of 0.2 kg need no hand tuning.
 
-Standard errors: the heteroscedasticity-consistent sandwich
-``cov = (JᵀJ)⁻¹ Jᵀ diag(r²) J (JᵀJ)⁻¹ · n/(n − k)`` from the Jacobian and residuals at the
-solution (in the fitted coordinates, then mapped to SI by the chain rule). The noise of a
-measured FRF changes along the band by orders of magnitude (constant acceleration control), so
-the textbook ``s² (JᵀJ)⁻¹`` would claim too small an uncertainty.
+Standard errors (:mod:`viscorig.fitting.uncertainty`): the sandwich of the least-squares
+estimate under the data's noise model (:mod:`viscorig.fitting.noise`: noise changing along the
+band by orders of magnitude, and a drift correlated along the sweep), scaled up by the misfit
+when the model does not reach the noise floor, plus the covariance of parameters held fixed at
+values identified elsewhere (the table's), propagated through the fit's sensitivities.
 """
 
 from __future__ import annotations
@@ -30,13 +30,14 @@ from viscorig.fitting.arms import (
 )
 from viscorig.fitting.data import FrfData
 from viscorig.fitting.jacobian import stiffness_derivatives
-from viscorig.fitting.noise import noise_floor
+from viscorig.fitting.noise import NoiseModel
+from viscorig.fitting.noise_estimation import estimate_noise
 from viscorig.fitting.result import FitResult
 from viscorig.fitting.starts import linear_start
+from viscorig.fitting.uncertainty import CORRELATION_WARNING, Known, fit_covariance, si_jacobian
 from viscorig.models import Maxwell, Model, parse_spec
 
-#: Correlation above which a warning names the pair of parameters.
-CORRELATION_WARNING = 0.95
+__all__ = ["CORRELATION_WARNING", "fit", "resolve_frfs"]
 
 
 class _Coordinates:
@@ -90,6 +91,8 @@ def fit(
     band_hz: tuple[float, float] | None = None,
     fixed: Mapping[str, float] | None = None,
     start: Mapping[str, float] | None = None,
+    known: Known | None = None,
+    noise: NoiseModel | None = None,
 ) -> FitResult:
     """Fit a model to measured FRFs; no start needs to be given.
 
@@ -109,6 +112,14 @@ def fit(
         Parameters held at given values (the table's ``M_s, K_s, C_s`` for a specimen run).
     start
         Start values overriding the linear start (rarely needed; for effect terms' own searches).
+    known
+        Parameters held fixed *with* their uncertainty (the table's, from the bare-table run):
+        their values join ``fixed`` and their covariance is propagated into the result's
+        (:mod:`viscorig.fitting.uncertainty`).
+    noise
+        The noise model of the data in the band (default: estimated from them,
+        :func:`viscorig.fitting.noise_estimation.estimate_noise`); pass it to fit several
+        models to the same data at the cost of one estimate.
 
     Raises
     ------
@@ -122,13 +133,18 @@ def fit(
     chosen = resolve_frfs(model, data, frfs)
     band = data.checked(chosen, band_hz)
     fixed = dict(fixed or {})
+    if known is not None:
+        fixed = {**known.values, **fixed}
     unknown = sorted(set(fixed) - set(model.names)) if not model.is_open else []
     if unknown:
         raise InputError(f"fixed parameters not in '{model.spec}': {', '.join(unknown)}")
-    floor = noise_floor([band.frf(name) for name in chosen])
+    if noise is None:
+        noise = estimate_noise(band, chosen)
+    elif any(noise.points(name) != band.frequency_hz.size for name in chosen):
+        raise ValueError("the noise model given does not describe the points fitted")
     if not model.is_open:
-        return _fit_concrete(model, band, chosen, fixed, start, floor)
-    return _select_order(model, band, chosen, fixed, start, floor)
+        return _fit_concrete(model, band, chosen, fixed, start, noise, known=known)
+    return _select_order(model, band, chosen, fixed, start, noise, known)
 
 
 def _select_order(
@@ -137,7 +153,8 @@ def _select_order(
     frfs: tuple[str, ...],
     fixed: Mapping[str, float],
     start: Mapping[str, float] | None,
-    floor: float,
+    noise: NoiseModel,
+    known: Known | None = None,
 ) -> FitResult:
     """Fit the candidates of an open model and return the refined one of lowest BIC.
 
@@ -156,13 +173,13 @@ def _select_order(
     def search_fit(candidate: Model, values: Mapping[str, float] | None) -> FitResult:
         if projected and values is None:
             lower = [r for r in results.values() if r.spec not in degenerate]
-            return _fit_maxwell_candidate(candidate, data, frfs, fixed, floor, lower)
+            return _fit_maxwell_candidate(candidate, data, frfs, fixed, noise, lower)
         if projected:
             return _fit_concrete(
-                candidate, data, frfs, fixed, values, floor, tolerance=1e-6,
+                candidate, data, frfs, fixed, values, noise, tolerance=1e-6,
                 max_evaluations=ORDER_SEARCH_EVALUATIONS, bounded_fallback=False,
             )  # fmt: skip
-        return _fit_concrete(candidate, data, frfs, fixed, values or start, floor, tolerance=1e-6)
+        return _fit_concrete(candidate, data, frfs, fixed, values or start, noise, tolerance=1e-6)
 
     def reduce(result: FitResult) -> None:
         """Refit the order below ``result``'s from its surviving arms; keep the better fit."""
@@ -211,12 +228,13 @@ def _select_order(
     chosen_one = min(eligible or list(results.values()), key=lambda result: result.bic)
     # The comparison needs only coarse convergence; the chosen variant is then refined, and
     # reduced while the refined fit leaves an arm dead.
-    best = _fit_concrete(chosen_one.model, data, frfs, fixed, chosen_one.values, floor)
+    best = _fit_concrete(chosen_one.model, data, frfs, fixed, chosen_one.values, noise,
+                         known=known)
     while (dead := dead_arms(best)) and (maxwell_order(best.model) or 0) > len(dead):
         degenerate[best.spec] = "; ".join(dead.values())
         lower = by_order[(maxwell_order(best.model) or 0) - len(dead)]
         start_values = reduced_start(best, list(dead), lower)
-        best = _fit_concrete(lower, data, frfs, fixed, start_values, floor)
+        best = _fit_concrete(lower, data, frfs, fixed, start_values, noise, known=known)
         if lower.spec not in results or best.bic < results[lower.spec].bic:
             results[lower.spec] = best
     ordered = [results[spec] for spec in by_spec if spec in results]
@@ -257,7 +275,7 @@ def _fit_maxwell_candidate(
     data: FrfData,
     frfs: tuple[str, ...],
     fixed: Mapping[str, float],
-    floor: float,
+    noise: NoiseModel,
     lower_orders: Sequence[FitResult],
 ) -> FitResult:
     """One Maxwell order during the order search: a few nonlinear steps from the better of its
@@ -283,7 +301,7 @@ def _fit_maxwell_candidate(
 
     best = min(starts, key=error)
     return _fit_concrete(
-        candidate, data, frfs, fixed, best, floor, tolerance=1e-6,
+        candidate, data, frfs, fixed, best, noise, tolerance=1e-6,
         max_evaluations=ORDER_SEARCH_EVALUATIONS, bounded_fallback=False,
     )  # fmt: skip
 
@@ -294,10 +312,11 @@ def _fit_concrete(
     frfs: tuple[str, ...],
     fixed: Mapping[str, float],
     start: Mapping[str, float] | None,
-    floor: float,
+    noise: NoiseModel,
     tolerance: float = 1e-9,
     max_evaluations: int | None = None,
     bounded_fallback: bool = True,
+    known: Known | None = None,
 ) -> FitResult:
     free = tuple(name for name in model.names if name not in fixed)
     if start and all(name in start for name in free):  # a complete start: no linear start
@@ -360,23 +379,37 @@ def _fit_concrete(
     r = residual(solution.x)
     n, k = r.size, len(free)
     rss = float(r @ r)
-    covariance, warnings = _covariance(solution.jac, r, n, k, fitted, coordinates, free)
+    half = r.size // 2
+    complex_residual = r[:half] + 1j * r[half:]
+    rms_error = float(np.sqrt(np.mean(np.abs(complex_residual) ** 2)))
+    inherited = tuple(name for name in (known.names if known else ()) if name in model.by_name)
+    inherited_jac = None
+    if inherited:
+        inherited_jac = si_jacobian(model, ctx, values, inherited, frfs, measured)
+    if known is not None and inherited != tuple(known.names):
+        keep = [known.names.index(name) for name in inherited]
+        known = Known(known.values, inherited, known.covariance[np.ix_(keep, keep)],
+                      known.source)
+    uncertainty = fit_covariance(
+        solution.jac, coordinates.derivative(fitted), free, noise, frfs, rms_error, r,
+        inherited_jac, known,
+    )  # fmt: skip
+    warnings = list(uncertainty.warnings)
     stderr = dict.fromkeys(model.names, 0.0)
-    stderr.update(zip(free, np.sqrt(np.abs(np.diag(covariance))), strict=True))
+    stderr.update(zip(uncertainty.names, np.sqrt(np.abs(np.diag(uncertainty.covariance))),
+                      strict=True))
     for name, x, lo, hi in zip(free, solution.x, lower, upper, strict=True):
         if min(x - lo, hi - x) < 1e-6 * (hi - lo):
             warnings.append(f"{name} is at a bound; its standard error is not meaningful")
-    half = r.size // 2
-    complex_residual = r[:half] + 1j * r[half:]
     points = data.frequency_hz.size
     return FitResult(
         model=model,
         values={name: float(v) for name, v in values.items()},
         stderr=stderr,
         free=free,
-        covariance=covariance,
-        rms_error=float(np.sqrt(np.mean(np.abs(complex_residual) ** 2))),
-        noise_floor=floor,
+        covariance=uncertainty.covariance[:k, :k],
+        rms_error=rms_error,
+        noise_floor=noise.floor_of(frfs),
         band_hz=(float(data.frequency_hz.min()), float(data.frequency_hz.max())),
         points=points,
         frfs=frfs,
@@ -387,6 +420,13 @@ def _fit_concrete(
         bic=float(n * np.log(max(rss, 1e-300) / n) + k * np.log(n)),
         nfev=int(solution.nfev),
         warnings=warnings,
+        noise=noise,
+        covariance_names=uncertainty.names,
+        joint_covariance=uncertainty.covariance,
+        noise_covariance=uncertainty.noise_covariance,
+        misfit_scale=uncertainty.misfit_scale,
+        fits_noise=uncertainty.fits_noise,
+        inherited_from=known.source if known is not None and inherited else "",
     )
 
 
@@ -435,45 +475,3 @@ def _least_squares(
             max_nfev=max_evaluations,
             **options,
         )
-
-
-def _covariance(
-    jac: NDArray[np.float64],
-    residual: NDArray[np.float64],
-    n: int,
-    k: int,
-    fitted: NDArray[np.float64],
-    coordinates: _Coordinates,
-    free: tuple[str, ...],
-) -> tuple[NDArray[np.float64], list[str]]:
-    """Covariance in SI units and correlation warnings."""
-    warnings: list[str] = []
-    if k == 0:
-        return np.zeros((0, 0)), warnings
-    # (JᵀJ)⁻¹ from the Gram matrix of unit-norm columns: a small product and a k x k eigen
-    # decomposition, where an SVD of the tall J would call threaded LAPACK (slow on a busy
-    # machine). Directions below 1e-7 of the largest singular value count as not identified.
-    norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))
-    norms[norms == 0] = 1.0
-    scaled = jac / norms
-    eigenvalues, vectors = np.linalg.eigh(scaled.T @ scaled)
-    keep = eigenvalues > eigenvalues.max() * 1e-14
-    if not np.all(keep):
-        warnings.append("the parameters are not all identifiable from these data (rank deficient)")
-    inverse = ((vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T) / np.outer(norms, norms)
-    # Sandwich (HC1): the noise of an FRF changes along the band by orders of magnitude, so
-    # the textbook s²(JᵀJ)⁻¹, which assumes equal variance at every point, would be too small.
-    weighted = jac * residual[:, None]
-    meat = weighted.T @ weighted * (n / max(n - k, 1))
-    d = coordinates.derivative(fitted)
-    covariance = (inverse @ meat @ inverse) * np.outer(d, d)
-    sigma = np.sqrt(np.abs(np.diag(covariance)))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = covariance / np.outer(sigma, sigma)
-    for i in range(k):
-        for j in range(i + 1, k):
-            if abs(rho[i, j]) > CORRELATION_WARNING:
-                warnings.append(
-                    f"{free[i]} and {free[j]} are strongly correlated (ρ = {rho[i, j]:+.3f})"
-                )
-    return covariance, warnings

@@ -8,11 +8,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.fitting.noise import NoiseModel
 from viscorig.models import Context, Model
 
 
 class Estimate(NamedTuple):
-    """One fitted parameter: value, standard error (0 when fixed), SI unit."""
+    """One parameter: value, standard error (0 when held fixed exactly), SI unit."""
 
     value: float
     stderr: float
@@ -30,11 +31,13 @@ class FitResult:
     values
         Every parameter's value (fixed ones included), by global name.
     stderr
-        Standard error of every free parameter (0 for fixed ones).
+        Standard error of every parameter: fitted ones, and those held fixed at values taken
+        from elsewhere with an uncertainty (inherited); 0 for values held fixed exactly.
     free
         Names of the fitted parameters, in the order of ``covariance``.
     covariance
-        Covariance of the free parameters (SI units), scaled by the residual variance.
+        Covariance of the fitted parameters (SI units): noise, misfit scale and inherited
+        uncertainty (:mod:`viscorig.fitting.uncertainty`).
     rms_error
         ``sqrt(mean |H_model/H_measured − 1|²)`` over every point of every FRF fitted.
     noise_floor
@@ -53,6 +56,21 @@ class FitResult:
         Human-readable warnings (strongly correlated parameters, values at a bound).
     candidates
         When the spec left a choice open: ``(spec, bic, rms_error)`` of every variant tried.
+    noise
+        The noise model of the data fitted (shared with diagnosis).
+    covariance_names, joint_covariance
+        The fitted parameters then the inherited ones, and their joint covariance.
+    noise_covariance
+        Covariance of the fitted parameters from the noise alone (no misfit scale, nothing
+        inherited).
+    misfit_scale
+        Factor by which the noise part was scaled for the misfit (the Birge ratio
+        ``(rms_error/noise_floor)²``, at least 1).
+    fits_noise
+        The model fits to the noise (``rms_error`` within 1.25 times the floor): the ± are
+        measurement uncertainties. Otherwise they are those of the model's band-average.
+    inherited_from
+        Where the inherited parameters came from (``"run 'table'"``), or ``""``.
     """
 
     model: Model
@@ -71,6 +89,29 @@ class FitResult:
     nfev: int = 0
     warnings: list[str] = field(default_factory=list)
     candidates: list[tuple[str, float, float]] = field(default_factory=list)
+    noise: NoiseModel | None = None
+    covariance_names: tuple[str, ...] = ()
+    joint_covariance: NDArray[np.float64] | None = None
+    noise_covariance: NDArray[np.float64] | None = None
+    misfit_scale: float = 1.0
+    fits_noise: bool = True
+    inherited_from: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.covariance_names:
+            self.covariance_names = tuple(self.free)
+        if self.joint_covariance is None:
+            self.joint_covariance = np.asarray(self.covariance)
+
+    @property
+    def inherited(self) -> tuple[str, ...]:
+        """Parameters held fixed at values from elsewhere with an uncertainty."""
+        return tuple(name for name in self.covariance_names if name not in self.free)
+
+    @property
+    def uncertain(self) -> tuple[str, ...]:
+        """Parameters with a standard error: fitted and inherited (the JSON's non-null ones)."""
+        return tuple(self.covariance_names)
 
     @property
     def spec(self) -> str:
@@ -87,10 +128,12 @@ class FitResult:
 
     @property
     def correlation(self) -> NDArray[np.float64]:
-        """Correlation matrix of the free parameters."""
-        sigma = np.sqrt(np.diag(self.covariance))
+        """Correlation matrix of :attr:`covariance_names` (fitted, then inherited)."""
+        covariance = np.asarray(self.joint_covariance)
+        sigma = np.sqrt(np.abs(np.diag(covariance)))
         with np.errstate(invalid="ignore", divide="ignore"):
-            return self.covariance / np.outer(sigma, sigma)
+            rho = covariance / np.outer(sigma, sigma)
+        return np.where(np.isfinite(rho), rho, 0.0)
 
     def predict(
         self,
@@ -107,11 +150,15 @@ class FitResult:
         return self.model.kstar(Context(np.asarray(frequency_hz, dtype=float)), self.values)
 
     def to_json(self, run: str) -> dict[str, Any]:
-        """The ``identify --json`` object of design.md (plus ``frfs``).
+        """The ``identify --json`` object of design.md, plus ``frfs``, ``fits_noise``,
+        ``uncertainty`` (what the ± include) and ``correlation``.
 
-        A parameter held fixed in this fit (the table's, taken from the bare-table run) has
-        ``stderr`` null: it was not estimated here, and 0 would read as exactly known.
+        A parameter held fixed exactly (no uncertainty known) has ``stderr`` null: it was not
+        estimated here, and 0 would read as exactly known. One inherited with an uncertainty
+        (the table's, from the bare-table run) has its standard error.
         """
+        names = list(self.covariance_names)
+        rho = self.correlation
         return {
             "run": run,
             "model": self.spec,
@@ -120,12 +167,24 @@ class FitResult:
             "frfs": list(self.frfs),
             "rms_error": float(self.rms_error),
             "noise_floor": float(self.noise_floor),
+            "fits_noise": bool(self.fits_noise),
             "parameters": {
                 name: {
                     "value": float(e.value),
-                    "stderr": float(e.stderr) if name in self.free else None,
+                    "stderr": float(e.stderr) if name in names else None,
                     "unit": e.unit,
                 }
                 for name, e in self.parameters.items()
+            },
+            "uncertainty": {
+                "basis": "noise" if self.fits_noise else "band-average (misfit)",
+                "misfit_scale": float(self.misfit_scale),
+                "inherited": list(self.inherited),
+                "inherited_from": self.inherited_from or None,
+                "noise": self.noise.describe() if self.noise is not None else [],
+            },
+            "correlation": {
+                "parameters": names,
+                "matrix": [[round(float(v), 6) for v in row] for row in rho],
             },
         }
