@@ -65,12 +65,20 @@ def found(case: Case, effect: str, term: str, parameters: dict) -> bool:
     return True
 
 
-def run_case(case: Case) -> dict:
+#: Give diagnosis the analyser's normalized variance of each point, as a 35670A campaign file
+#: holds it (``--no-variance``: the FRFs alone, as some other tools export them).
+WITH_VARIANCE = True
+
+
+def run_case(case: Case, with_variance: bool | None = None) -> dict:
     """Measure and diagnose one case; what was found, and how long it took."""
     runs = measure(case)
+    variance = WITH_VARIANCE if with_variance is None else with_variance
     pieces = [
         (run.name, FrfData(run.frequency_hz, run.table, run.support, run.time_s,
-                           run.reference_amplitude, name=run.name))
+                           run.reference_amplitude, name=run.name,
+                           variance_table=run.variance_table if variance else None,
+                           variance_support=run.variance_support if variance else None))
         for run in runs
     ]
     start = time.perf_counter()

@@ -112,6 +112,10 @@ class Run:
     direction: str
     true_noise: float
     """rms over both FRFs of ``H_measured/H_noiseless − 1``: the noise this run really has."""
+    variance_table: np.ndarray | None = None
+    """The analyser's normalized variance of each FRF (both channels' summed), as the 35670A
+    reports it with every point."""
+    variance_support: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -218,10 +222,7 @@ def rig_text(case: Case) -> str:
 
 
 def _rig(case: Case, noise_scale: float) -> Rig:
-    if case.base == "voigt":
-        rig = parse_rig(rig_text(case), case.name)
-    else:
-        rig = load_preset(case.base)
+    rig = parse_rig(rig_text(case), case.name) if case.base == "voigt" else load_preset(case.base)
     densities = [noise_scale * p for p in NOISE_PATTERN]
     noise = f"""
 [noise]
@@ -316,10 +317,11 @@ def measure(case: Case) -> list[Run]:
         table, support = _frfs(volts)
         clean_table, clean_support = _frfs(clean.channel_v)
         error = np.concatenate([table / clean_table - 1, support / clean_support - 1])
+        v = record.variance
         runs.append(Run(
             name, record.frequency_hz, record.end_time_s, table, support,
             np.abs(volts[:, 3] / ACCELERATION_V_PER_M_S2), level, direction,
-            float(np.sqrt(np.mean(np.abs(error) ** 2))),
+            float(np.sqrt(np.mean(np.abs(error) ** 2))), v[:, 0] + v[:, 1], v[:, 2] + v[:, 3],
         ))
     return runs
 

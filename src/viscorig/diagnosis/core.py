@@ -11,6 +11,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
 from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with, identify_fit
@@ -27,6 +29,9 @@ from viscorig.storage import Campaign
 AT_FLOOR_RATIO = 1.25
 #: The model diagnosed when none is given: Voigt K*, on both FRFs.
 DEFAULT_MODEL = "voigt"
+#: A residual this many standard deviations high, alone (its neighbours within
+#: ``SPIKE_NEIGHBOUR``), is an outlier point, not something a model should explain.
+SPIKE, SPIKE_NEIGHBOUR = 5.0, 3.0
 #: Most effects ``auto`` adds.
 MAX_AUTO_STEPS = 6
 
@@ -78,10 +83,38 @@ class Diagnosis:
         """The ``rms_error`` a perfect model would reach, from the data alone."""
         return self.data.noise_floor
 
+    def outliers(self) -> dict[str, np.ndarray]:
+        """Outlier points per FRF: those the noise model found, and isolated spikes of this
+        fit's residual (more than :data:`SPIKE` standard deviations, both neighbours within
+        :data:`SPIKE_NEIGHBOUR`; noise alone makes one in 10¹⁰)."""
+        out = {}
+        masks = self.data.outliers
+        for frf in self.fit.frfs:
+            z = np.abs(self.fit.residuals[frf]) / np.sqrt(self.data.noise_power[frf])
+            left = np.concatenate([[0.0], z[:-1]])
+            right = np.concatenate([z[1:], [0.0]])
+            spike = (z > SPIKE) & (left < SPIKE_NEIGHBOUR) & (right < SPIKE_NEIGHBOUR)
+            out[frf] = masks[frf] | spike
+        return out
+
+    @property
+    def outlier_points(self) -> int:
+        """Points left out of the comparison with the noise floor (:meth:`outliers`)."""
+        return int(sum(np.count_nonzero(mask) for mask in self.outliers().values()))
+
+    @property
+    def rms_error_without_outliers(self) -> float:
+        """``rms_error`` over every point but the outliers: what the noise floor describes."""
+        masks = self.outliers()
+        kept = np.concatenate([np.abs(self.fit.residuals[frf][~masks[frf]]) ** 2
+                               for frf in self.fit.frfs])
+        return float(np.sqrt(np.mean(kept))) if kept.size else self.rms_error
+
     @property
     def at_noise_floor(self) -> bool:
-        """``rms_error`` within :data:`AT_FLOOR_RATIO` of the noise floor."""
-        return self.rms_error <= AT_FLOOR_RATIO * self.noise_floor
+        """The error is within :data:`AT_FLOOR_RATIO` of the noise floor, outlier points left
+        out on both sides (the noise floor describes the noise without them)."""
+        return self.rms_error_without_outliers <= AT_FLOOR_RATIO * self.noise_floor
 
     @property
     def significant(self) -> list[Finding]:
@@ -145,6 +178,7 @@ class Diagnosis:
             "rms_error": float(self.rms_error),
             "noise_floor": float(self.noise_floor),
             "at_noise_floor": bool(self.at_noise_floor),
+            "outlier_points": self.outlier_points,
             "failures": [band.to_json() for band in self.failures],
             "findings": [finding.to_json() for finding in self.findings],
             "advice": list(self.advice),
@@ -165,7 +199,6 @@ def analyse(
 
     ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
     """
-    result.noise_floor = data.noise_floor
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
@@ -215,8 +248,7 @@ def diagnose(
     spec = parse_spec(model or DEFAULT_MODEL)
     if spec.modulus_term is None or not spec.modulus_term.has_disc:
         raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
-    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}))
-    result.noise_floor = data.noise_floor
+    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}), noise=data.noise)
     return analyse(data, result)
 
 

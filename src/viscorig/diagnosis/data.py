@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FrfData, local_noise_power
+from viscorig.fitting import FrfData, NoiseModel, estimate_noise
 from viscorig.storage import Campaign, Run
 
 
@@ -35,7 +35,7 @@ class Segment:
 
 @dataclass(frozen=True)
 class DiagnosisData:
-    """The runs diagnosed together, as one :class:`FrfData`, with per-point noise power.
+    """The runs diagnosed together, as one :class:`FrfData`, with their noise model.
 
     Attributes
     ----------
@@ -47,16 +47,18 @@ class DiagnosisData:
         FRFs diagnosed (``"table"`` needs ``table``).
     table
         The table's ``M_s, K_s, C_s`` held fixed, or ``None`` (support FRF only).
-    noise_power
-        FRF name -> ``E|ε_i|²`` at every point (:func:`viscorig.fitting.local_noise_power`,
-        estimated run by run, from the data alone).
+    noise
+        The shared noise model of the core (:class:`viscorig.fitting.NoiseModel`: white power
+        along the band, a drift correlated in test time, outlier points), estimated run by run
+        from the data alone and joined in the order of the segments. The error floor, the
+        whitening of every comparison and so every threshold of diagnosis rest on it.
     """
 
     data: FrfData
     segments: tuple[Segment, ...]
     frfs: tuple[str, ...]
     table: dict[str, float] | None
-    noise_power: dict[str, NDArray[np.float64]]
+    noise: NoiseModel
 
     @property
     def run(self) -> str:
@@ -85,25 +87,66 @@ class DiagnosisData:
     @property
     def noise_floor(self) -> float:
         """``sqrt(mean σ_i²)`` over every point of every FRF: the rms a perfect model reaches."""
-        return float(np.sqrt(np.mean(np.concatenate(list(self.noise_power.values())))))
+        return self.noise.floor_of(self.frfs)
+
+    @property
+    def noise_power(self) -> dict[str, NDArray[np.float64]]:
+        """FRF name -> ``σ_i² = E|ε_i|²`` at every point (white plus correlated)."""
+        return {frf: self.noise.power(frf) for frf in self.frfs}
+
+    @property
+    def outliers(self) -> dict[str, NDArray[np.bool_]]:
+        """FRF name -> points the noise model found far outside the noise (heavy tails)."""
+        out = {}
+        for frf in self.frfs:
+            parts = [np.zeros(b.size, bool) if b.outliers is None else np.asarray(b.outliers)
+                     for b in self.noise.blocks[frf]]
+            out[frf] = np.concatenate(parts)
+        return out
 
     @property
     def residual_count(self) -> int:
-        """Real residuals a fit of every FRF has (real and imaginary part of every point)."""
-        return 2 * sum(self.noise_power[frf].size for frf in self.frfs)
+        """Real residuals that count (real and imaginary part of every point not an outlier)."""
+        return 2 * sum(int(np.count_nonzero(~mask)) for mask in self.outliers.values())
+
+    @property
+    def effective_points(self) -> float:
+        """Independent real observations the data are worth (fewer than 2N with a drift)."""
+        return max(self.noise.effective_points(self.frfs), 2.0)
 
     def whiten(self, residuals: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
-        """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, any number of
-        columns) as real numbers of unit variance when they are noise: the real and imaginary
-        parts of every FRF, in ``frfs`` order, each divided by its standard deviation."""
-        parts = []
+        """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, one column per
+        vector) whitened by the noise model: real numbers of unit variance, independent, when
+        they are noise. Outlier points are left out (their residual counts as zero)."""
+        masks = self._masks()
+        kept = {}
         for frf in self.frfs:
-            r = residuals[frf]
-            scale = np.sqrt(self.noise_power[frf] / 2.0)
-            if r.ndim > 1:
-                scale = scale[:, None]
-            parts += [r.real / scale, r.imag / scale]
-        return np.concatenate(parts)
+            r = np.asarray(residuals[frf], dtype=complex)
+            keep = masks[frf] if r.ndim == 1 else masks[frf][:, None]
+            kept[frf] = np.where(keep, r, 0.0)
+        if next(iter(kept.values())).ndim > 1:
+            return self.noise.whiten_jacobian(kept)
+        return self.noise.whiten(kept)
+
+    def whitened_power(self, residuals: dict[str, NDArray[np.complex128]]) -> dict[str, NDArray]:
+        """Whitened residual power per point and FRF (mean 1 when the residual is noise): the
+        squares of :meth:`whiten`'s real and imaginary components of each point, halved."""
+        e = self.whiten(residuals)
+        sizes = [self.noise.points(frf) for frf in self.frfs]
+        half = e.size // 2
+        out, start = {}, 0
+        for frf, size in zip(self.frfs, sizes, strict=True):
+            re, im = e[start : start + size], e[half + start : half + start + size]
+            out[frf] = (re**2 + im**2) / 2.0
+            start += size
+        return out
+
+    def _masks(self) -> dict[str, NDArray[np.bool_]]:
+        cached = self.__dict__.get("_kept")
+        if cached is None:
+            cached = {frf: ~mask for frf, mask in self.outliers.items()}
+            object.__setattr__(self, "_kept", cached)
+        return cached
 
 
 def _direction(frequency_hz: NDArray[np.float64]) -> str:
@@ -143,15 +186,14 @@ def combine(
         raise InputError(
             "the table FRF needs the table's M_s, K_s, C_s (a bare-table run or /rig)", main.name
         )
-    segments, noise = [], {name: [] for name in frfs}
+    segments, noises = [], []
     start = 0
     for name, data in pieces:
         data.checked(frfs, None)
         n = data.frequency_hz.size
         segments.append(Segment(name, slice(start, start + n), _level(data), _direction(
             data.frequency_hz)))
-        for frf in frfs:
-            noise[frf].append(local_noise_power(data.frf(frf)))
+        noises.append(estimate_noise(data, frfs))
         start += n
 
     def joined(field: str) -> NDArray | None:
@@ -173,7 +215,7 @@ def combine(
         tuple(segments),
         frfs,
         None if table is None else dict(table),
-        {frf: np.concatenate(parts) for frf, parts in noise.items()},
+        NoiseModel.join(noises),
     )
 
 

@@ -119,12 +119,6 @@ class Finding:
         """``rms_error`` of the candidate model (of :attr:`fit` when made)."""
         return self.fit.rms_error if self.fit is not None else self.likelihood.rms_error
 
-    @property
-    def bic(self) -> float:
-        """Whitened BIC of the candidate: ``χ² + k ln n``."""
-        n = self.likelihood.whitened.size
-        return float(self.likelihood.chi2 + len(self.likelihood.free) * np.log(n))
-
     def parameters(self) -> dict[str, dict[str, float | str]]:
         """The parameters the finding adds (or the new K* term's), with stderr and unit."""
         new = added_parameters(self.likelihood.model, self.term)
@@ -216,19 +210,16 @@ def fit_with(
     values = carried_values(current, model)
     values.update(_start_of(model, term_text, start or {}))
     fixed = dict(data.table or {})
-    result = fit(model, data.data, frfs=data.frfs, fixed=fixed,
+    result = fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
                  start={k: v for k, v in values.items() if k not in fixed})
-    result.noise_floor = data.noise_floor
     return result
 
 
 def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
     """The fit ``identify --model`` makes of a model, started at its likelihood fit."""
     fixed = dict(data.table or {})
-    result = fit(likelihood.model, data.data, frfs=data.frfs, fixed=fixed,
-                 start={k: v for k, v in likelihood.values.items() if k not in fixed})
-    result.noise_floor = data.noise_floor
-    return result
+    return fit(likelihood.model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
+               start={k: v for k, v in likelihood.values.items() if k not in fixed})
 
 
 def _broad(model: Model) -> set[str]:
@@ -306,11 +297,50 @@ def removes_enough(chi2_before: float, chi2_after: float, excess_before: float) 
     return chi2_before - chi2_after >= MIN_EXCESS_FRACTION * max(excess_before, 0.0)
 
 
-def _test(before: Likelihood, after: Likelihood, needed: float):
-    """``(Δχ², φ, passes)`` of ``after`` against ``before``."""
+#: Half-width of the neighbourhood of a local mode whose residual measures the local noise
+#: (Hz, and in half-power bandwidths of the mode), and of the guard band left out around it.
+NEIGHBOURHOOD_HZ, NEIGHBOURHOOD_WIDTHS, GUARD_WIDTHS = 4.0, 5.0, 1.5
+#: Largest whitened residual power a point brings to the local dispersion (outliers clipped).
+LOCAL_CLIP = 9.0
+
+
+def local_dispersion(result: Likelihood, term_text: str, data: DiagnosisData) -> float:
+    """Misfit of the noise model around a local mode: mean whitened residual power of
+    ``result`` over the mode's neighbourhood, its own half-power band left out, in the FRF where
+    it is largest (at least 1).
+
+    A detector that compares a local feature with the noise next to it (constant false-alarm
+    rate): where the noise model underestimates the noise over a few hertz (near the system's
+    resonance, where the force dips and the relative noise climbs faster than a running
+    estimate follows), the mode's ``Δχ²`` is scaled down by as much.
+    """
+    term = next((t for t in result.model.effects if t.spec == term_text), None)
+    if term is None or term.keyword != "fixture":
+        return 1.0
+    names = result.model.local_names(term)
+    f_n, zeta = result.values[names["f_n"]], result.values[names["zeta"]]
+    width = 2 * zeta * f_n
+    f = data.data.frequency_hz
+    near = (np.abs(f - f_n) <= max(NEIGHBOURHOOD_HZ, NEIGHBOURHOOD_WIDTHS * width)) & (
+        np.abs(f - f_n) > GUARD_WIDTHS * width)
+    masks = data.outliers
+    whitened = data.whitened_power(result.residuals)
+    worst = 1.0
+    for frf in data.frfs:  # each FRF's noise model may be off on its own
+        power = np.minimum(whitened[frf], LOCAL_CLIP)[near & ~masks[frf]]
+        if power.size >= 8:
+            worst = max(worst, float(np.mean(power)))
+    return worst
+
+
+def _test(
+    before: Likelihood, after: Likelihood, needed: float, data: DiagnosisData, term: str = ""
+):
+    """``(Δχ², φ, passes)`` of ``after`` against ``before`` (``term``: the term tested)."""
     delta = before.chi2 - after.chi2
-    phi = dispersion(after.chi2, after.whitened.size, len(after.free))
-    excess = before.chi2 - (before.whitened.size - len(before.free))
+    n = data.residual_count
+    phi = max(dispersion(after.chi2, n, len(after.free)), local_dispersion(after, term, data))
+    excess = before.chi2 - (n - len(before.free))
     passes = delta / phi > needed and removes_enough(before.chi2, after.chi2, excess)
     return delta, phi, passes
 
@@ -318,10 +348,11 @@ def _test(before: Likelihood, after: Likelihood, needed: float):
 def confirm(
     current: Likelihood, data: DiagnosisData, candidates: list[Candidate]
 ) -> tuple[list[Finding], Likelihood]:
-    """Fit every candidate, rank them (lowest ΔBIC first; among those the data cannot tell
+    """Fit every candidate, rank them (lowest ΔBIC first, ``n`` the effective number of
+    independent observations of the noise model; among those the data cannot tell
     apart, by :data:`PRIORITY`), test each next to the ones found significant before it, and
     return them significant first, with the fit of the model holding every significant one."""
-    n = current.whitened.size
+    n = data.effective_points
     findings: list[Finding] = []
     for candidate in candidates:
         best: tuple[float, Likelihood, str] | None = None
@@ -342,7 +373,7 @@ def confirm(
         result, term = _renamed(result, term, data)
         if candidate.effect == "fixture_resonance" and not _inside(result, term, data):
             continue  # a mode fitted outside the band is a smooth trend there, not a local mode
-        delta, phi, passes = _test(current, result, candidate.threshold)
+        delta, phi, passes = _test(current, result, candidate.threshold, data, term)
         k = len(result.free) - len(current.free)
         findings.append(Finding(
             candidate.effect, result.spec, result, float(delta), float(-delta + k * np.log(n)),
@@ -400,7 +431,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
                  **carried_values(base, model)}
         result = ml_fit(model, data, start,
                         only=_broad(model) | added_parameters(model, finding.term))
-        delta, phi, passes = _test(base, result, finding.threshold)
+        delta, phi, passes = _test(base, result, finding.threshold, data, finding.term)
         if passes:
             finding.significant = True
             accepted.append(finding)

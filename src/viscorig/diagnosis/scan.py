@@ -15,9 +15,10 @@ Huber scale, so that an outlier point, which is one point high, is no mode.
 
 The grid: ``ζ`` in :data:`DAMPING_RATIOS` (at least one frequency step within the half-power
 band), ``f_n`` inside the band with its half-power band (a mode whose peak lies outside the data
-is a smooth trend to them, not a local mode), in steps of ``ζ/2`` in log frequency, so neighbouring templates overlap by about
-90 %. The threshold is :func:`viscorig.diagnosis.significance.scan_threshold` of the scan's
-length ``L``, the summed arc length of the normalised templates along frequency for each width.
+is a smooth trend to them, not a local mode), in steps of ``ζ/2`` in log frequency, so
+neighbouring templates overlap by about 90 %. The threshold is
+:func:`viscorig.diagnosis.significance.scan_threshold` of the scan's length ``L``, the summed arc
+length of the normalised templates along frequency for each width.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from viscorig.diagnosis.weighted import Likelihood, winsorized
 from viscorig.models import Model, Term
 
 #: Damping ratios of the local modes scanned for.
-DAMPING_RATIOS = (0.005, 0.01, 0.02, 0.04, 0.08)
+DAMPING_RATIOS = (0.005, 0.008, 0.0125, 0.02, 0.032, 0.05, 0.08)
 #: Peaks closer than this (Hz), or than two half-power bandwidths of the stronger, are one mode.
 SEPARATION_HZ = 2.0
 

@@ -108,12 +108,44 @@ class Likelihood:
         return out
 
 
-def _coordinates(model: Model, free: tuple[str, ...]):
+#: Damping ratios of a local mode a diagnosis fits: from the one whose half-power band spans a
+#: frequency step (narrower, it would fit a single noisy point) to the broadest the scan tries
+#: (broader, it is a smooth trend, not a local mode).
+MODE_DAMPING_MAX = 0.1
+
+
+def resolvable_bounds(
+    model: Model, data: DiagnosisData, values: Mapping[str, float]
+) -> dict[str, tuple[float, float]]:
+    """Bounds of the local modes' damping ratios that these data resolve (see
+    :data:`MODE_DAMPING_MAX`)."""
+    steps = np.diff(np.unique(data.data.frequency_hz))
+    step = float(np.median(steps)) if steps.size else 0.0
+    bounds = {}
+    for term in model.effects:
+        if term.keyword != "fixture":
+            continue
+        names = model.local_names(term)
+        f_n = float(values.get(names["f_n"], term.argument or 100.0))
+        bounds[names["zeta"]] = (max(1e-4, step / (2 * f_n)), MODE_DAMPING_MAX)
+    return bounds
+
+
+def _coordinates(
+    model: Model,
+    free: tuple[str, ...],
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+):
     parameters = [model.by_name[name] for name in free]
     log = np.array([p.log for p in parameters], dtype=bool)
-    lower = np.array([np.log(p.lower) if p.log else p.lower for p in parameters])
-    upper = np.array([np.log(p.upper) if p.log else p.upper for p in parameters])
-    return log, lower, upper
+    limits = [(max(p.lower, (bounds or {}).get(p.name, (p.lower, p.upper))[0]),
+               min(p.upper, (bounds or {}).get(p.name, (p.lower, p.upper))[1]))
+              for p in parameters]
+    lower = np.array([np.log(lo) if p.log else lo for p, (lo, _) in zip(parameters, limits,
+                                                                          strict=True)])
+    upper = np.array([np.log(hi) if p.log else hi for p, (_, hi) in zip(parameters, limits,
+                                                                          strict=True)])
+    return log, lower, np.maximum(upper, lower + 1e-12)
 
 
 def ml_fit(
@@ -126,14 +158,15 @@ def ml_fit(
 ) -> Likelihood:
     """Fit ``model``'s free parameters (every one but the table's, or those of them in
     ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
-    whitened residual; ``start`` holds a value for every parameter."""
+    whitened residual; ``start`` holds a value for every parameter. Local modes keep a damping
+    ratio the data resolve (:func:`resolvable_bounds`)."""
     fixed = dict(data.table or {})
     every = tuple(name for name in model.names if name not in fixed)
     free = every if only is None else tuple(name for name in every if name in only)
     values = {**model.defaults(), **dict(start), **fixed}
     ctx = data.data.context()
     measured = {name: data.data.frf(name) for name in data.frfs}
-    log, lower, upper = _coordinates(model, free)
+    log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
 
     def to_values(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(log, np.exp(np.clip(x, -700, 700)), x)
