@@ -117,16 +117,48 @@ class DiagnosisData:
     def whiten(self, residuals: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
         """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, one column per
         vector) whitened by the noise model: real numbers of unit variance, independent, when
-        they are noise. Outlier points are left out (their residual counts as zero)."""
+        they are noise, in the noise model's layout (real parts of every FRF, then imaginary
+        parts). Outlier points are left out (their residual counts as zero).
+
+        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening matrix
+        formed once (a diagonal for white noise, ``L⁻¹`` of a drift's Cholesky factor ``L``)
+        so that the many evaluations of a fit cost a product each."""
         masks = self._masks()
-        kept = {}
+        operators = self._operators()
+        parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
             keep = masks[frf] if r.ndim == 1 else masks[frf][:, None]
-            kept[frf] = np.where(keep, r, 0.0)
-        if next(iter(kept.values())).ndim > 1:
-            return self.noise.whiten_jacobian(kept)
-        return self.noise.whiten(kept)
+            r = np.where(keep, r, 0.0)
+            for rows, by_part in operators[frf]:
+                for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
+                    operator = by_part[part]
+                    if operator.ndim == 1:
+                        scale = operator if values.ndim == 1 else operator[:, None]
+                        parts[part].append(values * scale)
+                    else:
+                        parts[part].append(operator @ values)
+        return np.concatenate(parts["re"] + parts["im"])
+
+    def _operators(self):
+        """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""
+        cached = self.__dict__.get("_whitening")
+        if cached is None:
+            cached = {}
+            for frf in self.frfs:
+                blocks, start = [], 0
+                for block in self.noise.blocks[frf]:
+                    rows = slice(start, start + block.size)
+                    by_part = {}
+                    for part in ("re", "im"):
+                        white, correlated = block.part_variance(part)
+                        by_part[part] = (block.whiten_part(part, np.eye(block.size))
+                                         if correlated > 0 else 1.0 / np.sqrt(white))
+                    blocks.append((rows, by_part))
+                    start += block.size
+                cached[frf] = blocks
+            object.__setattr__(self, "_whitening", cached)
+        return cached
 
     def whitened_power(self, residuals: dict[str, NDArray[np.complex128]]) -> dict[str, NDArray]:
         """Whitened residual power per point and FRF (mean 1 when the residual is noise): the

@@ -241,8 +241,9 @@ def fit_term(
     """
     model = parse_spec(candidate_spec(current.model, term_text))
     only = _broad(model) | added_parameters(model, term_text)
-    if model.modulus_term.spec != current.model.modulus_term.spec:
-        # A new K* has no warm start: fit it as identify does (linear start), then by likelihood.
+    if model.modulus_term.spec != current.model.modulus_term.spec or term_text == "load_cell":
+        # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
+        # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
         return ml_fit(first.model, data, first.values, only=only)
     values = {**model.defaults(), **carried_values(current, model)}
@@ -383,10 +384,25 @@ def confirm(
     findings.sort(key=lambda finding: finding.delta_bic)
     ties = _ties(findings)
     findings[: len(ties)] = sorted(ties, key=_priority)
+    _after_modulus(findings)
     best = _forward(current, data, findings)
     _mark_ambiguities(findings, ties)
     findings.sort(key=lambda finding: not finding.significant)  # stable: ranks kept within
     return findings, best
+
+
+def _after_modulus(findings: list[Finding]) -> None:
+    """Put a drift or an amplitude dependence that one sweep cannot tell from a
+    frequency-dependent modulus after the modulus: it is tested next to it, not before."""
+    modulus = next((i for i, f in enumerate(findings)
+                    if f.effect == "frequency_dependent_modulus" and f.passes_alone), None)
+    if modulus is None:
+        return
+    early = [f for f in findings[:modulus] if not f.identifiable]
+    if early:
+        rest = [f for f in findings if f not in early]
+        at = rest.index(findings[modulus]) + 1
+        findings[:] = rest[:at] + early + rest[at:]
 
 
 def _priority(finding: Finding) -> int:

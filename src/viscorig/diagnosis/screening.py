@@ -106,7 +106,7 @@ def screen_modulus(current: Likelihood, data: DiagnosisData) -> Candidate | None
         # Voigt is a limit of both families (α → 1, an arm's K → ∞): at that boundary one
         # more parameter buys the freedom of two, so the test counts two.
         return Candidate("frequency_dependent_modulus", "fractional", evidence,
-                         threshold(2, FAMILY_ALPHA / 2), alternatives=("maxwell",), dof=2)
+                         threshold(2, FAMILY_ALPHA / 2), alternatives=("maxwell(2)",), dof=2)
     order = getattr(term, "order", None) or 1
     return Candidate("frequency_dependent_modulus", f"maxwell({order + 1})", evidence,
                      threshold(2), dof=2)

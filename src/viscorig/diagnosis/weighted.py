@@ -29,6 +29,8 @@ from viscorig.models import Model
 
 #: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
 HUBER_SCALE = 3.0
+#: Relative step of the forward differences of the Jacobian (√ of the double precision).
+_STEP = 1.49e-8
 
 
 def huber(e: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -178,9 +180,32 @@ def ml_fit(
             predicted = model.predict(ctx, current)
             return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
 
+    last: dict[str, object] = {}
+
+    def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        if last.get("x") is None or not np.array_equal(last["x"], x):
+            last["x"], last["ratio"] = x.copy(), ratio(x)
+        return last["ratio"]  # type: ignore[return-value]
+
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        e = data.whiten(ratio(x))
+        e = data.whiten(cached_ratio(x))
         return np.where(np.isfinite(e), e, 1e6)
+
+    def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Forward differences of the raw residual, whitened once for all columns.
+        base = cached_ratio(x)
+        columns = {frf: np.empty((base[frf].size, x.size), dtype=complex) for frf in base}
+        for j in range(x.size):
+            step = _STEP * max(1.0, abs(x[j]))
+            if x[j] + step > upper[j]:
+                step = -step
+            moved = x.copy()
+            moved[j] += step
+            shifted = ratio(moved)
+            for frf in base:
+                columns[frf][:, j] = (shifted[frf] - base[frf]) / step
+        matrix = data.whiten(columns)
+        return np.where(np.isfinite(matrix), matrix, 0.0)
 
     start_values = np.array([values[name] for name in free], dtype=float)
     x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
@@ -189,7 +214,7 @@ def ml_fit(
     if free:
         with np.errstate(all="ignore"):
             solution = least_squares(
-                residual, x0, bounds=(lower, upper), x_scale="jac", method="trf",
+                residual, x0, jac=jacobian_of, bounds=(lower, upper), x_scale="jac", method="trf",
                 loss="huber", f_scale=HUBER_SCALE, ftol=1e-6, xtol=1e-8, gtol=1e-8,
                 max_nfev=max_steps,
             )
