@@ -41,9 +41,13 @@ class SimulatedRun:
     force_amplitude: np.ndarray
     flags: np.ndarray
     rig: Rig
+    variance_table: np.ndarray | None = None
+    variance_support: np.ndarray | None = None
 
-    def frf_data(self, name: str = "simulated") -> FrfData:
-        """The run as a :class:`viscorig.fitting.FrfData` (plain arrays, no storage)."""
+    def frf_data(self, name: str = "simulated", variance: bool = True) -> FrfData:
+        """The run as a :class:`viscorig.fitting.FrfData` (plain arrays, no storage), with the
+        analyser's normalized variances as a campaign file holds them (``variance=False``:
+        without, as a file imported from elsewhere)."""
         return FrfData(
             self.frequency_hz,
             self.accelerance_table,
@@ -51,6 +55,8 @@ class SimulatedRun:
             self.time_s,
             self.reference_amplitude,
             name=name,
+            variance_table=self.variance_table if variance else None,
+            variance_support=self.variance_support if variance else None,
         )
 
 
@@ -137,9 +143,13 @@ def simulate_run(
     accel_s = volts[:, 1] / sensors.acceleration_v_per_m_s2
     force_v = volts[:, 2] / sensors.force_v_per_n
     accel_v = volts[:, 3] / sensors.acceleration_v_per_m_s2
+    # The analyser's normalized variance of a channel ratio: the sum of both channels'.
+    variance_table = record.variance[:, 0] + record.variance[:, 1]
+    variance_support = record.variance[:, 2] + record.variance[:, 3]
     if rig.device is None:
         support = np.full(frequency.shape, np.nan + 1j * np.nan)
         reference = np.abs(accel_s)
+        variance_support = np.full(frequency.shape, np.nan)
     else:
         support = accel_v / force_v
         reference = np.abs(accel_v)
@@ -158,4 +168,6 @@ def simulate_run(
         force_amplitude=np.abs(force_e),
         flags=flags,
         rig=rig,
+        variance_table=variance_table,
+        variance_support=variance_support,
     )

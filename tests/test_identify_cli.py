@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import re
 import subprocess
 import sys
@@ -67,13 +66,26 @@ def test_identify_json_follows_the_design_and_stores_the_fit(
     assert document["band_hz"] == [20.0, 120.0]
     assert document["points"] == 401
     assert document["parameters"]["K_0"]["unit"] == "N/m"
-    assert document["parameters"]["M_s"]["stderr"] is None  # the table is held fixed, not estimated
+    # The table is held fixed at the bare-table run's values, with that fit's uncertainty.
+    assert main(["identify", str(campaign_file), "--run", "table", "--no-store", "--json"]) == 0
+    table = json.loads(capsys.readouterr().out)
+    for name in ("M_s", "K_s", "C_s"):
+        assert document["parameters"][name]["stderr"] == pytest.approx(
+            table["parameters"][name]["stderr"], rel=1e-9)
+    assert document["uncertainty"]["inherited"] == ["M_s", "K_s", "C_s"]
+    assert document["uncertainty"]["inherited_from"] == "run 'table'"
+    names = document["correlation"]["parameters"]
+    rho = np.array(document["correlation"]["matrix"])
+    assert names[-3:] == ["M_s", "K_s", "C_s"] and "K_0" in names
+    assert np.allclose(np.diag(rho), 1.0) and np.allclose(rho, rho.T)
     with Campaign.open(campaign_file) as campaign:
         stored = campaign.fits("soft-0")[-1]
     assert stored.model == document["model"]
     assert stored.parameters["K_0"].value == pytest.approx(document["parameters"]["K_0"]["value"])
     assert stored.parameters["K_0"].stderr == pytest.approx(document["parameters"]["K_0"]["stderr"])
-    assert math.isnan(stored.parameters["M_s"].stderr)  # fixed: unknown, not exactly known
+    assert stored.parameters["M_s"].stderr == pytest.approx(table["parameters"]["M_s"]["stderr"])
+    assert stored.correlation is not None and list(stored.correlation[0]) == names
+    assert np.allclose(stored.correlation[1], rho, atol=1e-6)
     # the stored spec is accepted as is
     assert main(["identify", str(campaign_file), "--run", "soft-0", "--model", stored.model,
                  "--no-store", "--json"]) == 0  # fmt: skip

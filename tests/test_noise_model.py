@@ -89,13 +89,24 @@ def test_a_drift_in_test_time_is_found_on_its_part(phase: bool) -> None:
     assert truth_floor(drift) / truth_floor() > 1.8
 
 
-def test_outliers_neither_inflate_nor_collapse_the_floor() -> None:
+def test_outliers_neither_inflate_nor_collapse_the_noise_elsewhere() -> None:
+    """Eight points struck at 100 times the noise: found, given their own error (a perfect
+    model's rms includes them, so the floor must), and the noise of every other point is
+    estimated as without them."""
     for seed in range(4):
-        clean = NoiseModel.of(estimate_frf_noise(noisy(seed), FREQUENCY, TIME)).floor
-        spoiled = estimate_frf_noise(noisy(seed, outliers=8), FREQUENCY, TIME)
-        assert NoiseModel.of(spoiled).floor == pytest.approx(clean, rel=0.1)
+        clean = estimate_frf_noise(noisy(seed), FREQUENCY, TIME)
+        measured = noisy(seed, outliers=8)
+        spoiled = estimate_frf_noise(measured, FREQUENCY, TIME)
+        found = spoiled.outliers
+        assert np.count_nonzero(found) >= 7  # two may fall side by side
         assert not spoiled.correlated
-        assert np.count_nonzero(spoiled.outliers) >= 7  # two may fall side by side
+        others = ~found
+        assert np.median(spoiled.power()[others] / clean.power()[others]) == pytest.approx(
+            1.0, abs=0.05)
+        error2 = np.abs(measured / CLEAN - 1) ** 2
+        assert np.median(spoiled.power()[found] / error2[found]) == pytest.approx(1.0, abs=0.2)
+        expected = np.sqrt(np.mean(np.where(found, error2, clean.power())))
+        assert NoiseModel.of(spoiled).floor == pytest.approx(expected, rel=0.1)
 
 
 def test_the_analysers_variance_gives_the_shape_and_the_data_the_scale() -> None:

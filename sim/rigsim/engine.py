@@ -168,6 +168,9 @@ class RigSimulator:
         ) * np.array(rig.sensors.gains())
         self._delays = np.array(rig.delays.as_tuple())
         noise = rig.noise
+        self._gain_drift = np.zeros(CHANNEL_COUNT)
+        self._gain_drift_time = 0.0
+        self._gain_drift_started = False
         if noise is None:
             self._sensor_density = np.zeros(CHANNEL_COUNT)
             self._adc_density_re_range = 0.0
@@ -305,7 +308,8 @@ class RigSimulator:
                 else:
                     scale, k, index = 1.0, kernels, n
                 measured, ranges, over, half = self._measure_point(
-                    k, index, force, omega[n], integrate[n], fixed_range
+                    k, index, force, omega[n], integrate[n], fixed_range,
+                    self._clock_s + settle[n] + 0.5 * integrate[n],
                 )
                 self._clock_s += settle[n] + integrate[n]
                 if not control.auto_level:
@@ -411,6 +415,35 @@ class RigSimulator:
         """One-sided noise density per channel (V²/Hz) on the given ranges."""
         return self._sensor_density + self._adc_density_re_range * ranges**2
 
+    def _burst(self) -> float:
+        """Noise factor of this pass: ``burst_factor`` with ``burst_probability``, else 1."""
+        noise = self._rig.noise
+        if noise is None or noise.burst_probability <= 0.0:
+            return 1.0
+        return noise.burst_factor if self._rng.random() < noise.burst_probability else 1.0
+
+    def _drift_at(self, time_s: float) -> np.ndarray:
+        """Relative sensitivity error of each channel at ``time_s`` (s since mounting).
+
+        Each is a stationary Gauss-Markov process (rms ``sensitivity_drift_rms``, correlation
+        time ``sensitivity_drift_time_s``), stepped exactly from its last sample:
+        ``δ ← a δ + √(1−a²) σ n`` with ``a = e^{−Δt/τ}``; the first sample is drawn from the
+        stationary distribution. A clock that does not advance repeats the sample.
+        """
+        noise = self._rig.noise
+        if noise is None or noise.sensitivity_drift_rms <= 0.0:
+            return np.zeros(CHANNEL_COUNT)
+        sigma, tau = noise.sensitivity_drift_rms, noise.sensitivity_drift_time_s
+        if not self._gain_drift_started:
+            self._gain_drift = sigma * self._rng.standard_normal(CHANNEL_COUNT)
+            self._gain_drift_started = True
+        elif time_s > self._gain_drift_time:
+            a = float(np.exp(-(time_s - self._gain_drift_time) / tau))
+            innovation = sigma * np.sqrt(1.0 - a * a) * self._rng.standard_normal(CHANNEL_COUNT)
+            self._gain_drift = a * self._gain_drift + innovation
+        self._gain_drift_time = max(time_s, self._gain_drift_time)
+        return self._gain_drift
+
     def _measure_point(
         self,
         k: _Kernels,
@@ -419,8 +452,12 @@ class RigSimulator:
         omega: float,
         integrate_s: float,
         fixed_range: np.ndarray,
+        time_s: float = 0.0,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """One settle + integrate pass at one level; advances state and source phase."""
+        """One settle + integrate pass at one level; advances state and source phase.
+
+        ``time_s``: the clock at the middle of the integration window, where the transducers'
+        drifting sensitivities are taken."""
         modal = k.modal
         phasor = force_n * np.exp(1j * self._phase)
         q0 = modal.inverse @ self._state
@@ -448,11 +485,12 @@ class RigSimulator:
                              value)
         density = self._noise_power(ranges)
         if np.any(density > 0.0):
-            sigma = np.sqrt(density / integrate_s)
+            sigma = np.sqrt(density / integrate_s) * self._burst()
             value = value + sigma * (
                 self._rng.standard_normal(CHANNEL_COUNT)
                 + 1j * self._rng.standard_normal(CHANNEL_COUNT)
             )
+        value = value * (1.0 + self._drift_at(time_s))
         measured = value * np.exp(-1j * self._phase)
         rotation = k.rotation[n]
         q_end = 0.5 * (p_plus * phasor * rotation + p_minus * np.conj(phasor * rotation))

@@ -12,6 +12,14 @@ A rig file is TOML. The sections ``[table]``, ``[device]``, ``[load_cell]``, ``[
     ``device_force_n_per_sqrt_hz``, ``disc_acceleration_m_per_s2_per_sqrt_hz``; the analyser's
     ADC floor ``adc_noise_db_re_range_per_sqrt_hz`` (noise density relative to the input range
     in use, default -100 dB per sqrt(Hz)); ``seed`` (integer) for reproducible noise.
+    Two sources of noise that is not white and Gaussian, both off unless given:
+    ``sensitivity_drift_rms`` (relative rms, e.g. 5e-4) and ``sensitivity_drift_time_s``
+    (correlation time, default 30 s): each transducer's sensitivity wanders as it warms and
+    cools, a Gauss-Markov process in test time, independent per channel, so the FRFs (channel
+    ratios) carry a gain error correlated from point to point along the sweep;
+    ``burst_probability`` (per point, e.g. 0.01) and ``burst_factor`` (default 30): at a point
+    so struck, interference (a relay, a knock on the bench) multiplies every channel's noise by
+    the factor for that point's integration, which makes the errors heavy-tailed.
     Without a ``[noise]`` section the rig is noiseless.
 ``[delays]``
     Per-channel sensor (conditioning) delays in seconds: ``excitation_force_s``,
@@ -207,6 +215,10 @@ class Noise:
     disc_acceleration_m_per_s2_per_sqrt_hz: float = 0.0
     adc_noise_db_re_range_per_sqrt_hz: float = -100.0
     seed: int | None = None
+    sensitivity_drift_rms: float = 0.0
+    sensitivity_drift_time_s: float = 30.0
+    burst_probability: float = 0.0
+    burst_factor: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -598,6 +610,15 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
                 maximum=0.0,
             ),
             seed=sec.integer("seed", minimum=0),
+            sensitivity_drift_rms=sec.number(
+                "sensitivity_drift_rms", 0.0, minimum=0.0, maximum=0.1
+            ),
+            sensitivity_drift_time_s=sec.number(
+                "sensitivity_drift_time_s", 30.0, minimum=0.0, exclusive_minimum=True,
+                maximum=1e6,
+            ),
+            burst_probability=sec.number("burst_probability", 0.0, minimum=0.0, maximum=1.0),
+            burst_factor=sec.number("burst_factor", 30.0, minimum=1.0, maximum=1e4),
         )
         sec.finish()
 

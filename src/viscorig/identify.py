@@ -2,9 +2,12 @@
 
 A specimen run needs the table's ``M_s, K_s, C_s``: they come from a bare-table run of the same
 file (specimen ``"none"``, identified on the fly with the ``table`` model), else from the
-``/rig`` attributes (data-format.md). Points flagged with an input overload are left out (their
-FRF is not a linear measurement); points where the level was not reached are kept, because the
-FRF of a linear rig does not depend on the level.
+``/rig`` attributes (data-format.md). Their uncertainty goes with them into the specimen fit's
+covariance (:mod:`viscorig.fitting.uncertainty`): the bare-table fit's covariance, or the
+standard uncertainties ``/rig`` gives (``table_*_stderr_*``); ``/rig`` values without one are
+taken as exact. Points flagged with an input overload are left out (their FRF is not a linear
+measurement); points where the level was not reached are kept, because the FRF of a linear rig
+does not depend on the level.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import numpy as np
 from viscorig.errors import InputError
 from viscorig.estimates import MeasuredResonance, SystemProperties, measured_resonance
 from viscorig.estimates import system_properties as voigt_system_properties
-from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
@@ -35,7 +38,12 @@ def is_bare_table(run: Run) -> bool:
 def run_data(run: Run) -> FrfData:
     """A run's FRFs as :class:`FrfData`, without the overloaded points."""
     keep = ~run.flagged(INPUT_OVERLOAD)
-    support = None if is_bare_table(run) else run.accelerance_support[keep]
+    bare = is_bare_table(run)
+    support = None if bare else run.accelerance_support[keep]
+
+    def variance(values):
+        return None if values is None else np.asarray(values)[keep]
+
     return FrfData(
         run.frequency_hz[keep],
         run.accelerance_table[keep],
@@ -43,16 +51,38 @@ def run_data(run: Run) -> FrfData:
         run.time_s[keep],
         run.reference_amplitude[keep],
         name=f"run '{run.name}'",
+        variance_table=variance(run.variance_table),
+        variance_support=None if bare else variance(run.variance_support),
     )
+
+
+#: The table's parameters, as a specimen fit inherits them.
+TABLE_NAMES = ("M_s", "K_s", "C_s")
 
 
 @dataclass(frozen=True)
 class TableSource:
-    """The table parameters used, and where they came from (``"run 'table'"`` or ``"/rig"``)."""
+    """The table parameters used, and where they came from (``"run 'table'"`` or ``"/rig"``).
+
+    ``stderr`` holds standard uncertainties given with ``/rig`` values (none: exact).
+    """
 
     values: dict[str, float]
     source: str
     fit: FitResult | None = None
+    stderr: dict[str, float] | None = None
+
+    @property
+    def known(self) -> Known:
+        """The values with their covariance, as a specimen fit inherits them."""
+        if self.fit is not None:
+            names = [n for n in TABLE_NAMES if n in self.fit.covariance_names]
+            index = [self.fit.covariance_names.index(n) for n in names]
+            covariance = np.asarray(self.fit.joint_covariance)[np.ix_(index, index)]
+            return Known(dict(self.values), tuple(names), covariance, self.source)
+        if self.stderr:
+            return Known.with_stderr(self.values, self.stderr, self.source)
+        return Known.exact(self.values, self.source)
 
 
 def table_parameters(campaign: Campaign) -> TableSource | None:
@@ -65,10 +95,11 @@ def table_parameters(campaign: Campaign) -> TableSource | None:
         run = campaign.run(name)
         if is_bare_table(run) and run.points:
             result = fit("table", run_data(run))
-            return TableSource(dict(result.values), f"run '{name}'", result)
+            values = {n: result.values[n] for n in TABLE_NAMES}
+            return TableSource(values, f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
     if rig.table is not None:
-        return TableSource(rig.table, "/rig")
+        return TableSource(rig.table, "/rig", stderr=rig.table_stderr)
     return None
 
 
@@ -155,15 +186,18 @@ def _identify(
                 f"run '{run_name}'",
             )
         return fit(model, data, frfs=frfs, band_hz=band_hz), None
-    return fit(model, data, frfs=frfs, band_hz=band_hz, fixed=table.values), table
+    return fit(model, data, frfs=frfs, band_hz=band_hz, known=table.known), table
 
 
 def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
     """Store a fit under ``/runs/<run>/fits/<id>`` and return its id.
 
-    A parameter held fixed in the fit (the table's) is stored with ``stderr`` NaN, the
-    campaign file's "unknown": it was not estimated by this fit.
+    A parameter held fixed exactly in the fit is stored with ``stderr`` NaN, the campaign
+    file's "unknown": it was not estimated by this fit. One inherited with an uncertainty (the
+    table's, from the bare-table run) keeps its standard error. The correlation matrix of the
+    parameters with a standard error is stored beside them.
     """
+    uncertain = set(result.covariance_names)
     return campaign.add_fit(
         run_name,
         model=result.spec,
@@ -171,9 +205,10 @@ def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
         rms_error=result.rms_error,
         noise_floor=result.noise_floor,
         parameters={
-            name: (e.value, e.stderr if name in result.free else math.nan, e.unit)
+            name: (e.value, e.stderr if name in uncertain else math.nan, e.unit)
             for name, e in result.parameters.items()
         },
+        correlation=(tuple(result.covariance_names), result.correlation),
     )
 
 

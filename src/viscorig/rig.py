@@ -70,6 +70,8 @@ class RigDescription:
         How θ follows from the geometry (:data:`ARRANGEMENTS`).
     geometry_factor_m
         θ given outright; overrides the geometry.
+    table_mass_stderr_kg, table_stiffness_stderr_n_per_m, table_damping_stderr_ns_per_m
+        Standard uncertainties of the table's values (``None``: exact, as far as anyone said).
     """
 
     table_mass_kg: float | None = None
@@ -80,6 +82,9 @@ class RigDescription:
     specimen_count: int = 2
     arrangement: str = "paper"
     geometry_factor_m: float | None = None
+    table_mass_stderr_kg: float | None = None
+    table_stiffness_stderr_n_per_m: float | None = None
+    table_damping_stderr_ns_per_m: float | None = None
 
     @classmethod
     def from_attributes(cls, attributes: Mapping[str, float | int]) -> RigDescription:
@@ -97,6 +102,9 @@ class RigDescription:
             specimen_height_m=number("specimen_height_m"),
             specimen_count=int(attributes.get("specimen_count", 2) or 2),
             geometry_factor_m=number("geometry_factor_m"),
+            table_mass_stderr_kg=number("table_mass_stderr_kg"),
+            table_stiffness_stderr_n_per_m=number("table_stiffness_stderr_n_per_m"),
+            table_damping_stderr_ns_per_m=number("table_damping_stderr_ns_per_m"),
         )
 
     @property
@@ -106,6 +114,18 @@ class RigDescription:
         if any(value is None for value in values):
             return None
         return dict(zip(("M_s", "K_s", "C_s"), values, strict=True))  # type: ignore[arg-type]
+
+    @property
+    def table_stderr(self) -> dict[str, float] | None:
+        """Standard uncertainties given for ``M_s, K_s, C_s`` (positive ones only), or ``None``."""
+        given = zip(
+            ("M_s", "K_s", "C_s"),
+            (self.table_mass_stderr_kg, self.table_stiffness_stderr_n_per_m,
+             self.table_damping_stderr_ns_per_m),
+            strict=True,
+        )
+        stderr = {name: value for name, value in given if value is not None and value > 0}
+        return stderr or None
 
     @property
     def theta(self) -> float | None:

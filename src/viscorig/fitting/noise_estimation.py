@@ -61,8 +61,8 @@ from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
+from scipy.ndimage import median_filter
 
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 
@@ -114,10 +114,9 @@ def _windows(size: int, order: int, lag: int) -> NDArray[np.intp]:
 
 
 def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
-    """Median over ``window`` points centred on each point (shrinking to the edge values)."""
-    half = max(min(window, values.size) // 2, 0)
-    padded = np.pad(values, half, mode="reflect") if values.size > half else values
-    return np.median(sliding_window_view(padded, 2 * half + 1), axis=1)
+    """Median over ``window`` points centred on each point (the band's ends mirrored)."""
+    size = min(window, values.size)
+    return median_filter(values, size=size | 1, mode="mirror")
 
 
 def _centred(values: NDArray[np.float64], size: int, order: int) -> NDArray[np.float64]:
@@ -126,6 +125,27 @@ def _centred(values: NDArray[np.float64], size: int, order: int) -> NDArray[np.f
     return np.concatenate(
         [np.full(pad, values[0]), values, np.full(size - values.size - pad, values[-1])]
     )
+
+
+def _outlier_statistic(
+    z: NDArray[np.complex128], white: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centred sixth differences: their ratio to the white expectation, and the power of the
+    centre point's own error they imply, ``(|d|² − Σ_{k≠c} b_k² |Z_k|² w_k) / (b_c² |Z_c|²)``,
+    both put on the centre points (zero at the ends)."""
+    weights = _binomial(OUTLIER_ORDER)
+    index = _windows(z.size, OUTLIER_ORDER, 1)
+    window_z = z[index]
+    power = np.abs(window_z) ** 2 * white[index]
+    difference = np.abs(_combine(window_z, weights)) ** 2
+    expected = power @ weights**2
+    centre = OUTLIER_ORDER // 2
+    others = expected - weights[centre] ** 2 * power[:, centre]
+    own = (difference - others) / (weights[centre] ** 2 * np.abs(window_z[:, centre]) ** 2)
+    ratio, own_power = np.zeros(z.size), np.zeros(z.size)
+    ratio[centre : centre + index.shape[0]] = difference / expected
+    own_power[centre : centre + index.shape[0]] = own
+    return ratio, own_power
 
 
 def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -137,18 +157,20 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDA
     both neighbours is an outlier. A feature several points wide (a mode) is not: its
     neighbours' differences are as large.
     """
-    weights = _binomial(OUTLIER_ORDER)
-    index = _windows(z.size, OUTLIER_ORDER, 1)
-    window_z = z[index]
-    level = np.abs(_combine(window_z, weights)) ** 2 / (
-        (np.abs(window_z) ** 2 * white[index]) @ weights**2
-    )
-    centred = _centred(level, z.size, OUTLIER_ORDER)
-    centred[: OUTLIER_ORDER // 2] = 0.0
-    centred[z.size - OUTLIER_ORDER // 2 :] = 0.0
+    centred, _ = _outlier_statistic(z, white)
     peak = np.zeros(z.size, dtype=bool)
     peak[1:-1] = (centred[1:-1] > centred[:-2]) & (centred[1:-1] > centred[2:])
     return peak & (centred > OUTLIER_LEVEL)
+
+
+def _difference_statistic(
+    z: NDArray[np.complex128], order: int
+) -> tuple[NDArray[np.intp], NDArray[np.complex128], NDArray[np.float64]]:
+    """Windows of the lag-1 differences of ``order``, ``|Z|²`` in them, and ``|d|²``."""
+    weights = _binomial(order)
+    index = _windows(z.size, order, 1)
+    window_z = z[index]
+    return index, np.abs(window_z) ** 2, np.abs(_combine(window_z, weights)) ** 2
 
 
 def white_power(
@@ -160,43 +182,30 @@ def white_power(
 ) -> tuple[NDArray[np.float64], str]:
     """Local white power ``w_i`` of ``ε`` from the dynamic stiffness ``z`` (frequency order).
 
-    ``skip`` marks outlier points: the differences they enter are left out. Without the
-    frequency (``z`` then the inverse accelerance, smooth but not a polynomial) the sixth
-    difference is used. Returns the power and its source (``"differences"`` or
-    ``"analyser variance"``).
+    ``skip`` marks outlier points: the differences they enter are left out (replaced by the
+    local median, which leaves it unchanged). Without the frequency (``z`` then the inverse
+    accelerance, smooth but not a polynomial) the sixth difference is used. Returns the power
+    and its source (``"differences"`` or ``"analyser variance"``).
     """
     order = WHITE_ORDER if frequency_known else OUTLIER_ORDER
-    weights = _binomial(order)
-    index = _windows(z.size, order, 1)
-    window_z = z[index]
-    difference = np.abs(_combine(window_z, weights)) ** 2
+    weights2 = _binomial(order) ** 2
+    index, modulus2, difference = _difference_statistic(z, order)
     clean = np.ones(index.shape[0], dtype=bool) if skip is None else ~skip[index].any(axis=1)
     if not np.any(clean):
         clean[:] = True
     if variance is not None:
-        expected = (np.abs(window_z) ** 2 * variance[index]) @ weights**2
+        expected = (modulus2 * variance[index]) @ weights2
         ratio = (difference / expected)[clean]
         kept = ratio < REJECT * np.median(ratio) / math.log(2.0)
         kappa = float(np.mean(ratio[kept])) / _EXP_TRUNCATED_MEAN
         return variance * kappa, "analyser variance"
-    gain = np.abs(window_z) ** 2 @ weights**2
-    local = difference / gain
-    local[~clean] = np.nan
-    local = _centred(local, z.size, order)
-    return _nan_running_median(local, window) / math.log(2.0), "differences"
-
-
-def _nan_running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
-    """:func:`running_median` ignoring NaN (filled from the nearest value when all are)."""
-    if not np.any(np.isnan(values)):
-        return running_median(values, window)
-    half = max(min(window, values.size) // 2, 0)
-    padded = np.pad(values, half, mode="reflect") if values.size > half else values
-    result = np.nanmedian(sliding_window_view(padded, 2 * half + 1), axis=1)
-    good = np.isfinite(result)
-    if not np.all(good):
-        result = np.interp(np.arange(values.size), np.flatnonzero(good), result[good])
-    return result
+    local = _centred(difference / (modulus2 @ weights2), z.size, order)
+    median = running_median(local, window)
+    if not np.all(clean):
+        dirty = _centred((~clean).astype(float), z.size, order) > 0
+        local = np.where(dirty, median, local)
+        median = running_median(local, window)
+    return median / math.log(2.0), "differences"
 
 
 def _without_leak(
@@ -232,20 +241,20 @@ def _correlated_part(
     taus = taus[taus <= resolution]
     # Every window of every lag at once, each labelled with its lag and with its mean step
     # along the axis rounded to 5 % (the correlation enters through that step alone).
-    index = np.concatenate([_windows(n, LAG_ORDER, h) for h in lags])
+    index, lag_of = _lag_windows(n, tuple(lags))
     sizes = [n - LAG_ORDER * h for h in lags]
-    lag_of = np.repeat(np.arange(len(lags)), sizes)
     clean = ~skip[index].any(axis=1)
     window_z = z[index]
     centre = 0.5 * (window_z[:, 1] + window_z[:, 2])
-    rotated = _combine(window_z, weights) * np.exp(-1j * np.angle(centre))
+    modulus_centre = np.abs(centre)
+    rotated = _combine(window_z, weights) * centre.conj() / np.maximum(modulus_centre, 1e-300)
     expected = (np.abs(window_z) ** 2 * white[index]) @ weights**2 / 2.0
     stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
     step = np.maximum(np.abs(axis[index[:, -1]] - axis[index[:, 0]]) / LAG_ORDER, 1e-12)
     steps, step_of = np.unique(np.round(np.log(step) / 0.05), return_inverse=True)
     cell = step_of * len(lags) + lag_of  # (step, lag) cell of each window
     cells = steps.size * len(lags)
-    scale = np.abs(centre) ** 2 / expected  # the gain is kernel(φ) times this
+    scale = modulus_centre**2 / expected  # the gain is kernel(φ) times this
     kernel = _kernel(np.exp(-np.exp(steps * 0.05)[None, :] / taus[:, None]))  # (τ, step)
     weight = np.array(sizes, dtype=float) / _MEAN_VARIANCE  # 1 / variance of each lag's mean
     scores, powers, white_only = [], [], []
@@ -272,6 +281,14 @@ def _correlated_part(
     if white_only[0] + white_only[1] - total[choice] < SIGNIFICANCE:
         found = [0.0, 0.0]
     return (found[0], found[1]), float(taus[choice]), resolution
+
+
+@lru_cache(maxsize=32)
+def _lag_windows(size: int, lags: tuple[int, ...]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Windows of every lag, stacked, and the lag (position in ``lags``) of each."""
+    index = np.concatenate([_windows(size, LAG_ORDER, h) for h in lags])
+    sizes = [size - LAG_ORDER * h for h in lags]
+    return index, np.repeat(np.arange(len(lags)), sizes)
 
 
 def _kernel(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -346,9 +363,10 @@ def estimate_frf_noise(
         if not np.all(np.isfinite(var) & (var > 0)):
             var = None
     known = frequency_hz is not None
-    white_sorted, _ = white_power(z, None, window, None, known)
+    white_sorted, source = white_power(z, None, window, None, known)
     skip = outlier_points(z, white_sorted)
-    white_sorted, source = white_power(z, var, window, skip, known)
+    if var is not None or np.any(skip):
+        white_sorted, source = white_power(z, var, window, skip if np.any(skip) else None, known)
     axis_unit = "point"
     axis_sorted = np.arange(frf.size, dtype=float)
     if time_s is not None:
@@ -360,6 +378,10 @@ def estimate_frf_noise(
         powers, tau, resolution = _correlated_part(z, white_sorted, axis_sorted, skip)
         if powers[0] + powers[1] > 0:
             white_sorted = _without_leak(white_sorted, powers[0] + powers[1], tau, axis_sorted)
+    if np.any(skip):
+        # An outlier carries its own error: the floor a perfect model reaches includes it.
+        _, own = _outlier_statistic(z, white_sorted)
+        white_sorted = np.where(skip, np.maximum(white_sorted, own), white_sorted)
     white = np.empty_like(white_sorted)
     white[order] = white_sorted
     outliers = np.empty_like(skip)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
@@ -27,6 +27,7 @@ from typing import Self
 
 import h5py
 import numpy as np
+from numpy.typing import ArrayLike
 
 from viscorig import __version__
 from viscorig.errors import InputError
@@ -385,6 +386,7 @@ class Campaign:
         rms_error: float,
         noise_floor: float,
         parameters: Mapping[str, tuple[float, float, str]],
+        correlation: tuple[Sequence[str], ArrayLike] | None = None,
     ) -> str:
         """Store an identification result under ``/runs/<run>/fits/<id>``.
 
@@ -400,6 +402,9 @@ class Campaign:
             Error measures of design.md (dimensionless).
         parameters
             name -> (value, stderr, unit); stderr NaN when unknown.
+        correlation
+            (names, matrix): the correlation matrix of the named parameters, stored as the
+            2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order).
 
         Returns
         -------
@@ -416,6 +421,12 @@ class Campaign:
         for key, (value, stderr, unit) in parameters.items():
             check_name(key, f"{where}: parameter")
             checked[key] = (float(value), float(stderr), str(unit))
+        names, matrix = (), None
+        if correlation is not None:
+            names = tuple(str(name) for name in correlation[0])
+            matrix = np.asarray(correlation[1], dtype=float).reshape(len(names), len(names))
+            if set(names) - set(checked) or layout.FIT_CORRELATION in checked:
+                raise InputError("correlation names parameters the fit does not have", where)
         with self._commit() as h5:
             group = reading.run_group(h5, run_name, self.path)
             fits = group.require_group(layout.FITS_GROUP)
@@ -431,6 +442,10 @@ class Campaign:
                 dataset = fit.create_dataset(key, data=np.float64(value))
                 dataset.attrs["stderr"] = stderr
                 dataset.attrs["units"] = unit
+            if matrix is not None:
+                dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
+                dataset.attrs["parameters"] = np.array(names, dtype=h5py.string_dtype())
+                dataset.attrs["units"] = "1"
             return fit_id
 
 

@@ -35,8 +35,14 @@ RIG_FLOAT_ATTRIBUTES = (
     "specimen_diameter_m",
     "specimen_height_m",
     "geometry_factor_m",
+    "table_mass_stderr_kg",
+    "table_stiffness_stderr_n_per_m",
+    "table_damping_stderr_ns_per_m",
 )
 RIG_INT_ATTRIBUTES = ("specimen_count",)
+
+#: Dataset of a fit group holding the correlation matrix of its parameters.
+FIT_CORRELATION = "correlation"
 
 #: Elements of each dataset: 1-D, chunked, resizable.
 CHUNK_POINTS = 256

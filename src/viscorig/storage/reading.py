@@ -272,6 +272,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                 parameter = _read_parameter(item, path)
                 if parameter is not None:
                     parameters[key] = parameter
+            correlation = _read_correlation(fit, path)
             result.append(
                 Fit(
                     id=fit_id,
@@ -282,9 +283,26 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                     noise_floor=read_number(fit, "noise_floor", path),
                     created=read_text(fit, "created", path),
                     parameters=parameters,
+                    correlation=correlation,
                 )
             )
     return result
+
+
+def _read_correlation(
+    fit: h5py.Group, path: Path
+) -> tuple[tuple[str, ...], NDArray[np.float64]] | None:
+    """The fit's correlation matrix and its parameter names, if stored (and well formed)."""
+    item = fit.get(layout.FIT_CORRELATION)
+    if not isinstance(item, h5py.Dataset) or item.ndim != 2:
+        return None
+    names = tuple(
+        n.decode() if isinstance(n, bytes) else str(n) for n in item.attrs.get("parameters", [])
+    )
+    matrix = np.asarray(item[()], dtype=float)
+    if matrix.shape != (len(names), len(names)):
+        raise InputError("correlation does not match its parameter names", f"{path}: {item.name}")
+    return names, matrix
 
 
 def _read_parameter(item: h5py.HLObject, path: Path) -> FitParameter | None:

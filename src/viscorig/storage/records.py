@@ -154,6 +154,8 @@ class Fit:
     noise_floor: float
     created: str
     parameters: dict[str, FitParameter]
+    correlation: tuple[tuple[str, ...], NDArray[np.float64]] | None = None
+    """Names and correlation matrix of the parameters with a standard error, if stored."""
 
 
 @dataclass(frozen=True, eq=False)
