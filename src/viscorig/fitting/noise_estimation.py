@@ -363,10 +363,10 @@ def estimate_frf_noise(
         if not np.all(np.isfinite(var) & (var > 0)):
             var = None
     known = frequency_hz is not None
-    white_sorted, source = white_power(z, None, window, None, known)
+    white_sorted, source = white_power(z, var, window, None, known)
     skip = outlier_points(z, white_sorted)
-    if var is not None or np.any(skip):
-        white_sorted, source = white_power(z, var, window, skip if np.any(skip) else None, known)
+    if np.any(skip):
+        white_sorted, source = white_power(z, var, window, skip, known)
     axis_unit = "point"
     axis_sorted = np.arange(frf.size, dtype=float)
     if time_s is not None:

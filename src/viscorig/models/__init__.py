@@ -22,7 +22,7 @@ from viscorig.models.base import (
     register_term,
     stage_methods,
 )
-from viscorig.models.effects import EFFECTS, Amplitude, Drift, Fixture, LoadCell
+from viscorig.models.effects import EFFECTS, Amplitude, Drift, Fixture, Frame, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
 from viscorig.models.sensors import CHANNELS, Delay, Gain, Highpass, Lowpass
 
@@ -40,6 +40,7 @@ __all__ = [
     "Drift",
     "Fixture",
     "Fractional",
+    "Frame",
     "Gain",
     "Highpass",
     "LoadCell",

@@ -18,6 +18,13 @@ Evaluation pipeline (a term takes part in a stage by overriding that stage's met
    replaces it.
 5. ``measure(ctx, p, frfs)``: changes to the measured accelerances (a sensor delay), in order.
 
+One more stage changes what the table and the specimens are attached to: ``frame(ctx, p)``
+gives the dynamic stiffness ``G`` (N/m) of the inertial frame that carries the shaker body, the
+table suspension and the specimens, on its own isolators (at most one term, ``frame``). Without
+it the frame is ground. With it the coupling stage solves the rig with the frame as one more
+body (:meth:`Model.predict`); a coupling term then gives only its link stiffness
+(:meth:`Term.link_stiffness`).
+
 ``p`` is always a mapping from the term's *local* parameter names (``f_n``) to values; the model
 maps them to global names (``f_n_1``) so a term never sees suffixes.
 """
@@ -245,6 +252,15 @@ class Term:
         """Stage 5: return the measured accelerances changed by the measuring chain."""
         raise NotImplementedError
 
+    def frame(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
+        """The frame stage: dynamic stiffness (N/m) of the frame to ground (mass included)."""
+        raise NotImplementedError
+
+    def link_stiffness(self, p: Mapping[str, float]) -> float | None:
+        """A coupling term's link stiffness between table and disc (N/m), for the frame stage;
+        ``None`` when the term's coupling is not a spring."""
+        return None
+
     def takes_part_in(self, stage: str) -> bool:
         """The term overrides the stage method ``stage``."""
         return getattr(type(self), stage) is not getattr(Term, stage)
@@ -338,6 +354,10 @@ class Model:
         if len(couplers) > 1:
             raise InputError("a model has at most one coupling term (load_cell)", "model spec")
         self._coupler = couplers[0] if couplers else None
+        frames = [term for term in self.effects if term.takes_part_in("frame")]
+        if len(frames) > 1:
+            raise InputError("a model has at most one frame term", "model spec")
+        self._frame = frames[0] if frames else None
         self._names: dict[int, dict[str, str]] = {}
         parameters = list(TABLE_PARAMETERS)
         if self.modulus_term is not None:
@@ -453,7 +473,9 @@ class Model:
         w = ctx.omega
         d_disc = self.disc_dynamic_stiffness(ctx, values)
         d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
-        if self._coupler is not None:
+        if self._frame is not None:
+            receptance = self._on_frame(ctx, values, d_table, d_disc)
+        elif self._coupler is not None:
             receptance = self._coupler.couple(
                 ctx, self.local_values(self._coupler, values), d_table, d_disc
             )
@@ -465,6 +487,56 @@ class Model:
         for term in self._stage_terms["measure"]:
             frfs = term.measure(ctx, self.local_values(term, values), frfs)
         return frfs
+
+    def _on_frame(
+        self,
+        ctx: Context,
+        values: Mapping[str, float],
+        d_table: NDArray[np.complex128],
+        d_disc: NDArray[np.complex128],
+    ) -> dict[str, NDArray[np.complex128]]:
+        """Receptances with the frame as a body (see the module text and ``Frame``).
+
+        Absolute displacements ``x_s`` (table), ``x_v`` (disc), ``x_g`` (frame). The suspension
+        ``S = K_s + iωC_s`` and the specimens ``K*`` act between their body and the frame, the
+        masses (and modes attached to the disc) on inertial space, the shaker pushes the table
+        with ``F_e`` and the frame with ``−F_e``, and the frame sits on ``G`` to ground.
+        """
+        w = ctx.omega
+        frame = self._frame
+        assert frame is not None
+        g = frame.frame(ctx, self.local_values(frame, values))
+        s = values["K_s"] + 1j * w * values["C_s"]
+        a_table = d_table - s
+        kstar = self.kstar(ctx, values) if "support" in self.frfs else np.zeros_like(w)
+        a_disc = d_disc - kstar  # the disc's inertia and what is attached to it
+        k_c = None
+        if self._coupler is not None:
+            k_c = self._coupler.link_stiffness(self.local_values(self._coupler, values))
+            if k_c is None:
+                raise InputError(
+                    f"'{self._coupler.spec}' cannot be combined with a frame term", "model spec"
+                )
+        if "support" not in self.frfs:  # the bare table on the frame
+            return {"table": 1.0 / (a_table + s * (1.0 + a_table / g))}
+        if k_c is None:  # rigid link: table and disc move as one
+            a = a_table + a_disc
+            spring = s + kstar
+            return {
+                "table": 1.0 / (a + spring * (1.0 + a / g)),
+                "support": 1.0 / (a_disc + kstar * (1.0 + a / g)),
+            }
+        matrix = np.zeros((w.size, 3, 3), dtype=complex)
+        matrix[:, 0, 0] = a_table + s + k_c
+        matrix[:, 0, 1] = matrix[:, 1, 0] = -k_c
+        matrix[:, 0, 2] = matrix[:, 2, 0] = -s
+        matrix[:, 1, 1] = a_disc + kstar + k_c
+        matrix[:, 1, 2] = matrix[:, 2, 1] = -kstar
+        matrix[:, 2, 2] = g + s + kstar
+        force = np.zeros((w.size, 3, 1), dtype=complex)
+        force[:, 0, 0], force[:, 2, 0] = 1.0, -1.0
+        x = np.linalg.solve(matrix, force)[:, :, 0]
+        return {"table": x[:, 0], "support": x[:, 1] / (k_c * (x[:, 0] - x[:, 1]))}
 
     # -- composition --------------------------------------------------------------------------
     def __add__(self, other: Term | Model) -> Model:
@@ -518,4 +590,4 @@ def _format_number(value: float) -> str:
 
 def stage_methods() -> tuple[str, ...]:
     """Names of the pipeline stage methods, in evaluation order."""
-    return ("modulus", "modify_modulus", "disc_stiffness", "couple", "measure")
+    return ("modulus", "modify_modulus", "disc_stiffness", "frame", "couple", "measure")
