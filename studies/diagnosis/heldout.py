@@ -91,9 +91,10 @@ EFFECTS: dict[str, tuple[str, tuple[str | None, ...], tuple[float, ...], str]] =
     "amplitude": ("amplitude_dependence", (None,), (0.003, 0.01, 0.03, 0.1), "relative"),
     "drift": ("thermal_drift", (None,), (0.001, 0.003, 0.01, 0.03), "per hour"),
 }
-#: The paper-like presets, and the model each is made of (diagnosed from it when clean).
+#: The paper-like presets, and the model each is made of (diagnosed from it when clean): a
+#: fractional rubber, the load cell, three local modes, and the 2000 kg frame under the table.
 PRESET_MODELS = {
-    name: "fractional+load_cell+fixture(38)+fixture(58)+fixture(92)"
+    name: "fractional+load_cell+fixture(38)+fixture(58)+fixture(92)+frame(2000)"
     for name in ("soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10")
 }
 

@@ -15,7 +15,14 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
-from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with, identify_fit
+from viscorig.diagnosis.findings import (
+    Finding,
+    candidate_spec,
+    carried_values,
+    confirm,
+    fit_with,
+    identify_fit,
+)
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
@@ -148,18 +155,32 @@ class Diagnosis:
         return analyse(self.data, finding.fit, finding.likelihood)
 
     def with_significant(self) -> Diagnosis:
-        """The diagnosis of this model with every significant finding added (each paid for
-        itself next to those before it)."""
+        """The diagnosis of this model with its best finding added, and with every local mode
+        found significant next to it (local modes at other frequencies do not compete with
+        it; any other effect waits for the next step, where it is judged against a model that
+        holds the best one)."""
         found = self.significant
-        if len(found) == 1 or self.together is None:
+        modes = [f for f in found[1:] if f.effect == "fixture_resonance"]
+        if not modes or self.together is None:
             return self.with_effect(found[0])
-        return analyse(self.data, identify_fit(self.together, self.data))
+        spec = self.fit.model
+        for finding in (found[0], *modes):
+            spec = parse_spec(candidate_spec(spec, finding.term))
+        start = {**carried_values(self.together, spec)}
+        for finding in (found[0], *modes):
+            start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
+                          if k not in start})
+        fixed = dict(self.data.table or {})
+        result = fit(spec, self.data.data, frfs=self.data.frfs, fixed=fixed,
+                     noise=self.data.noise,
+                     start={k: v for k, v in start.items() if k not in fixed})
+        return analyse(self.data, result)
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
         """Add the significant effects and refit, until the noise floor or nothing is left.
 
-        Returns the ladder: this diagnosis, then one per step; a step adds every effect found
-        significant (each next to the ones before it).
+        Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
+        the local modes found significant next to it (:meth:`with_significant`).
         """
         ladder = [self]
         while len(ladder) <= max_steps:

@@ -118,6 +118,15 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
             f"{why}. Stiffen the load cell's linkage (stinger, bolts) or keep load_cell in the "
             "model; use the support FRF (Eq. 5) for K*, which does not need a rigid link."
         )
+    if effect == "frame_mode":
+        mass, mass_se = _estimate(finding, "M_f")
+        f_g, f_se = _estimate(finding, "f_g")
+        return (
+            f"The inertial frame under the table moves on its isolators (a mode near "
+            f"{_pm(f_g, f_se)} Hz of a frame of about {mass:.3g} ± {mass_se:.2g} kg): {why}. It "
+            "makes the table and the specimens read stiffer; fit the bare-table run with "
+            "`frame` too, or keep `frame` in the model, and measure well above the frame's mode."
+        )
     if effect == "frequency_dependent_modulus":
         return (
             f"The rubber's stiffness and damping change with frequency: {why}. A Voigt spring "

@@ -12,6 +12,8 @@ load_cell_compliance            Eq. (4) and Eq. (5) estimates of K* disagree: ``
                                 − X_v/F_v`` is the link's compliance ``1/K_c``, zero if rigid
 fixture_resonance               a peak of the matched-filter scan (:mod:`.scan`) above its
                                 look-elsewhere threshold
+frame_mode                      the residual follows what the inertial frame's mode on its
+                                isolators changes at the low end of the band
 sensor_delay                    one FRF's phase error grows linearly with ω (its sign names the
                                 channel that lags); both FRFs alike: both accelerometers lag
 sensor_highpass                 one FRF's phase error falls as 1/ω (a lead: the response
@@ -37,8 +39,9 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.scan import Residual, ScanResult
 from viscorig.diagnosis.significance import FAMILY_ALPHA, threshold
 from viscorig.diagnosis.weighted import Likelihood
+from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
-from viscorig.models import Fixture, Model
+from viscorig.models import Fixture, Frame, Model
 from viscorig.models.effects import compliance_estimate
 from viscorig.models.sensors import force_channel, response_channel
 
@@ -219,6 +222,46 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
     return out
 
 
+#: The frame is tried once the model's whitened χ² is within this factor of the noise's: its
+#: signature (a few per cent of stiffness at the band's low end, fading as 1/f²) is subtle, and
+#: a grossly wrong model leaves misfit there that its three parameters would soak up.
+FRAME_NEAR_NOISE = 4.0
+#: Start of the frame's mode when a diagnosis tries it: a heavy frame on soft isolators.
+FRAME_START = {"M_f": 2000.0, "f_g": 3.0, "zeta_g": 0.1}
+
+
+def screen_frame(current: Likelihood, data: DiagnosisData, residual: Residual) -> Candidate | None:
+    """The inertial frame's rigid-body mode: what a frame of :data:`FRAME_START` would change,
+    compared with the residual (to first order)."""
+    model = current.model
+    if _has(model, "frame") or "table" not in data.frfs or data.table is None:
+        return None
+    if current.chi2 > FRAME_NEAR_NOISE * data.residual_count:
+        return None  # far from the noise, a frame would only soak up what else is missing
+    try:
+        framed = Model((*model.terms, Frame()))
+    except InputError:
+        return None  # a coupling term that cannot sit on a frame
+    ctx = data.data.context()
+    frame = next(term for term in framed.effects if term.keyword == "frame")
+    names = framed.local_names(frame)
+    base = model.predict(ctx, current.values)
+    moved = framed.predict(ctx, {**current.values,
+                                 **{names[k]: v for k, v in FRAME_START.items()}})
+    with np.errstate(all="ignore"):
+        change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
+    size, stderr, gain = residual.estimate(change)
+    need = threshold(3)
+    if gain < SENSOR_TRY_SHARE * need:
+        return None
+    evidence = (
+        "the error changes at the low end of the band as when the inertial frame under the "
+        f"table moves on its isolators (a {FRAME_START['M_f']:.0f} kg frame at "
+        f"{FRAME_START['f_g']:g} Hz would explain {_pm(size, stderr)} of it)"
+    )
+    return Candidate("frame_mode", "frame", evidence, need, dict(FRAME_START), dof=3)
+
+
 def _log_errors(current: Likelihood, data: DiagnosisData, frf: str):
     """``log(H_model/H_meas)`` of one FRF and its per-point noise σ."""
     with np.errstate(all="ignore"):
@@ -299,5 +342,8 @@ def screen(
         if candidate is not None:
             candidates.append(candidate)
     candidates += screen_sensors(current, data, residual)
+    frame = screen_frame(current, data, residual)
+    if frame is not None:
+        candidates.append(frame)
     candidates += screen_fixtures(scan)
     return candidates
