@@ -32,11 +32,12 @@ Noise (``noise_level`` is the rms relative error of the FRFs, the noise floor of
 
 - ``white``: the simulator's sensor noise, its densities scaled so that the FRFs' rms relative
   error is the level;
-- ``correlated``: half of that variance white, half a slow wander of every channel's
-  conditioning gain (an Ornstein-Uhlenbeck process in test time, correlation time 60 s, so
-  neighbouring points err alike; amplifiers warming, a drifting charge amplifier);
-- ``heavy``: the white noise, plus impulsive interference: each channel reading is hit with
-  probability 2 % by an error ten times its noise (outlier points).
+- ``correlated``: half of that variance white, half the simulator's drift of every
+  transducer's sensitivity (``[noise] sensitivity_drift_rms``, Gauss-Markov in test time with a
+  correlation time of 60 s, so neighbouring points err alike: amplifiers warming, a charge
+  amplifier drifting);
+- ``heavy``: the white noise, plus the simulator's interference bursts: a point is disturbed
+  with probability 2 %, its noise ten times larger on every channel (outlier points).
 """
 
 from __future__ import annotations
@@ -74,10 +75,10 @@ damping_ns_per_m = 5.05
 NOISE_PATTERN = (2e-3, 2e-4, 2e-3, 2e-4)
 NOISE_TYPES = ("white", "correlated", "heavy")
 NOISE_LEVELS = (0.003, 0.01)
-#: Correlation time of the conditioning-gain wander of correlated noise (s).
-WANDER_TIME_S = 60.0
-#: Probability and size (in units of the channel's noise) of an impulsive hit.
-HIT_PROBABILITY, HIT_SIZE = 0.02, 10.0
+#: Correlation time of the sensitivity drift of correlated noise (s).
+DRIFT_TIME_S = 60.0
+#: Probability of an interference burst per point, and its noise factor (heavy-tailed noise).
+BURST_PROBABILITY, BURST_FACTOR = 0.02, 10.0
 
 #: effect -> (vocabulary name, channels it applies to, strengths, unit of the strengths)
 EFFECTS: dict[str, tuple[str, tuple[str | None, ...], tuple[float, ...], str]] = {
@@ -222,7 +223,7 @@ def rig_text(case: Case) -> str:
     return TABLE_TEXT + device + "".join(lines)
 
 
-def _rig(case: Case, noise_scale: float) -> Rig:
+def _rig(case: Case, noise_scale: float, extra_noise: bool = True) -> Rig:
     rig = parse_rig(rig_text(case), case.name) if case.base == "voigt" else load_preset(case.base)
     densities = [noise_scale * p for p in NOISE_PATTERN]
     noise = f"""
@@ -233,6 +234,13 @@ device_force_n_per_sqrt_hz = {densities[2]!r}
 disc_acceleration_m_per_s2_per_sqrt_hz = {densities[3]!r}
 adc_noise_db_re_range_per_sqrt_hz = -200.0
 """
+    if extra_noise and case.noise_type == "correlated":
+        # two channels per FRF: each drifting by level/2 gives the FRF half the level's variance
+        noise += (f"sensitivity_drift_rms = {case.noise_level / 2!r}\n"
+                  f"sensitivity_drift_time_s = {DRIFT_TIME_S!r}\n")
+    elif extra_noise and case.noise_type == "heavy":
+        noise += (f"burst_probability = {BURST_PROBABILITY!r}\n"
+                  f"burst_factor = {BURST_FACTOR!r}\n")
     if noise_scale == 0:
         return replace(rig, noise=None)
     return replace(rig, noise=parse_rig(TABLE_TEXT + noise).noise)
@@ -273,24 +281,11 @@ def _plan(case: Case) -> list[tuple[str, float, str]]:
 def _noise_scale(case: Case, white_share: float) -> float:
     """Density scale that makes the white noise's rms relative FRF error ``white_share`` of
     the level, read from the analyser's own normalized variance of a unit-scale sweep."""
-    probe = RigSimulator(_rig(case, 1.0), seed=0)
+    probe = RigSimulator(_rig(case, 1.0, extra_noise=False), seed=0)
     record = _sweep(probe, 1.0, "up")
     v = record.variance
     floor = float(np.sqrt(np.mean(np.concatenate([v[:, 0] + v[:, 1], v[:, 2] + v[:, 3]]))))
     return case.noise_level * math.sqrt(white_share) / floor
-
-
-def _wander(time_s: np.ndarray, size: float, rng: np.random.Generator) -> np.ndarray:
-    """Relative gain wander (points × 4 channels): Ornstein-Uhlenbeck in test time."""
-    out = np.zeros((time_s.size, 4))
-    state = rng.standard_normal(4) * size
-    last = 0.0
-    for i, t in enumerate(time_s):
-        decay = math.exp(-(t - last) / WANDER_TIME_S)
-        state = state * decay + rng.standard_normal(4) * size * math.sqrt(1 - decay**2)
-        out[i] = state
-        last = t
-    return out
 
 
 def measure(case: Case) -> list[Run]:
@@ -299,22 +294,11 @@ def measure(case: Case) -> list[Run]:
     scale = _noise_scale(case, white_share)
     simulator = RigSimulator(_rig(case, scale), seed=case.seed)
     quiet = RigSimulator(_rig(case, 0.0))
-    rng = np.random.default_rng(10_000 + case.seed)
     runs = []
     for name, level, direction in _plan(case):
         record = _sweep(simulator, level, direction)
         clean = _sweep(quiet, level, direction)
-        volts = record.channel_v.copy()
-        if case.noise_type == "correlated":
-            # each channel's gain wanders by 1/√2 of the level's share per FRF (two channels)
-            size = case.noise_level * math.sqrt(1 - white_share) / math.sqrt(2)
-            volts *= 1.0 + _wander(record.end_time_s, size, rng)
-        elif case.noise_type == "heavy":
-            sigma = np.sqrt(record.variance / 2) * np.abs(volts)  # per real part, volts
-            hit = rng.random(volts.shape) < HIT_PROBABILITY
-            kick = HIT_SIZE * sigma * (rng.standard_normal(volts.shape)
-                                       + 1j * rng.standard_normal(volts.shape))
-            volts = np.where(hit, volts + kick, volts)
+        volts = record.channel_v
         table, support = _frfs(volts)
         clean_table, clean_support = _frfs(clean.channel_v)
         error = np.concatenate([table / clean_table - 1, support / clean_support - 1])

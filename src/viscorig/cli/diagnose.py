@@ -3,7 +3,7 @@
 Fits the model (default ``voigt`` on both FRFs, the table held at the file's bare-table run or
 ``/rig`` values), shows where it departs from the measurements, which effect is most likely
 missing and why, and the exact ``identify`` command with that effect added. ``--auto`` adds the
-best significant effect and refits until the error reaches the noise floor or nothing
+best significant effect (and the local modes significant next to it) and refits until nothing
 significant is left, and prints the ladder. Runs of the same specimen at other levels or in the
 other sweep direction are diagnosed jointly (``--alone`` to diagnose the run by itself).
 The file is only read.
@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--auto", action="store_true",
-        help="add the best significant effect and refit until the noise floor",
+        help="add the best significant effect and refit until nothing significant is left",
     )
     parser.add_argument("--band", default=None, help="band, LO:HI in Hz (default: all points)")
     parser.add_argument(

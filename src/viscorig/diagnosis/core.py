@@ -3,7 +3,7 @@
 >>> d = diagnose_run(campaign, "soft-0", "voigt")      # or diagnose(frf_data, "voigt", table=...)
 >>> d.failures[0].what, d.findings[0].effect, d.findings[0].explanation
 >>> d2 = d.with_effect("fixture(58)")                  # add it in one step; d2.rms_error falls
->>> ladder = d.auto()                                  # until the noise floor or nothing left
+>>> ladder = d.auto()                                  # until nothing significant is left
 """
 
 from __future__ import annotations
@@ -177,7 +177,10 @@ class Diagnosis:
         return analyse(self.data, result)
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
-        """Add the significant effects and refit, until the noise floor or nothing is left.
+        """Add the significant effects and refit, until nothing significant is left.
+
+        At the noise floor a small effect can still be significant (a local mode a few points
+        wide hardly moves the rms error): the ladder goes on while the tests find one.
 
         Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
         the local modes found significant next to it (:meth:`with_significant`).
@@ -185,7 +188,7 @@ class Diagnosis:
         ladder = [self]
         while len(ladder) <= max_steps:
             current = ladder[-1]
-            if current.at_noise_floor or not current.significant:
+            if not current.significant:
                 break
             ladder.append(current.with_significant())
         return ladder
