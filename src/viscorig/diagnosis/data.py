@@ -114,7 +114,9 @@ class DiagnosisData:
         """Independent real observations the data are worth (fewer than 2N with a drift)."""
         return max(self.noise.effective_points(self.frfs), 2.0)
 
-    def whiten(self, residuals: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
+    def whiten(
+        self, residuals: dict[str, NDArray[np.complex128]], exact: bool = True
+    ) -> NDArray[np.float64]:
         """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, one column per
         vector) whitened by the noise model: real numbers of unit variance, independent, when
         they are noise, in the noise model's layout (real parts of every FRF, then imaginary
@@ -122,9 +124,11 @@ class DiagnosisData:
 
         The same operation as :meth:`NoiseModel.whiten`, with each block's whitening matrix
         formed once (a diagonal for white noise, ``L⁻¹`` of a drift's Cholesky factor ``L``)
-        so that the many evaluations of a fit cost a product each."""
+        so that the many evaluations of a fit cost a product each. ``exact=False`` divides
+        each point by its total ``σ`` instead (the drift's correlation left out): a cheap
+        stand-in for fits whose result is then judged with the exact whitening."""
         masks = self._masks()
-        operators = self._operators()
+        operators = self._operators() if exact else self._diagonal_operators()
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
@@ -139,6 +143,25 @@ class DiagnosisData:
                     else:
                         parts[part].append(operator @ values)
         return np.concatenate(parts["re"] + parts["im"])
+
+    def _diagonal_operators(self):
+        """Per FRF: ``(rows, {part: 1/σ of each point's part})`` of each noise block."""
+        cached = self.__dict__.get("_diagonal")
+        if cached is None:
+            cached = {}
+            for frf in self.frfs:
+                blocks, start = [], 0
+                for block in self.noise.blocks[frf]:
+                    rows = slice(start, start + block.size)
+                    by_part = {}
+                    for part in ("re", "im"):
+                        white, correlated = block.part_variance(part)
+                        by_part[part] = 1.0 / np.sqrt(white + correlated)
+                    blocks.append((rows, by_part))
+                    start += block.size
+                cached[frf] = blocks
+            object.__setattr__(self, "_diagonal", cached)
+        return cached
 
     def _operators(self):
         """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""
