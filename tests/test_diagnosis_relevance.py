@@ -58,3 +58,38 @@ def test_scan_threshold_meets_its_false_alarm_rate() -> None:
 def test_misfit_inflates_the_test() -> None:
     assert dispersion(3000.0, 3208, 5) == 1.0
     assert dispersion(2 * 3203.0, 3208, 5) == pytest.approx(2.0)
+
+
+def test_diagnosis_whitens_as_the_shared_noise_model_does() -> None:
+    """Formed once per block, the whitening matrices give the noise model's own whitening."""
+    import numpy as np
+    from simdata import rig_text, simulate_run
+
+    from viscorig.diagnosis.data import combine
+
+    extra = "[noise]\nsensitivity_drift_rms = 2e-3\nsensitivity_drift_time_s = 60.0\n"
+    device = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5,
+              "damping_ns_per_m": 114.59}  # fmt: skip
+    text = rig_text(device, noise={"device_force_n_per_sqrt_hz": 2e-3,
+                                   "disc_acceleration_m_per_s2_per_sqrt_hz": 2e-4,
+                                   "excitation_force_n_per_sqrt_hz": 2e-3,
+                                   "table_acceleration_m_per_s2_per_sqrt_hz": 2e-4})
+    text = text.replace("[noise]\n", extra)
+    run = simulate_run(text, seed=4, step_hz=0.5)
+    data = combine([("run", run.frf_data("run"))], table={"M_s": 3.4, "K_s": 50194.0,
+                                                          "C_s": 5.05})
+    assert data.noise.correlated
+    rng = np.random.default_rng(0)
+    n = data.data.frequency_hz.size
+    vector = {f: rng.standard_normal(n) + 1j * rng.standard_normal(n) for f in data.frfs}
+    matrix = {f: rng.standard_normal((n, 3)) + 1j * rng.standard_normal((n, 3))
+              for f in data.frfs}
+    kept = {f: ~data.outliers[f] for f in data.frfs}
+    expected = data.noise.whiten({f: np.where(kept[f], vector[f], 0) for f in data.frfs})
+    np.testing.assert_allclose(data.whiten(vector), expected, rtol=1e-9, atol=1e-9)
+    expected = data.noise.whiten_jacobian(
+        {f: np.where(kept[f][:, None], matrix[f], 0) for f in data.frfs})
+    np.testing.assert_allclose(data.whiten(matrix), expected, rtol=1e-9, atol=1e-6)
+    # the per-point stand-in keeps each point's power and drops the correlation
+    power = data.whitened_power(vector)
+    assert set(power) == set(data.frfs) and all(p.shape == (n,) for p in power.values())

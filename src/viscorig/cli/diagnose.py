@@ -89,6 +89,7 @@ def format_diagnosis(
         f"rms_error {d.rms_error:.3e}   noise_floor {d.noise_floor:.3e}   "
         f"({d.rms_error / d.noise_floor:.2f} x floor"
         + (", at the noise floor)" if d.at_noise_floor else ")"),
+        "noise: " + "; ".join(d.data.noise.describe()),
     ]
     if d.failures:
         lines.append("where it fails:")

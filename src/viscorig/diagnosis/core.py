@@ -194,7 +194,8 @@ class Diagnosis:
         return ladder
 
     def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
-        """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``)."""
+        """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
+        ``outlier_points`` and ``scan``: what the thresholds rest on)."""
         document: dict[str, object] = {
             "run": self.data.run,
             "runs": list(self.data.runs),
@@ -203,6 +204,12 @@ class Diagnosis:
             "noise_floor": float(self.noise_floor),
             "at_noise_floor": bool(self.at_noise_floor),
             "outlier_points": self.outlier_points,
+            "noise": self.data.noise.describe(),
+            "scan": None if self.scan is None else {
+                "templates": self.scan.templates,
+                "correlation_lengths": float(self.scan.length),
+                "threshold_delta_chi2": float(self.scan.threshold),
+            },
             "failures": [band.to_json() for band in self.failures],
             "findings": [finding.to_json() for finding in self.findings],
             "advice": list(self.advice),

@@ -146,26 +146,14 @@ class DiagnosisData:
 
     def _diagonal_operators(self):
         """Per FRF: ``(rows, {part: 1/σ of each point's part})`` of each noise block."""
-        cached = self.__dict__.get("_diagonal")
-        if cached is None:
-            cached = {}
-            for frf in self.frfs:
-                blocks, start = [], 0
-                for block in self.noise.blocks[frf]:
-                    rows = slice(start, start + block.size)
-                    by_part = {}
-                    for part in ("re", "im"):
-                        white, correlated = block.part_variance(part)
-                        by_part[part] = 1.0 / np.sqrt(white + correlated)
-                    blocks.append((rows, by_part))
-                    start += block.size
-                cached[frf] = blocks
-            object.__setattr__(self, "_diagonal", cached)
-        return cached
+        return self._built("_diagonal", False)
 
     def _operators(self):
         """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""
-        cached = self.__dict__.get("_whitening")
+        return self._built("_whitening", True)
+
+    def _built(self, key: str, exact: bool):
+        cached = self.__dict__.get(key)
         if cached is None:
             cached = {}
             for frf in self.frfs:
@@ -175,12 +163,14 @@ class DiagnosisData:
                     by_part = {}
                     for part in ("re", "im"):
                         white, correlated = block.part_variance(part)
-                        by_part[part] = (block.whiten_part(part, np.eye(block.size))
-                                         if correlated > 0 else 1.0 / np.sqrt(white))
+                        if exact and correlated > 0:
+                            by_part[part] = block.whiten_part(part, np.eye(block.size))
+                        else:
+                            by_part[part] = 1.0 / np.sqrt(white + (0.0 if exact else correlated))
                     blocks.append((rows, by_part))
                     start += block.size
                 cached[frf] = blocks
-            object.__setattr__(self, "_whitening", cached)
+            object.__setattr__(self, key, cached)
         return cached
 
     def whitened_power(self, residuals: dict[str, NDArray[np.complex128]]) -> dict[str, NDArray]:

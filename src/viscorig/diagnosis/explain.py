@@ -29,6 +29,14 @@ def _pm(value: float, stderr: float, scale: float = 1.0, digits: int | None = No
     return f"{v:.{digits}f} ± {s:.{digits}f}"
 
 
+def _pm_g(value: float, stderr: float) -> str:
+    """``value ± stderr`` in ``g`` format, the value to the digits its stderr leaves."""
+    if not (math.isfinite(stderr) and stderr > 0 and value != 0):
+        return f"{value:.3g}"
+    digits = max(2, math.ceil(math.log10(abs(value) / stderr)) + 1)
+    return f"{value:.{digits}g} ± {stderr:.2g}"
+
+
 def _channel_of(term: str):
     inside = term[term.index("(") + 1 : term.index(")")] if "(" in term else ""
     return CHANNELS.get(inside)
@@ -114,7 +122,7 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
     if effect == "load_cell_compliance":
         k_c, se = _estimate(finding, "K_c")
         return (
-            f"The link between table and device is not rigid (K_c = {k_c:.3g} ± {se:.2g} N/m): "
+            f"The link between table and device is not rigid (K_c = {_pm_g(k_c, se)} N/m): "
             f"{why}. Stiffen the load cell's linkage (stinger, bolts) or keep load_cell in the "
             "model; use the support FRF (Eq. 5) for K*, which does not need a rigid link."
         )
@@ -123,7 +131,7 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
         f_g, f_se = _estimate(finding, "f_g")
         return (
             f"The inertial frame under the table moves on its isolators (a mode near "
-            f"{_pm(f_g, f_se)} Hz of a frame of about {mass:.3g} ± {mass_se:.2g} kg): {why}. It "
+            f"{_pm(f_g, f_se)} Hz of a frame of about {_pm_g(mass, mass_se)} kg): {why}. It "
             "makes the table and the specimens read stiffer; fit the bare-table run with "
             "`frame` too, or keep `frame` in the model, and measure well above the frame's mode."
         )
