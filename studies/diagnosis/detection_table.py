@@ -12,7 +12,7 @@ finding is a false discovery.
 
 Run (about an hour on two cores for the full set)::
 
-    python studies/diagnosis/detection_table.py --out studies/diagnosis/results.json
+    python studies/diagnosis/detection_table.py --presets --out studies/diagnosis/results.jsonl
     python studies/diagnosis/detection_table.py --quick          # a few minutes
 
 ``--jobs N`` runs N processes; the table is printed as Markdown and written beside ``--out``.
@@ -102,13 +102,38 @@ def run_case(case: Case, with_variance: bool | None = None) -> dict:
     }
 
 
-def _run_all(cases: list[Case], jobs: int) -> list[dict]:
-    if jobs <= 1:
-        return [run_case(case) for case in cases]
-    from multiprocessing import get_context
+def _run_all(cases: list[Case], jobs: int, log: Path | None = None) -> list[dict]:
+    """Every case's result; with ``log`` (JSON lines), results already there are read back and
+    each new one is appended as it comes, so a stopped study resumes where it was."""
+    done: dict[str, dict] = {}
+    if log is not None and log.exists():
+        for line in log.read_text().splitlines():
+            if line.strip():
+                item = json.loads(line)
+                done[item["case"]] = item
+    todo = [case for case in cases if case.name not in done]
+    sink = None if log is None else log.open("a")
+    try:
+        if jobs <= 1:
+            results = map(run_case, todo)
+            pool = None
+        else:
+            from multiprocessing import get_context
 
-    with get_context("spawn").Pool(jobs) as pool:
-        return pool.map(run_case, cases, chunksize=4)
+            pool = get_context("spawn").Pool(jobs)
+            results = pool.imap_unordered(run_case, todo, chunksize=2)
+        for item in results:
+            done[item["case"]] = item
+            if sink is not None:
+                sink.write(json.dumps(item) + "\n")
+                sink.flush()
+        if pool is not None:
+            pool.close()
+            pool.join()
+    finally:
+        if sink is not None:
+            sink.close()
+    return [done[case.name] for case in cases]
 
 
 def _smallest(rates: dict[float, float]) -> float | None:
@@ -208,7 +233,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--effects", nargs="*", default=list(EFFECTS))
     parser.add_argument("--presets", action="store_true", help="also the paper-like presets")
     parser.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1)))
-    parser.add_argument("--out", type=Path, default=None, help="results JSON")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="results (JSON lines, one case each; a rerun resumes from it)")
     args = parser.parse_args(argv)
     levels = heldout.NOISE_LEVELS
     seeds, clean_seeds, noise = args.seeds, args.clean_seeds, args.noise
@@ -220,12 +246,11 @@ def main(argv: list[str] | None = None) -> int:
         presets = tuple(heldout.PRESET_MODELS)
         cases += list(clean_cases(noise, levels, range(math.ceil(clean_seeds / 6)), presets))
     start = time.perf_counter()
-    results = _run_all(cases, args.jobs)
+    results = _run_all(cases, args.jobs, args.out)
     text = table(results)
     print(text)
     print(f"{len(cases)} cases in {time.perf_counter() - start:.0f} s")
     if args.out is not None:
-        args.out.write_text(json.dumps(results, indent=1))
         args.out.with_suffix(".md").write_text(text + "\n")
     return 0
 
