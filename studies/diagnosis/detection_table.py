@@ -240,11 +240,13 @@ def main(argv: list[str] | None = None) -> int:
     seeds, clean_seeds, noise = args.seeds, args.clean_seeds, args.noise
     if args.quick:
         seeds, clean_seeds, noise, levels = 2, 4, ["white"], (0.01,)
-    cases = list(detection_cases(noise, levels, range(seeds), args.effects))
-    cases += list(clean_cases(noise, levels, range(clean_seeds)))
+    cases = list(clean_cases(noise, levels, range(clean_seeds)))
     if args.presets:
         presets = tuple(heldout.PRESET_MODELS)
         cases += list(clean_cases(noise, levels, range(math.ceil(clean_seeds / 6)), presets))
+    # seed by seed, so that a study stopped early still covers every effect and strength
+    planted = detection_cases(noise, levels, range(seeds), args.effects)
+    cases += sorted(planted, key=lambda case: case.seed)
     start = time.perf_counter()
     results = _run_all(cases, args.jobs, args.out)
     text = table(results)
