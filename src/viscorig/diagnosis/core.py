@@ -22,6 +22,7 @@ from viscorig.diagnosis.findings import (
     confirm,
     fit_with,
     identify_fit,
+    unpaid_term,
 )
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
@@ -183,7 +184,9 @@ class Diagnosis:
         wide hardly moves the rms error): the ladder goes on while the tests find one.
 
         Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
-        the local modes found significant next to it (:meth:`with_significant`).
+        the local modes found significant next to it (:meth:`with_significant`). Last, any
+        effect that no longer pays for itself in the final model is taken out again, one step
+        each (:meth:`without_unpaid`).
         """
         ladder = [self]
         while len(ladder) <= max_steps:
@@ -191,7 +194,22 @@ class Diagnosis:
             if not current.significant:
                 break
             ladder.append(current.with_significant())
+        while len(ladder) > 1:
+            lighter = ladder[-1].without_unpaid()
+            if lighter is None:
+                break
+            ladder.append(lighter)
         return ladder
+
+    def without_unpaid(self) -> Diagnosis | None:
+        """The diagnosis of this model less the effect term that no longer pays for itself in
+        it (:func:`~viscorig.diagnosis.findings.unpaid_term`), or ``None``."""
+        threshold = self.scan.threshold if self.scan is not None else 0.0
+        found = unpaid_term(self.likelihood, self.data, threshold)
+        if found is None:
+            return None
+        _, reduced = found
+        return analyse(self.data, identify_fit(reduced, self.data))
 
     def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
         """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,

@@ -30,7 +30,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
-from viscorig.diagnosis.significance import dispersion
+from viscorig.diagnosis.significance import dispersion, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
@@ -464,6 +464,40 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
                 f"{finding.threshold:.1f})"
             )
     return base
+
+
+def term_threshold(term, scan_threshold: float) -> float:
+    """``Δχ²`` an effect term of a model must be worth: a local mode the scan's threshold (it
+    was found by looking everywhere), any other its parameters' chi-square quantile."""
+    if term.keyword == "fixture":
+        return scan_threshold
+    return threshold(max(len(term.parameters()), 1))
+
+
+def unpaid_term(
+    current: Likelihood, data: DiagnosisData, scan_threshold: float
+) -> tuple[str, Likelihood] | None:
+    """The effect term of ``current`` that pays least for itself, with the fit of the model
+    without it, when it no longer pays (its removal raises ``χ²`` by less than its threshold,
+    against the model's misfit ``φ``); ``None`` when every term pays.
+
+    A term added to a model far from the noise may only have soaked up misfit that a later term
+    explains: judged again in the final model, it goes (backward elimination).
+    """
+    phi = dispersion(current.chi2, data.residual_count, len(current.free))
+    worst: tuple[float, str, Likelihood] | None = None
+    for term in current.model.effects:
+        specs = [t.spec for t in current.model.terms if t is not term]
+        try:
+            reduced = parse_spec("+".join(specs))
+        except InputError:
+            continue
+        start = {**reduced.defaults(), **carried_values(current, reduced)}
+        result = ml_fit(reduced, data, start)
+        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold)
+        if ratio < 1.0 and (worst is None or ratio < worst[0]):
+            worst = (ratio, term.spec, result)
+    return None if worst is None else (worst[1], worst[2])
 
 
 def _mark_ambiguities(findings: list[Finding], ties: list[Finding]) -> None:
