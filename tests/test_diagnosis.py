@@ -134,6 +134,16 @@ def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:
     assert_at_floor_after(diagnosis)
 
 
+def test_an_effect_that_does_not_pay_in_the_final_model_is_taken_out() -> None:
+    """Backward elimination: on clean data a local mode put in by hand does not pay for itself,
+    the planted one does."""
+    run = simulate_run(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), seed=3, step_hz=0.5)
+    diagnosis = diagnose(run.frf_data("run"), "voigt+fixture(58)+fixture(83)", table=TABLE)
+    lighter = diagnosis.without_unpaid()
+    assert lighter is not None and lighter.model == "voigt+fixture(58)"
+    assert lighter.without_unpaid() is None
+
+
 def test_soft_0_without_drift_or_amplitude_dependence_reports_neither() -> None:
     """The paper's soft-0 (fractional rubber, load cell, three local modes) from Voigt."""
     run = simulate_run("soft-0", seed=2, level_m_per_s2=1.4, step_hz=0.5)
