@@ -75,9 +75,13 @@ def test_auto_with_three_planted_effects_ends_within_one_and_a_half_times_the_tr
     ladder = diagnose(data, "voigt", table=TABLE).auto()
     final = ladder[-1]
     assert final.rms_error <= 1.5 * run.true_noise
-    assert "delay(x_v)" in final.model.split("+")
-    if noise == "white":  # with the drift, the noise model leaves the smaller two in its noise
-        assert "load_cell" in final.model.split("+") and "fixture(5" in final.model
+    terms = final.model.split("+")
+    # nothing but what was planted; with white noise all of it (with the drift, the smaller
+    # effects can hide in what the noise model takes for drift)
+    assert all(t in ("voigt", "load_cell", "delay(x_v)") or t.startswith("fixture(5")
+               for t in terms), final.model
+    if noise == "white":
+        assert {"load_cell", "delay(x_v)"} <= set(terms) and "fixture(5" in final.model
 
 
 def test_a_paper_like_preset_diagnosed_from_its_own_model_has_nothing_missing() -> None:

@@ -34,6 +34,7 @@ from viscorig.diagnosis.significance import dispersion, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
+from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
 from viscorig.models import TERMS, Fixture, Model, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
 
@@ -335,15 +336,72 @@ def local_dispersion(result: Likelihood, term_text: str, data: DiagnosisData) ->
     return worst
 
 
+def single_point_share(before: Likelihood, after: Likelihood, data: DiagnosisData) -> float:
+    """The largest drop of ``χ²`` one point brings to ``after`` against ``before``: what a
+    local mode narrow enough to fit one outlier point would gain from it alone. Capped at what
+    an outlier the noise model leaves in can bring (a point above ``OUTLIER_LEVEL`` times its
+    noise power is left out as an outlier, so no single point brings more, in two parts)."""
+    old, new = data.whitened_power(before.residuals), data.whitened_power(after.residuals)
+    largest = float(max(np.max(2.0 * (old[frf] - new[frf])) for frf in data.frfs))
+    return min(largest, 2.0 * OUTLIER_LEVEL)
+
+
+def drift_confusion_factor(
+    before: Likelihood, after: Likelihood, term_text: str, data: DiagnosisData
+) -> float:
+    """How much a smooth effect's test is weakened by the drift the noise model found.
+
+    A drift slower than the sweep leaves in the FRFs a smooth change of up to its own rms ``σ``
+    (a constant gain offset, a slow trend) that no single sweep tells from a smooth effect
+    (the noise model resolves the drift only up to its longest lag). With ``r`` the rms change
+    of ``log H`` the effect makes (``after`` against ``before``) and ``Δχ²`` its drop, its own
+    standard error in those units is ``r/√Δχ²``; adding the drift's ``σ²`` (of the magnitude
+    and of the phase, each as much as the effect changes that part) to its variance divides
+    ``Δχ²`` by ``1 + σ² Δχ²/r²``: an effect must stand out against the drift. White noise (no
+    drift) leaves the test alone, and so does a local mode (it is not smooth).
+    """
+    if term_text.startswith("fixture"):
+        return 1.0
+    delta = before.chi2 - after.chi2
+    if not delta > 0:
+        return 1.0
+    drift, size2, count = 0.0, 0.0, 0
+    for frf in data.frfs:
+        re = max(block.correlated_power[0] for block in data.noise.blocks[frf])
+        im = max(block.correlated_power[1] for block in data.noise.blocks[frf])
+        with np.errstate(all="ignore"):
+            change = np.log((1.0 + after.residuals[frf]) / (1.0 + before.residuals[frf]))
+        change = change[np.isfinite(change)]
+        # the drift of each part weighs as much as the effect changes that part
+        drift += re * float(np.sum(change.real**2)) + im * float(np.sum(change.imag**2))
+        size2 += float(np.sum(np.abs(change) ** 2))
+        count += change.size
+    if not (drift > 0 and size2 > 0):
+        return 1.0
+    size2 /= count
+    drift /= count * size2
+    return 1.0 + drift * delta / size2
+
+
 def _test(
     before: Likelihood, after: Likelihood, needed: float, data: DiagnosisData, term: str = ""
 ):
-    """``(Δχ², φ, passes)`` of ``after`` against ``before`` (``term``: the term tested)."""
+    """``(Δχ², φ, passes)`` of ``after`` against ``before`` (``term``: the term tested).
+
+    ``φ``, the misfit the test is made against, is the larger model's (an F test), for a local
+    mode the noise next to it if larger (:func:`local_dispersion`), for a smooth effect raised
+    by the drift it could be mistaken for (:func:`drift_confusion_factor`). A local mode must
+    also pay without its best point (:func:`single_point_share`): one outlier point is no mode.
+    """
     delta = before.chi2 - after.chi2
     n = data.residual_count
     phi = max(dispersion(after.chi2, n, len(after.free)), local_dispersion(after, term, data))
+    # the drift's variance adds to the effect's own (φ s²): Δχ² / (φ + σ² Δχ²/r²)
+    phi += drift_confusion_factor(before, after, term, data) - 1.0
     excess = before.chi2 - (n - len(before.free))
     passes = delta / phi > needed and removes_enough(before.chi2, after.chi2, excess)
+    if passes and term.startswith("fixture"):
+        passes = (delta - single_point_share(before, after, data)) / phi > needed
     return delta, phi, passes
 
 
@@ -435,13 +493,24 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
     """Mark significant the findings that pay for themselves next to those before them; the fit
     of the model with all of them."""
     base, accepted = current, []
+    lead = findings[0] if findings else None
+    if lead is None or lead.passes_alone or lead.delta_chi2 <= 0 or lead.effect == (
+            "fixture_resonance"):
+        lead = None
     for finding in findings:
         if not finding.passes_alone:
             continue
+        if not accepted and lead is not None and finding.effect == "fixture_resonance":
+            # The best-fitting candidate is smooth and not significant (the noise, or a drift
+            # it cannot be told from, could make it): a local mode must still pay next to it,
+            # or it takes the credit for what the smooth effect explains better.
+            base, accepted = lead.likelihood, [lead]
         if not accepted:
             finding.significant = True
             accepted.append(finding)
             base = finding.likelihood
+            continue
+        if finding is lead:
             continue
         try:
             spec = candidate_spec(base.model, finding.term)
