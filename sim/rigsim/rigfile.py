@@ -568,7 +568,7 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
                         "highpass_hz", required=False, minimum=1e-3, maximum=1e3
                     ),
                     lowpass_hz=channel.number(
-                        "lowpass_hz", required=False, minimum=1.0, maximum=1e6
+                        "lowpass_hz", required=False, minimum=1.0, maximum=1e9
                     ),
                 )
             )

@@ -6,21 +6,22 @@ which integrates the equations of motion and correlates each channel like the an
 module imports ``rigsim`` and numpy only: nothing of the identification core makes or touches
 the data, so a diagnosis that names the planted effect found it in data it did not make.
 
-Effects and their strengths (the planted size; each on every channel where it applies):
+Effects and their strengths (the planted size, in steps of about √10; each on every channel
+where it applies):
 
 ============= ============================= ======================================================
 effect        strengths                     planted as
 ============= ============================= ======================================================
-delay         1, 3, 10, 30 µs               ``[delays]`` of one channel
-lowpass       lag 1, 3, 10, 30 µs           ``[sensors.<channel>] lowpass_hz = 1/(2π lag)``
-highpass      0.01, 0.03, 0.1, 0.3 Hz       ``[sensors.<channel>] highpass_hz``
-gain          0.1, 0.3, 1, 3 %              ``[sensors.<channel>] gain = 1 + strength``
-fixture       0.01, 0.03, 0.1, 0.3 g        a local mode at 47 or 83 Hz, ζ = 0.02
-load_cell     K*/K_c 0.03, 0.1, 0.3, 1 %    ``[load_cell]`` with ``K_c = 1.5e5 N/m / strength``
-modulus       0.3, 1, 3, 10 %               a fractional rubber whose K' rises by it over the band
-amplitude     0.3, 1, 3, 10 %               Payne softening at twice the reference displacement;
-                                            a second run at twice the level
-drift         0.1, 0.3, 1, 3 % per hour     a down sweep after the up sweep, on one clock
+delay         0.1 to 30 µs                  ``[delays]`` of one channel
+lowpass       lag 0.1 to 30 µs              ``[sensors.<channel>] lowpass_hz = 1/(2π lag)``
+highpass      0.001 to 0.3 Hz               ``[sensors.<channel>] highpass_hz``
+gain          0.01 to 3 %                   ``[sensors.<channel>] gain = 1 + strength``
+fixture       0.01 to 1 g                   a local mode at 47 or 83 Hz, ζ = 0.02
+load_cell     K*/K_c 0.003 to 1 %           ``[load_cell]`` with ``K_c = 1.5e5 N/m / strength``
+modulus       0.03 to 10 %                  a fractional rubber whose K' rises by it over the band
+amplitude     0.03 to 10 %                  Payne softening of K* at 10 µm (about the disc's
+                                            displacement at 49 Hz); a second run at twice the level
+drift         0.01 to 3 % per hour          a down sweep after the up sweep, on one clock
 clean         none                          the base rig alone
 ============= ============================= ======================================================
 
@@ -82,15 +83,18 @@ BURST_PROBABILITY, BURST_FACTOR = 0.02, 10.0
 
 #: effect -> (vocabulary name, channels it applies to, strengths, unit of the strengths)
 EFFECTS: dict[str, tuple[str, tuple[str | None, ...], tuple[float, ...], str]] = {
-    "delay": ("sensor_delay", tuple(CHANNELS), (1e-6, 3e-6, 1e-5, 3e-5), "s"),
-    "lowpass": ("sensor_delay", tuple(CHANNELS), (1e-6, 3e-6, 1e-5, 3e-5), "s lag"),
-    "highpass": ("sensor_highpass", tuple(CHANNELS), (0.01, 0.03, 0.1, 0.3), "Hz"),
-    "gain": ("sensor_gain", tuple(CHANNELS), (0.001, 0.003, 0.01, 0.03), "relative"),
-    "fixture": ("fixture_resonance", (None,), (1e-5, 3e-5, 1e-4, 3e-4), "kg"),
-    "load_cell": ("load_cell_compliance", (None,), (3e-4, 1e-3, 3e-3, 1e-2), "K*/K_c"),
-    "modulus": ("frequency_dependent_modulus", (None,), (0.003, 0.01, 0.03, 0.1), "relative"),
-    "amplitude": ("amplitude_dependence", (None,), (0.003, 0.01, 0.03, 0.1), "relative"),
-    "drift": ("thermal_drift", (None,), (0.001, 0.003, 0.01, 0.03), "per hour"),
+    "delay": ("sensor_delay", tuple(CHANNELS), (1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5), "s"),
+    "lowpass": ("sensor_delay", tuple(CHANNELS), (1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5), "s lag"),
+    "highpass": ("sensor_highpass", tuple(CHANNELS), (1e-3, 3e-3, 0.01, 0.03, 0.1, 0.3), "Hz"),
+    "gain": ("sensor_gain", tuple(CHANNELS), (1e-4, 3e-4, 1e-3, 3e-3, 0.01, 0.03), "relative"),
+    "fixture": ("fixture_resonance", (None,), (1e-5, 3e-5, 1e-4, 3e-4, 1e-3), "kg"),
+    "load_cell": ("load_cell_compliance", (None,), (3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2),
+                  "K*/K_c"),
+    "modulus": ("frequency_dependent_modulus", (None,), (3e-4, 1e-3, 3e-3, 0.01, 0.03, 0.1),
+                "relative"),
+    "amplitude": ("amplitude_dependence", (None,), (3e-4, 1e-3, 3e-3, 0.01, 0.03, 0.1),
+                  "relative"),
+    "drift": ("thermal_drift", (None,), (1e-4, 3e-4, 1e-3, 3e-3, 0.01, 0.03), "per hour"),
 }
 #: The paper-like presets, and the model each is made of (diagnosed from it when clean): a
 #: fractional rubber, the load cell, three local modes, and the 2000 kg frame under the table.
