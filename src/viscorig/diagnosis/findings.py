@@ -285,13 +285,17 @@ def _renamed(result: Likelihood, term_text: str, data: DiagnosisData) -> tuple[L
 
 
 def _inside(result: Likelihood, term_text: str, data: DiagnosisData) -> bool:
-    """The local mode ``term_text`` of ``result`` has its peak within the data's band."""
+    """The local mode ``term_text`` of ``result`` has its half-power band within the data's
+    band, two frequency steps at least from either end (at the edge, a mode is a trend)."""
     term = next((t for t in result.model.effects if t.spec == term_text), None)
     if term is None:
         return False
-    f_n = result.values[result.model.local_names(term)["f_n"]]
+    names = result.model.local_names(term)
+    f_n, zeta = result.values[names["f_n"]], result.values[names["zeta"]]
     f = data.data.frequency_hz
-    return bool(f.min() < f_n < f.max())
+    steps = np.diff(np.unique(f))
+    margin = max(2 * zeta * f_n, 2 * (float(np.median(steps)) if steps.size else 0.0))
+    return bool(f.min() + margin < f_n < f.max() - margin)
 
 
 def removes_enough(chi2_before: float, chi2_after: float, excess_before: float) -> bool:
