@@ -266,6 +266,10 @@ def test_diagnose_json_follows_the_design(
                       "ladder": list}.items():  # fmt: skip
         assert isinstance(document[key], kind), key
     assert document["run"] == "soft-0" and document["model"] == "voigt"
+    # what the thresholds rest on
+    assert document["noise"] and all(isinstance(line, str) for line in document["noise"])
+    assert document["scan"]["threshold_delta_chi2"] > 10.8
+    assert isinstance(document["outlier_points"], int)
     for band in document["failures"]:
         assert set(band) >= {"band_hz", "frf", "what"} and len(band["band_hz"]) == 2
     vocabulary = set(EFFECTS)
@@ -279,6 +283,7 @@ def test_diagnose_json_follows_the_design(
     assert rest == sorted(rest)
     best = document["findings"][0]
     assert best["effect"] == "fixture_resonance" and best["significant"]
+    assert best["delta_chi2"] > best["threshold"] >= document["scan"]["threshold_delta_chi2"]
     assert document["ladder"][0]["model"] == "voigt"
     assert document["ladder"][-1]["rms_error"] < document["ladder"][0]["rms_error"] / 3
     # the finding's model is accepted by identify as is
