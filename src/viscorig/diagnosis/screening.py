@@ -324,7 +324,8 @@ def screen_drift(current: Likelihood, data: DiagnosisData) -> Candidate | None:
     e, sigma = _log_errors(current, data, data.frfs[0])
     columns = np.stack([np.ones_like(u), u, u**2, t], axis=1)
     coefficients, _ = _weighted_lstsq(columns, e.real, 1.0 / sigma)
-    per_hour = coefficients[3] / span * 3600 * 100  # K* falls as the model overshoots
+    # a softening K* raises the measured accelerance: log(H_model/H_measured) falls with it
+    per_hour = coefficients[3] / span * 3600 * 100
     evidence = (
         f"the {'/'.join(data.directions)} sweeps disagree as the test time goes on "
         f"(about {per_hour:+.2f} % per hour)"
