@@ -6,8 +6,13 @@ from __future__ import annotations
 import pytest
 from scipy.stats import chi2
 
-from viscorig.diagnosis.findings import MIN_EXCESS_FRACTION, removes_enough
-from viscorig.diagnosis.significance import dispersion, scan_threshold, threshold
+from viscorig.diagnosis.significance import (
+    MIN_EXCESS_FRACTION,
+    dispersion,
+    removes_enough,
+    scan_threshold,
+    threshold,
+)
 
 
 def test_a_sliver_of_the_excess_is_not_enough() -> None:

@@ -29,8 +29,14 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
+from viscorig.diagnosis.data import DiagnosisData
+from viscorig.diagnosis.weighted import Likelihood
+from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
+
 #: False-finding probability allowed to each family of candidates in one diagnosis step.
 FAMILY_ALPHA = 1e-3
+#: A significant finding removes at least this share of the χ² in excess of the noise.
+MIN_EXCESS_FRACTION = 0.1
 
 
 def threshold(dof: int, alpha: float = FAMILY_ALPHA) -> float:
@@ -62,6 +68,112 @@ def dispersion(chi2_value: float, residual_count: int, parameter_count: int) -> 
     return max(1.0, chi2_value / dof)
 
 
-def in_standard_errors(delta_chi2: float) -> float:
-    """A ``Δχ²`` of one parameter as a distance from "no effect" in standard errors."""
-    return float(np.sqrt(max(delta_chi2, 0.0)))
+def removes_enough(chi2_before: float, chi2_after: float, excess_before: float) -> bool:
+    """The change removes at least :data:`MIN_EXCESS_FRACTION` of ``excess_before``, the
+    ``χ²`` the noise does not explain (none left: any drop will do)."""
+    return chi2_before - chi2_after >= MIN_EXCESS_FRACTION * max(excess_before, 0.0)
+
+
+#: Half-width of the neighbourhood of a local mode whose residual measures the local noise
+#: (Hz, and in half-power bandwidths of the mode), and of the guard band left out around it.
+NEIGHBOURHOOD_HZ, NEIGHBOURHOOD_WIDTHS, GUARD_WIDTHS = 4.0, 5.0, 1.5
+#: Largest whitened residual power a point brings to the local dispersion (outliers clipped).
+LOCAL_CLIP = 9.0
+
+
+def local_dispersion(result: Likelihood, term_text: str, data: DiagnosisData) -> float:
+    """Misfit of the noise model around a local mode: mean whitened residual power of
+    ``result`` over the mode's neighbourhood, its own half-power band left out, in the FRF where
+    it is largest (at least 1).
+
+    A detector that compares a local feature with the noise next to it (constant false-alarm
+    rate): where the noise model underestimates the noise over a few hertz (near the system's
+    resonance, where the force dips and the relative noise climbs faster than a running
+    estimate follows), the mode's ``Δχ²`` is scaled down by as much.
+    """
+    term = next((t for t in result.model.effects if t.spec == term_text), None)
+    if term is None or term.keyword != "fixture":
+        return 1.0
+    names = result.model.local_names(term)
+    f_n, zeta = result.values[names["f_n"]], result.values[names["zeta"]]
+    width = 2 * zeta * f_n
+    f = data.data.frequency_hz
+    near = (np.abs(f - f_n) <= max(NEIGHBOURHOOD_HZ, NEIGHBOURHOOD_WIDTHS * width)) & (
+        np.abs(f - f_n) > GUARD_WIDTHS * width)
+    masks = data.outliers
+    whitened = data.whitened_power(result.residuals)
+    worst = 1.0
+    for frf in data.frfs:  # each FRF's noise model may be off on its own
+        power = np.minimum(whitened[frf], LOCAL_CLIP)[near & ~masks[frf]]
+        if power.size >= 8:
+            worst = max(worst, float(np.mean(power)))
+    return worst
+
+
+def single_point_share(before: Likelihood, after: Likelihood, data: DiagnosisData) -> float:
+    """The largest drop of ``χ²`` one point brings to ``after`` against ``before``: what a
+    local mode narrow enough to fit one outlier point would gain from it alone. Capped at what
+    an outlier the noise model leaves in can bring (a point above ``OUTLIER_LEVEL`` times its
+    noise power is left out as an outlier, so no single point brings more, in two parts)."""
+    old, new = data.whitened_power(before.residuals), data.whitened_power(after.residuals)
+    largest = float(max(np.max(2.0 * (old[frf] - new[frf])) for frf in data.frfs))
+    return min(largest, 2.0 * OUTLIER_LEVEL)
+
+
+def drift_confusion_factor(
+    before: Likelihood, after: Likelihood, term_text: str, data: DiagnosisData
+) -> float:
+    """How much a smooth effect's test is weakened by the drift the noise model found.
+
+    A drift slower than the sweep leaves in the FRFs a smooth change of up to its own rms ``σ``
+    (a constant gain offset, a slow trend) that no single sweep tells from a smooth effect
+    (the noise model resolves the drift only up to its longest lag). With ``r`` the rms change
+    of ``log H`` the effect makes (``after`` against ``before``) and ``Δχ²`` its drop, its own
+    standard error in those units is ``r/√Δχ²``; adding the drift's ``σ²`` (of the magnitude
+    and of the phase, each as much as the effect changes that part) to its variance divides
+    ``Δχ²`` by ``1 + σ² Δχ²/r²``: an effect must stand out against the drift. White noise (no
+    drift) leaves the test alone, and so does a local mode (it is not smooth).
+    """
+    if term_text.startswith("fixture"):
+        return 1.0
+    delta = before.chi2 - after.chi2
+    if not delta > 0:
+        return 1.0
+    drift, size2, count = 0.0, 0.0, 0
+    for frf in data.frfs:
+        re = max(block.correlated_power[0] for block in data.noise.blocks[frf])
+        im = max(block.correlated_power[1] for block in data.noise.blocks[frf])
+        with np.errstate(all="ignore"):
+            change = np.log((1.0 + after.residuals[frf]) / (1.0 + before.residuals[frf]))
+        change = change[np.isfinite(change)]
+        # the drift of each part weighs as much as the effect changes that part
+        drift += re * float(np.sum(change.real**2)) + im * float(np.sum(change.imag**2))
+        size2 += float(np.sum(np.abs(change) ** 2))
+        count += change.size
+    if not (drift > 0 and size2 > 0):
+        return 1.0
+    size2 /= count
+    drift /= count * size2
+    return 1.0 + drift * delta / size2
+
+
+def judge(
+    before: Likelihood, after: Likelihood, needed: float, data: DiagnosisData, term: str = ""
+):
+    """``(Δχ², φ, passes)`` of ``after`` against ``before`` (``term``: the term tested).
+
+    ``φ``, the misfit the test is made against, is the larger model's (an F test), for a local
+    mode the noise next to it if larger (:func:`local_dispersion`), for a smooth effect raised
+    by the drift it could be mistaken for (:func:`drift_confusion_factor`). A local mode must
+    also pay without its best point (:func:`single_point_share`): one outlier point is no mode.
+    """
+    delta = before.chi2 - after.chi2
+    n = data.residual_count
+    phi = max(dispersion(after.chi2, n, len(after.free)), local_dispersion(after, term, data))
+    # the drift's variance adds to the effect's own (φ s²): Δχ² / (φ + σ² Δχ²/r²)
+    phi += drift_confusion_factor(before, after, term, data) - 1.0
+    excess = before.chi2 - (n - len(before.free))
+    passes = delta / phi > needed and removes_enough(before.chi2, after.chi2, excess)
+    if passes and term.startswith("fixture"):
+        passes = (delta - single_point_share(before, after, data)) / phi > needed
+    return delta, phi, passes
