@@ -14,14 +14,17 @@ The scan for local modes looks everywhere along the band and at several widths, 
 accounts for that (the look-elsewhere effect) through the expected number of upcrossings of the
 matched-filter statistic (Rice, Davies; :mod:`viscorig.diagnosis.scan`): with ``L`` the length of
 the scan measured in correlation lengths of the statistic, ``P(max Δχ² > u) ≈ L e^{−u/2}/(2π)``,
-and the threshold is the ``u`` that makes it ``α``. On a 401-point paper sweep, ``L`` is a few
-thousand and the threshold about ``Δχ² > 25``: a mode is reported when its amplitude exceeds
-about five of its own standard errors.
+and the threshold is the ``u`` that makes it ``α``. On a 401-point paper sweep ``L`` is 400 to
+1000 and the threshold ``Δχ² ≈ 22-24``: a mode is reported when its mass exceeds about 4.8 of its
+own standard errors.
 
 A model that does not fit to the noise makes every test too easy: the residual holds structure
 that any extra parameter partly absorbs. Each test is therefore made against the larger of the
 two models compared, as in an F test: ``Δχ²`` is divided by ``φ = max(1, χ²/(n − p))`` of the
-model with the candidate, the misfit the noise does not explain.
+model with the candidate, the misfit the noise does not explain (:func:`judge`, which also
+holds the other guards: a local mode against the noise next to it and without its best point,
+a smooth effect against the drift the noise model found, every finding removing a real share
+of the misfit).
 """
 
 from __future__ import annotations
