@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 from rigsim.engine import RigSimulator
@@ -285,11 +286,16 @@ def _plan(case: Case) -> list[tuple[str, float, str]]:
 def _noise_scale(case: Case, white_share: float) -> float:
     """Density scale that makes the white noise's rms relative FRF error ``white_share`` of
     the level, read from the analyser's own normalized variance of a unit-scale sweep."""
+    return case.noise_level * math.sqrt(white_share) / _unit_floor(
+        replace(case, seed=0, noise_type="white", noise_level=1.0))
+
+
+@lru_cache(maxsize=256)
+def _unit_floor(case: Case) -> float:
+    """rms relative FRF error of a sweep at unit noise scale (the same for every seed)."""
     probe = RigSimulator(_rig(case, 1.0, extra_noise=False), seed=0)
-    record = _sweep(probe, 1.0, "up")
-    v = record.variance
-    floor = float(np.sqrt(np.mean(np.concatenate([v[:, 0] + v[:, 1], v[:, 2] + v[:, 3]]))))
-    return case.noise_level * math.sqrt(white_share) / floor
+    v = _sweep(probe, 1.0, "up").variance
+    return float(np.sqrt(np.mean(np.concatenate([v[:, 0] + v[:, 1], v[:, 2] + v[:, 3]]))))
 
 
 def measure(case: Case) -> list[Run]:

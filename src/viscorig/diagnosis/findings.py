@@ -410,7 +410,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             continue
         start = {**model.defaults(), **carried_values(finding.likelihood, model),
                  **carried_values(base, model)}
-        result = ml_fit(model, data, start,
+        result = ml_fit(model, data, start, exact=False,
                         only=_broad(model) | added_parameters(model, finding.term))
         delta, phi, passes = judge(base, result, finding.threshold, data, finding.term)
         if passes:

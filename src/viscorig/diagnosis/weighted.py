@@ -260,14 +260,17 @@ def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> 
 
     residuals = ratio(values)
     whitened = data.whiten(residuals)
-    columns = []
-    for name, is_log in zip(free, log, strict=True):
+    columns = {frf: np.empty((r.size, len(free)), dtype=complex) for frf, r in residuals.items()}
+    for j, (name, is_log) in enumerate(zip(free, log, strict=True)):
         value = values[name]
         step = 1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
         moved = dict(values)
         moved[name] = value * np.exp(step) if is_log else value + step
-        columns.append((data.whiten(ratio(moved)) - whitened) / step)
-    jacobian = np.stack(columns, axis=1) if columns else np.zeros((whitened.size, 0))
+        shifted = ratio(moved)
+        for frf in residuals:
+            columns[frf][:, j] = (shifted[frf] - residuals[frf]) / step
+    jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
+    jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
     weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
     return Likelihood(model, dict(values), free, float(np.sum(huber(whitened))), whitened,
                       jacobian * weight[:, None], residuals)
