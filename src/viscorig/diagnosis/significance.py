@@ -40,6 +40,9 @@ from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
 FAMILY_ALPHA = 1e-3
 #: A significant finding removes at least this share of the χ² in excess of the noise.
 MIN_EXCESS_FRACTION = 0.1
+#: Terms a slow drift of the transducers' sensitivity can pass for: a constant gain offset, a
+#: change of the whole K* along one sweep (drift, amplitude dependence), the frame's slow trend.
+DRIFT_LIKE = ("gain", "drift", "amplitude", "frame")
 
 
 def threshold(dof: int, alpha: float = FAMILY_ALPHA) -> float:
@@ -135,9 +138,11 @@ def drift_confusion_factor(
     standard error in those units is ``r/√Δχ²``; adding the drift's ``σ²`` (of the magnitude
     and of the phase, each as much as the effect changes that part) to its variance divides
     ``Δχ²`` by ``1 + σ² Δχ²/r²``: an effect must stand out against the drift. White noise (no
-    drift) leaves the test alone, and so does a local mode (it is not smooth).
+    drift) leaves the test alone; so do effects whose shape a drift in test time does not take
+    (a local mode, a delay's or a filter's phase, the load cell's and K*'s frequency shapes):
+    only the terms of :data:`DRIFT_LIKE` are weighed.
     """
-    if term_text.startswith("fixture"):
+    if term_text.split("(")[0] not in DRIFT_LIKE:
         return 1.0
     delta = before.chi2 - after.chi2
     if not delta > 0:
