@@ -210,7 +210,8 @@ def table(results: Iterable[dict]) -> str:
         key = (r["effect"], r["channel"], r["noise_type"], r["noise_level"])
         rates[key][r["strength"]].append(r["found"])
         false_in_detection[(r["noise_type"], r["noise_level"])].append(bool(r["false"]))
-    noises = sorted({(k[2], k[3]) for k in rates}, key=lambda n: (n[0], n[1]))
+    kinds = list(heldout.NOISE_TYPES)
+    noises = sorted({(k[2], k[3]) for k in rates}, key=lambda n: (kinds.index(n[0]), n[1]))
     lines = []
     if rates:
         header = "| effect | channel | " + " | ".join(
@@ -225,7 +226,11 @@ def table(results: Iterable[dict]) -> str:
                         cells.append("")
                         continue
                     share = {s: sum(v) / len(v) for s, v in per.items()}
-                    cells.append(_format(effect, _smallest(share)))
+                    smallest = _smallest(share)
+                    text = _format(effect, smallest)
+                    if smallest is not None and smallest == min(EFFECTS[effect][2]):
+                        text = "≤ " + text  # the weakest strength tried: the limit is lower
+                    cells.append(text)
                 if any(cells):
                     lines.append(f"| {effect} | {channel or ''} | " + " | ".join(cells) + " |")
         lines.append("")
