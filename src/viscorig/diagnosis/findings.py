@@ -380,6 +380,13 @@ def _ties(findings: list[Finding]) -> list[Finding]:
     return tied
 
 
+def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
+    """``result`` refitted on the exact whitening, every parameter free: a model the next
+    candidate is judged against must be at its own optimum, so that what the candidate's fit
+    gains is the candidate's and not a better convergence of the rest."""
+    return ml_fit(result.model, data, result.values)
+
+
 def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
     """Mark significant the findings that pay for themselves next to those before them; the fit
     of the model with all of them."""
@@ -395,11 +402,11 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             # The best-fitting candidate is smooth and not significant (the noise, or a drift
             # it cannot be told from, could make it): a local mode must still pay next to it,
             # or it takes the credit for what the smooth effect explains better.
-            base, accepted = lead.likelihood, [lead]
+            base, accepted = _exact(lead.likelihood, data), [lead]
         if not accepted:
             finding.significant = True
             accepted.append(finding)
-            base = finding.likelihood
+            base = _exact(finding.likelihood, data)
             continue
         if finding is lead:
             continue
@@ -416,7 +423,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
         if passes:
             finding.significant = True
             accepted.append(finding)
-            base = result
+            base = _exact(result, data)
         else:
             names = ", ".join(f.term for f in accepted)
             finding.note = (
