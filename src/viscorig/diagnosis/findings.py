@@ -398,10 +398,10 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
     for finding in findings:
         if not finding.passes_alone:
             continue
-        if not accepted and lead is not None and finding.effect == "fixture_resonance":
-            # The best-fitting candidate is smooth and not significant (the noise, or a drift
-            # it cannot be told from, could make it): a local mode must still pay next to it,
-            # or it takes the credit for what the smooth effect explains better.
+        if not accepted and lead is not None:
+            # The best-fitting candidate is not significant (the noise, or a drift it cannot
+            # be told from, could make it): the others must still pay next to it, or one of
+            # them takes the credit for what it explains better.
             base, accepted = _exact(lead.likelihood, data), [lead]
         if not accepted:
             finding.significant = True

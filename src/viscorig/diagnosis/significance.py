@@ -40,9 +40,11 @@ from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
 FAMILY_ALPHA = 1e-3
 #: A significant finding removes at least this share of the χ² in excess of the noise.
 MIN_EXCESS_FRACTION = 0.1
-#: Terms a slow drift of the transducers' sensitivity can pass for: a constant gain offset, a
-#: change of the whole K* along one sweep (drift, amplitude dependence), the frame's slow trend.
-DRIFT_LIKE = ("gain", "drift", "amplitude", "frame")
+#: Terms a slow drift of the transducers (sensitivity, conditioning phase) can pass for along a
+#: sweep, where test time and frequency advance together: a constant gain offset, a smooth phase
+#: trend (a delay, a filter), a change of the whole K* (drift, amplitude dependence), the frame's
+#: slow trend.
+DRIFT_LIKE = ("gain", "delay", "lowpass", "highpass", "drift", "amplitude", "frame")
 
 
 def threshold(dof: int, alpha: float = FAMILY_ALPHA) -> float:
@@ -139,8 +141,8 @@ def drift_confusion_factor(
     and of the phase, each as much as the effect changes that part) to its variance divides
     ``Δχ²`` by ``1 + σ² Δχ²/r²``: an effect must stand out against the drift. White noise (no
     drift) leaves the test alone; so do effects whose shape a drift in test time does not take
-    (a local mode, a delay's or a filter's phase, the load cell's and K*'s frequency shapes):
-    only the terms of :data:`DRIFT_LIKE` are weighed.
+    (a local mode, the load cell's and K*'s frequency shapes): only the terms of
+    :data:`DRIFT_LIKE` are weighed.
     """
     if term_text.split("(")[0] not in DRIFT_LIKE:
         return 1.0
