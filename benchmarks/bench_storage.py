@@ -1,7 +1,8 @@
 """Cost of a crash-safe commit per segment, and what an in-place writer risks when killed.
 
 Baseline: appending a segment in place (h5py opens the file r+, resizes, writes, closes).
-Measured: viscorig's atomic commit (copy, change, os.replace), with and without fsync.
+Measured: viscorig's atomic commit (change an in-memory copy, write it, os.replace), with and
+without fsync.
 The campaign is the paper's size: 7 runs, ~2500 points, 10 datasets per run.
 
 Then both writers are killed with SIGKILL at random instants; the in-place writer's files are

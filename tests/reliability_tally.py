@@ -19,6 +19,9 @@ FIGURES = {
     "inputs fuzzed": "bad or random inputs given to a parser, the CLI or the driver",
     "replies fuzzed": "malformed instrument replies decoded through a loopback server",
     "injections refused": "strings with command separators refused before anything was sent",
+    "writers refused": "second writers of a campaign file refused, naming the holder",
+    "storage faults": "full disks, file-size limits and read-only mounts met by a command",
+    "hostile files": "hostile campaign, UFF and CSV files refused in one line",
     "points lost": "committed points missing after a fault or kill (must stay 0)",
 }
 

@@ -74,3 +74,39 @@ def test_listing_commands_loads_no_heavy_library() -> None:
         [sys.executable, "-c", probe], capture_output=True, text=True, check=True
     )
     assert result.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_every_command_takes_verbose_and_quiet(capsys: pytest.CaptureFixture[str]) -> None:
+    for name in registered_commands():
+        for words in ([name, "-v", "--help"], ["-q", name, "--help"]):
+            with pytest.raises(SystemExit) as stop:
+                main(words)
+            assert stop.value.code == 0, words
+        assert "-v, --verbose" in capsys.readouterr().out, name
+
+
+def test_verbosity_sets_the_logging_level_and_goes_to_stderr(
+    tmp_path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import logging
+
+    from viscorig.storage import Campaign
+
+    path = tmp_path / "c.h5"
+    Campaign.create(path, sequence_text="", durable=False)
+    expected = {(): logging.WARNING, ("-v",): logging.INFO, ("-vv",): logging.DEBUG,
+                ("-q",): logging.ERROR, ("-v", "-v"): logging.DEBUG, ("-v", "-q"): logging.WARNING}
+    for options, level in expected.items():
+        # before the command, after it, or both: they add up
+        words = [*options[:1], "show", str(path), *options[1:]]
+        assert main(words) == 0
+        assert logging.getLogger("viscorig").getEffectiveLevel() == level, options
+        captured = capsys.readouterr()
+        said = [line for line in captured.err.splitlines() if "show finished in" in line]
+        assert len(said) == (1 if level <= logging.INFO else 0), options
+        assert captured.out.startswith(str(path))  # results stay on stdout
+    logging.getLogger("viscorig").warning("a %s", "test")
+    assert capsys.readouterr().err == "viscorig: warning: a test\n"
+    main(["-q", "show", str(path)])
+    logging.getLogger("viscorig.report").warning("hidden")
+    assert capsys.readouterr().err == ""

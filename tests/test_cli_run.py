@@ -222,7 +222,10 @@ def test_a_bad_sequence_is_one_line_exit_2_and_nothing_written(tmp_path) -> None
                                                              'level = "1.4"'))
     result = viscorig("run", str(bad), "--yes", cwd=tmp_path)
     assert result.returncode == 2
-    assert result.stderr.count("\n") == 1 and "bad.toml: defaults.level" in result.stderr
+    line = 1 + next(number for number, text in enumerate(bad.read_text().splitlines())
+                    if text.startswith("level ="))
+    assert result.stderr.count("\n") == 1
+    assert f"bad.toml:{line}: defaults.level: '1.4' has no unit" in result.stderr
     assert "Traceback" not in result.stderr
     assert list(tmp_path.iterdir()) == [bad]
 
@@ -241,3 +244,31 @@ def test_resume_of_a_file_that_is_not_a_campaign_is_exit_2(tmp_path) -> None:
     path.write_bytes(b"not hdf5")
     result = viscorig("resume", str(path), "--yes", cwd=tmp_path, env={**os.environ})
     assert result.returncode == 2 and str(path) in result.stderr
+
+
+def test_a_gpib_resource_without_a_gpib_library_is_one_line_without_a_literal_newline(
+        tmp_path) -> None:
+    """pyvisa-py's message spans two lines; it was printed with a literal backslash-n."""
+    station = tmp_path / "station.toml"
+    text = (ROOT / "sequences" / "station-example.toml").read_text(encoding="utf-8")
+    station.write_text(text)
+    assert 'resource = "GPIB0::11::INSTR"' in text
+    result = viscorig("run", str(PAPER), "--station", str(station), "--yes", "--out", "x.h5",
+                      cwd=tmp_path)
+    if result.returncode == 0:  # pragma: no cover - a GPIB card and an analyser answered
+        pytest.skip("a GPIB analyser is reachable here")
+    assert result.returncode == 3, result.stderr
+    [line] = result.stderr.splitlines()
+    assert line.startswith("viscorig: cannot reach the analyser: GPIB0::11::INSTR")
+    assert "\\n" not in line and "Traceback" not in line
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_toml_syntax_error_is_one_problem_with_its_line(tmp_path, capsys) -> None:
+    from viscorig.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\n\n[[steps]\ntype = "prompt"\n')
+    assert main(["check", str(bad)]) == 2
+    [line] = capsys.readouterr().out.splitlines()
+    assert line.startswith(f"{bad}:3: not valid TOML")

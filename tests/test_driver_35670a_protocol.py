@@ -1,8 +1,9 @@
 """The 35670A driver against a scripted loopback SCPI endpoint, through pyvisa-py's sockets.
 
-Pins each command the driver sends to the syntax of ``shared/docs/35670a.md`` and checks the
-decoding, validation, error and retry paths. The endpoint only records and answers canned replies;
-the simulated analyser tests are in ``test_driver_35670a_sim.py``.
+Pins each command the driver sends to the programming guide's syntax and checks the decoding,
+validation, read-back, error and retry paths. The endpoint only records and answers canned
+replies (and echoes settings back, as a compliant instrument does); the simulated analyser tests
+are in ``test_driver_35670a_sim.py``.
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ from agilent35670a import (
     MeasurementAborted,
     MissingOption,
     SCPIError,
+    SettingNotApplied,
     SettingOutOfRange,
     WrongInstrument,
 )
 from agilent35670a.blocks import (
+    NO_DATA,
     check_values,
     decode_ascii,
     decode_real,
@@ -50,12 +53,13 @@ class Analyser(ScriptedSCPIServer):
                 "*IDN?": IDN,
                 "*OPT?": options,
                 "*ESR?": list(esr),
+                "*STB?": "+32",
                 "STAT:QUES:VOLT:EVEN?": ["+0", "+258"],
                 "STAT:OPER:COND?": "+16",
-                "FREQ:STOP?": "+1.00000000E+002",
                 "TRAC:X? D1": lambda message: self.encode(FREQUENCIES),
                 "TRAC:DATA? D1": lambda message: self.encode(trace_for(self.last_feed())),
             },
+            defaults={"FREQ:STOP?": "+1.00000000E+002"},
             **kwargs,
         )
 
@@ -146,48 +150,52 @@ def test_identity_and_missing_option_are_named() -> None:
 @pytest.mark.parametrize(
     ("target", "name", "value", "complaint"),
     [
-        ("analyser", "source_level_vpk", 5.5, r"5.5 Vpk is outside \[0, 5\] Vpk"),
-        ("analyser", "auto_level_tolerance_db", 0.05, r"outside \[0.1, 20\] dB"),
-        ("analyser", "points_per_sweep", 802, r"802 points is outside \[2, 801\]"),
-        ("analyser", "start_frequency_hz", 30000.0, r"outside \(0, 25600\] Hz"),
-        ("analyser", "direction", "SIDEWAYS", "not one of UP, DOWN"),
-        ("analyser", "auto_level", 1, "not True or False"),
-        ("channel", "range_dbvrms", -50.0, "in 2 dBVrms steps"),
-        ("channel", "range_dbvrms", 29.0, "in 2 dBVrms steps"),
+        ("source", "level_vpk", 5.5, r"5.5 Vpk is outside \[0, 5\] Vpk"),
+        ("source", "tolerance_db", 0.05, r"outside \[0.1, 20\] dB"),
+        ("sweep", "points_per_sweep", 802, r"802 points is outside \[2, 801\]"),
+        ("sweep", "start_frequency_hz", 30000.0, r"outside \[0.015625, 25600\] Hz"),
+        ("sweep", "integrate_cycles", 300, r"outside \[1, 234\] cycles"),
+        ("sweep", "direction", "SIDEWAYS", "not one of UP, DOWN"),
+        ("source", "auto_level", 1, "not True or False"),
+        ("channel", "range_dbvrms", -50.0, "in 2 dB steps"),
+        ("channel", "range_dbvrms", 29.0, r"29 dBVrms is outside"),
         ("channel", "transducer_label", 'N;*RST', "not one of"),
     ],
 )
 def test_out_of_range_settings_are_refused_before_sending(target, name, value, complaint) -> None:
     with Analyser() as server, open_analyser(server) as analyser:
         analyser.require_options()
-        owner = analyser if target == "analyser" else analyser.channel(2)
+        owner = {"source": analyser.source, "sweep": analyser.sweep,
+                 "channel": analyser.channel(2)}[target]
         before = list(server.received)
         with pytest.raises(SettingOutOfRange, match=complaint):
             setattr(owner, name, value)
         assert server.received == before
 
 
-def test_the_source_cannot_be_switched_on_before_its_limit_is_set() -> None:
+def test_the_source_level_cannot_be_set_before_its_limit() -> None:
     with Analyser() as server, open_analyser(server) as analyser:
         with pytest.raises(SettingOutOfRange, match="source limit"):
-            analyser.source_enabled = True
-        assert not any(c.startswith("OUTP") for c in server.received)
-        analyser.source_limit_vpk = 1.0
-        analyser.source_enabled = True
-        assert server.received[-2:] == ["OUTP ON", "SYST:ERR?"]
+            analyser.source.level_vpk = 0.5
+        assert not any(c.startswith("SOUR") for c in server.received)
+        analyser.source.limit_vpk = 1.0
+        analyser.source.level_vpk = 0.5
+        assert server.received[-4:] == ["SOUR:VOLT:LIM 1 VPK", "SYST:ERR?", "SOUR:VOLT 0.5 VPK",
+                                        "SYST:ERR?"]
 
 
 def test_valid_settings_send_the_manuals_syntax() -> None:
     with Analyser() as server, open_analyser(server) as analyser:
         analyser.channel(3).range_dbvrms = -51
         analyser.channel(2).coupling = "ac"
-        analyser.settle_s = 0.5
-        analyser.integrate_cycles = 12
-        analyser.points_per_sweep = 401
-        analyser.auto_level_reference_vpk = 0.25
-        analyser.manual_frequency_hz = 58.25
+        analyser.sweep.settle_s = 0.5
+        analyser.sweep.integrate_cycles = 12
+        analyser.sweep.points_per_sweep = 401
+        analyser.source.reference_vpk = 0.25
+        analyser.sweep.manual_frequency_hz = 58.25
+        analyser.fft_source.output = False
         sent = [c for c in server.received if c != "SYST:ERR?"]
-        assert sent[-7:] == [
+        assert sent[-8:] == [
             "VOLT3:RANG -51 DBVRMS",
             "INP2:COUP AC",
             "SWE:STIM 0.5 S",
@@ -195,7 +203,10 @@ def test_valid_settings_send_the_manuals_syntax() -> None:
             "FREQ:RES 401 PNT/SWP",
             "SOUR:VOLT:REF 0.25 VPK",
             "FREQ:MAN 58.25 HZ",
+            "OUTP OFF",
         ]
+        # a fixed range turns autorange off in the analyser: the driver expects that
+        assert analyser.channel(3).sent["autorange"] is False
 
 
 # -- configuration ------------------------------------------------------------------------------
@@ -204,12 +215,12 @@ def test_configure_swept_sine_sends_the_papers_setup_in_a_safe_order() -> None:
         configured(server).close()
         commands = server.received
         # every configuration step is followed by a check of the error queue
-        steps = [c for c in commands if not c.endswith("?")]
+        steps = [c for c in commands if "?" not in c]
         for step in steps:
             index = commands.index(step)
             assert commands[index + 1] == "SYST:ERR?", step
+        # in swept sine the sweep drives the source: no OUTP, the limit before the level
         assert steps == [
-            "OUTP OFF",
             "INST:SEL SINE",
             "FORM REAL,64",
             "INP2 ON",
@@ -249,13 +260,27 @@ def test_configure_swept_sine_sends_the_papers_setup_in_a_safe_order() -> None:
             "SOUR:VOLT:LIM:INP 40 EU",
             "SOUR:VOLT:AUTO ON",
         ]
+        # then every setting is read back, with its unit where it has one
+        readback = commands[commands.index("SOUR:VOLT:AUTO ON") + 2:]
+        for query in ("INST:SEL?", "FORM?", "INP4?", "REF?", "VOLT2:RANG:UNIT:XDCR:LAB?",
+                      "VOLT2:RANG:UNIT:USER:SFAC?", "FREQ:STAR?", "FREQ:STAR? UNIT",
+                      "FREQ:RES? UNIT", "SWE:DWEL? UNIT", "SOUR:VOLT:LIM? UNIT",
+                      "SOUR:VOLT:REF? UNIT", "SOUR:VOLT:LIM:INP?", "SOUR:VOLT:AUTO?"):
+            assert query in readback, query
+
+
+def test_a_setting_the_analyser_does_not_hold_is_named() -> None:
+    with Analyser() as server:
+        server.replies["SWE:DWEL?"] = "+5.00000000000E+000"  # as if the command were lost
+        with pytest.raises(SettingNotApplied, match=r"integrate_cycles: sent 100.*SWE:DWEL\?"):
+            configured(server)
 
 
 def test_a_refused_setting_raises_with_code_text_and_command() -> None:
     with Analyser() as server, open_analyser(server) as analyser:
         server.errors[:] = ['-222,"Data out of range; value not changed"', '-350,"Queue overflow"']
         with pytest.raises(SCPIError) as caught:
-            analyser.stop_frequency_hz = 20000.0
+            analyser.sweep.stop_frequency_hz = 20000.0
         error = caught.value
         assert (error.code, error.text, error.command) == (
             -222, "Data out of range; value not changed", "FREQ:STOP 20000 HZ"
@@ -292,14 +317,18 @@ def test_measure_runs_a_segment_and_reads_everything(data_format: str) -> None:
         segment = analyser.measure(10.0, 11.0, progress=seen.append, poll_interval_s=0.01)
         check_segment(segment)
         assert len(seen) == 1 and seen[0].measuring and not seen[0].paused
-        # one settle + integration of 200 cycles at each of the five points
-        assert seen[0].expected_s == pytest.approx(sum(200 / FREQUENCIES))
+        # settle + integration of 200 cycles and the analyser's own time at each point
+        assert seen[0].expected_s == pytest.approx(sum(200 / FREQUENCIES) + 5 * 0.45)
         commands = server.commands()
         run = commands.index("ABOR")
         assert commands[run : run + 3] == ["ABOR", ":INIT:IMM", "*OPC"]
-        assert commands[run - 2 : run] == ["OUTP ON", "SYST:ERR?"]
+        # the event registers are cleared and their summary enabled before the start
+        assert commands[run - 5 : run] == ["*ESR?", "STAT:QUES:VOLT:EVEN?", "*ESE 61",
+                                           "SYST:ERR?", ] or commands[run - 4: run] == [
+            "*ESR?", "STAT:QUES:VOLT:EVEN?", "*ESE 61", "SYST:ERR?"]
         assert "FREQ:STAR 10 HZ" in commands and "FREQ:STOP 11 HZ" in commands
-        assert commands[-1] == "OUTP OFF"
+        assert "*STB?" in commands[run:]  # status is polled, never waited on
+        assert commands[-1] == "ABOR" and not any(c.startswith("OUTP") for c in commands)
         for feed in ("XFR:POW:RAT 2,1", "XFR:POW:RAT 4,3", "XFR:POW:LIN 4", "XFR:POW:VAR 1"):
             assert f"CALC1:FEED '{feed}'" in commands
         assert commands.count("TRAC:X? D1") == 1
@@ -307,8 +336,8 @@ def test_measure_runs_a_segment_and_reads_everything(data_format: str) -> None:
 
 def test_band_order_keeps_start_below_stop() -> None:
     with Analyser() as server, configured(server) as analyser:
-        analyser.stop_frequency_hz = 20.0
-        analyser._set_band(50.0, 60.0)
+        analyser.sweep.stop_frequency_hz = 20.0
+        analyser.sweep.set_band(50.0, 60.0)
         bands = [c for c in server.received if c.startswith(("FREQ:STAR", "FREQ:STOP"))]
         assert bands[-2:] == ["FREQ:STOP 60 HZ", "FREQ:STAR 50 HZ"]
 
@@ -324,9 +353,54 @@ def test_a_band_of_more_than_801_points_is_refused_before_sending() -> None:
 def test_wrong_point_count_in_a_trace_is_malformed() -> None:
     with Analyser() as server, configured(server) as analyser:
         server.replies["TRAC:DATA? D1"] = lambda message: definite_block(np.ones(8))
-        with pytest.raises(MalformedReply, match=r"XFR:POW:RAT 2,1\): expected 10 values, got 8"):
+        with pytest.raises(MalformedReply, match=r"XFR:POW:RAT 2,1\): expected 5 values, got 4"):
             analyser.measure(10.0, 11.0, poll_interval_s=0.01)
-        assert server.commands()[-1] == "OUTP OFF"
+        assert server.commands()[-1] == "ABOR"
+
+
+def test_no_data_markers_become_nan_and_empty_slots_are_left_out() -> None:
+    """A 401-point trace: 5 measured points, the rest the no-data marker (X too); inside the
+    measured points a marker is a point without data: NaN, flagged."""
+    slots = np.full(401, NO_DATA)
+    slots[:5] = FREQUENCIES
+
+    def data(message: str) -> bytes:
+        trace = trace_for(server.last_feed())
+        values = np.full(401 if trace.size == 5 else 802, NO_DATA)
+        values[: trace.size] = trace
+        if server.last_feed() == "XFR:POW:RAT 4,3":
+            values[4:6] = NO_DATA  # point 2 of the support FRF has no data
+        return definite_block(values)
+
+    with Analyser() as server, configured(server) as analyser:
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(slots)
+        server.replies["TRAC:DATA? D1"] = data
+        segment = analyser.measure(10.0, 11.0, poll_interval_s=0.01)
+        np.testing.assert_array_equal(segment.frequency_hz, FREQUENCIES)
+        assert np.isnan(segment.frf_43[2]) and np.all(np.isfinite(np.delete(segment.frf_43, 2)))
+        np.testing.assert_array_equal(segment.no_data, [False, False, True, False, False])
+        # a value where only no data may be is malformed
+        values = np.full(802, NO_DATA)
+        values[:12] = 1.0
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(values)
+        with pytest.raises(MalformedReply, match="should hold no data"):
+            analyser.measure(10.0, 11.0, poll_interval_s=0.01)
+
+
+def test_manual_points_send_one_manual_frequency_each() -> None:
+    with Analyser(esr=("+0", "+1")) as server, configured(server) as analyser:
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(
+            np.array([float(server.settings["FREQ:MAN"].split()[0])]))
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(
+            trace_for(server.last_feed())[:2 if "VAR" not in server.last_feed() else 1])
+        segment = analyser.measure_points([30.0, 12.5], settle_cycles=10, integrate_cycles=20,
+                                          poll_interval_s=0.01)
+        commands = server.commands()
+    np.testing.assert_array_equal(segment.frequency_hz, [30.0, 12.5])
+    assert "SWE:MODE MAN" in commands and "SWE:DWEL 20 CYCLE" in commands
+    manual = [c for c in commands if c.startswith("FREQ:MAN ")]
+    assert manual == ["FREQ:MAN 30 HZ", "FREQ:MAN 30 HZ", "FREQ:MAN 12.5 HZ"]
+    assert commands.count(":INIT:IMM") == 2
 
 
 def test_abort_and_pause_from_the_progress_callback() -> None:
@@ -343,14 +417,14 @@ def test_abort_and_pause_from_the_progress_callback() -> None:
             analyser.measure(10.0, 11.0, progress=steer, poll_interval_s=0.03)
         tail = server.commands()[server.commands().index(":INIT:IMM") :]
         assert tail.index("INIT:CONT OFF") < tail.index("INIT:CONT ON") < tail.index("ABOR")
-        assert tail[-1] == "OUTP OFF"
+        assert tail[-1] == "ABOR"
 
 
 def test_a_sweep_past_its_deadline_is_aborted_with_a_clear_message() -> None:
     with Analyser(esr=("+0",)) as server, configured(server) as analyser:
         with pytest.raises(InstrumentTimeout, match=r"did not complete within 0.2 s.*aborted"):
             analyser.measure(10.0, 11.0, timeout_s=0.2, poll_interval_s=0.02)
-        assert server.commands()[-2:] == ["ABOR", "OUTP OFF"]
+        assert server.commands()[-2:] == ["ABOR", "ABOR"]
 
 
 def test_an_error_during_the_sweep_is_raised_from_the_queue() -> None:

@@ -1,6 +1,9 @@
 """The 35670A driver against the simulated analyser, over loopback through pyvisa-py.
 
-Both paths a lab uses: the raw SCPI socket and a Prologix GPIB-Ethernet adapter.
+Both paths a lab uses: the raw SCPI socket and a Prologix GPIB-Ethernet adapter, and a long
+paced sweep behind the adapter with a short adapter read time-out (the adapter's ``++read``
+waits exactly ``++read_tmo_ms``), an auto-calibration in the middle, and a VISA time-out far
+shorter than the sweep.
 """
 
 from __future__ import annotations
@@ -15,9 +18,12 @@ from agilent35670a import (
     MeasurementAborted,
     SCPIError,
 )
+from agilent35670a.connection import PROLOGIX_READ_TIMEOUT_MS
+from agilent35670a.swept_sine import round_down
 
 server_module = pytest.importorskip("rigsim.server")
 rigfile = pytest.importorskip("rigsim.rigfile")
+faults = pytest.importorskip("rigsim.faults")
 
 SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}  # the soft-0 preset's sensors
 LEVEL_M_PER_S2 = 2.0
@@ -39,15 +45,12 @@ def connect(server, timeout_s: float = 2.0) -> Agilent35670A:
     return Agilent35670A.open(server.resource, timeout_s=timeout_s)
 
 
-def configure(analyser: Agilent35670A, cycles: float = 20.0) -> None:
-    analyser.configure_swept_sine(
-        sensitivities_v_per_eu=SENSITIVITIES,
-        level_m_per_s2=LEVEL_M_PER_S2,
-        source_limit_vpk=2.0,
-        force_limit_n=90.0,
-        settle_cycles=cycles,
-        integrate_cycles=cycles,
-    )
+def configure(analyser: Agilent35670A, cycles: float = 20.0, **overrides) -> None:
+    settings = dict(sensitivities_v_per_eu=SENSITIVITIES, level_m_per_s2=LEVEL_M_PER_S2,
+                    source_limit_vpk=2.0, force_limit_n=90.0, settle_cycles=cycles,
+                    integrate_cycles=cycles)
+    settings.update(overrides)
+    analyser.configure_swept_sine(**settings)
 
 
 def test_a_segment_is_measured_and_read_consistently(server) -> None:
@@ -69,6 +72,22 @@ def test_a_segment_is_measured_and_read_consistently(server) -> None:
     assert all(np.all(v >= 0) and np.all(v < 1e-2) for v in segment.variance.values())
     assert segment.eu_labels == {1: "N", 2: "M/S2", 3: "N", 4: "M/S2"}
     assert segment.finished_at_s >= segment.started_at_s
+    assert segment.no_data is not None and not segment.no_data.any()
+
+
+def test_every_setting_is_read_back_as_sent(server) -> None:
+    with connect(server) as analyser:
+        configure(analyser, start_hz=20.01, stop_hz=30.0)
+        # the analyser holds the start rounded down to 15.625 mHz, as the manual says
+        assert analyser.sweep.start_frequency_hz == round_down(20.01) == 20.0
+        assert analyser.source.reference_eu == LEVEL_M_PER_S2
+        assert analyser.ask("SOUR:VOLT:REF? UNIT") == '"EU"'
+        assert analyser.ask("SOUR:VOLT:LIM:INP? UNIT") == '"EU"'
+        assert analyser.channel(3).transducer_label == "N"
+        # a setting changed behind the driver's back is named by the read-back
+        analyser.write("SWE:DWEL 7 CYCLE")
+        problems = analyser.sweep.mismatches()
+    assert len(problems) == 1 and "integrate_cycles" in problems[0] and "7" in problems[0]
 
 
 def test_real64_and_ascii_reads_of_the_same_trace_agree(server) -> None:
@@ -78,8 +97,18 @@ def test_real64_and_ascii_reads_of_the_same_trace_agree(server) -> None:
         axis, binary = analyser.read_trace("XFR:POW:RAT 2,1", with_axis=True)
         analyser.set_data_format("ASC,12")
         axis_text, text = analyser.read_trace("XFR:POW:RAT 2,1", with_axis=True)
+    assert axis.size == 5
     np.testing.assert_allclose(axis_text, axis, rtol=1e-11)
     np.testing.assert_allclose(text, binary, rtol=1e-10)
+
+
+def test_an_801_point_sweep_fills_the_long_trace(server) -> None:
+    with connect(server) as analyser:
+        configure(analyser, cycles=1)
+        segment = analyser.measure(20.0, 220.0, poll_interval_s=0.01)
+    assert len(segment) == 801
+    np.testing.assert_allclose(segment.frequency_hz, 20.0 + 0.25 * np.arange(801))
+    assert np.all(np.isfinite(segment.frf_43))
 
 
 def test_overload_is_reported_for_its_segment_only(server) -> None:
@@ -96,10 +125,22 @@ def test_an_instrument_error_carries_code_and_text(server) -> None:
     with connect(server) as analyser:
         server.faults.error(-310, "System error; hardware fault")
         with pytest.raises(SCPIError) as caught:
-            analyser.spacing = "LIN"
+            analyser.sweep.spacing = "LIN"
     assert caught.value.code == -310
     assert "hardware fault" in caught.value.text
     assert caught.value.command == "SWE:SPAC LIN"
+
+
+def test_a_full_error_queue_says_errors_were_lost(server) -> None:
+    with connect(server) as analyser:
+        for code in range(7):  # the queue holds 5: the last entry becomes "Queue overflow"
+            server.faults.error(-200 - code, f"error {code}")
+        with pytest.raises(SCPIError) as caught:
+            analyser.check_errors("a burst of faults")
+        assert analyser.read_errors() == []
+    assert caught.value.code == -200
+    assert len(caught.value.others) == 4 and caught.value.others[-1][0] == -350
+    assert "overflowed" in str(caught.value)
 
 
 def test_a_lost_reply_to_an_idempotent_query_is_retried_once(server) -> None:
@@ -114,17 +155,52 @@ def test_a_lost_reply_to_a_clearing_query_is_not_repeated(server) -> None:
     with connect(server, timeout_s=0.5) as analyser:
         server.faults.no_reply("SYST:ERR?")
         with pytest.raises(InstrumentTimeout, match=r"'SYST:ERR\?'.*0.5 s"):
-            analyser.spacing = "LIN"
+            analyser.sweep.spacing = "LIN"
+
+
+def test_arbitrary_frequencies_with_their_own_timing(server) -> None:
+    """The adaptive sweep's path: chosen frequencies, settle and integration per call."""
+    wanted = [33.3, 20.1, 47.0, 20.1]
+    with connect(server) as analyser:
+        configure(analyser, cycles=10)
+        points = analyser.measure_points(wanted, settle_cycles=30, integrate_cycles=40,
+                                         poll_interval_s=0.01)
+        assert analyser.sweep.sweep_mode == "MAN"
+        assert analyser.sweep.integrate_cycles == 40.0
+        band = analyser.measure(20.0, 48.0, resolution_hz=0.25, settle_cycles=30,
+                                integrate_cycles=40, poll_interval_s=0.01)
+    # the analyser's own axis: each frequency rounded down to 15.625 mHz, in the order asked
+    np.testing.assert_allclose(points.frequency_hz, [round_down(f) for f in wanted])
+    assert points.frf_21.shape == points.frf_43.shape == (4,)
+    # the manual points agree with the swept values at the nearest grid frequencies
+    for k, frequency in enumerate(points.frequency_hz):
+        nearest = int(np.argmin(np.abs(band.frequency_hz - frequency)))
+        if abs(band.frequency_hz[nearest] - frequency) < 1e-9:
+            np.testing.assert_allclose(points.frf_43[k], band.frf_43[nearest], rtol=0.02)
+
+
+def test_no_data_in_a_trace_becomes_nan_and_is_flagged() -> None:
+    """An input that reads exactly nothing (unplugged, no noise) makes the response it divides
+    by hold the analyser's no-data marker: NaN points, flagged."""
+    rig = rigfile.load_preset("soft-0").noiseless()
+    with server_module.SimulatedAnalyserServer(rig, seed=1) as server:
+        server.faults.add(faults.parse_fault_spec("unplug=1"))
+        with connect(server) as analyser:
+            configure(analyser, cycles=5, reference_channel=4)
+            segment = analyser.measure(30.0, 31.0, poll_interval_s=0.01)
+    assert np.all(np.isnan(segment.frf_21)) and segment.no_data.all()
+    assert np.all(np.isfinite(segment.frf_43))
 
 
 @pytest.mark.parametrize("action", ["abort", "pause"])
 def test_pause_resume_and_abort_a_running_sweep(action: str) -> None:
     rig = rigfile.load_preset("soft-0")
     with (
-        server_module.SimulatedAnalyserServer(rig, pace=1.0, seed=3) as server,
+        server_module.SimulatedAnalyserServer(rig, pace=4.0, seed=3) as server,
         connect(server) as analyser,
     ):
-        configure(analyser, cycles=3)  # 5 points of 6 cycles at 20 Hz: about 1.5 s paced
+        # 5 points of 6 cycles at 20 Hz plus the analyser's 0.45 s per point: 0.94 s paced
+        configure(analyser, cycles=3)
         pauses: list[float] = []
 
         def steer(progress) -> None:
@@ -138,25 +214,42 @@ def test_pause_resume_and_abort_a_running_sweep(action: str) -> None:
 
         started = time.time()
         if action == "abort":
-            with pytest.raises(MeasurementAborted):
-                analyser.measure(20.0, 21.0, progress=steer, poll_interval_s=0.05)
-            assert time.time() - started < 1.2
+            with pytest.raises(MeasurementAborted):  # 41 points: about 7 s paced
+                analyser.measure(20.0, 30.0, progress=steer, poll_interval_s=0.05)
+            assert time.time() - started < 1.5
+            assert server.analyser.wait_until_idle(1.0)  # ABOR reached the analyser
             # the analyser is idle again: the next segment runs
             assert len(analyser.measure(20.0, 20.5, poll_interval_s=0.05)) == 3
         else:
             segment = analyser.measure(20.0, 21.0, progress=steer, poll_interval_s=0.05)
             assert len(segment) == 5 and pauses
-            # about 1.5 s of paced sweep plus the 0.5 s pause
-            assert time.time() - started > 1.9
+            assert time.time() - started > 1.35  # the paced sweep (0.94 s) plus the 0.5 s pause
 
 
-def test_a_single_point_in_manual_mode_matches_the_swept_value(server) -> None:
-    with connect(server) as analyser:
-        configure(analyser, cycles=10)
-        point = analyser.measure_point(33.25, poll_interval_s=0.01)
-        band = analyser.measure(33.0, 33.5, poll_interval_s=0.01)
-        commands_ok = analyser.sweep_mode == "AUTO"
-    np.testing.assert_array_equal(point.frequency_hz, [33.25])
-    assert point.frf_21.shape == point.frf_43.shape == (1,)
-    np.testing.assert_allclose(point.frf_21, band.frf_21[1:2], rtol=0.05)
-    assert commands_ok
+def test_a_long_sweep_behind_the_prologix_adapter_with_a_short_read_timeout() -> None:
+    """About 18 minutes of instrument time (201 points of the paper's 100 + 100 cycles at
+    20-70 Hz, the analyser's own time per point, an auto-calibration) paced 400 times faster,
+    through the
+    Prologix endpoint whose ``++read`` waits exactly its 500 ms, with a 2 s VISA time-out:
+    the driver polls status and never waits on the sweep."""
+    rig = rigfile.load_preset("soft-0")
+    with server_module.SimulatedAnalyserServer(rig, prologix=True, pace=400.0, seed=4,
+                                               read_timeout_floor_s=0.0) as server:
+        with connect(server, timeout_s=2.0) as analyser:
+            configure(analyser, cycles=100, start_hz=20.0, stop_hz=70.0)
+            grid = 20.0 + 0.25 * np.arange(201)
+            expected_s = analyser.expected_duration_s(grid)
+            assert 900 < expected_s < 1200
+            seen: list = []
+            server.faults.autocal(":INIT:IMM")
+            started = time.monotonic()
+            segment = analyser.measure(20.0, 70.0, progress=seen.append, poll_interval_s=0.01)
+            wall_s = time.monotonic() - started
+            calibrating_s = analyser.runner.calibrating_s
+        read_timeouts = [c for c in server.adapter_log if c.startswith("read_tmo_ms")]
+    assert len(segment) == 201 and np.all(np.isfinite(segment.frf_43))
+    assert expected_s / 400 * 0.8 < wall_s < expected_s / 400 + 20.0
+    assert len(seen) > 20 and any(p.settling for p in seen) and any(p.calibrating for p in seen)
+    assert calibrating_s > 0
+    # pyvisa-py opens with 50 ms; the driver then sets its own short read time-out
+    assert read_timeouts and int(read_timeouts[-1].split()[1]) == PROLOGIX_READ_TIMEOUT_MS

@@ -135,3 +135,63 @@ def test_bad_input_is_one_line_and_exit_status_2(
     assert result.returncode == 2, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert words in result.stderr
+
+
+def test_summary_notes_name_only_the_runs_in_the_campaign(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["summary", str(campaign_file)]) == 0
+    notes = capsys.readouterr().out.split("Notes on the paper's numbers:")[1]
+    assert "soft-0 3.25 kg" in notes
+    for absent in ("soft-10", "medium-0", "hard-0", "hard-10"):
+        assert absent not in notes
+
+
+def test_summary_json_gives_every_number_with_its_uncertainty(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["summary", str(campaign_file), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["table"]["source"] == "run 'table'"
+    assert document["table"]["parameters"]["K_s"]["stderr"] > 0
+    (soft,) = document["runs"]
+    assert soft["run"] == "soft-0"
+    for group in ("parameters", "system"):
+        for name, number in soft[group].items():
+            assert set(number) == {"value", "stderr", "unit"}, name
+            assert number["stderr"] > 0, name
+    assert soft["system"]["f_r"]["unit"] == "Hz"
+    assert soft["paper"]["K_v"] == pytest.approx(149986.61)
+    assert soft["fits_noise"] is False  # Voigt on the fractional preset rubber
+    assert document["variations"] == []  # no preloaded run here
+    assert all("hard-10" not in note for note in document["notes"])
+
+
+def test_identify_says_what_the_uncertainty_includes(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"K_s = 5\d+\.?\d* +± [\d.]+ \(inherited\)", out), out
+    assert "does not fit to the noise" in out  # Voigt on a fractional rubber with fixtures
+    assert "band-average" in out
+    assert "noise: table: white rms" in out
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store",
+                 "--model", "fractional+load_cell+fixture(38)+fixture(58)+fixture(92)"]) == 0
+    out = capsys.readouterr().out
+    assert "± are standard uncertainties" in out, out
+
+
+def test_identify_says_what_the_uncertainty_leaves_out(
+    campaign_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store", "--json",
+                 "--frf", "table"]) == 0
+    excludes = json.loads(capsys.readouterr().out)["uncertainty"]["excludes"]
+    assert any("calibration" in text for text in excludes)
+    assert any("frame(M_f)" in text for text in excludes)
+    assert any("load_cell" in text for text in excludes)  # X_s/F_e alone cannot tell
+    assert main(["identify", str(campaign_file), "--run", "soft-0", "--no-store", "--json",
+                 "--model", "voigt+load_cell+frame(2000)"]) == 0
+    excludes = json.loads(capsys.readouterr().out)["uncertainty"]["excludes"]
+    assert len(excludes) == 1 and "calibration" in excludes[0]

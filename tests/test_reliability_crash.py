@@ -24,41 +24,11 @@ import numpy as np
 import pytest
 import reliability_tally as tally
 from reliability_campaign import check_prefix, points_lost, snapshot
+from smallcampaign import GRIDS, SEQUENCE
 
 from viscorig.storage import Campaign
 
 KILLS = 20
-SEQUENCE = """
-name = "crash"
-[defaults]
-resolution_hz = 0.25
-settle_cycles = 20
-integrate_cycles = 20
-level = "1 m/s^2"
-segment_points = 8
-[[steps]]
-type = "prompt"
-message = "Remove the device."
-simulated_rig = "table"
-[[steps]]
-type = "sweep"
-run = "table"
-specimen = "none"
-band_hz = [15.0, 25.0]
-[[steps]]
-type = "identify_table"
-run = "table"
-[[steps]]
-type = "prompt"
-message = "Mount the soft specimens."
-simulated_rig = "soft-0"
-[[steps]]
-type = "sweep"
-run = "soft-0"
-specimen = "soft"
-band_hz = [20.0, 60.0]
-"""
-GRIDS = {"table": 15.0 + 0.25 * np.arange(41), "soft-0": 20.0 + 0.25 * np.arange(161)}
 
 
 class Viscorig:

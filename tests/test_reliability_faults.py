@@ -104,7 +104,7 @@ def stopping_fault(rig, fault: Fault) -> None:
     assert stored == COMMITTED_SEGMENTS * SEGMENT_POINTS == reported_points(out)
     with Campaign.open(path) as campaign:
         assert campaign.run("soft-0").metadata.status == "aborted"
-    assert not server.analyser.source.output, "the source was left on after the fault"
+    assert not server.analyser.source_on, "the source was left on after the fault"
     resume_and_check(server, station, path, snapshot(path))
 
 
@@ -124,7 +124,7 @@ def test_a_lost_or_cut_reply_stops_or_is_retried(rig, kind: str, match: str, sto
         assert status == 3, err
         assert "within the VISA timeout" in one_clear_line(err)
         assert check_prefix(path, "soft-0", GRID_HZ) == reported_points(out) == 16
-        assert not server.analyser.source.output
+        assert not server.analyser.source_on
         resume_and_check(server, station, path, snapshot(path))
     else:
         assert status == 0, err
@@ -204,7 +204,7 @@ def test_a_force_the_shaker_cannot_give_is_refused_before_the_sweep(tmp_path: Pa
         sequence.write_text(sweep_sequence(segment_points=20))
         path = tmp_path / "campaign.h5"
         status, _, err = cli(["run", sequence, "--station", station, "--out", path, "--yes"])
-        source_on = server.analyser.source.output
+        source_on = server.analyser.source_on
     tally.add("faults tried")
     assert status == 2, err
     line = one_clear_line(err)

@@ -10,7 +10,7 @@ garbled status reply.
 Property: ``measure`` returns exactly the true segment (when the damage hit a reply that is
 retried, or did not matter) or raises an :class:`agilent35670a.InstrumentError` with a message;
 never another exception, never a segment that differs from the truth. Whatever happens, the
-source ends switched off.
+sweep (which drives the source) ends stopped.
 """
 
 from __future__ import annotations
@@ -104,13 +104,14 @@ class DamagedAnalyser(ScriptedSCPIServer):
         super().__init__({
             "*IDN?": IDN,
             "*OPT?": '"1D2,AY6"',
-            "FREQ:STOP?": "+1.00000000E+002",
+            "*STB?": "+32",
+            "STAT:OPER:COND?": "+0",
             "*ESR?": lambda m: self.text("*ESR?", "+1"),
             "STAT:QUES:VOLT:EVEN?": lambda m: self.text("STAT:QUES:VOLT:EVEN?", "+0"),
             "SYST:ERR?": lambda m: self.text("SYST:ERR?", '+0,"No error"'),
             "TRAC:X? D1": lambda m: self.data("TRAC:X? D1", FREQUENCIES),
             "TRAC:DATA? D1": lambda m: self.data(self.feed, true_trace(self.feed)),
-        })
+        }, defaults={"FREQ:STOP?": "+1.00000000E+002"})
 
     def _reply_to(self, message: str) -> bytes | None:
         if message.upper().startswith("CALC1:FEED"):
@@ -170,8 +171,9 @@ def check_one(target: str, how: str, junk: bytes, times: int) -> str:
         else:
             outcome = "data"
             assert_true_segment(segment)
-        source = [c for c in server.commands(0.01) if c.startswith("OUTP ")]
-        assert source and source[-1] == "OUTP OFF", "the source was left on"
+        # in swept sine the sweep drives the source: it ends stopped
+        commands = server.commands(0.01)
+        assert ":INIT:IMM" not in commands or commands[-1] == "ABOR", "the source was left on"
     tally.add("replies fuzzed")
     return outcome
 

@@ -1,9 +1,9 @@
 """Safety of a campaign: limits before the source, sweeps over the shaker limit, bad files.
 
 - The source limit derived from the station's shaker (``min(source limit, force limit / gain)``)
-  and the input limit (the force limit) are sent before every ``OUTP ON``, and the source ends
-  switched off: checked on the commands a recording loopback server received from
-  ``viscorig run``.
+  and the input limit (the force limit) are sent before every sweep starts (in swept sine the
+  sweep drives the source: there is no ``OUTP``), and the sweep ends stopped: checked on the
+  commands a recording loopback server received from ``viscorig run``.
 - A sweep whose estimated force exceeds the shaker limit is refused (exit 2, nothing measured,
   the source never switched on) or run at a reduced level (``--over-limit reduce``), as the
   user chooses; the reduced run stays within the limit.
@@ -49,8 +49,8 @@ def test_limits_precede_every_source_switch_on(tmp_path: Path, limit_v: float,
                               "--out", tmp_path / "c.h5", "--yes"])
         commands = server.commands(0.02)
     assert status == 0, err
-    switch_ons = [i for i, c in enumerate(commands) if c == "OUTP ON"]
-    assert switch_ons
+    switch_ons = [i for i, c in enumerate(commands) if c == ":INIT:IMM"]
+    assert switch_ons and not any(c.startswith("OUTP") for c in commands)
     limit = f"SOUR:VOLT:LIM {expected_vpk:.10g} VPK"
     input_limit = f"SOUR:VOLT:LIM:INP {force_limit_n:.10g} EU"
     for index in switch_ons:
@@ -59,7 +59,7 @@ def test_limits_precede_every_source_switch_on(tmp_path: Path, limit_v: float,
         assert "SOUR:VOLT:AUTO ON" in commands[:index]
     limits = [c for c in commands if c.startswith("SOUR:VOLT:LIM ")]
     assert set(limits) == {limit}, "the source limit was changed to another value"
-    assert [c for c in commands if c.startswith("OUTP ")][-1] == "OUTP OFF"
+    assert commands[-1] == "ABOR"
 
 
 # -- sweeps over the shaker limit: refused or reduced ------------------------------------------
@@ -95,7 +95,7 @@ def test_a_sweep_over_the_shaker_limit_is_refused_then_reduced_on_resume(heavy) 
     assert re.search(r"estimated force 1[01]\d N", line), line
     with Campaign.open(path) as campaign:
         assert campaign.run_names == []  # nothing measured
-    assert server.analyser.source.output is False and server.analyser.points_measured == 0
+    assert server.analyser.source_on is False and server.analyser.points_measured == 0
     status, _, err = cli(["resume", path, "--yes", "--over-limit", "reduce"])
     assert status == 0, err
     check_reduced(path)

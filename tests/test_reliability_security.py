@@ -200,8 +200,8 @@ def test_labels_and_keywords_with_separators_are_refused_before_sending(recorder
     attempts = [
         lambda: setattr(analyser.channel(2), "transducer_label", text),
         lambda: analyser.channel(2).set_engineering_units(text, 0.01),
-        lambda: setattr(analyser, "data_format", text),
-        lambda: setattr(analyser, "direction", text),
+        lambda: setattr(analyser.traces, "data_format", text),
+        lambda: setattr(analyser.sweep, "direction", text),
         lambda: setattr(analyser, "instrument_mode", text),
         lambda: setattr(analyser.channel(1), "coupling", text),
         lambda: analyser.read_trace(f"XFR:POW:RAT 2,1{text}"),
@@ -234,10 +234,10 @@ def test_any_label_is_sent_clean_or_not_at_all(recorder, label: str) -> None:
 def test_every_valid_feed_is_accepted() -> None:
     feeds = ["XFR:POW:RAT 2,1", "XFR:POW:RAT 4,3", "XFR:POW:LIN 3", "XFR:POW:VAR 4",
              "XFR:POW:CROS 1,2", "XTIM:VOLT 1", "xfr:pow:rat 2,1"]
-    from agilent35670a.instrument import check_feed
+    from agilent35670a import check_feed
 
     assert [check_feed(feed) for feed in feeds][:2] == ["XFR:POW:RAT 2,1", "XFR:POW:RAT 4,3"]
-    for bad in ("XFR:POW:RAT 5,1", "XFR:POW:COH 2,1", "XFR:POW:RAT 2,1';*RST;'", ""):
+    for bad in ("XFR:POW:RAT 5,1", "XFR:POW:COH 2", "XFR:POW:RAT 2,1';*RST;'", ""):
         with pytest.raises(SettingOutOfRange):
             check_feed(bad)
 

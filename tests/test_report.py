@@ -2,23 +2,21 @@
 
 from __future__ import annotations
 
+import html
 import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from browser import CHROMIUM, console_problems, dump_dom, screenshot
 from campaigndata import add_run, paper_campaign
 
 from viscorig.cli import main
 from viscorig.identify import identify_run, store_fit
 from viscorig.report import analyse_campaign, build_report
 from viscorig.storage import Campaign
-
-CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists()
-                                        else None)
 
 
 @pytest.fixture(scope="module")
@@ -71,17 +69,166 @@ def test_stored_fit_is_the_model_shown(tmp_path: Path, campaign_file: Path):
     assert analysis.run("soft-10").shown.source.startswith("fitted here")
 
 
-def test_report_with_diagnosis_shades_failures_and_lists_candidates(tmp_path: Path):
+@pytest.fixture(scope="module")
+def quick_report(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The report with each run diagnosed once (no ladder)."""
     pytest.importorskip("viscorig.diagnosis")
-    path = paper_campaign(tmp_path / "c.h5", runs=("table", "soft-0"))
-    analysis = analyse_campaign(Campaign.open(path))
+    out = tmp_path_factory.mktemp("quick") / "report"
+    assert main(["report", str(campaign_file), "--out", str(out), "--no-ladder"]) == 0
+    return out
+
+
+def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
+    pytest.importorskip("viscorig.diagnosis")
+    path = paper_campaign(tmp_path / "c.h5", runs=("table", "hard-10"))
+    analysis = analyse_campaign(Campaign.open(path), jobs=1)
+    hard = analysis.run("hard-10")
+    assert analysis.diagnosis_available and analysis.ladder
+    assert hard.ladder[0].model == "voigt" and len(hard.ladder) >= 3
+    assert hard.ladder[0].rms_error > 10 * hard.ladder[0].noise_floor  # Voigt misses the rubber
+    # The model shown is the last rung, and the failures shaded are that model's.
+    assert hard.shown.spec == hard.ladder[-1].model
+    assert hard.shown.rms_error == pytest.approx(hard.ladder[-1].rms_error)
+    assert hard.shown.rms_error < 2 * hard.shown.noise_floor
+    assert hard.failures is hard.climb.failures
+    # Each rung after the first was added for a significant candidate, and lowered the error.
+    for before, after in zip(hard.ladder, hard.ladder[1:], strict=False):
+        assert after.added is not None and after.added.significant
+        assert after.rms_error < before.rms_error
+    # The shown parameters carry their ± from the last fit (covariance of the free ones).
+    assert set(hard.shown.free) <= set(hard.shown.values)
+    assert all(hard.shown.stderr[name] > 0 for name in hard.shown.free)
+    page = build_report(path, tmp_path / "r", jobs=1).read_text(encoding="utf-8")
+    assert "How the model was reached" in page
+    assert "load-cell link is not rigid" in page  # the effect the ladder added first
+
+
+def test_shading_is_only_where_the_model_shown_fails(quick_report: Path, campaign_file: Path):
+    from viscorig.report.figures import BAND, frf_figure
+
+    analysis = analyse_campaign(Campaign.open(campaign_file), ladder=False, jobs=1)
     soft = analysis.run("soft-0")
-    assert analysis.diagnosis_available
-    assert soft.failures and soft.findings
-    assert soft.ladder[0].model == "voigt"
-    assert soft.shown.rms_error > 10 * soft.ladder[0].noise_floor  # Voigt misses the rubber
-    page = build_report(path, tmp_path / "r").read_text(encoding="utf-8")
-    assert "Diagnosis of voigt" in page and "frequency_dependent_modulus" in page
+    assert soft.shown.spec == soft.ladder[-1].model == "voigt"
+    assert soft.failures  # Voigt fails somewhere on this rubber
+    figure = frf_figure(soft)
+    axes = figure.get_axes()
+    for column, frf in enumerate(("table", "support")):
+        bands = [band.band_hz for band in soft.failures if band.frf == frf]
+        magnitude = axes[column]
+        shaded = [patch for patch in magnitude.patches
+                  if np.allclose(patch.get_facecolor()[:3], _rgb(BAND))]
+        spans = sorted((round(p.get_x(), 6), round(p.get_x() + p.get_width(), 6))
+                       for p in shaded)
+        assert spans == sorted((round(lo, 6), round(hi, 6)) for lo, hi in bands)
+    # No failure, no shading: the table run is not diagnosed, so nothing is shaded.
+    assert not any(axes_.patches for axes_ in frf_figure(analysis.run("table")).get_axes())
+
+
+def _rgb(colour: str) -> tuple[float, float, float]:
+    from matplotlib.colors import to_rgb
+
+    return to_rgb(colour)
+
+
+def test_the_page_leads_with_the_answer_in_words(quick_report: Path):
+    page = (quick_report / "index.html").read_text(encoding="utf-8")
+    glance = page.index('<table class="glance">')
+    assert glance < page.index("Table 1: Voigt fit") < page.index('id="run-soft-0"')
+    row = page[page.index('href="#run-soft-0"'):page.index('href="#run-soft-10"')]
+    assert "voigt" in row and "far above the noise" in row  # model and its error in words
+    assert re.search(r"K_v \d+\.\d+ ± \d+\.\d+ kN/m", row)  # parameters with their ±
+    assert "most likely missing: stiffness and damping depend on frequency" in row
+    assert "still fails" in page[glance:glance + 2000]
+    # Statistics are words; their numbers only inside <details> elements.
+    outside = re.sub(r"<details>.*?</details>", "", page, flags=re.S)
+    assert "ΔBIC" not in outside
+    assert "strong evidence" in outside and "ΔBIC" in page
+
+
+def test_preload_pairs_are_compared_with_their_uncertainty(quick_report: Path,
+                                                           campaign_file: Path):
+    from viscorig.compare import compare_fits
+    from viscorig.identify import summarize
+
+    page = (quick_report / "index.html").read_text(encoding="utf-8")
+    _, summaries = summarize(Campaign.open(campaign_file))
+    fits = {s.run: s.fit for s in summaries}
+    (k_v, c_v) = compare_fits(fits["soft-0"], fits["soft-10"], ["K_v", "C_v"])
+    assert k_v.significant and 0.05 < k_v.relative < 0.15  # the rig's preload stiffens K_v
+    line = page[page.index("What preload changed"):page.index('<table class="glance">')]
+    assert f"K_v {k_v.percent()} (paper +9.31 %)" in line
+    assert f"C_v {c_v.percent()} (paper +9.01 %)" in line
+    assert re.search(r"K_v \+\d\.\d+ ± 0\.\d+ %", line)
+    assert "K′ of the model reached" in line
+    assert 'id="preload"' in page and k_v.words() in page
+
+
+def test_report_and_summary_print_the_same_numbers(report_dir: Path, campaign_file: Path,
+                                                  capsys):
+    """Tables 1 and 2 and the preload variations come from the same fits and the same
+    propagation as ``viscorig summary``: every variation it prints is on the page, as printed."""
+    assert main(["summary", str(campaign_file), "--json"]) == 0
+    import json
+
+    document = json.loads(capsys.readouterr().out)
+    page = html.unescape((report_dir / "index.html").read_text(encoding="utf-8"))
+    tables = page[page.index("Table 1: Voigt fit"):page.index("On the paper's numbers")]
+    (variation,) = document["variations"]
+    assert set(variation["changes"]) == {"K_v", "C_v", "f_r", "xi", "B_r"}
+    assert main(["summary", str(campaign_file)]) == 0
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if "soft-0 → soft-10" in line)
+    printed = re.findall(r"[+-]\d+\.?\d* ± \d+\.?\d* %", row)
+    assert len(printed) == 5
+    for change in printed:
+        assert change in tables, change
+    for run in document["runs"]:  # Table 2's f_r with the ± summary gives it
+        f_r = run["system"]["f_r"]
+        from viscorig.report.words import with_uncertainty
+
+        assert with_uncertainty(f_r["value"], f_r["stderr"], "Hz") in tables
+    assert "shared (run 'table'), counted once" in tables
+
+
+def test_residuals_are_shown_against_the_runs_noise_model(campaign_file: Path):
+    analysis = analyse_campaign(Campaign.open(campaign_file), diagnosis=False)
+    result, _ = identify_run(Campaign.open(campaign_file), "soft-0", "voigt", band_hz=(20, 120))
+    residuals = {r.frf: r for r in analysis.run("soft-0").residuals}
+    assert set(residuals) == {"table", "support"}
+    order = np.argsort(result.frequency_hz)
+    for frf, residual in residuals.items():
+        assert np.allclose(residual.frequency_hz, result.frequency_hz[order])
+        assert np.allclose(residual.noise, result.noise.scale(frf)[order], rtol=1e-12)
+        assert residual.floor == pytest.approx(result.noise.floor_of((frf,)))
+
+
+def test_moduli_and_preload_figures_carry_the_uncertainty_bands(campaign_file: Path):
+    from matplotlib.collections import PolyCollection
+
+    from viscorig.compare import Pair, storage_stiffness_of
+    from viscorig.report.analysis import rubbers
+    from viscorig.report.figures import moduli_figure, preload_figure
+
+    analysis = analyse_campaign(Campaign.open(campaign_file), diagnosis=False)
+    groups = rubbers(analysis)
+    soft = groups["soft"]
+    stiffness_ax = moduli_figure("soft", soft, None).get_axes()[0]
+    bands = [c for c in stiffness_ax.collections if isinstance(c, PolyCollection)]
+    assert len(bands) == 2  # one per preload
+    band = soft[0].modulus.band
+    top = bands[0].get_paths()[0].vertices[:, 1].max()
+    assert top * 1e3 == pytest.approx(np.max(band.storage_modulus + band.storage_modulus_stderr),
+                                      rel=1e-9)
+    assert np.all(band.storage_modulus_stderr > 0) and np.all(band.loss_factor_stderr > 0)
+    change_ax = preload_figure(groups).get_axes()[0]
+    (shaded,) = [c for c in change_ax.collections if isinstance(c, PolyCollection)]
+    pair = Pair(soft[0].modulus.estimates, soft[-1].modulus.estimates)
+    f = np.linspace(20, 120, 61)
+    change, stderr = pair.relative(storage_stiffness_of(pair.a.model, f),
+                                   storage_stiffness_of(pair.b.model, f))
+    assert shaded.get_paths()[0].vertices[:, 1].max() == pytest.approx(
+        np.max(100 * (change + stderr)), rel=1e-9)
+    assert np.all(stderr > 0) and np.all(stderr < 0.05)
 
 
 def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, capsys):
@@ -119,27 +266,65 @@ def test_quick_look_of_a_run_being_measured(tmp_path: Path, capsys):
     assert (tmp_path / "live-soft-0.png").exists()
 
 
+def _keep(shot: Path) -> None:
+    """Copy a screenshot where a person can look at it (``VISCORIG_ARTIFACTS``)."""
+    keep = os.environ.get("VISCORIG_ARTIFACTS")
+    if keep:
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        shutil.copy(shot, Path(keep) / shot.name)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
 def test_page_opens_in_headless_chromium_without_errors(report_dir: Path, tmp_path: Path):
-    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0"]
     url = (report_dir / "index.html").as_uri()
-    dom = subprocess.run([*flags, "--dump-dom", url], capture_output=True, text=True,
-                         timeout=120)
+    dom = dump_dom(url, tmp_path / "profile")
     assert dom.returncode == 0, dom.stderr[-2000:]
     assert "Table 1: Voigt fit" in dom.stdout and dom.stdout.count("<img") >= 6
-    console = [line for line in dom.stderr.splitlines() if "CONSOLE" in line.upper()
-               or "Failed to load" in line or "net::ERR" in line]
-    assert not console, console
+    assert not console_problems(dom.stderr), console_problems(dom.stderr)
     shot = tmp_path / "report-screenshot.png"
-    result = subprocess.run([*flags, f"--screenshot={shot}", "--window-size=1280,2400", url],
-                            capture_output=True, text=True, timeout=120)
+    result = screenshot(url, shot, tmp_path / "profile")
     assert result.returncode == 0, result.stderr[-2000:]
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and shot.stat().st_size > 50_000
-    keep = os.environ.get("VISCORIG_ARTIFACTS")
-    if keep:  # for a person to look at
-        Path(keep).mkdir(parents=True, exist_ok=True)
-        shutil.copy(shot, Path(keep) / shot.name)
+    _keep(shot)
     print(f"screenshot: {shot}")
+
+
+LAYOUT_PROBE = """<script>
+const table = document.querySelector("table.glance");
+const rows = [...table.querySelectorAll("tbody tr")].map(row => row.getBoundingClientRect().bottom);
+document.body.setAttribute("data-layout", JSON.stringify({
+  rows, top: table.getBoundingClientRect().top, height: window.innerHeight,
+  runs: [...table.querySelectorAll("tbody tr td:first-child b")].map(b => b.textContent)}));
+</script></body>"""
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+def test_every_runs_headline_is_on_the_first_screen(quick_report: Path, tmp_path: Path):
+    import json
+
+    page = (quick_report / "index.html").read_text(encoding="utf-8")
+    assert "<script" not in page.lower()
+    probe = tmp_path / "probe.html"  # a copy with a script that measures the layout
+    probe.write_text(page.replace("</body>", LAYOUT_PROBE), encoding="utf-8")
+    dom = dump_dom(probe.as_uri(), tmp_path / "profile", size=(1280, 800))
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    layout = json.loads(html.unescape(re.search(r'data-layout="([^"]+)"', dom.stdout)[1]))
+    assert layout["runs"] == ["table", "soft-0", "soft-10"]
+    assert layout["height"] >= 600 and max(layout["rows"]) <= layout["height"], layout
+    shot = tmp_path / "report-first-screen.png"
+    result = screenshot((quick_report / "index.html").as_uri(), shot, tmp_path / "profile",
+                        size=(1280, 800))
+    assert result.returncode == 0 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    _keep(shot)
+
+
+def test_the_finding_names_a_missing_fixture_mode_with_or_without_its_frequency():
+    from viscorig.report.words import finding_sentence
+
+    at_58 = finding_sentence("voigt", [("load_cell_compliance", "load_cell")], {"K_c": 1e7},
+                             2e-3, 1e-3, ("fixture_resonance", "fixture(58)"), True)
+    assert at_58.endswith("next most likely: a fixture mode at 58 Hz.")
+    unplaced = finding_sentence("voigt", [], {}, 3e-2, 1e-3, "fixture_resonance", True)
+    assert unplaced == "voigt is far above the noise: 30× the floor; most likely missing: a " \
+        "fixture mode."

@@ -259,7 +259,7 @@ def test_a_hard_specimen_is_probed_and_refused_before_anything_is_measured(
     assert "from a probe of the mounted rig at 20 and 21 Hz" in line
     assert 'over_limit in the sequence is "refuse"' in line and "--over-limit reduce" in line
     assert Campaign.open(out).run_names == []  # nothing measured for the run
-    assert rig.analyser.source.output is False
+    assert rig.analyser.source_on is False
     # the probe itself stayed at a tenth of the level: about 16 N, far below the limit
     forces = probe_forces(captured.out)
     assert len(forces) == 2 and max(forces) < 20.0
@@ -357,9 +357,46 @@ def test_a_fault_during_the_probe_stops_before_the_run_and_resume_probes_again(
     assert "newly mounted; probing" in captured.out
     assert "hardware fault" in captured.err and "before run 'soft-0' started" in captured.err
     assert Campaign.open(out).run_names == []
-    assert rig.analyser.source.output is False
+    assert rig.analyser.source_on is False
 
     rig.analyser.on_point = None
     assert main(["resume", out, "--yes"]) == 0
     assert "newly mounted; probing" in capsys.readouterr().out
     assert Campaign.open(out).run("soft-0").points == 17
+
+
+# -- a probe that cannot be right: wiring or mounting, never an absurd level -------------------
+
+@pytest.mark.parametrize("rig", ["table"], indirect=True)
+def test_a_specimen_run_on_a_rig_without_specimen_says_wiring_or_mounting(tmp_path, rig,
+                                                                           capsys) -> None:
+    """The disc accelerometer sees nothing while the shaker drives the table. Before, the probe
+    advised re-running at about 1e-6 m/s^2 (which then flagged 399 points of 401)."""
+    sequence, station, out = write_files(tmp_path, rig, run="hard-0", specimen="hard")
+    assert run_cli(sequence, "--station", station, "--out", out) == 2
+    captured = capsys.readouterr()
+    [line] = captured.err.strip().splitlines()
+    assert re.search(r"run 'hard-0': the probe at 20 Hz asked 0.14 m/s\^2 of the disc "
+                     r"accelerometer \(input 4\) and read [\d.e-]+ m/s\^2 \(\d+ dB short\) "
+                     r"while the shaker gave [\d.]+ N and the table [\d.e+]+ m/s\^2: the disc "
+                     r"cannot move [\d.e+]+ times less than the table it is linked to", line), line
+    assert "The wiring or the mounting is wrong" in line and "input 4" in line
+    assert "--over-limit reduce" not in line and "e-0" not in line.split("dB short")[1]
+    assert Campaign.open(out).run_names == []
+    assert rig.analyser.source_on is False
+
+
+@pytest.mark.parametrize("rig", ["soft-0"], indirect=True)
+def test_a_reference_on_a_dead_input_says_so_before_anything_is_measured(tmp_path, rig,
+                                                                         capsys) -> None:
+    """The station puts the disc accelerometer's sensitivity a million times too high: the
+    reference reads nothing that could be real."""
+    sequence, station, out = write_files(tmp_path, rig)
+    text = Path(station).read_text()
+    text = re.sub(r"device_acceleration_v_per_m_s2 = [\d.e-]+",
+                  "device_acceleration_v_per_m_s2 = 9.9", text)
+    Path(station).write_text(text)
+    assert run_cli(sequence, "--station", station, "--out", out) == 2
+    line = capsys.readouterr().err.strip()
+    assert "dB short" in line and "The wiring or the mounting is wrong" in line, line
+    assert Campaign.open(out).run_names == []

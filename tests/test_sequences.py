@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -119,7 +120,9 @@ def change(doc: dict, path: str, value: object) -> dict:
         ("steps.4.settle_cycles", 10.5, "steps[4].settle_cycles", "whole number"),
         ("steps.4.integrate_cycles", 0, "steps[4].integrate_cycles", "outside [1,"),
         ("steps.4.direction", "sideways", "steps[4].direction", "not one of up, down"),
-        ("steps.4.band_hz", [30, 20], "steps[4].band_hz", "0 < low < high"),
+        ("steps.4.band_hz", [30, 20], "steps[4].band_hz", "high to low; write band_hz = [20, 30]"
+         ' and direction = "down"'),
+        ("steps.4.band_hz", [20, 20], "steps[4].band_hz", "0 < low < high"),
         ("steps.4.band_hz", [20], "steps[4].band_hz", "expected [low, high]"),
         ("steps.4.band_hz", [20, 30000], "steps[4].band_hz", "25600"),
         ("defaults.resolution_hz", 0.3, "defaults.resolution_hz", "whole number of"),
@@ -145,7 +148,7 @@ def test_each_problem_is_one_input_error_naming_file_and_field(
     with pytest.raises(InputError) as caught:
         parse(change(document(), path, value))
     message = str(caught.value)
-    assert message.startswith(f"lab.toml: {where}: "), message
+    assert re.match(rf"lab\.toml(:\d+)?: {re.escape(where)}: ", message), message
     assert what in message, message
 
 

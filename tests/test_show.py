@@ -88,3 +88,38 @@ def test_not_a_campaign_is_one_line_and_status_2(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert "notes.h5: not a readable HDF5 file" in result.stderr
+
+
+def test_json_holds_what_the_listing_shows(campaign_path: Path, capsys) -> None:
+    import json
+
+    assert main(["show", str(campaign_path), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["format_version"] == 1 and document["sequence_file"] == "paper.toml"
+    assert document["simulated_rig"] is True and document["rig"] == {"table_mass_kg": 3.4}
+    runs = {run["name"]: run for run in document["runs"]}
+    table = runs["table"]
+    assert (table["status"], table["points"], table["band_hz"]) == ("complete", 20, [12.0, 16.75])
+    assert table["hardness_shore_a"] is None  # NaN in the file: unknown, valid JSON
+    assert table["flagged_points"] == 18
+    assert table["flags"] == {"level not reached": 10, "input overload": 10,
+                              "source at limit": 8, "force above shaker limit": 8}
+    (fit,) = table["fits"]
+    assert fit["id"] == "0001" and fit["model"] == "table"
+    assert fit["parameters"]["M_s"] == {"value": 3.41, "stderr": 0.02, "unit": "kg"}
+    soft = runs["soft-10"]
+    assert (soft["status"], soft["points"], soft["preload_strain"]) == ("running", 6, 0.104)
+    assert soft["fits"] == []
+
+
+def test_json_of_a_damaged_run_names_it_and_exits_2(campaign_path: Path, capsys) -> None:
+    import json
+
+    with h5py.File(campaign_path, "r+") as h5:
+        del h5["runs/soft-10/flags"]
+    assert main(["show", str(campaign_path), "--json"]) == 2
+    captured = capsys.readouterr()
+    runs = {run["name"]: run for run in json.loads(captured.out)["runs"]}
+    assert runs["soft-10"] == {"name": "soft-10", "error": "dataset missing"}
+    assert runs["table"]["status"] == "complete"
+    assert captured.err.count("\n") == 1

@@ -1,9 +1,11 @@
 """A writer killed with SIGKILL at random instants leaves whole segments only.
 
 Each kill starts a fresh writer process that creates a campaign, starts a run and appends
-segments of known content as fast as it can (so most instants fall inside a commit); the test
-kills it after a random delay, then checks that the file is absent (killed before the first
-commit) or opens with a whole number of segments, in order, none partial, none twice.
+segments of known content as fast as it can, on a disk made slow (each ``fsync`` takes 8 ms
+more). Half the kills are aimed at the instants while a commit's new file is on disk but not
+yet renamed, half fall anywhere; after each, the test checks that the file is absent (killed
+before the first commit) or opens with a whole number of segments, in order, none partial,
+none twice.
 """
 
 from __future__ import annotations
@@ -26,11 +28,21 @@ KILLS = 24
 
 WRITER = textwrap.dedent(
     """
+    import os
     import sys
+    import time
     import numpy as np
     from viscorig.storage import Campaign, RunSettings, Segment
 
     path = sys.argv[1]
+    real_fsync = os.fsync
+
+    def slow_fsync(descriptor):
+        print("fsync", flush=True)
+        time.sleep(0.008)
+        real_fsync(descriptor)
+
+    os.fsync = slow_fsync
     print("ready", flush=True)
     campaign = Campaign.create(path, sequence_text="name = 'kill'", durable=True)
     campaign.start_run("kill", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
@@ -81,7 +93,15 @@ def test_sigkill_at_random_instants_keeps_whole_segments(tmp_path: Path) -> None
             [sys.executable, "-c", WRITER, str(path)], stdout=subprocess.PIPE, text=True
         )
         assert writer.stdout is not None and writer.stdout.readline().strip() == "ready"
-        time.sleep(rng.uniform(0.0, 0.4))
+        if kill % 2:
+            # Half the kills land inside a commit: a commit syncs its new file, renames it over
+            # the old one and syncs the folder, so odd-numbered fsyncs are of a new file still
+            # waiting for its rename; kill during one of them.
+            for _ in range(rng.randrange(1, 32, 2)):
+                assert writer.stdout.readline().strip() == "fsync"
+            time.sleep(rng.uniform(0.0, 0.006))
+        else:
+            time.sleep(rng.uniform(0.0, 0.5))  # the other half anywhere
         writer.send_signal(signal.SIGKILL)
         writer.wait(timeout=10)
         assert writer.returncode == -signal.SIGKILL, "the writer ended before it was killed"

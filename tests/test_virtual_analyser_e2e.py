@@ -1,4 +1,4 @@
-"""End to end: an independent client, following only ``shared/docs/35670a.md``, measures the
+"""End to end: an independent client, following only the 35670A manual's commands, measures the
 two accelerances of a simulated rig through pyvisa-py and gets the closed form of physics.md.
 
 The client here is written from the manual's facts alone (not the project's driver): four
@@ -89,7 +89,7 @@ def test_accelerances_match_the_closed_form(tmp_path) -> None:
                 inst.write(f"VOLT{n}:RANG:UNIT:XDCR:LAB {labels[n]}")
                 inst.write(f"VOLT{n}:RANG:UNIT:USER:SFAC {sensitivity[n]} V/EU")
                 inst.write(f"VOLT{n}:RANG:UNIT:USER ON")
-            inst.write("OUTP ON;:SOUR:VOLT 0.05 VPK")
+            inst.write("SOUR:VOLT 0.05 VPK")  # the sweep drives the source: no OUTP here
             inst.write("SOUR:VOLT:AUTO ON;:SOUR:VOLT:REF:CHAN INP4;:SOUR:VOLT:REF 1 EU")
             inst.write("SOUR:VOLT:REF:TOL 1 DB;:SOUR:VOLT:LIM 2 VPK")
             inst.write("CALC1:FEED 'XFR:POW:RAT 2,1';*WAI")

@@ -14,6 +14,11 @@ from .errors import MalformedReply
 
 #: SCPI's "not a number" (9.91E+37); any magnitude at or above this is not a measured value.
 SCPI_NOT_A_NUMBER = 9.91e37
+#: What the 35670A puts in a trace where a point holds no data (not measured, beyond the sweep's
+#: points, the dB value of zero): the most negative 32-bit float. Programs that read real 35670A
+#: data treat anything below -1e37 as this marker.
+NO_DATA = -3.40282346639e38
+NO_DATA_BELOW = -1e37
 
 
 def split_definite_block(message: bytes) -> bytes:
@@ -104,7 +109,13 @@ def _is_number(field: str) -> bool:
     return True
 
 
-def check_values(values: np.ndarray, what: str, points: int | None = None) -> np.ndarray:
+def no_data(values: np.ndarray) -> np.ndarray:
+    """Where values hold the analyser's no-data marker (:data:`NO_DATA`)."""
+    return np.isfinite(values) & (values < NO_DATA_BELOW) & (values >= 1.01 * NO_DATA)
+
+
+def check_values(values: np.ndarray, what: str, points: int | None = None, *,
+                 allow_no_data: bool = False) -> np.ndarray:
     """Check that values are finite (not NaN, infinite or SCPI's 9.91E+37) and, if given, count.
 
     Parameters
@@ -115,12 +126,16 @@ def check_values(values: np.ndarray, what: str, points: int | None = None) -> np
         Name of the data for messages (``"TRAC:X? D1"``).
     points
         Expected number of values, or ``None`` to accept any non-zero count.
+    allow_no_data
+        The no-data marker is allowed (the caller turns it into NaN and flags the point).
     """
     if values.size == 0:
         raise MalformedReply(f"{what}: no values")
     if points is not None and values.size != points:
         raise MalformedReply(f"{what}: expected {points} values, got {values.size}")
     bad = ~np.isfinite(values) | (np.abs(values) >= SCPI_NOT_A_NUMBER)
+    if allow_no_data:
+        bad &= ~no_data(values)
     if bad.any():
         index = int(np.flatnonzero(bad)[0])
         raise MalformedReply(
@@ -130,7 +145,8 @@ def check_values(values: np.ndarray, what: str, points: int | None = None) -> np
     return values
 
 
-def interleaved_to_complex(values: np.ndarray, what: str, points: int | None = None) -> np.ndarray:
+def interleaved_to_complex(values: np.ndarray, what: str, points: int | None = None, *,
+                           allow_no_data: bool = False) -> np.ndarray:
     """Turn interleaved (real, imag) values into complex numbers, checking the count.
 
     Parameters
@@ -141,11 +157,29 @@ def interleaved_to_complex(values: np.ndarray, what: str, points: int | None = N
         Name of the data for messages.
     points
         Expected number of complex points, or ``None``.
+    allow_no_data
+        Pairs holding the no-data marker become NaN (complex) instead of an error.
     """
     if values.size % 2:
         raise MalformedReply(f"{what}: {values.size} values cannot be (real, imag) pairs")
-    check_values(values, what, None if points is None else 2 * points)
-    return values[0::2] + 1j * values[1::2]
+    check_values(values, what, None if points is None else 2 * points,
+                 allow_no_data=allow_no_data)
+    complex_values = values[0::2] + 1j * values[1::2]
+    if allow_no_data:
+        missing = no_data(values[0::2]) | no_data(values[1::2])
+        complex_values[missing] = complex(np.nan, np.nan)
+    return complex_values
+
+
+def measured_slots(axis: np.ndarray, what: str) -> int:
+    """How many leading slots of a swept-sine trace hold points (the rest hold the no-data
+    marker in X too). Markers inside the leading slots, or data after them, are malformed."""
+    check_values(axis, what, allow_no_data=True)
+    empty = no_data(axis)
+    count = int(np.argmax(empty)) if empty.any() else axis.size
+    if empty[count:].size and not empty[count:].all():
+        raise MalformedReply(f"{what}: frequency values after the sweep's last point")
+    return count
 
 
 def check_axis(axis: np.ndarray, grid: np.ndarray, resolution: float, resource: str) -> None:

@@ -7,6 +7,9 @@ one, the command, because they are often all the operator sees.
 
 from __future__ import annotations
 
+#: The error queue's overflow entry (the queue holds 5; the last says errors were lost).
+QUEUE_OVERFLOW = -350
+
 
 class InstrumentError(Exception):
     """A fault of the analyser or of the connection to it.
@@ -91,7 +94,13 @@ class SCPIError(InstrumentError):
             message += f" after {command!r}"
         if others:
             message += "; also " + "; ".join(f"{c}, {t!r}" for c, t in others)
+        if any(c == QUEUE_OVERFLOW for c, _ in others) or code == QUEUE_OVERFLOW:
+            message += " (the error queue overflowed: later errors were lost)"
         super().__init__(message, resource)
+
+
+class SettingNotApplied(InstrumentError):  # noqa: N818 (names of the driver's API)
+    """The analyser accepted a setting without error but reads back something else."""
 
 
 class SettingOutOfRange(ValueError):  # noqa: N818 (names of the driver's API)

@@ -1,327 +1,103 @@
-"""The Agilent (HP) 35670A in swept-sine mode: settings, one call per measurement, data.
+"""The Agilent (HP) 35670A: its parts, and one call per measurement.
 
-Facts used here come from ``shared/docs/35670a.md``; those marked *inferred* there are gathered
-in :class:`Quirks` (:mod:`agilent35670a.quirks`) so they can be checked on hardware and changed in
-one place. What a measurement returns: :mod:`agilent35670a.segment`.
+The analyser is put together from small parts, each with its own settings, in the manner of
+PyMeasure's channels: :attr:`Agilent35670A.channels` (inputs), :attr:`~Agilent35670A.sweep`
+(the swept sine's band, grid and timing), :attr:`~Agilent35670A.source` (level, limits, auto
+level), :attr:`~Agilent35670A.fft` and :attr:`~Agilent35670A.fft_source` (FFT mode),
+:attr:`~Agilent35670A.traces` (data), :attr:`~Agilent35670A.status` (errors, registers) and
+:attr:`~Agilent35670A.runner` (start and wait). Facts come from the programming guide; what it
+leaves open is in :class:`~agilent35670a.quirks.Quirks`. What a measurement returns:
+:mod:`agilent35670a.segment`.
 """
 
 from __future__ import annotations
 
-import threading
-import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from .blocks import (
-    check_axis,
-    check_values,
-    decode_ascii,
-    decode_real,
-    interleaved_to_complex,
-    split_definite_block,
-)
-from .channel import InputChannel
+from .blocks import check_axis
+from .channels import InputChannel
 from .connection import Connection
 from .errors import (
     ConnectionLost,
     InstrumentError,
     InstrumentTimeout,
     MalformedReply,
-    MeasurementAborted,
     MissingOption,
     SCPIError,
+    SettingNotApplied,
     SettingOutOfRange,
     WrongInstrument,
-    parse_error_entry,
 )
+from .fft import FftAnalysis
 from .properties import (
-    boolean,
+    Subsystem,
     control,
-    integer_range,
     measurement,
-    number_text,
-    on_off_text,
     one_of,
-    parse_bool,
-    parse_channel,
-    parse_float,
     parse_int,
     parse_keyword,
-    setting,
     strict_range,
 )
 from .quirks import Quirks
-from .segment import SweepProgress, SweepSegment
-from .validators import (
-    check_data_format,
-    check_feed,
-    check_frequency,
-    check_reference_channel,
-    unit_text,
-)
+from .running import Runner
+from .segment import Spectra, SweepProgress, SweepSegment
+from .source import MAX_SOURCE_VPK, FftSource, Source
+from .status import Status
+from .swept_sine import MAX_POINTS, SweptSine, round_down
+from .traces import Traces
 
-__all__ = ["Agilent35670A", "Quirks", "SweepProgress", "SweepSegment", "check_feed"]
+__all__ = ["Agilent35670A"]
 
-#: Most points in one swept-sine sweep.
-MAX_POINTS = 801
-#: Highest frequency with two channels, and with the four-channel option (Hz).
+#: Highest frequency with one or two channels, and with four (Hz).
 MAX_FREQUENCY_HZ = 51200.0
 MAX_FREQUENCY_FOUR_CHANNELS_HZ = 25600.0
-#: Highest source level (volts peak).
-MAX_SOURCE_VPK = 5.0
-#: ``*ESR?`` bits: operation complete, and the four error bits (query, device, execution, command).
-ESR_OPERATION_COMPLETE = 1
-ESR_ERRORS = 4 | 8 | 16 | 32
-#: First wait between ``*ESR?`` polls (s); the wait doubles up to ``poll_interval_s``.
-FIRST_POLL_S = 0.001
-#: ``STAT:OPER:COND?`` bits.
-OPERATION_SETTLING, OPERATION_RANGING, OPERATION_MEASURING = 2, 4, 16
+Progress = Callable[[SweepProgress], None]
 
 
-class Agilent35670A:
-    """Agilent (HP) 35670A dynamic signal analyser, swept-sine subset.
+class Agilent35670A(Subsystem):
+    """Agilent (HP) 35670A dynamic signal analyser.
 
-    Open with :meth:`open` (any pyvisa resource string). Settings are attributes: assigning one
-    validates it against the manual's range (nothing is sent if it is out of range), writes it
-    and checks the error queue, raising :class:`SCPIError` if the analyser refused it.
+    Open with :meth:`open` (any pyvisa resource string). Settings are attributes of its parts:
+    assigning one validates it against the manual's range (nothing is sent if it is out of
+    range), writes it and checks the error queue (:class:`~agilent35670a.errors.SCPIError` if
+    the analyser refused it); :meth:`verify_configuration` reads every setting sent back.
 
     Parameters
     ----------
     connection
-        An open :class:`Connection`.
+        An open :class:`~agilent35670a.connection.Connection`.
     """
 
-    label = "35670A"
-    placeholders: Mapping[str, object] = {}
-
-    # -- mode (INSTrument) ---------------------------------------------------------------------
     instrument_mode = control(
-        "INST:SEL {value}",
-        "INST:SEL?",
-        """Measurement mode: ``"SINE"`` (swept sine, option 1D2) or ``"FFT"`` (power-up mode).""",
-        validator=one_of(("SINE", "FFT")),
-        parse=parse_keyword,
+        "INST:SEL {value}", "INST:SEL?",
+        """Measurement mode: ``"SINE"`` (swept sine, option 1D2) or ``"FFT"`` (power-up).""",
+        validator=one_of(("SINE", "FFT")), parse=parse_keyword,
     )
-    # -- frequency span and grid (SENSe:FREQuency) ---------------------------------------------
-    start_frequency_hz = control(
-        "FREQ:STAR {value} HZ",
-        "FREQ:STAR?",
-        """Sweep start frequency in Hz, above 0 and up to 51.2 kHz (25.6 kHz with four
-        channels); the analyser rounds it to 15.625 mHz.""",
-        validator=check_frequency,
-        to_text=number_text,
-        parse=parse_float,
-    )
-    stop_frequency_hz = control(
-        "FREQ:STOP {value} HZ",
-        "FREQ:STOP?",
-        """Sweep stop frequency in Hz, same range as :attr:`start_frequency_hz`.""",
-        validator=check_frequency,
-        to_text=number_text,
-        parse=parse_float,
-    )
-    manual_frequency_hz = control(
-        "FREQ:MAN {value} HZ",
-        "FREQ:MAN?",
-        """Frequency measured in manual sweep mode, in Hz (same range as the start).""",
-        validator=check_frequency,
-        to_text=number_text,
-        parse=parse_float,
-    )
-    resolution_hz = setting(
-        "FREQ:RES {value} HZ",
-        """Linear sweep resolution in Hz (point spacing), above 0 up to 51.2 kHz; LIN only.""",
-        validator=strict_range(0.0, MAX_FREQUENCY_HZ, "Hz", low_inclusive=False),
-    )
-    points_per_sweep = setting(
-        "FREQ:RES {value} PNT/SWP",
-        """Points per sweep, 2 to 801 (preset 101).""",
-        validator=integer_range(2, MAX_POINTS, "points"),
-        to_text=str,
-    )
-    auto_resolution = control(
-        "FREQ:RES:AUTO {value}",
-        "FREQ:RES:AUTO?",
-        """Auto resolution (bool); must be off for a fixed grid such as 0.25 Hz.""",
-        validator=boolean,
-        to_text=on_off_text,
-        parse=parse_bool,
-    )
-    # -- sweep timing, order, pairing (SENSe:SWEep, SENSe:REFerence) ---------------------------
-    settle_cycles = setting(
-        "SWE:STIM {value}",
-        """Settle time after each frequency change, in cycles of the source, 0 to 1e6.""",
-        validator=strict_range(0.0, 1e6, "cycles"),
-        to_text=unit_text("CYCLE"),
-    )
-    settle_s = setting(
-        "SWE:STIM {value}",
-        """Settle time after each frequency change, in seconds, 0 to 1e5.""",
-        validator=strict_range(0.0, 1e5, "s"),
-        to_text=unit_text("S"),
-    )
-    integrate_cycles = setting(
-        "SWE:DWEL {value}",
-        """Integration (dwell) time per point in cycles, 1 to 1e6 (and at least 250 µs).""",
-        validator=strict_range(1.0, 1e6, "cycles"),
-        to_text=unit_text("CYCLE"),
-    )
-    integrate_s = setting(
-        "SWE:DWEL {value}",
-        """Integration (dwell) time per point in seconds, 250 µs to 1e5 s.""",
-        validator=strict_range(250e-6, 1e5, "s"),
-        to_text=unit_text("S"),
-    )
-    spacing = control(
-        "SWE:SPAC {value}",
-        "SWE:SPAC?",
-        """Point spacing: ``"LIN"`` or ``"LOG"`` (preset LIN).""",
-        validator=one_of(("LIN", "LOG")),
-        parse=parse_keyword,
-    )
-    direction = control(
-        "SWE:DIR {value}",
-        "SWE:DIR?",
-        """Sweep direction: ``"UP"`` or ``"DOWN"`` (preset UP).""",
-        validator=one_of(("UP", "DOWN")),
-        parse=parse_keyword,
-    )
-    sweep_mode = control(
-        "SWE:MODE {value}",
-        "SWE:MODE?",
-        """``"AUTO"`` sweeps start to stop; ``"MAN"`` measures only :attr:`manual_frequency_hz`.""",
-        validator=one_of(("AUTO", "MAN")),
-        parse=parse_keyword,
-    )
-    reference_pairing = control(
-        "REF {value}",
-        "REF?",
-        """``"PAIR"``: channel 1 is the reference of 2 and channel 3 of 4; ``"SING"``: channel 1
-        is the reference of all.""",
-        validator=one_of(("PAIR", "SING")),
-        parse=parse_keyword,
-    )
-    # -- data format of trace queries (FORMat) -------------------------------------------------
-    data_format = control(
-        "FORM {value}",
-        "FORM?",
-        """Data format of trace queries: ``"REAL,64"`` (default here), ``"REAL,32"``, ``"ASC"``
-        or ``"ASC,<3..12 digits>"``.""",
-        validator=check_data_format,
-        parse=parse_keyword,
-    )
-
-    # -- source and auto level (OUTPut, SOURce) ------------------------------------------------
-    source_enabled = control(
-        "OUTP {value}",
-        "OUTP?",
-        """Source output on (bool). Refused (nothing sent) until :attr:`source_limit_vpk` has been
-        set on this connection.""",
-        validator=lambda value, analyser: analyser._check_source_switch(boolean(value, analyser)),
-        to_text=on_off_text,
-        parse=parse_bool,
-    )
-    source_level_vpk = setting(
-        "SOUR:VOLT {value} VPK",
-        """Source level in volts peak, 0 to 5 Vpk (with auto level: the starting level). A 0 V
-        level pauses the measurement with error -221.""",
-        validator=strict_range(0.0, MAX_SOURCE_VPK, "Vpk"),
-        to_text=number_text,
-    )
-    source_limit_vpk = setting(
-        "SOUR:VOLT:LIM {value} VPK",
-        """Highest source level the auto-level controller may use, volts peak, above 0 up to
-        5 Vpk (preset 2 Vpk).""",
-        validator=strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False),
-        to_text=number_text,
-    )
-    auto_level = control(
-        "SOUR:VOLT:AUTO {value}",
-        "SOUR:VOLT:AUTO?",
-        """Auto level (bool): adjust the source so the reference channel holds the reference
-        level.""",
-        validator=boolean,
-        to_text=on_off_text,
-        parse=parse_bool,
-    )
-    auto_level_channel = control(
-        "SOUR:VOLT:REF:CHAN INP{value}",
-        "SOUR:VOLT:REF:CHAN?",
-        """Channel (1..4) the auto-level controller holds at the reference level (preset 2).""",
-        validator=check_reference_channel,
-        parse=parse_channel,
-    )
-    auto_level_reference_eu = setting(
-        "SOUR:VOLT:REF {value} EU",
-        """Auto-level reference level in the reference channel's engineering unit (peak),
-        above 0 up to 1e6.""",
-        validator=strict_range(0.0, 1e6, "EU", low_inclusive=False),
-        to_text=number_text,
-    )
-    auto_level_reference_vpk = setting(
-        "SOUR:VOLT:REF {value} VPK",
-        """Auto-level reference level in volts peak at the reference input, above 0 up to
-        31.7 Vpk (the +27 dBVrms range).""",
-        validator=strict_range(0.0, 31.7, "Vpk", low_inclusive=False),
-        to_text=number_text,
-    )
-    auto_level_tolerance_db = setting(
-        "SOUR:VOLT:REF:TOL {value}",
-        """Auto-level tolerance in dB, 0.1 to 20 dB (preset 2 dB).""",
-        validator=strict_range(0.1, 20.0, "dB"),
-        to_text=number_text,
-    )
-    input_limit_eu = setting(
-        "SOUR:VOLT:LIM:INP {value} EU",
-        """Auto-level input limit in the limited channel's engineering unit (peak), above 0 up
-        to 1e6: the controller keeps that input below it (the shaker force limit on channel 1).
-        The manual names no unit or channel command; ``EU`` as for the reference level, and the
-        limited channel is the analyser's preset (channel 1, inferred).""",
-        validator=strict_range(0.0, 1e6, "EU", low_inclusive=False),
-        to_text=number_text,
-    )
-    input_limit_vpk = setting(
-        "SOUR:VOLT:LIM:INP {value} VPK",
-        """Auto-level input limit in volts peak at the limited input, above 0 up to 31.7 Vpk.""",
-        validator=strict_range(0.0, 31.7, "Vpk", low_inclusive=False),
-        to_text=number_text,
-    )
-    source_slew_v_per_s = setting(
-        "SOUR:VOLT:SLEW {value}",
-        """Auto-level slew rate of the source, volts per second, above 0 up to 1000 V/s.""",
-        validator=strict_range(0.0, 1000.0, "V/s", low_inclusive=False),
-        to_text=number_text,
-    )
-
-    # -- read-only (*IDN?, STATus) -------------------------------------------------------------
     identity = measurement("*IDN?", """``*IDN?`` reply (names a 35670A).""")
     operation_condition = measurement(
-        "STAT:OPER:COND?",
-        """``STAT:OPER:COND?``: 2 settling, 4 ranging, 16 measuring.""",
-        parse=parse_int,
-    )
+        "STAT:OPER:COND?", """``STAT:OPER:COND?``: 1 calibrating, 2 settling, 4 ranging,
+        16 measuring.""", parse=parse_int)
 
-    # -- opening and closing ------------------------------------------------------------------
     def __init__(self, connection: Connection) -> None:
+        super().__init__(self, "35670A")
         self.connection = connection
-        self.sent: dict[str, object] = {}
+        where = connection.description
+        self.status = Status(self, where)
         self.channels = tuple(InputChannel(self, number) for number in range(1, 5))
+        self.sweep = SweptSine(self, lambda: self.max_frequency_hz)
+        self.source = Source(self)
+        self.fft = FftAnalysis(self)
+        self.fft_source = FftSource(self)
+        self.traces = Traces(self, where, connection.query_block)
+        self.runner = Runner(self.write, self.status, where)
         self._options: frozenset[str] | None = None
-        self._abort = threading.Event()
-        self._paused_since: float | None = None
-        self._paused_total_s = 0.0
+        self.channels_in_use: tuple[int, ...] = (1, 2, 3, 4)
 
     @classmethod
-    def open(
-        cls,
-        resource: str,
-        *,
-        adapter: str | None = None,
-        gpib_address: int = 11,
-        timeout_s: float = 5.0,
-        backend: str | None = None,
-    ) -> Agilent35670A:
+    def open(cls, resource: str, *, adapter: str | None = None, gpib_address: int = 11,
+             timeout_s: float = 5.0, backend: str | None = None) -> Agilent35670A:
         """Connect to a 35670A and check it is one (see :class:`Connection` for the arguments).
 
         Raises
@@ -331,10 +107,8 @@ class Agilent35670A:
         WrongInstrument
             ``*IDN?`` does not name a 35670A.
         """
-        connection = Connection(
-            resource, adapter=adapter, gpib_address=gpib_address, timeout_s=timeout_s,
-            backend=backend,
-        )
+        connection = Connection(resource, adapter=adapter, gpib_address=gpib_address,
+                                timeout_s=timeout_s, backend=backend)
         analyser = cls(connection)
         try:
             analyser.identify()
@@ -364,6 +138,12 @@ class Agilent35670A:
             raise SettingOutOfRange(f"channel {number!r} is not 1..4")
         return self.channels[number - 1]
 
+    @property
+    def parts(self) -> tuple[Subsystem, ...]:
+        """Every part with settings, this one included."""
+        return (self, self.traces, *self.channels, self.sweep, self.source, self.fft,
+                self.fft_source)
+
     # -- messages and errors -------------------------------------------------------------------
     def write(self, command: str) -> None:
         """Send a command as is (no error check)."""
@@ -376,29 +156,28 @@ class Agilent35670A:
     def configure(self, command: str) -> None:
         """Send a configuration command, then read the error queue and raise if it held any."""
         self.connection.write(command)
-        self.check_errors(command)
+        self.status.check_errors(command)
 
     def read_errors(self) -> list[tuple[int, str]]:
-        """Read ``SYST:ERR?`` until it answers no error; return the ``(code, text)`` entries."""
-        entries: list[tuple[int, str]] = []
-        for _ in range(Quirks.ERROR_QUEUE_READS):
-            reply = self.connection.query("SYST:ERR?")
-            code, text = parse_error_entry(reply, self.resource)
-            if code == Quirks.NO_ERROR_CODE:
-                return entries
-            entries.append((code, text))
-        raise MalformedReply(
-            f"SYST:ERR? still reports errors after {Quirks.ERROR_QUEUE_READS} reads "
-            f"(queue depth is 5): {entries}",
-            self.resource,
-        )
+        """Read the error queue empty; return its ``(code, text)`` entries."""
+        return self.status.read_errors()
 
     def check_errors(self, after: str | None = None) -> None:
-        """Raise :class:`SCPIError` (first error, the others attached) if the queue is not empty."""
-        entries = self.read_errors()
-        if entries:
-            (code, text), *others = entries
-            raise SCPIError(code, text, after, self.resource, tuple(others))
+        """Raise :class:`SCPIError` if the error queue is not empty."""
+        self.status.check_errors(after)
+
+    def verify_configuration(self, parts: Iterable[Subsystem] | None = None) -> None:
+        """Read back every setting sent on this connection.
+
+        Raises
+        ------
+        SettingNotApplied
+            Naming each setting the analyser does not hold as sent (or as it rounds it).
+        """
+        problems = [p for part in (self.parts if parts is None else parts)
+                    for p in part.mismatches()]
+        if problems:
+            raise SettingNotApplied("; ".join(problems), self.resource)
 
     # -- identity and options ------------------------------------------------------------------
     def identify(self) -> str:
@@ -437,17 +216,10 @@ class Agilent35670A:
 
     @property
     def max_frequency_hz(self) -> float:
-        """Upper frequency limit: 25.6 kHz once option AY6 is known installed, else 51.2 kHz."""
-        if self._options is not None and "AY6" in self._options:
+        """Upper frequency limit: 25.6 kHz with four channels in use, else 51.2 kHz."""
+        if 3 in self.channels_in_use and self._options is not None and "AY6" in self._options:
             return MAX_FREQUENCY_FOUR_CHANNELS_HZ
         return MAX_FREQUENCY_HZ
-
-    def _check_source_switch(self, on: bool) -> bool:
-        if on and "source_limit_vpk" not in self.sent:
-            raise SettingOutOfRange(
-                "the source limit (source_limit_vpk) must be set before the source is switched on"
-            )
-        return on
 
     # -- the paper's test in one call ----------------------------------------------------------
     def configure_swept_sine(
@@ -469,14 +241,16 @@ class Agilent35670A:
         start_level_vpk: float = 0.1,
         data_format: str = "REAL,64",
     ) -> None:
-        """Set up the paper's swept-sine test; the source is left off.
+        """Set up the paper's swept-sine test and read every setting back.
 
         Swept-sine mode, channels 1..4 on with ``REF PAIR`` (1 → 2, 3 → 4), engineering units
         (channels 1 and 3 force in N, 2 and 4 acceleration in m/s²), autorange, a linear grid of
-        ``resolution_hz`` with auto resolution off, settle and integration in cycles, auto level
-        holding ``reference_channel`` at ``level_m_per_s2`` within ``tolerance_db``, the source
-        limit, and optionally an input limit on the force channel for the shaker. Each step is
-        validated before anything is sent and the error queue is checked after each.
+        ``resolution_hz`` with automatic resolution off, settle and integration in cycles, auto
+        level holding ``reference_channel`` at ``level_m_per_s2`` within ``tolerance_db``, the
+        source limit (always written before the level), and optionally the input limit (every
+        input but the reference stays below ``force_limit_n`` of its own unit, which with this
+        wiring holds the shaker's force). Each value is validated before anything is sent, the
+        error queue is checked after each setting, and all settings are read back at the end.
 
         Parameters
         ----------
@@ -485,25 +259,26 @@ class Agilent35670A:
         level_m_per_s2
             Reference acceleration amplitude (peak) held by the controller, m/s².
         source_limit_vpk
-            Highest source level, volts peak (≤ 5); set before the source can be switched on.
+            Highest source level, volts peak (≤ 5).
         force_limit_n
-            Shaker force limit (peak, N) applied as the auto-level input limit, which acts on
-            channel 1, the excitation force (inferred); ``None`` for none.
+            Shaker force limit (peak, N) applied as the auto-level input limit; ``None`` for
+            none.
         reference_channel
             Auto-level reference channel (4: the disc; 2 on a bare-table run).
         four_channels
             Use channels 3 and 4 (needs option AY6); else channels 1 and 2 only.
-        resolution_hz, settle_cycles, integrate_cycles, direction, tolerance_db
-            Sweep grid (Hz), settle and integration (cycles), ``"UP"``/``"DOWN"``, auto-level
-            tolerance (dB).
-        start_hz, stop_hz
-            First band (Hz), set before the resolution because the analyser refuses a
-            resolution that gives more than 801 points over the band in use; :meth:`measure`
-            sets each segment's own band.
-        start_level_vpk
-            Source level the controller starts from (Vpk, ≤ ``source_limit_vpk``).
-        data_format
-            ``"REAL,64"``, falling back to ASCII if the analyser refuses it.
+        resolution_hz, start_hz, stop_hz
+            Linear grid (Hz) and the first band (set before the resolution, which must give at
+            most 801 points over the band in use); :meth:`measure` sets each segment's band.
+        settle_cycles, integrate_cycles
+            Settle (0..1e6) and integration (1..234) cycles per point.
+        direction, tolerance_db, start_level_vpk, data_format
+            ``"UP"``/``"DOWN"``, auto-level tolerance (dB), level the controller starts from
+            (≤ the source limit), ``"REAL,64"`` (falls back to ASCII if refused).
+
+        Raises
+        ------
+        SettingOutOfRange, SCPIError, SettingNotApplied, MissingOption
         """
         channels = (1, 2, 3, 4) if four_channels else (1, 2)
         missing = [ch for ch in channels if ch not in sensitivities_v_per_eu]
@@ -514,47 +289,48 @@ class Agilent35670A:
         strict_range(0.0, 1e6, "m/s²", low_inclusive=False)(level_m_per_s2, self)
         self._check_band(start_hz, stop_hz, resolution_hz)
         strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
+        strict_range(0.0, 1e6, "cycles")(settle_cycles, self)
+        strict_range(1.0, 234.0, "cycles")(integrate_cycles, self)
         if not 0.0 < start_level_vpk <= source_limit_vpk:
             raise SettingOutOfRange(
                 f"start level {start_level_vpk:g} Vpk must be above 0 and at most the source "
                 f"limit {source_limit_vpk:g} Vpk"
             )
-
         self.identify()
         self.require_options(four_channels)
-        self.source_enabled = False
+        self.channels_in_use = channels
         self.instrument_mode = "SINE"
         self.set_data_format(data_format)
         for number in (2, 3, 4):
             if number in channels:
                 self.channel(number).enabled = True
-            elif "AY6" in self.options:
+            elif "AY6" in self.options and number != 2:
                 self.channel(number).enabled = False
         if four_channels:
-            self.reference_pairing = "PAIR"
+            self.sweep.reference_pairing = "PAIR"
         for number in channels:
-            label = "N" if number in (1, 3) else "M/S2"
             channel = self.channel(number)
-            channel.set_engineering_units(label, sensitivities_v_per_eu[number])
+            channel.set_engineering_units("N" if number in (1, 3) else "M/S2",
+                                          sensitivities_v_per_eu[number])
             channel.autorange = True
-        self.sweep_mode = "AUTO"
-        self.spacing = "LIN"
-        self.direction = direction
-        self.auto_resolution = False
-        self._set_band(start_hz, stop_hz)
-        self.resolution_hz = resolution_hz
-        self.settle_cycles = settle_cycles
-        self.integrate_cycles = integrate_cycles
-        # the limit always goes first: the source must never run without it
-        self.source_limit_vpk = source_limit_vpk
-        self.source_level_vpk = start_level_vpk
-        self.auto_level_channel = reference_channel
-        self.auto_level_reference_eu = level_m_per_s2
-        self.auto_level_tolerance_db = tolerance_db
+        sweep = self.sweep
+        sweep.sweep_mode = "AUTO"
+        sweep.spacing = "LIN"
+        sweep.direction = direction
+        sweep.auto_resolution = False
+        sweep.set_band(start_hz, stop_hz)
+        sweep.resolution_hz = resolution_hz
+        sweep.set_timing(settle_cycles, integrate_cycles, "CYCLE")
+        source = self.source
+        source.limit_vpk = source_limit_vpk  # the limit always goes first
+        source.level_vpk = start_level_vpk
+        source.reference_channel = reference_channel
+        source.reference_eu = level_m_per_s2
+        source.tolerance_db = tolerance_db
         if force_limit_n is not None:
-            self.input_limit_eu = force_limit_n
-        self.auto_level = True
-        self.sent["channels"] = channels
+            source.input_limit_eu = force_limit_n
+        source.auto_level = True
+        self.verify_configuration()
 
     def set_data_format(self, data_format: str = "REAL,64") -> str:
         """Select the data format; if the analyser refuses ``REAL``, fall back to ``ASC,12``.
@@ -562,108 +338,157 @@ class Agilent35670A:
         Returns the format in use.
         """
         try:
-            self.data_format = data_format
+            self.traces.data_format = data_format
         except SCPIError:
             if not data_format.upper().startswith("REAL"):
                 raise
-            self.data_format = "ASC,12"
-        return str(self.sent["data_format"])
+            self.traces.data_format = "ASC,12"
+        return str(self.traces.sent["data_format"])
 
-    # -- running -------------------------------------------------------------------------------
+    # -- measuring -----------------------------------------------------------------------------
     def measure(
         self,
         start_hz: float,
         stop_hz: float,
         *,
-        progress: Callable[[SweepProgress], None] | None = None,
+        resolution_hz: float | None = None,
+        settle_cycles: float | None = None,
+        integrate_cycles: float | None = None,
+        progress: Progress | None = None,
         timeout_s: float | None = None,
         poll_interval_s: float = 0.2,
         switch_source_off: bool = True,
     ) -> SweepSegment:
-        """Measure the sub-band ``start_hz`` .. ``stop_hz`` on the configured grid.
+        """Measure the linear sub-band ``start_hz`` .. ``stop_hz``.
 
-        Sets start and stop, switches the source on, starts (``ABOR;:INIT:IMM``), waits by
-        polling ``*ESR?`` (never blocking past the VISA timeout), then reads both frequency
-        responses, the linear spectra and normalized variances of the channels in use, their
-        frequency axis, and the overload latches.
+        Sets the band (and, when given, this call's resolution, settle and integration cycles),
+        reads them back, starts (``ABOR;:INIT:IMM;*OPC``), waits by polling status (never
+        blocking past a time-out; calibration and pauses do not count against the deadline),
+        then reads both frequency responses, the linear spectra and normalized variances of the
+        channels in use, their frequency axis, and the overload latches.
 
         Parameters
         ----------
         start_hz, stop_hz
             Band in Hz; ``(stop - start) / resolution + 1`` must be at most 801 points.
+        resolution_hz, settle_cycles, integrate_cycles
+            This segment's grid and timing (default: as configured).
         progress
             Called at each poll with a :class:`SweepProgress`; it may call :meth:`pause`,
             :meth:`resume` or :meth:`abort`.
         timeout_s
-            Overall deadline in seconds (pauses excluded); default twice the settle and
-            integration time from the settings plus 30 s.
+            Overall deadline in seconds (pauses and calibration excluded); default twice the
+            expected time plus 30 s.
         poll_interval_s
-            Longest time between polls, in seconds. Polling is adaptive: the first poll comes
-            :data:`FIRST_POLL_S` after the start and each wait doubles up to this interval, so
-            a short segment (or a fast simulated analyser) is read back at once while a long
-            one costs only a few extra ``*ESR?`` queries.
+            Longest time between polls (polling starts at 1 ms and doubles).
         switch_source_off
-            Switch the source off when the segment ends (also after an error or abort).
+            End with ``ABOR`` (the sweep drives the source), also after an error.
 
         Raises
         ------
-        MeasurementAborted, InstrumentTimeout, SCPIError, MalformedReply
+        MeasurementAborted, InstrumentTimeout, SCPIError, MalformedReply, SettingNotApplied
         """
-        resolution = self.sent.get("resolution_hz")
+        resolution = resolution_hz if resolution_hz is not None else self.sweep.sent.get(
+            "resolution_hz")
         if resolution is None:
-            raise SettingOutOfRange("set resolution_hz (or call configure_swept_sine) first")
+            raise SettingOutOfRange("set a resolution (or call configure_swept_sine) first")
         start, stop, points = self._check_band(start_hz, stop_hz, float(resolution))
-        self.sweep_mode = "AUTO"
-        self._set_band(start, stop)
-        self.resolution_hz = resolution
+        sweep = self.sweep
+        sweep.sweep_mode = "AUTO"
+        sweep.set_band(start, stop)
+        sweep.resolution_hz = resolution
+        if settle_cycles is not None or integrate_cycles is not None:
+            sweep.set_timing(
+                sweep.sent.get("settle_cycles", 0.0) if settle_cycles is None else settle_cycles,
+                sweep.sent.get("integrate_cycles", 1.0) if integrate_cycles is None
+                else integrate_cycles, "CYCLE")
+        self.verify_configuration([sweep])
         grid = start + float(resolution) * np.arange(points)
         segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
         check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
         return segment
 
-    def measure_point(
+    def measure_point(self, frequency_hz: float, *, progress: Progress | None = None,
+                      timeout_s: float | None = None, poll_interval_s: float = 0.2,
+                      switch_source_off: bool = True) -> SweepSegment:
+        """Measure one frequency in manual sweep mode (see :meth:`measure_points`)."""
+        return self.measure_points([frequency_hz], progress=progress, timeout_s=timeout_s,
+                                   poll_interval_s=poll_interval_s,
+                                   switch_source_off=switch_source_off)
+
+    def measure_points(
         self,
-        frequency_hz: float,
+        frequencies_hz: Sequence[float],
         *,
-        progress: Callable[[SweepProgress], None] | None = None,
+        settle_cycles: float | None = None,
+        integrate_cycles: float | None = None,
+        progress: Progress | None = None,
         timeout_s: float | None = None,
         poll_interval_s: float = 0.2,
         switch_source_off: bool = True,
     ) -> SweepSegment:
-        """Measure one frequency in manual sweep mode (``SWE:MODE MAN``, ``FREQ:MAN``).
+        """Measure arbitrary frequencies, in the order given, in manual sweep mode.
 
-        The point is picked from the traces by the analyser's own frequency axis (the entry
-        nearest ``frequency_hz``); arguments as in :meth:`measure`.
+        For each frequency: ``FREQ:MAN`` (read back: the analyser rounds down to 15.625 mHz),
+        a measurement, the traces read. The band is set to cover all the frequencies (a manual
+        frequency must lie within start..stop). Settle and integration cycles given here apply
+        to these points (and stay set).
+
+        Returns
+        -------
+        SweepSegment
+            One row per frequency, in the order given, on the analyser's own frequency axis.
         """
-        frequency = check_frequency(frequency_hz, self)
-        self.sweep_mode = "MAN"
-        self.manual_frequency_hz = frequency
-        segment = self._run(
-            np.array([frequency]), None, progress, timeout_s, poll_interval_s, switch_source_off
-        )
-        index = int(np.argmin(np.abs(segment.frequency_hz - frequency)))
-        pick = slice(index, index + 1)
-        return SweepSegment(
-            frequency_hz=segment.frequency_hz[pick],
-            frf_21=segment.frf_21[pick],
-            frf_43=None if segment.frf_43 is None else segment.frf_43[pick],
-            amplitude_eu={ch: values[pick] for ch, values in segment.amplitude_eu.items()},
-            variance={ch: values[pick] for ch, values in segment.variance.items()},
-            eu_labels=segment.eu_labels,
-            overload_channels=segment.overload_channels,
-            half_range_channels=segment.half_range_channels,
-            started_at_s=segment.started_at_s,
-            finished_at_s=segment.finished_at_s,
-        )
+        frequencies = [float(f) for f in frequencies_hz]
+        if not frequencies:
+            raise SettingOutOfRange("no frequency to measure")
+        for frequency in frequencies:
+            strict_range(0.015625, self.max_frequency_hz, "Hz")(frequency, self)
+        sweep = self.sweep
+        low, high = round_down(min(frequencies)), max(frequencies)
+        sweep.set_band(low, max(high, low + 0.015625))
+        sweep.sweep_mode = "MAN"
+        if settle_cycles is not None or integrate_cycles is not None:
+            sweep.set_timing(
+                sweep.sent.get("settle_cycles", 0.0) if settle_cycles is None else settle_cycles,
+                sweep.sent.get("integrate_cycles", 1.0) if integrate_cycles is None
+                else integrate_cycles, "CYCLE")
+        sweep.manual_frequency_hz = frequencies[0]
+        self.verify_configuration([sweep])
+        manual = type(sweep).manual_frequency_hz
+        pieces: list[SweepSegment] = []
+        for frequency in frequencies:
+            sweep.manual_frequency_hz = frequency
+            problem = manual.check(sweep)
+            if problem is not None:
+                raise SettingNotApplied(problem, self.resource)
+            segment = self._run(np.array([frequency]), None, progress, timeout_s,
+                                poll_interval_s, switch_source_off)
+            # the trace holds the manual point (an instrument may keep earlier points of the
+            # band beside it: the one at the manual frequency is taken, inferred)
+            index = int(np.argmin(np.abs(segment.frequency_hz - round_down(frequency))))
+            if abs(segment.frequency_hz[index] - round_down(frequency)) > 0.5 * 0.015625 + 1e-9:
+                raise MalformedReply(
+                    f"the analyser measured {segment.frequency_hz[index]:g} Hz for a manual "
+                    f"frequency of {frequency:g} Hz", self.resource)
+            pieces.append(_picked(segment, index))
+        return _joined(pieces)
 
-    def _check_band(
-        self, start_hz: float, stop_hz: float, resolution_hz: float
-    ) -> tuple[float, float, int]:
+    def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
+        """Time the analyser takes for these points from the settings sent (s): settle,
+        integration and its own time per point."""
+        frequencies = np.asarray(list(grid_hz), dtype=float)
+        return float(sum(self.sweep.point_time_s(f) + Quirks.POINT_OVERHEAD_S
+                         for f in frequencies))
+
+    def _check_band(self, start_hz: float, stop_hz: float,
+                    resolution_hz: float) -> tuple[float, float, int]:
         """Validate a band on a linear grid; return start, stop and the number of points."""
-        start = check_frequency(start_hz, self)
-        stop = check_frequency(stop_hz, self)
+        check = strict_range(0.015625, self.max_frequency_hz, "Hz")
+        start, stop = check(start_hz, self), check(stop_hz, self)
         if stop <= start:
             raise SettingOutOfRange(f"stop {stop:g} Hz must be above start {start:g} Hz")
+        strict_range(0.015625, 51200.0, "Hz")(resolution_hz, self)
         points = round((stop - start) / resolution_hz) + 1
         if points > MAX_POINTS:
             raise SettingOutOfRange(
@@ -672,231 +497,221 @@ class Agilent35670A:
             )
         return start, stop, points
 
-    def _set_band(self, start: float, stop: float) -> None:
-        # Quirks.START_BELOW_STOP: write them in the order that keeps start < stop throughout
-        current_stop = self.sent.get("stop_frequency_hz")
-        if current_stop is None:
-            current_stop = self.stop_frequency_hz
-        if start >= float(current_stop):
-            self.stop_frequency_hz = stop
-            self.start_frequency_hz = start
-        else:
-            self.start_frequency_hz = start
-            self.stop_frequency_hz = stop
-
-    def _run(
-        self,
-        grid_hz: np.ndarray,
-        points: int | None,
-        progress: Callable[[SweepProgress], None] | None,
-        timeout_s: float | None,
-        poll_interval_s: float,
-        switch_source_off: bool,
-    ) -> SweepSegment:
+    def _run(self, grid_hz: np.ndarray, points: int | None, progress: Progress | None,
+             timeout_s: float | None, poll_interval_s: float,
+             switch_source_off: bool) -> SweepSegment:
         expected_s = self.expected_duration_s(grid_hz)
         deadline_s = 2.0 * expected_s + 30.0 if timeout_s is None else float(timeout_s)
-        self._abort.clear()
-        self._paused_since = None
-        self._paused_total_s = 0.0
-        self.ask("STAT:QUES:VOLT:EVEN?")  # reading clears the latches of the previous segment
-        self.ask("*ESR?")  # and the event status register
         fault: BaseException | None = None
         try:
-            self.source_enabled = True
-            started = time.time()
-            self.write("ABOR;:INIT:IMM;*OPC")
-            self._wait(started, expected_s, deadline_s, progress, poll_interval_s)
-            finished = time.time()
+            started, finished = self.runner.run(expected_s, deadline_s, progress,
+                                                poll_interval_s)
             return self._read_segment(points, started, finished)
         except BaseException as error:
             fault = error
             raise
         finally:
             if switch_source_off:
-                self._switch_source_off(fault)
+                self._stop_source(fault)
 
-    def _switch_source_off(self, fault: BaseException | None) -> None:
-        """Send ``OUTP OFF`` at the end of a segment, however it ended.
+    def _stop_source(self, fault: BaseException | None) -> None:
+        """End the measurement so that the source stops, however it ended: ``ABOR`` (in swept
+        sine the sweep drives the source), and ``OUTP OFF`` in FFT mode.
 
-        After a lost connection or a timeout the session is reopened first: a write to a socket
-        the peer has closed still "succeeds", so the source would stay on. No error-queue check
-        here, and a failure does not replace the fault that ended the segment.
+        After a lost connection or a time-out the session is reopened first: a write to a
+        socket the peer has closed still "succeeds", so the source would stay on. No error-queue
+        check here, and a failure does not replace the fault that ended the measurement.
         """
         try:
             if isinstance(fault, ConnectionLost | InstrumentTimeout):
                 self.connection.reconnect()
-            self.write("OUTP OFF")
-            self.sent["source_enabled"] = False
+            self.write("ABOR")
+            if self.instrument_mode_sent() == "FFT":
+                self.write("OUTP OFF")
+                self.fft_source.sent["output"] = False
         except InstrumentError:
             if fault is None:
                 raise
 
-    def _wait(
-        self,
-        started: float,
-        expected_s: float,
-        deadline_s: float,
-        progress: Callable[[SweepProgress], None] | None,
-        poll_interval_s: float,
-    ) -> None:
-        wait_s = min(FIRST_POLL_S, poll_interval_s)
-        while True:
-            if self._abort.is_set():
-                raise MeasurementAborted("the measurement was aborted", self.resource)
-            status = parse_int(self.ask("*ESR?"))
-            if status & ESR_ERRORS:
-                self.check_errors("ABOR;:INIT:IMM;*OPC")
-                raise SCPIError(0, f"*ESR? reported errors (ESR={status}) with an empty queue",
-                                "*ESR?", self.resource)
-            if status & ESR_OPERATION_COMPLETE:
-                return
-            now = time.time()
-            paused_s = self._paused_total_s + (
-                now - self._paused_since if self._paused_since is not None else 0.0
-            )
-            if now - started - paused_s > deadline_s:
-                self.write("ABOR")
-                raise InstrumentTimeout(
-                    f"the measurement did not complete within {deadline_s:g} s "
-                    f"(expected {expected_s:.1f} s of settle and integration); aborted",
-                    self.resource,
-                )
-            if progress is not None:
-                condition = self.operation_condition
-                progress(
-                    SweepProgress(
-                        elapsed_s=now - started,
-                        expected_s=expected_s,
-                        paused=self._paused_since is not None,
-                        settling=bool(condition & OPERATION_SETTLING),
-                        ranging=bool(condition & OPERATION_RANGING),
-                        measuring=bool(condition & OPERATION_MEASURING),
-                    )
-                )
-            if not self._abort.is_set():
-                time.sleep(wait_s)
-                wait_s = min(2.0 * wait_s, poll_interval_s)
-
-    def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
-        """Settle plus integration time of the given points from the settings sent (seconds)."""
-        frequencies = np.asarray(list(grid_hz), dtype=float)
-        total = 0.0
-        for cycles_name, seconds_name in (
-            ("settle_cycles", "settle_s"),
-            ("integrate_cycles", "integrate_s"),
-        ):
-            if cycles_name in self.sent:
-                total += float(np.sum(float(self.sent[cycles_name]) / frequencies))
-            elif seconds_name in self.sent:
-                total += float(self.sent[seconds_name]) * frequencies.size
-        return total
+    def instrument_mode_sent(self) -> str | None:
+        """The mode this connection selected, if any."""
+        return self.sent.get("instrument_mode")
 
     def pause(self) -> None:
         """Pause the running measurement (``INIT:CONT OFF``); the deadline stops counting."""
-        self.write("INIT:CONT OFF")
-        if self._paused_since is None:
-            self._paused_since = time.time()
+        self.runner.pause()
 
     def resume(self) -> None:
         """Resume a paused measurement (``INIT:CONT ON``)."""
-        self.write("INIT:CONT ON")
-        if self._paused_since is not None:
-            self._paused_total_s += time.time() - self._paused_since
-            self._paused_since = None
+        self.runner.resume()
 
     def abort(self) -> None:
-        """Stop the measurement (``ABOR``) and switch the source off; a waiting
-        :meth:`measure` raises :class:`MeasurementAborted`."""
-        self._abort.set()
-        self.write("ABOR;:OUTP OFF")
+        """Stop the measurement (``ABOR``; the source stops with it); a waiting measurement
+        raises :class:`MeasurementAborted`."""
+        self.runner.abort()
+        if self.instrument_mode_sent() == "FFT":
+            self.write("OUTP OFF")
 
     # -- data ----------------------------------------------------------------------------------
-    def _read_segment(self, points: int | None, started: float, finished: float) -> SweepSegment:
-        channels = tuple(self.sent.get("channels", (1, 2, 3, 4)))
-        frequency_hz, frf_21 = self.read_trace("XFR:POW:RAT 2,1", points, with_axis=True)
-        count = frequency_hz.size
+    def _read_segment(self, points: int | None, started: float,
+                      finished: float) -> SweepSegment:
+        channels = self.channels_in_use
+        traces = self.traces
+        traces.show("XFR:POW:RAT 2,1")
+        frequency_hz, count = traces.axis()
+        if points is not None and count != points:
+            raise MalformedReply(f"the analyser's trace holds {count} measured points, "
+                                 f"{points} were asked for", self.resource)
+        frf_21 = traces.data("XFR:POW:RAT 2,1", count)
         frf_43 = None
-        if 3 in channels and 4 in channels:
-            frf_43 = self.read_trace("XFR:POW:RAT 4,3", count)[1]
-        amplitude = {ch: np.abs(self.read_trace(f"XFR:POW:LIN {ch}", count)[1]) for ch in channels}
-        variance = {
-            ch: self.read_trace(f"XFR:POW:VAR {ch}", count, real=True)[1] for ch in channels
-        }
-        overload, half_range = self.read_overload()
-        labels = {
-            ch: str(self.channel(ch).sent.get("transducer_label", "V")) for ch in channels
-        }
+        extras: dict[str, np.ndarray] = {}
+        if self.sweep.sent.get("reference_pairing") == "SING":
+            # input 1 is every input's reference: 4/3 is the ratio of the two responses
+            for number in (3, 4):
+                if number in channels:
+                    traces.show(f"XFR:POW:RAT {number},1")
+                    extras[f"frf_{number}1"] = traces.data(f"XFR:POW:RAT {number},1", count)
+            if "frf_31" in extras and "frf_41" in extras:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    frf_43 = extras["frf_41"] / extras["frf_31"]
+        elif 3 in channels and 4 in channels:
+            traces.show("XFR:POW:RAT 4,3")
+            frf_43 = traces.data("XFR:POW:RAT 4,3", count)
+        amplitude, variance = {}, {}
+        for channel in channels:
+            traces.show(f"XFR:POW:LIN {channel}")
+            amplitude[channel] = np.abs(traces.data(f"XFR:POW:LIN {channel}", count))
+            traces.show(f"XFR:POW:VAR {channel}")
+            variance[channel] = traces.data(f"XFR:POW:VAR {channel}", count, real=True)
+        overload, half_range = self.status.read_overload()
+        missing = np.isnan(frf_21) | np.any([np.isnan(v) for v in amplitude.values()], axis=0)
+        if frf_43 is not None:
+            missing |= np.isnan(frf_43)
+        labels = {ch: str(self.channel(ch).sent.get("transducer_label", "V")) for ch in channels}
         return SweepSegment(
-            frequency_hz=frequency_hz,
-            frf_21=frf_21,
-            frf_43=frf_43,
-            amplitude_eu=amplitude,
-            variance=variance,
-            eu_labels=labels,
-            overload_channels=overload,
-            half_range_channels=half_range,
-            started_at_s=started,
-            finished_at_s=finished,
+            frequency_hz=frequency_hz, frf_21=frf_21, frf_43=frf_43, amplitude_eu=amplitude,
+            variance=variance, eu_labels=labels, overload_channels=overload,
+            half_range_channels=half_range, started_at_s=started, finished_at_s=finished,
+            no_data=missing, extras=extras,
         )
 
-    def read_trace(
-        self,
-        feed: str,
-        points: int | None = None,
-        *,
-        real: bool = False,
-        with_axis: bool = False,
-    ) -> tuple[np.ndarray | None, np.ndarray]:
+    def read_trace(self, feed: str, points: int | None = None, *, real: bool = False,
+                   with_axis: bool = False) -> tuple[np.ndarray | None, np.ndarray]:
         """Feed trace A with ``feed`` and read it untransformed through register D1.
-
-        Parameters
-        ----------
-        feed
-            A swept-sine feed: ``"XFR:POW:RAT 2,1"``, ``"XFR:POW:LIN n"``, ``"XFR:POW:VAR n"``.
-        points
-            Expected number of points (``None``: any, then the axis or data decide).
-        real
-            The quantity is real (variance); else complex, read as (real, imag) pairs.
-        with_axis
-            Also read the frequency axis (``TRAC:X? D1``), in Hz.
 
         Returns
         -------
         (frequency_hz or None, values)
+            The measured points only (a swept-sine trace's empty slots are left out); NaN where
+            the analyser put its no-data marker.
         """
-        feed = check_feed(feed)
-        self.configure(f"CALC1:FEED '{feed}';*WAI")
-        self.configure("TRAC:DATA D1,TRAC1")
-        axis = None
-        if with_axis:
-            axis = check_values(self.read_values("TRAC:X? D1"), "TRAC:X? D1", points)
-            points = axis.size
-        raw = self.read_values("TRAC:DATA? D1")
-        what = f"TRAC:DATA? D1 ({feed})"
-        if real:
-            if Quirks.REAL_TRACE_MAY_BE_PAIRED and points is not None and raw.size == 2 * points:
-                raw = raw[0::2]
-            return axis, check_values(raw, what, points)
-        return axis, interleaved_to_complex(raw, what, points)
+        self.traces.show(feed)
+        axis, count = self.traces.axis()
+        if points is not None and count != points:
+            raise MalformedReply(f"{feed}: {count} measured points, expected {points}",
+                                 self.resource)
+        values = self.traces.data(feed, count, real=real)
+        return (axis if with_axis else None), values
 
     def read_values(self, query: str) -> np.ndarray:
         """Send a data query and decode its reply in the data format in use."""
-        data_format = str(self.sent.get("data_format", "ASC"))
-        if data_format.startswith("REAL"):
-            message = self.connection.query_block(query)
-            bits = int(data_format.split(",")[1])
-            try:
-                return decode_real(split_definite_block(message), bits, Quirks.REAL_BIG_ENDIAN)
-            except MalformedReply as error:
-                raise MalformedReply(f"{query!r}: {error.detail}", self.resource) from None
-        try:
-            return decode_ascii(self.ask(query))
-        except MalformedReply as error:
-            raise MalformedReply(f"{query!r}: {error.detail}", self.resource) from None
+        return self.traces.read_values(query)
 
     def read_overload(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """Read and clear ``STAT:QUES:VOLT:EVEN?``: (overloaded channels, half-range channels)."""
-        bits = parse_int(self.ask("STAT:QUES:VOLT:EVEN?"))
-        overload = tuple(ch for ch in range(1, 5) if bits & (1 << (ch - 1)))
-        half_range = tuple(ch for ch in range(1, 5) if bits & (1 << (ch + 7)))
-        return overload, half_range
+        return self.status.read_overload()
+
+    # -- FFT: spectra with the source off (noise floors) or driving --------------------------------
+    def measure_spectra(
+        self,
+        *,
+        span_hz: float,
+        lines: int = 400,
+        averages: int = 10,
+        window: str = "HANN",
+        channels: Sequence[int] = (1, 2, 3, 4),
+        timeout_s: float | None = None,
+        poll_interval_s: float = 0.1,
+    ) -> Spectra:
+        """An FFT measurement of each input's power spectrum with the source off.
+
+        Baseband ``0 .. span_hz`` (the analyser takes the next allowed span), RMS averaging,
+        autorange at the start (the analyser does not range during an averaged measurement).
+        """
+        self.identify()
+        self.channels_in_use = tuple(channels)
+        self.instrument_mode = "FFT"
+        self.set_data_format("REAL,64")
+        self.fft_source.output = False
+        for number in (2, 3, 4):
+            if number in channels:
+                self.channel(number).enabled = True
+        for number in channels:
+            self.channel(number).autorange = True
+        fft = self.fft
+        fft.start_frequency_hz = 0.0
+        fft.span_hz = span_hz
+        fft.lines = str(lines)
+        fft.window = window
+        fft.averaging = True
+        fft.average_count = averages
+        fft.average_type = "RMS"
+        self.verify_configuration([self, self.fft, self.fft_source])
+        span = float(self.fft.span_hz)
+        record_s = lines / span
+        expected_s = averages * max(record_s, 1 / 33.0) + 20.0
+        deadline = 3.0 * expected_s + 30.0 if timeout_s is None else timeout_s
+        self.runner.run(expected_s, deadline, None, poll_interval_s)
+        power = {}
+        frequency = np.zeros(0)
+        for number in channels:
+            self.traces.show(f"XFR:POW {number}")
+            values = self.traces.read_values("TRAC:X? D1")
+            frequency = values[: lines + 1]
+            raw = self.traces.read_values("TRAC:DATA? D1")[: lines + 1].copy()
+            raw[raw < -1e37] = np.nan
+            power[number] = raw
+        overload, _ = self.status.read_overload()
+        ranges = {number: self.channel(number).range_in_use_dbvrms() for number in channels}
+        return Spectra(frequency_hz=frequency, power=power, line_width_hz=span / lines,
+                       ranges_dbvrms=ranges, overload_channels=overload)
+
+
+def _picked(segment: SweepSegment, index: int) -> SweepSegment:
+    """One point of a segment."""
+    pick = slice(index, index + 1)
+    return SweepSegment(
+        frequency_hz=segment.frequency_hz[pick], frf_21=segment.frf_21[pick],
+        frf_43=None if segment.frf_43 is None else segment.frf_43[pick],
+        amplitude_eu={ch: v[pick] for ch, v in segment.amplitude_eu.items()},
+        variance={ch: v[pick] for ch, v in segment.variance.items()},
+        eu_labels=segment.eu_labels, overload_channels=segment.overload_channels,
+        half_range_channels=segment.half_range_channels, started_at_s=segment.started_at_s,
+        finished_at_s=segment.finished_at_s,
+        no_data=None if segment.no_data is None else segment.no_data[pick],
+        extras={name: values[pick] for name, values in segment.extras.items()},
+    )
+
+
+def _joined(pieces: list[SweepSegment]) -> SweepSegment:
+    """One segment of several one-point measurements, in order."""
+    first = pieces[0]
+
+    def stack(get: Callable[[SweepSegment], np.ndarray]) -> np.ndarray:
+        return np.concatenate([get(p) for p in pieces])
+
+    frf_43 = None if first.frf_43 is None else stack(lambda p: p.frf_43)
+    return SweepSegment(
+        frequency_hz=stack(lambda p: p.frequency_hz),
+        frf_21=stack(lambda p: p.frf_21),
+        frf_43=frf_43,
+        amplitude_eu={ch: stack(lambda p, c=ch: p.amplitude_eu[c]) for ch in first.amplitude_eu},
+        variance={ch: stack(lambda p, c=ch: p.variance[c]) for ch in first.variance},
+        eu_labels=first.eu_labels,
+        overload_channels=tuple(sorted({c for p in pieces for c in p.overload_channels})),
+        half_range_channels=tuple(sorted({c for p in pieces for c in p.half_range_channels})),
+        started_at_s=first.started_at_s,
+        finished_at_s=pieces[-1].finished_at_s,
+        no_data=stack(lambda p: p.no_data if p.no_data is not None else np.zeros(len(p), bool)),
+        extras={name: stack(lambda p, n=name: p.extras[n]) for name in first.extras},
+    )

@@ -12,6 +12,11 @@ Replies are looked up by the whole message (after upper-casing): a ``str`` (sent
 feed), ``bytes`` (sent as they are), a list of those (one per query, the last repeated), or a
 callable taking the message and returning one of those or ``None`` (no reply). ``SYST:ERR?``
 pops :attr:`ScriptedSCPIServer.errors` and answers ``+0,"No error"`` when it is empty.
+
+A query with no scripted reply is answered from the settings received (``FREQ:STAR 10 HZ``
+then ``FREQ:STAR?`` answers ``+1.00000000000E+001`` and ``FREQ:STAR? UNIT`` answers ``"HZ"``;
+``ON``/``OFF`` as ``+1``/``+0``; keywords and strings as sent), so that a driver reading its
+settings back sees what a compliant instrument answers; ``defaults`` answer settings never sent.
 """
 
 from __future__ import annotations
@@ -51,8 +56,11 @@ class ScriptedSCPIServer:
         prologix: bool = False,
         gpib_address: int = 11,
         board: int = 0,
+        defaults: dict[str, str] | None = None,
     ) -> None:
         self.replies: dict[str, Reply] = {k.upper(): v for k, v in (replies or {}).items()}
+        self.defaults: dict[str, str] = {k.upper(): v for k, v in (defaults or {}).items()}
+        self.settings: dict[str, str] = {}
         self.prologix = prologix
         self.gpib_address = gpib_address
         self.board = board
@@ -177,8 +185,38 @@ class ScriptedSCPIServer:
                 raw = _unescape(raw)
             messages.append(raw.rstrip(b"\r"))
 
+    def _remember(self, message: str) -> None:
+        """Keep the parameters of each setting received, by header."""
+        for unit in message.split(";"):
+            header, _, params = unit.strip().partition(" ")
+            if header and not header.endswith("?") and not header.startswith("*") and params:
+                self.settings[header.lstrip(":").upper()] = params.strip()
+
+    def _echo(self, key: str) -> bytes | None:
+        """Answer a setting query from the settings received (or the defaults)."""
+        header, _, argument = key.partition("?")
+        header = header.lstrip(":")
+        value = self.settings.get(header)
+        if value is None:
+            default = self.defaults.get(key)
+            return None if default is None else default.encode("ascii") + b"\n"
+        first, _, unit = value.partition(" ")
+        if argument.strip() == "UNIT":
+            return f'"{unit.strip().upper()}"'.encode("ascii") + b"\n"
+        if value[:1] in "'\"":
+            return b'"' + value[1:-1].encode("ascii") + b'"\n'
+        word = first.upper()
+        if word in ("ON", "OFF"):
+            return b"+1\n" if word == "ON" else b"+0\n"
+        try:
+            number = float(first)
+        except ValueError:
+            return word.encode("ascii") + b"\n"
+        return f"{number:+.11E}".encode("ascii") + b"\n"
+
     def _reply_to(self, message: str) -> bytes | None:
         key = message.upper()
+        self._remember(message)
         if key == "SYST:ERR?" and key not in self.replies:
             with self._lock:
                 text = self.errors.pop(0) if self.errors else NO_ERROR
@@ -188,6 +226,8 @@ class ScriptedSCPIServer:
             reply = reply.pop(0) if len(reply) > 1 else reply[0]
         if callable(reply):
             reply = reply(message)
+        if reply is None and key not in self.replies and "?" in key and ";" not in key:
+            return self._echo(key)
         if reply is None:
             return None
         if isinstance(reply, str):

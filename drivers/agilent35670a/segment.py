@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SweepProgress", "SweepSegment"]
+__all__ = ["Spectra", "SweepProgress", "SweepSegment"]
 
 
 @dataclass(frozen=True)
@@ -22,8 +22,11 @@ class SweepProgress:
         Settle and integration time of the whole segment from the settings (a lower bound).
     paused
         The measurement is paused.
-    settling, ranging, measuring
+    settling, ranging, measuring, calibrating
         Bits of ``STAT:OPER:COND?`` at this poll.
+    calibrating_s
+        Time the analyser spent calibrating during this measurement so far (it does not count
+        against the deadline).
     """
 
     elapsed_s: float
@@ -32,6 +35,8 @@ class SweepProgress:
     settling: bool
     ranging: bool
     measuring: bool
+    calibrating: bool = False
+    calibrating_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,12 @@ class SweepSegment:
         (``STAT:QUES:VOLT:EVEN?`` latches over the sweep, so it is known per segment only).
     started_at_s, finished_at_s
         Wall-clock times (``time.time()``) at the start and end of the measurement.
+    no_data
+        Points where the analyser's trace held its no-data marker in any quantity read (their
+        values are NaN); all false for a complete sweep.
+    extras
+        Further data by name: with ``REF SING`` (input 1 the reference of every input),
+        ``frf_31`` and ``frf_41``, the responses of inputs 3 and 4 over input 1.
 
     Notes
     -----
@@ -79,6 +90,7 @@ class SweepSegment:
     started_at_s: float
     finished_at_s: float
     extras: Mapping[str, np.ndarray] = field(default_factory=dict)
+    no_data: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.frequency_hz.size)
@@ -97,3 +109,29 @@ class SweepSegment:
         if numerator in self.variance and denominator in self.variance:
             return self.variance[numerator] + self.variance[denominator]
         return None
+
+
+@dataclass(frozen=True)
+class Spectra:
+    """An FFT measurement's spectra (``XFR:POW n`` per input), as the bench check reads them.
+
+    Attributes
+    ----------
+    frequency_hz
+        The analyser's frequency axis (displayed lines).
+    power
+        Input -> power spectrum, rms² in the input's unit (V² or EU²); NaN where the analyser
+        put its no-data marker (the dB value of a zero line).
+    line_width_hz
+        Spacing of the lines (span / lines).
+    ranges_dbvrms
+        Input -> range the analyser chose or was given (``VOLTn:RANG?``), dBVrms.
+    overload_channels
+        Inputs that overloaded during the measurement.
+    """
+
+    frequency_hz: np.ndarray
+    power: Mapping[int, np.ndarray]
+    line_width_hz: float
+    ranges_dbvrms: Mapping[int, float]
+    overload_channels: tuple[int, ...]

@@ -403,10 +403,14 @@ class RigSimulator:
         new_level, cap = wanted, None
         if new_level > control.source_limit_vpk:
             new_level, cap = control.source_limit_vpk, "source"
+        limits = list(control.input_limits_vpk or ())
         if control.input_limit_channel is not None and control.input_limit_vpk is not None:
-            watched = abs(measured[control.input_limit_channel - 1])
-            if watched > 0.0 and level > 0.0:
-                allowed = level * control.input_limit_vpk / watched
+            limits += [None] * (control.input_limit_channel - len(limits))
+            limits[control.input_limit_channel - 1] = control.input_limit_vpk
+        for channel, limit_vpk in enumerate(limits):
+            watched = abs(measured[channel])
+            if limit_vpk is not None and watched > 0.0 and level > 0.0:
+                allowed = level * limit_vpk / watched
                 if new_level > allowed:
                     new_level, cap = allowed, "input"
         return float(new_level), cap

@@ -15,30 +15,150 @@ on the next program message that matches:
 ``overload``
     The next points measured flag an input overload on a channel (status bits and event
     register, as when the signal exceeds the range).
+``autocal``
+    The analyser runs an auto-calibration before its next point (the sweep pauses, status
+    ``STAT:OPER`` bit 0 "calibrating" is set meanwhile).
+
+Faults of the wiring between the rig and the analyser's inputs (:class:`FrontEnd`) last until
+cleared, like a bad cable does:
+
+``unplug=N``
+    Input N reads nothing but the analyser's own noise (a cable off, an ICP supply off).
+``swap=A,B``
+    Inputs A and B read each other's transducer (two cables swapped).
+``gain=N:K``
+    Input N reads K times its transducer (a sensitivity off by K in the station file, a
+    wrong amplifier gain).
+``invert=N``
+    Input N reads its transducer with the opposite sign (an accelerometer mounted upside down).
+``range=N:DBVRMS``
+    Input N's range is stuck at that range whatever the analyser selects (so a normal signal
+    overloads it when the stuck range is small).
 
 ``match`` is a case-insensitive substring of the program message (``"CALC1:DATA?"``). Without
-it, ``no_reply`` and ``garble`` fire on the next query, ``drop`` on the next message, and
-``error`` and ``overload`` at once.
+it, ``no_reply`` and ``garble`` fire on the next query, ``drop`` on the next message, and the
+others at once.
 
 Command-line form (``viscorig sim serve --fault SPEC``): ``KIND[=ARG][@MATCH]``, for example
 ``no_reply@*IDN?``, ``drop@INIT``, ``garble@TRAC:DATA?``, ``error=-310,Hardware fault``,
-``overload=4`` (channel 4, next sweep) or ``overload=4:10`` (the next 10 points).
+``overload=4`` (channel 4, next sweep) or ``overload=4:10`` (the next 10 points), ``unplug=3``,
+``swap=2,4``, ``gain=3:10``, ``invert=4``, ``range=3:-51``, ``autocal``.
 """
 
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import Protocol
 
-if TYPE_CHECKING:
-    from rigsim.analyser import VirtualAnalyser
+import numpy as np
 
-__all__ = ["FAULT_KINDS", "Fault", "FaultInjector", "FaultSpecError", "garble", "parse_fault_spec"]
+__all__ = [
+    "FAULT_KINDS",
+    "Fault",
+    "FaultInjector",
+    "FaultSpecError",
+    "FaultTarget",
+    "FrontEnd",
+    "garble",
+    "parse_fault_spec",
+]
 
-FAULT_KINDS = ("no_reply", "drop", "garble", "error", "overload")
+FAULT_KINDS = ("no_reply", "drop", "garble", "error", "overload", "autocal", "unplug", "swap",
+               "gain", "invert", "range")
 #: Faults that act on one message's transport; the others act on the instrument.
 MESSAGE_FAULTS = ("no_reply", "drop", "garble")
+#: Faults of the wiring between rig and inputs (they last).
+WIRING_FAULTS = ("unplug", "swap", "gain", "invert", "range")
+CHANNELS = 4
+
+
+class FrontEnd:
+    """The wiring between the rig's transducers and the analyser's inputs, with its faults.
+
+    Input ``n`` reads ``gain[n] ×`` the signal of transducer ``source[n]`` (``None``: nothing
+    is connected, the input reads only the analyser's own noise). ``pinned_range_dbvrms[n]``
+    is a range stuck on input ``n``. All indices are inputs 1..4. A healthy wiring is the
+    identity.
+    """
+
+    def __init__(self) -> None:
+        self.source: dict[int, int | None] = {n: n for n in range(1, CHANNELS + 1)}
+        self.gain: dict[int, float] = {n: 1.0 for n in range(1, CHANNELS + 1)}
+        self.pinned_range_dbvrms: dict[int, float] = {}
+
+    @property
+    def healthy(self) -> bool:
+        """No fault in the wiring."""
+        return (all(self.source[n] == n and self.gain[n] == 1.0 for n in self.source)
+                and not self.pinned_range_dbvrms)
+
+    def altered(self, channel: int) -> bool:
+        """Input ``channel`` does not simply read its own transducer."""
+        return self.source[channel] != channel or self.gain[channel] != 1.0
+
+    def unplug(self, channel: int) -> None:
+        """Input ``channel`` reads nothing."""
+        self.source[channel] = None
+
+    def swap(self, a: int, b: int) -> None:
+        """Inputs ``a`` and ``b`` read each other's transducer."""
+        self.source[a], self.source[b] = self.source[b], self.source[a]
+        self.gain[a], self.gain[b] = self.gain[b], self.gain[a]
+
+    def scale(self, channel: int, factor: float) -> None:
+        """Input ``channel`` reads ``factor`` times what it read."""
+        self.gain[channel] *= factor
+
+    def pin_range(self, channel: int, range_dbvrms: float) -> None:
+        """Input ``channel``'s range is stuck at ``range_dbvrms``."""
+        self.pinned_range_dbvrms[channel] = range_dbvrms
+
+    def reset(self) -> None:
+        """A healthy wiring again."""
+        self.__init__()
+
+    def apply(self, values: np.ndarray) -> np.ndarray:
+        """What the inputs read, from what the transducers give (last axis: channels 1..4).
+
+        An unplugged input reads zero here; the caller adds the analyser's own noise.
+        """
+        out = np.zeros_like(values)
+        for n in range(1, CHANNELS + 1):
+            source = self.source[n]
+            if source is not None:
+                out[..., n - 1] = self.gain[n] * values[..., source - 1]
+        return out
+
+    def describe(self) -> list[str]:
+        """One line per fault, for logs."""
+        lines = []
+        for n in range(1, CHANNELS + 1):
+            source, gain = self.source[n], self.gain[n]
+            if source is None:
+                lines.append(f"input {n} unplugged")
+            elif source != n:
+                lines.append(f"input {n} reads transducer {source}")
+            if source is not None and gain != 1.0:
+                lines.append(f"input {n} reads {gain:g} times its transducer")
+        lines += [f"input {n} range stuck at {r:g} dBVrms"
+                  for n, r in sorted(self.pinned_range_dbvrms.items())]
+        return lines
+
+
+class FaultTarget(Protocol):
+    """What instrument faults act on (the virtual analyser)."""
+
+    front_end: FrontEnd
+
+    def push_error(self, code: int, message: str) -> None:
+        """Put an error in the error queue."""
+
+    def force_overload(self, channel: int, points: int | None = None) -> None:
+        """Flag an overload on ``channel`` for the next points."""
+
+    def request_calibration(self) -> None:
+        """Run an auto-calibration before the next point."""
 
 
 class FaultSpecError(ValueError):
@@ -58,8 +178,12 @@ class Fault:
     code, message
         The error for ``error`` faults.
     channel, points
-        Channel (1..4) and number of points for ``overload`` faults (``None``: the whole next
-        sweep).
+        Input (1..4) of ``overload``, ``unplug``, ``gain``, ``invert``, ``range`` faults, and
+        the number of points of an ``overload`` (``None``: the whole next sweep).
+    other
+        The second input of a ``swap``.
+    value
+        The factor of a ``gain`` fault, the range (dBVrms) of a ``range`` fault.
     """
 
     kind: str
@@ -68,12 +192,19 @@ class Fault:
     message: str = "System error"
     channel: int = 1
     points: int | None = None
+    other: int = 2
+    value: float = 1.0
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
             raise FaultSpecError(f"unknown fault {self.kind!r}; faults: {', '.join(FAULT_KINDS)}")
-        if not 1 <= self.channel <= 4:
-            raise FaultSpecError(f"overload channel must be 1..4, got {self.channel}")
+        for number in (self.channel, self.other):
+            if not 1 <= number <= CHANNELS:
+                raise FaultSpecError(f"{self.kind}: input must be 1..4, got {number}")
+        if self.kind == "swap" and self.channel == self.other:
+            raise FaultSpecError("swap needs two different inputs")
+        if self.kind == "range" and not -51.0 <= self.value <= 27.0:
+            raise FaultSpecError(f"range must be -51..27 dBVrms, got {self.value:g}")
 
     def triggered_by(self, message: str) -> bool:
         if self.match is not None:
@@ -81,20 +212,20 @@ class Fault:
         return "?" in message if self.kind in ("no_reply", "garble") else True
 
 
+@dataclass
 class FaultInjector:
     """Queued faults of one server. Thread-safe; each fault fires once.
 
     Parameters
     ----------
     analyser
-        The instrument that ``error`` and ``overload`` faults act on.
+        The instrument that instrument and wiring faults act on.
     """
 
-    def __init__(self, analyser: VirtualAnalyser) -> None:
-        self.analyser = analyser
-        self._faults: list[Fault] = []
-        self._lock = threading.Lock()
-        self.fired: list[Fault] = []
+    analyser: FaultTarget
+    _faults: list[Fault] = field(default_factory=list)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+    fired: list[Fault] = field(default_factory=list)
 
     def add(self, fault: Fault) -> Fault:
         """Queue a fault (instrument faults without ``match`` act at once)."""
@@ -124,6 +255,10 @@ class FaultInjector:
     def overload(self, channel: int, points: int | None = None, match: str | None = None) -> Fault:
         """Flag an overload on ``channel`` for the next ``points`` points (whole next sweep)."""
         return self.add(Fault("overload", match, channel=channel, points=points))
+
+    def autocal(self, match: str | None = None) -> Fault:
+        """An auto-calibration before the next point (or when ``match`` arrives)."""
+        return self.add(Fault("autocal", match))
 
     @property
     def pending(self) -> list[Fault]:
@@ -159,16 +294,41 @@ class FaultInjector:
         return kinds
 
     def _apply(self, fault: Fault) -> None:
+        target = self.analyser
+        wiring = target.front_end
         if fault.kind == "error":
-            self.analyser.push_error(fault.code, fault.message)
+            target.push_error(fault.code, fault.message)
         elif fault.kind == "overload":
-            self.analyser.force_overload(fault.channel, fault.points)
+            target.force_overload(fault.channel, fault.points)
+        elif fault.kind == "autocal":
+            target.request_calibration()
+        elif fault.kind == "unplug":
+            wiring.unplug(fault.channel)
+        elif fault.kind == "swap":
+            wiring.swap(fault.channel, fault.other)
+        elif fault.kind == "gain":
+            wiring.scale(fault.channel, fault.value)
+        elif fault.kind == "invert":
+            wiring.scale(fault.channel, -1.0)
+        elif fault.kind == "range":
+            wiring.pin_range(fault.channel, fault.value)
 
 
 def garble(response: bytes) -> bytes:
     """A corrupted copy of a response: cut in the middle, junk appended, terminator kept."""
     body = response[:-1] if response.endswith(b"\n") else response
     return body[: len(body) // 2] + b"\x7f?#~" + b"\n"
+
+
+def _numbers(spec: str, arg: str, separator: str, count: int, example: str) -> list[float]:
+    parts = arg.split(separator) if arg else []
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != count:
+        raise FaultSpecError(f"fault {spec!r}: expected {example}")
+    return values
 
 
 def parse_fault_spec(spec: str) -> Fault:
@@ -182,6 +342,7 @@ def parse_fault_spec(spec: str) -> Fault:
     head, _, match = spec.partition("@")
     kind, _, arg = head.partition("=")
     kind = kind.strip().lower().replace("-", "_")
+    arg = arg.strip()
     if kind == "no_response":
         kind = "no_reply"
     if kind == "error":
@@ -199,6 +360,20 @@ def parse_fault_spec(spec: str) -> Fault:
         except ValueError:
             raise FaultSpecError(f"fault {spec!r}: overload needs a channel (overload=4)") from None
         return Fault("overload", match or None, channel=channel, points=points)
+    if kind in ("unplug", "invert"):
+        (channel,) = _numbers(spec, arg, ",", 1, f"{kind}=N (an input 1..4)")
+        return Fault(kind, match or None, channel=int(channel))
+    if kind == "swap":
+        a, b = _numbers(spec, arg, ",", 2, "swap=A,B (two inputs)")
+        return Fault("swap", match or None, channel=int(a), other=int(b))
+    if kind in ("gain", "range"):
+        example = "gain=N:K (input, factor)" if kind == "gain" else "range=N:DBVRMS"
+        channel, value = _numbers(spec, arg, ":", 2, example)
+        if kind == "gain" and value == 0:
+            raise FaultSpecError(f"fault {spec!r}: a gain of 0 is unplug=N")
+        return Fault(kind, match or None, channel=int(channel), value=value)
+    if kind not in FAULT_KINDS:
+        raise FaultSpecError(f"unknown fault {kind!r}; faults: {', '.join(FAULT_KINDS)}")
     if arg:
         raise FaultSpecError(f"fault {spec!r}: {kind} takes no argument")
     return Fault(kind, match or None)

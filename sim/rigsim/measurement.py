@@ -48,6 +48,9 @@ class SourceControl:
     input_limit_channel, input_limit_vpk
         Optional second limit: the controller never lets this channel's peak voltage exceed this
         level (the analyser's ``SOUR:VOLT:LIM:INP``, used to hold the shaker force below its limit).
+    input_limits_vpk
+        Optional limit per channel (volts peak, ``None`` for no limit on that channel): the
+        analyser's ``SOUR:VOLT:LIM:INP`` holds every input but the reference below one level.
     max_iterations
         Controller iterations per point before it gives up and measures where it is.
     """
@@ -60,6 +63,7 @@ class SourceControl:
     source_limit_vpk: float = 2.0
     input_limit_channel: int | None = None
     input_limit_vpk: float | None = None
+    input_limits_vpk: tuple[float | None, ...] | None = None
     max_iterations: int = 8
 
 

@@ -13,9 +13,17 @@
   ``GPIB0::11::INSTR`` (pyvisa-py's pyserial path), POSIX only.
 
 Deliberate differences from the adapter: ``++read`` waits for the device at least
-:data:`READ_TIMEOUT_FLOOR_S` even when ``++read_tmo_ms`` is shorter, so a loaded CI machine does
-not turn into spurious timeouts; ``++eos``/``++eoi`` are stored but every line is delivered as
-one message.
+``read_timeout_floor_s`` (default :data:`READ_TIMEOUT_FLOOR_S`) even when ``++read_tmo_ms`` is
+shorter, so a loaded CI machine does not turn into spurious timeouts (0 makes it exact);
+``++eos``/``++eoi`` are stored but every line is delivered as one message.
+
+As a network service it is bounded (:class:`ServiceLimits`): a message longer than
+``max_message_bytes`` (the instrument's input buffer is finite) puts -100 in the error queue and
+the connection is closed; at most ``max_connections`` clients at once (more are closed at
+accept); a connection silent for ``idle_timeout_s`` is closed; a client that does not read its
+replies for ``send_timeout_s`` is dropped; behind the Prologix adapter, messages wait in a
+bounded queue and the adapter stops reading the socket while it is full (as GPIB's handshake
+holds a talker), so no flood or slow client makes the server's memory grow.
 
 Everything binds 127.0.0.1 unless a host is given.
 """
@@ -29,7 +37,9 @@ import select
 import socket
 import sys
 import threading
+from collections import deque
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 from rigsim.analyser import (
@@ -41,11 +51,45 @@ from rigsim.analyser import (
     build_simulator,
 )
 from rigsim.faults import FaultInjector, garble
+from rigsim.scpi import MessageFramer, MessageTooLong
 
-__all__ = ["READ_TIMEOUT_FLOOR_S", "SimulatedAnalyserServer"]
+__all__ = ["READ_TIMEOUT_FLOOR_S", "ServiceLimits", "SimulatedAnalyserServer"]
 
 READ_TIMEOUT_FLOOR_S = 1.0
 POLL_SETTLE_S = 0.1
+
+
+@dataclass(frozen=True)
+class ServiceLimits:
+    """Bounds of the simulated analyser as a network service.
+
+    Attributes
+    ----------
+    max_message_bytes
+        Longest program message (terminator excluded); a longer one is refused with -100 and
+        the connection closed. 64 KiB holds the largest block the analyser takes (a data
+        register of 2049 complex points in REAL,64 is 32.8 kB).
+    max_connections
+        Clients served at once (raw sockets and Prologix endpoints together).
+    idle_timeout_s
+        A connection that sends nothing for this long is closed (``None``: never, the default
+        in process; ``viscorig sim serve`` sets one hour).
+    send_timeout_s
+        A reply the client does not take within this time drops the connection.
+    queued_messages
+        Messages waiting for the GPIB device behind a Prologix adapter.
+    """
+
+    max_message_bytes: int = 65536
+    max_connections: int = 8
+    idle_timeout_s: float | None = None
+    send_timeout_s: float = 30.0
+    queued_messages: int = 64
+
+
+def _too_long(analyser: VirtualAnalyser, limits: ServiceLimits) -> None:
+    analyser.push_error(-100, f"Command error; input message longer than "
+                              f"{limits.max_message_bytes} bytes, connection closed")
 _ESC, _CR, _LF, _PLUS = 0x1B, 0x0D, 0x0A, 0x2B
 _QUICKACK = getattr(socket, "TCP_QUICKACK", None)
 
@@ -66,11 +110,12 @@ def _quickack(sock: socket.socket) -> None:
 
 
 def _received(conn: socket.socket, *, quickack: bool = False) -> Iterator[bytes]:
-    """What the peer sends, chunk by chunk, until it closes the connection or the socket fails."""
+    """What the peer sends, chunk by chunk, until it closes the connection, falls silent past
+    the socket's time-out, or the socket fails."""
     while True:
         try:
             data = conn.recv(65536)
-        except OSError:
+        except OSError:  # includes socket.timeout: an idle connection is closed
             return
         if not data:
             return
@@ -79,14 +124,32 @@ def _received(conn: socket.socket, *, quickack: bool = False) -> Iterator[bytes]
         yield data
 
 
-def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInjector) -> None:
+def _send(conn: socket.socket, data: bytes, limits: ServiceLimits) -> bool:
+    """Send a reply within the send time-out; False when the client does not take it."""
+    try:
+        conn.settimeout(limits.send_timeout_s)
+        conn.sendall(data)
+        conn.settimeout(limits.idle_timeout_s)
+    except OSError:
+        return False
+    return True
+
+
+def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInjector,
+               limits: ServiceLimits) -> None:
     session = analyser.session()
-    buffer = b""
+    framer = MessageFramer(limits.max_message_bytes)
+    conn.settimeout(limits.idle_timeout_s)
     with conn:
         for data in _received(conn):
-            buffer += data
-            while b"\n" in buffer:
-                line, _, buffer = buffer.partition(b"\n")
+            try:
+                messages = framer.feed(data)
+            except MessageTooLong:
+                _too_long(analyser, limits)
+                with contextlib.suppress(OSError):
+                    conn.shutdown(socket.SHUT_RDWR)
+                return
+            for line in messages:
                 text = line.decode("latin-1").rstrip("\r")
                 kinds = faults.take(text)
                 if "drop" in kinds:
@@ -98,9 +161,7 @@ def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInje
                     continue
                 if "garble" in kinds:
                     response = garble(response)
-                try:
-                    conn.sendall(response)
-                except OSError:
+                if not _send(conn, response, limits):
                     return
 
 
@@ -116,12 +177,13 @@ class _GpibDevice:
     """
 
     def __init__(self, analyser: VirtualAnalyser, faults: FaultInjector,
-                 on_drop: Callable[[], None]) -> None:
+                 on_drop: Callable[[], None], queued_messages: int = 64) -> None:
         self.analyser = analyser
         self.faults = faults
         self.on_drop = on_drop
         self.session: ScpiSession = analyser.session()
-        self.inbox: queue.Queue[str | None] = queue.Queue()
+        self.closed = False
+        self.inbox: queue.Queue[str | None] = queue.Queue(maxsize=queued_messages)
         self.cond = threading.Condition()
         self.output: bytes | None = None
         self.busy = 0  # messages written and not yet executed
@@ -130,9 +192,15 @@ class _GpibDevice:
         self.thread.start()
 
     def write(self, message: str) -> None:
+        """Queue a message; while the queue is full the caller waits (GPIB handshake)."""
         with self.cond:
             self.busy += 1
-        self.inbox.put(message)
+        while not self.closed:
+            try:
+                self.inbox.put(message, timeout=0.5)
+                return
+            except queue.Full:
+                continue
 
     def read(self, timeout_s: float) -> bytes | None:
         """Address the device to talk: its response once every message written is handled,
@@ -167,7 +235,13 @@ class _GpibDevice:
         self.session.device_clear()
 
     def close(self) -> None:
+        self.closed = True
         self.session.device_clear()
+        while True:  # make room for the stop message
+            try:
+                self.inbox.get_nowait()
+            except queue.Empty:
+                break
         self.inbox.put(None)
 
     def _loop(self) -> None:
@@ -203,15 +277,20 @@ class _PrologixAdapter:
 
     def __init__(self, analyser: VirtualAnalyser, faults: FaultInjector, address: int,
                  send: Callable[[bytes], None], version: str,
-                 on_drop: Callable[[], None]) -> None:
+                 on_drop: Callable[[], None], limits: ServiceLimits,
+                 read_timeout_floor_s: float = READ_TIMEOUT_FLOOR_S) -> None:
         self.analyser = analyser
         self.address = address
         self.send = send
         self.version = version
+        self.limits = limits
+        self.read_timeout_floor_s = read_timeout_floor_s
         self.settings: dict[str, int] = {}
         self.reset()
-        self.device = _GpibDevice(analyser, faults, on_drop)
+        self.device = _GpibDevice(analyser, faults, on_drop, limits.queued_messages)
         self.buffer = bytearray()
+        #: The adapter commands received (``++`` removed), the latest last (bounded).
+        self.log: deque[str] = deque(maxlen=1000)
 
     def reset(self) -> None:
         self.settings = {"mode": 1, "auto": 0, "read_tmo_ms": 500, "eos": 0, "eoi": 1,
@@ -221,11 +300,20 @@ class _PrologixAdapter:
         self.device.close()
 
     def feed(self, data: bytes) -> None:
-        """Bytes from the host: split into lines (unescaped CR/LF end a line)."""
+        """Bytes from the host: split into lines (unescaped CR/LF end a line).
+
+        Raises
+        ------
+        MessageTooLong
+            More than the message bound arrived without a line end.
+        """
         self.buffer += data
         while True:
             line = self._next_line()
             if line is None:
+                if len(self.buffer) > self.limits.max_message_bytes:
+                    self.buffer.clear()
+                    raise MessageTooLong("line too long")
                 return
             raw, text = line
             if not raw:
@@ -273,7 +361,7 @@ class _PrologixAdapter:
     def _read(self) -> None:
         if self.settings["addr"] != self.address:
             return
-        timeout = max(self.settings["read_tmo_ms"] / 1000.0, READ_TIMEOUT_FLOOR_S)
+        timeout = max(self.settings["read_tmo_ms"] / 1000.0, self.read_timeout_floor_s)
         output = self.device.read(timeout)
         if output is not None:
             if self.settings["eot_enable"]:
@@ -284,6 +372,7 @@ class _PrologixAdapter:
         self.send(text.encode("latin-1") + b"\r\n")
 
     def _command(self, line: str) -> None:
+        self.log.append(line)
         name, _, arg = line.partition(" ")
         name, arg = name.lower(), arg.strip()
         if name == "read":
@@ -350,6 +439,10 @@ class SimulatedAnalyserServer:
         Installed options reported by ``*OPT?``.
     simulator, analyser
         Use this rig simulator or this analyser instead of building one.
+    limits
+        Bounds of the service (message length, connections, time-outs).
+    read_timeout_floor_s
+        Shortest wait of the Prologix adapter's ``++read`` (0: exactly ``++read_tmo_ms``).
 
     Attributes
     ----------
@@ -388,6 +481,8 @@ class SimulatedAnalyserServer:
         idn: str = DEFAULT_IDN,
         simulator: Simulator | None = None,
         analyser: VirtualAnalyser | None = None,
+        limits: ServiceLimits | None = None,
+        read_timeout_floor_s: float = READ_TIMEOUT_FLOOR_S,
     ) -> None:
         if analyser is None:
             if simulator is None:
@@ -395,6 +490,10 @@ class SimulatedAnalyserServer:
             analyser = VirtualAnalyser(simulator, pace=pace, options=options, idn=idn)
         self.analyser = analyser
         self.faults = FaultInjector(analyser)
+        self.limits = limits or ServiceLimits()
+        self.read_timeout_floor_s = read_timeout_floor_s
+        self.refused = 0
+        self._adapter_log: deque[str] = deque(maxlen=1000)
         self.host = host
         self.gpib_address = gpib_address
         self._port = port
@@ -476,6 +575,12 @@ class SimulatedAnalyserServer:
     # ---------------------------------------------------------------- resources
 
     @property
+    def adapter_log(self) -> list[str]:
+        """Prologix adapter commands received (``++`` removed), closed connections first."""
+        with self._lock:
+            return [*self._adapter_log, *(line for a in self._adapters for line in a.log)]
+
+    @property
     def interface_resource(self) -> str | None:
         """The Prologix interface to open before :attr:`gpib_resource` (TCP, else pty)."""
         return self.prologix_resource or self.pty_resource
@@ -522,7 +627,14 @@ class SimulatedAnalyserServer:
                 return
             _configure(conn)
             with self._lock:
-                self._connections.add(conn)
+                full = len(self._connections) >= self.limits.max_connections
+                if not full:
+                    self._connections.add(conn)
+            if full:
+                self.refused += 1
+                with contextlib.suppress(OSError):
+                    conn.close()
+                continue
             thread = threading.Thread(target=self._serve_connection, args=(serve, conn),
                                       daemon=True, name="35670A-connection")
             thread.start()
@@ -538,7 +650,7 @@ class SimulatedAnalyserServer:
                 conn.close()
 
     def _serve_raw_connection(self, conn: socket.socket) -> None:
-        _serve_raw(conn, self.analyser, self.faults)
+        _serve_raw(conn, self.analyser, self.faults, self.limits)
 
     def _serve_prologix_connection(self, conn: socket.socket) -> None:
         dropped = threading.Event()
@@ -549,22 +661,29 @@ class SimulatedAnalyserServer:
                 conn.shutdown(socket.SHUT_RDWR)
 
         def send(data: bytes) -> None:
-            with contextlib.suppress(OSError):
-                conn.sendall(data)
+            if not _send(conn, data, self.limits):
+                drop()
 
         adapter = _PrologixAdapter(self.analyser, self.faults, self.gpib_address, send,
-                                   "Prologix GPIB-ETHERNET Controller version 01.06.06.00", drop)
+                                   "Prologix GPIB-ETHERNET Controller version 01.06.06.00", drop,
+                                   self.limits, self.read_timeout_floor_s)
         with self._lock:
             self._adapters.append(adapter)
+        conn.settimeout(self.limits.idle_timeout_s)
         try:
             for data in _received(conn, quickack=True):
-                adapter.feed(data)
+                try:
+                    adapter.feed(data)
+                except MessageTooLong:
+                    _too_long(self.analyser, self.limits)
+                    break
                 if dropped.is_set():
                     break
         finally:
             adapter.close()
             with self._lock:
                 self._adapters.remove(adapter)
+                self._adapter_log.extend(adapter.log)
 
     # ---------------------------------------------------------------- pseudo-terminal
 
@@ -593,7 +712,8 @@ class SimulatedAnalyserServer:
             os.write(unplug[1], b"x")
 
         adapter = _PrologixAdapter(self.analyser, self.faults, self.gpib_address, send,
-                                   "Prologix GPIB-USB Controller version 6.107", drop)
+                                   "Prologix GPIB-USB Controller version 6.107", drop,
+                                   self.limits, self.read_timeout_floor_s)
         self._adapters.append(adapter)
 
         def loop() -> None:
@@ -606,7 +726,10 @@ class SimulatedAnalyserServer:
                 except OSError:
                     return
                 if data:
-                    adapter.feed(data)
+                    try:
+                        adapter.feed(data)
+                    except MessageTooLong:
+                        _too_long(self.analyser, self.limits)
             for fd in unplug:
                 os.close(fd)
             if dropped.is_set():  # the adapter was "unplugged": the port goes away

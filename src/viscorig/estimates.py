@@ -1,4 +1,6 @@
-"""Direct estimates (no model fitting): K* from Eq. (4) and (5), E' and η, C_v, Table 2.
+"""Direct estimates (no model fitting): K* from Eq. (4) and (5), E' and η, C_v, Table 2; and
+the same quantities of one fit with their uncertainty (first-order propagation through the
+fit's joint covariance). Changes between two fits are in :mod:`viscorig.compare`.
 
 Signs and conventions of ``shared/docs/physics.md``: time dependence e^{iωt}, accelerances as
 stored, frequencies in Hz at the interface.
@@ -12,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
+from viscorig.models import Context
 
 
 def kstar_from_table(
@@ -131,3 +134,137 @@ def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> Measu
     upper = np.interp(level, [magnitude[k], magnitude[k - 1]], [f[k], f[k - 1]])
     bandwidth = float(upper - lower)
     return MeasuredResonance(float(peak_hz), bandwidth, bandwidth / (2 * float(peak_hz)))
+
+
+# -- the same quantities with their uncertainty -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A number with its standard uncertainty and unit."""
+
+    value: float
+    stderr: float
+    unit: str = ""
+
+    def text(self, digits: str = ".4g") -> str:
+        """``"39.41 ± 0.02 Hz"`` (the uncertainty to two significant digits)."""
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.value:{digits}} ± {self.stderr:.2g}{unit}"
+
+    def to_json(self) -> dict[str, float | str]:
+        """``{"value", "stderr", "unit"}`` as in the fits' JSON."""
+        return {"value": float(self.value), "stderr": float(self.stderr), "unit": self.unit}
+
+
+def gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np.float64]:
+    """Central differences of a scalar or array ``function(values)`` by the named values
+    (relative step 1e-6); the last axis runs over ``names``."""
+    columns = []
+    for name in names:
+        step = 1e-6 * max(abs(values[name]), 1e-30)
+        up, down = dict(values), dict(values)
+        up[name] += step
+        down[name] -= step
+        columns.append((np.asarray(function(up)) - np.asarray(function(down))) / (2 * step))
+    return np.stack(columns, axis=-1) if columns else np.zeros((0,))
+
+
+def derived(result, function, unit: str = "") -> Quantity:
+    """A function of a fit's parameters, with its uncertainty (first order, every parameter with
+    a standard error: fitted and inherited, with their correlations)."""
+    names = list(result.covariance_names)
+    value = float(function(result.values))
+    if not names:
+        return Quantity(value, 0.0, unit)
+    g = gradient(function, dict(result.values), names)
+    variance = float(g @ np.asarray(result.joint_covariance) @ g)
+    return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
+
+
+def natural_frequency(values: dict[str, float]) -> float:
+    """``f_r`` (Hz) of the Voigt system, Table 2."""
+    return system_properties(values).natural_frequency_hz
+
+
+def damping_factor(values: dict[str, float]) -> float:
+    """``ξ`` of the Voigt system, Table 2."""
+    return system_properties(values).damping_factor
+
+
+def bandwidth(values: dict[str, float]) -> float:
+    """``B_r = 2 ξ f_r`` (Hz), Table 2."""
+    return system_properties(values).bandwidth_hz
+
+
+#: Table 2's quantities: name -> (function of the parameters, unit).
+TABLE_2_QUANTITIES = {
+    "f_r": (natural_frequency, "Hz"),
+    "xi": (damping_factor, ""),
+    "B_r": (bandwidth, "Hz"),
+}
+
+
+def system_properties_with_uncertainty(result) -> dict[str, Quantity]:
+    """Table 2 (``f_r``, ``xi``, ``B_r``) of a Voigt fit, each with its uncertainty."""
+    return {name: derived(result, function, unit)
+            for name, (function, unit) in TABLE_2_QUANTITIES.items()}
+
+
+@dataclass(frozen=True)
+class ModulusBand:
+    """``E'(f)`` and ``η(f)`` of a fitted model with their standard uncertainties.
+
+    Attributes
+    ----------
+    frequency_hz
+        Where they are evaluated.
+    storage_modulus, storage_modulus_stderr
+        ``E' = Re K*/θ`` and its uncertainty (Pa).
+    loss_factor, loss_factor_stderr
+        ``η = Im K*/Re K*`` and its uncertainty.
+    """
+
+    frequency_hz: NDArray[np.float64]
+    storage_modulus: NDArray[np.float64]
+    storage_modulus_stderr: NDArray[np.float64]
+    loss_factor: NDArray[np.float64]
+    loss_factor_stderr: NDArray[np.float64]
+
+
+def modulus_band(result, frequency_hz: ArrayLike, theta_m: float) -> ModulusBand:
+    """``E'`` and ``η`` of a fit's ``K*`` on any grid, with uncertainty bands (first order,
+    through every parameter with a standard error; θ taken as exact)."""
+    f = np.asarray(frequency_hz, dtype=float)
+    names = list(result.covariance_names)
+
+    def parts(values: dict[str, float]) -> NDArray[np.float64]:
+        kstar = result.model.kstar(Context(f), values)
+        return np.concatenate([kstar.real / theta_m, kstar.imag / kstar.real])
+
+    centre = parts(dict(result.values))
+    if names:
+        g = gradient(parts, dict(result.values), names)
+        variance = np.einsum("ij,jk,ik->i", g, np.asarray(result.joint_covariance), g)
+    else:
+        variance = np.zeros_like(centre)
+    sigma = np.sqrt(np.maximum(variance, 0.0))
+    n = f.size
+    return ModulusBand(f, centre[:n], sigma[:n], centre[n:], sigma[n:])
+
+
+def kstar_from_support_with_uncertainty(
+    frequency_hz: ArrayLike,
+    accelerance_support: ArrayLike,
+    noise_power: ArrayLike,
+    disc_mass: Quantity,
+) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
+    """Eq. (5) point by point with uncertainty: ``K*``, and the standard uncertainties of its
+    real and imaginary parts, from the noise of the support FRF (``noise_power`` is the noise
+    model's ``E|ε_i|²``, split equally between its real and imaginary parts) and ``M_v``'s."""
+    kstar = kstar_from_support(frequency_hz, accelerance_support, disc_mass.value)
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    dynamic = accelerance_to_dynamic_stiffness(frequency_hz, accelerance_support)
+    noise = np.abs(dynamic) ** 2 * np.asarray(noise_power, dtype=float) / 2.0
+    real = np.sqrt(noise + (omega**2 * disc_mass.stderr) ** 2)
+    return kstar, real, np.sqrt(noise)

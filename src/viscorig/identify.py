@@ -18,8 +18,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from viscorig.compare import Change, compare_fits, system_changes
 from viscorig.errors import InputError
-from viscorig.estimates import MeasuredResonance, SystemProperties, measured_resonance
+from viscorig.estimates import (
+    MeasuredResonance,
+    Quantity,
+    SystemProperties,
+    measured_resonance,
+    system_properties_with_uncertainty,
+)
 from viscorig.estimates import system_properties as voigt_system_properties
 from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
@@ -76,25 +83,28 @@ class TableSource:
     def known(self) -> Known:
         """The values with their covariance, as a specimen fit inherits them."""
         if self.fit is not None:
-            names = [n for n in TABLE_NAMES if n in self.fit.covariance_names]
-            index = [self.fit.covariance_names.index(n) for n in names]
-            covariance = np.asarray(self.fit.joint_covariance)[np.ix_(index, index)]
-            return Known(dict(self.values), tuple(names), covariance, self.source)
+            return Known.from_fit(self.fit, TABLE_NAMES, self.source)
         if self.stderr:
             return Known.with_stderr(self.values, self.stderr, self.source)
         return Known.exact(self.values, self.source)
 
 
-def table_parameters(campaign: Campaign) -> TableSource | None:
+def table_parameters(campaign: Campaign, spec: str = "table") -> TableSource | None:
     """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``.
 
     The bare-table run is fitted over every point it has: its band was chosen to cover the
     table's own resonance (about 19 Hz), which the specimen band (20-120 Hz) leaves out.
+    ``spec`` is the model of the table (``"table+frame(2000)"`` to take out the frame under
+    it); only ``M_s, K_s, C_s`` are passed on, with their covariance.
     """
+    model = parse_spec(spec)
+    if model.modulus_term is None or model.modulus_term.has_disc:
+        raise InputError(f"'{model.spec}' is not a model of the bare table (use 'table+...')",
+                         "table model")
     for name in campaign.run_names:
         run = campaign.run(name)
         if is_bare_table(run) and run.points:
-            result = fit("table", run_data(run))
+            result = fit(model, run_data(run))
             values = {n: result.values[n] for n in TABLE_NAMES}
             return TableSource(values, f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
@@ -214,20 +224,82 @@ def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
 
 @dataclass(frozen=True)
 class RunSummary:
-    """Table 1 and Table 2 quantities of one run (Voigt on the table FRF, as the paper)."""
+    """Table 1 and Table 2 quantities of one run (Voigt on the table FRF, as the paper).
+
+    ``system_uncertain`` holds ``f_r``, ``xi`` and ``B_r`` with their uncertainty
+    (:func:`viscorig.estimates.system_properties_with_uncertainty`); ``specimen``,
+    ``hardness_shore_a`` and ``preload_strain`` come from the run's metadata.
+    """
 
     run: str
     bare: bool
     fit: FitResult
     system: SystemProperties | None
     measured: MeasuredResonance
+    system_uncertain: dict[str, Quantity] | None = None
+    specimen: str = ""
+    hardness_shore_a: float = math.nan
+    preload_strain: float = 0.0
+
+
+@dataclass(frozen=True)
+class Variation:
+    """What preload changed: a run against the same specimen without preload.
+
+    ``changes`` maps ``K_v``, ``C_v``, ``f_r``, ``xi``, ``B_r`` to their relative change with
+    its uncertainty (:mod:`viscorig.compare`: both fits' uncertainty, the table they share
+    counted once, the misfit they share paired point by point).
+    """
+
+    run: str
+    base: str
+    changes: dict[str, Change]
+
+    def statements(self) -> list[str]:
+        """``"C_v rose 9.0 ± 0.4 % with preload (soft-0 → soft-10)"``, one per quantity."""
+        return [change.words(f"with preload ({self.base} → {self.run})")
+                for change in self.changes.values()]
+
+    @property
+    def basis(self) -> tuple[str, ...]:
+        """How the two fits' errors were related, in words."""
+        return next(iter(self.changes.values())).basis if self.changes else ()
+
+
+def _same_specimen(a: RunSummary, b: RunSummary) -> bool:
+    same_hardness = (a.hardness_shore_a == b.hardness_shore_a) or (
+        math.isnan(a.hardness_shore_a) and math.isnan(b.hardness_shore_a))
+    return a.specimen == b.specimen and same_hardness
+
+
+def preload_variations(summaries: Sequence[RunSummary]) -> list[Variation]:
+    """For every preloaded specimen run, its change against the same specimen (text and
+    hardness) without preload, as the paper's Tables 1 and 2 discuss them."""
+    variations = []
+    for run in summaries:
+        if run.bare or not run.preload_strain > 0:
+            continue
+        base = next((b for b in summaries if not b.bare and b.preload_strain == 0
+                     and _same_specimen(b, run)), None)
+        if base is None:
+            continue
+        found = compare_fits(base.fit, run.fit, ("K_v", "C_v")) + system_changes(base.fit,
+                                                                                 run.fit)
+        changes = {change.quantity: change for change in found}
+        variations.append(Variation(run.run, base.run, changes))
+    return variations
 
 
 def summarize(
-    campaign: Campaign, band_hz: tuple[float, float] = PAPER_BAND_HZ
+    campaign: Campaign,
+    band_hz: tuple[float, float] = PAPER_BAND_HZ,
+    table_model: str = "table",
 ) -> tuple[TableSource | None, list[RunSummary]]:
-    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed."""
-    table = table_parameters(campaign)
+    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed.
+
+    ``table_model``: the bare table's model (``"table+frame(2000)"`` takes the frame out of
+    ``K_s``; the specimen fits then stay Voigt, as the paper's)."""
+    table = table_parameters(campaign, table_model)
     summaries = []
     for name in campaign.run_names:
         run = campaign.run(name)
@@ -239,7 +311,7 @@ def summarize(
             if table is not None and table.fit is not None and table.source == f"run '{name}'":
                 result = table.fit
             else:
-                result, _ = _identify(campaign, run, "table", band_hz=None, frfs=None,
+                result, _ = _identify(campaign, run, table_model, band_hz=None, frfs=None,
                                       table=None)
             system = None
         else:
@@ -254,6 +326,9 @@ def summarize(
             )
             system = voigt_system_properties(result.values)
         inside = data.in_band(band)
+        metadata = run.metadata
+        hardness = float(metadata.hardness_shore_a)
+        preload = float(metadata.preload_strain)
         summaries.append(
             RunSummary(
                 name,
@@ -261,6 +336,10 @@ def summarize(
                 result,
                 system,
                 measured_resonance(inside.frequency_hz, np.asarray(inside.table)),
+                None if system is None else system_properties_with_uncertainty(result),
+                str(metadata.specimen),
+                hardness,
+                preload if math.isfinite(preload) else 0.0,
             )
         )
     return table, summaries

@@ -7,6 +7,7 @@ names of ``sequences/paper.toml``.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 #: The table suspension identified by the paper (``M_s`` kg, ``K_s`` N/m, ``C_s`` N·s/m).
 PAPER_TABLE_PARAMETERS = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
@@ -48,25 +49,48 @@ def implied_damping_factor(run: str) -> float:
     return (PAPER_TABLE_PARAMETERS["C_s"] + c_v) / (2 * math.sqrt(stiffness * implied_mass_kg(run)))
 
 
-def consistency_notes() -> list[str]:
-    """What does and does not hold among the paper's printed numbers, one line each."""
+def paper_values(run: str) -> dict[str, float] | None:
+    """The paper's ``K_v, C_v, f_r, xi, B_r`` for a run of its campaign, else ``None``."""
+    if run not in PAPER_TABLE_1:
+        return None
+    k_v, c_v = PAPER_TABLE_1[run]
+    f_r, xi, b_r = PAPER_TABLE_2[run]
+    return {"K_v": k_v, "C_v": c_v, "f_r": f_r, "xi": xi, "B_r": b_r}
+
+
+def paper_variation(run: str, base: str) -> dict[str, float] | None:
+    """The paper's own change from ``base`` to ``run`` in percent, or ``None``."""
+    after, before = paper_values(run), paper_values(base)
+    if after is None or before is None:
+        return None
+    return {name: 100.0 * (after[name] / before[name] - 1.0) for name in after}
+
+
+def consistency_notes(runs: Iterable[str] | None = None) -> list[str]:
+    """What does and does not hold among the paper's printed numbers, one line each.
+
+    ``runs``: only these of the paper's runs are named (default all of them); the statements
+    about the tables as a whole are kept.
+    """
+    named = [run for run in PAPER_TABLE_1 if runs is None or run in set(runs)]
     notes = []
     worst = max(abs(2 * xi * f_r - b_r) / b_r for f_r, xi, b_r in PAPER_TABLE_2.values())
     notes.append(f"B_r = 2·ξ·f_r holds to the printed digits (worst relative gap {worst:.1%}).")
-    masses = {run: implied_mass_kg(run) for run in PAPER_TABLE_1}
-    negative = [run for run, mass in masses.items() if mass < PAPER_TABLE_PARAMETERS["M_s"]]
-    notes.append(
-        "mass implied by f_r and K_v, (K_s+K_v)/(2π f_r)²: "
-        + ", ".join(f"{run} {mass:.2f} kg" for run, mass in masses.items())
-        + f"; below M_s = {PAPER_TABLE_PARAMETERS['M_s']} kg (so M_v < 0) for "
-        + (", ".join(negative) if negative else "none")
-        + "."
-    )
-    gaps = [
-        f"{run} {implied_damping_factor(run):.3f} vs {PAPER_TABLE_2[run][1]:.3f}"
-        for run in PAPER_TABLE_1
-    ]
-    notes.append("ξ recomputed from (C_s+C_v)/(2√((K_s+K_v)M)) vs printed: " + "; ".join(gaps))
+    if named:
+        masses = {run: implied_mass_kg(run) for run in named}
+        negative = [run for run, mass in masses.items() if mass < PAPER_TABLE_PARAMETERS["M_s"]]
+        notes.append(
+            "mass implied by f_r and K_v, (K_s+K_v)/(2π f_r)²: "
+            + ", ".join(f"{run} {mass:.2f} kg" for run, mass in masses.items())
+            + f"; below M_s = {PAPER_TABLE_PARAMETERS['M_s']} kg (so M_v < 0) for "
+            + (", ".join(negative) if negative else "none of these")
+            + "."
+        )
+        gaps = [
+            f"{run} {implied_damping_factor(run):.3f} vs {PAPER_TABLE_2[run][1]:.3f}"
+            for run in named
+        ]
+        notes.append("ξ recomputed from (C_s+C_v)/(2√((K_s+K_v)M)) vs printed: " + "; ".join(gaps))
     notes.append(
         "Table 1 and Table 2 are therefore not fully self-consistent; "
         "the values printed beside ours are the paper's as published."

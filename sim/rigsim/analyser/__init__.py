@@ -1,50 +1,51 @@
-"""The virtual Agilent 35670A: instrument state, command set, status registers, measurement.
+"""The virtual Agilent 35670A: settings, status, swept-sine and FFT measurements, traces.
 
 :class:`VirtualAnalyser` holds what the instrument holds (modes and their settings, inputs,
-source, traces, data registers, status registers, error queue) and runs swept-sine
-measurements on a rig simulator (``rigsim.engine.RigSimulator``) in a background worker, through
-the volts-only interface of :mod:`rigsim.measurement`. It converts volts to engineering units
-per channel and forms the traces. :class:`ScpiSession` is one controller's connection to it
-(its own parser path and output), so a socket server and in-process code can share one
-instrument.
+source, traces, data registers, status registers, error queue) and measures a rig simulator
+(``rigsim.engine.RigSimulator``): swept sine through the simulator's volts-only interface
+(:mod:`rigsim.measurement`), FFT by simulating the rig in the time domain. :class:`ScpiSession`
+is one controller's connection to it (its own parser path and output), so a socket server and
+in-process code can share one instrument.
 
-The command set follows ``shared/docs/35670a.md``. Behaviour marked **(inferred)** in comments
-and docstrings is our reading where that page and the manual are silent; keep it easy to change.
-
-Not simulated, on purpose and visibly: FFT, octave, order and histogram measurements (``INIT``
-outside swept sine answers -221); the swept sine's automatic resolution (``FREQ:RES:AUTO ON``
-still measures the fixed ``FREQ:RES`` grid, so always read the X axis); the source slew rate
-(stored only). What the traces hold: :mod:`rigsim.analyser.traces`.
+The authority is the 35670A's programming guide; behaviour it does not give is marked
+**(inferred)** where it is implemented. ``docs/virtual-analyser.md`` lists each subsystem as
+measured, accepted as state, or not simulated.
 
 In-process control (not SCPI; the instrument has no such command): :meth:`VirtualAnalyser.mount`
 swaps the specimens on the simulated rig between sweeps, as a technician does when a sequence
-prompt says "mount the soft specimens".
+prompt says "mount the soft specimens"; ``front_end`` is the wiring between rig and inputs, where
+wiring faults are injected (:mod:`rigsim.faults`).
 
 Modules, each with one job:
 
 ============  ================================================================================
 instrument    :class:`VirtualAnalyser`, the parts put together; the in-process API
 session       :class:`ScpiSession`, one controller's connection (parsing, ``*OPC?``, ``*WAI``)
-commands/     the command table and its handlers, one module per SCPI subsystem
-worker        the swept-sine measurement thread: plan, pacing, pause, abort
-state         settings per mode, inputs, source, registers, measured points; ``*RST`` presets
+host          what commands need of the instrument (a protocol: no import cycle)
+commands/     the command set, one module per group of subsystems
+settings      declarative settings: kinds, units, limits, presets, scopes, modes, options
+units         amplitude units (``DBVRMS``, ``VPK``, ``EU`` ...) and their conversions
 status        the error queue and the status registers
-traces        feeds, traces in engineering units, display formats, ASCII and REAL blocks
-params        parameter checks shared by the handlers (count, range, keywords, ``? UNIT``)
-limits        the instrument's identity and setting ranges
+run           the measurement thread: start, pause, abort, pacing
+sine          the swept-sine measurement
+fft           the FFT measurement (the rig in the time domain, windows, averaging)
+frequency     frequency rounding, swept-sine point lists, FFT spans
+inputs        the inputs as the measurements see them (on/off, ranges, units)
+traces        feeds, trace data, display formats, data encoding
+limits        identity, limits, timings
 ============  ================================================================================
 """
 
 from rigsim.analyser.instrument import VirtualAnalyser, build_simulator
-from rigsim.analyser.limits import DEFAULT_IDN, DEFAULT_OPTIONS, MAX_POINTS
+from rigsim.analyser.limits import DEFAULT_IDN, DEFAULT_OPTIONS, MARKER, MAX_POINTS
+from rigsim.analyser.run import Simulator
 from rigsim.analyser.session import ScpiSession
-from rigsim.analyser.state import Register
-from rigsim.analyser.traces import Feed, parse_feed
-from rigsim.analyser.worker import Simulator
+from rigsim.analyser.traces import Feed, Register, parse_feed
 
 __all__ = [
     "DEFAULT_IDN",
     "DEFAULT_OPTIONS",
+    "MARKER",
     "MAX_POINTS",
     "Feed",
     "Register",

@@ -1,19 +1,30 @@
 """One controller's connection to the virtual analyser: message parsing, header path, waits.
 
 A socket server and in-process code can share one instrument, each through its own
-:class:`ScpiSession`.
+:class:`ScpiSession`. The session needs only what :class:`SessionHost` lists, so it does not
+import the instrument (which imports it).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import threading
+from typing import Protocol
 
-from rigsim.scpi import ProgramUnit, ScpiError, parse_unit, split_units
+from rigsim.analyser.run import Run
+from rigsim.analyser.status import StatusRegisters
+from rigsim.scpi import Call, CommandTree, ProgramUnit, ScpiError, parse_unit, split_units
 
-if TYPE_CHECKING:
-    from rigsim.analyser.instrument import VirtualAnalyser
+__all__ = ["ScpiSession", "SessionHost"]
 
-__all__ = ["ScpiSession"]
+
+class SessionHost(Protocol):
+    """What a session needs of the instrument."""
+
+    lock: threading.RLock
+    changed: threading.Condition
+    tree: CommandTree
+    status: StatusRegisters
+    run: Run
 
 
 class _DeviceCleared(Exception):  # noqa: N818 - a signal, not an error
@@ -27,22 +38,22 @@ class ScpiSession:
     with a line feed) or ``None`` when the message held no query.
     """
 
-    def __init__(self, analyser: VirtualAnalyser) -> None:
-        self.analyser = analyser
+    def __init__(self, host: SessionHost) -> None:
+        self.host = host
         self._cleared = 0
 
     def device_clear(self) -> None:
         """IEEE 488.2 device clear: pending ``*OPC?``/``*WAI`` waits of this session end."""
-        with self.analyser.changed:
+        with self.host.changed:
             self._cleared += 1
-            self.analyser.changed.notify_all()
+            self.host.changed.notify_all()
 
     def execute(self, message: str | bytes) -> bytes | None:
-        """Run a program message (newline and/or EOI already stripped or not)."""
-        a = self.analyser
+        """Run a program message (its terminator already removed or not)."""
+        host = self.host
         if isinstance(message, bytes):
             message = message.decode("latin-1")
-        message = message.strip("\r\n")
+        message = message.rstrip("\r\n")
         if not message.strip():
             return None
         responses: list[bytes] = []
@@ -50,7 +61,7 @@ class ScpiSession:
         try:
             units = list(split_units(message))
         except ScpiError as error:
-            a.push_error(error.code, error.message)
+            host.status.push_error(error.code, error.message)
             return None
         for text in units:
             try:
@@ -59,7 +70,7 @@ class ScpiSession:
             except _DeviceCleared:
                 return None  # the rest of the message and its responses are gone
             except ScpiError as error:
-                a.push_error(error.code, error.message)
+                host.status.push_error(error.code, error.message)
                 if -199 <= error.code <= -100:
                     break  # a command error ends the message
                 continue
@@ -70,7 +81,7 @@ class ScpiSession:
         return b";".join(responses) + b"\n"
 
     def _execute_unit(self, unit: ProgramUnit, path: list[str]) -> str | bytes | None:
-        a = self.analyser
+        host = self.host
         header = unit.header
         if header.startswith("*"):
             name = header.upper()
@@ -80,25 +91,24 @@ class ScpiSession:
             if name == "*WAI" and not unit.is_query:
                 self._wait_idle()
                 return None
-            with a.lock:
-                return a.tree.resolve_common(header, unit.is_query)(unit.params, None)
+            with host.lock:
+                handler = host.tree.resolve_common(header, unit.is_query)
+                return handler(Call(unit.params, (), name))
         absolute = header.startswith(":")
-        tokens = [t for t in header.lstrip(":").split(":")]
+        tokens = header.lstrip(":").split(":")
         if any(not t for t in tokens):
-            raise ScpiError(-102, unit.text)
+            raise ScpiError(-102, unit.text[:60])
         full = tokens if absolute else [*path, *tokens]
         path[:] = full[:-1]
-        if a.mode == "SINE" and full[0].upper() in ("TRIG", "TRIGGER", "ARM"):
-            raise ScpiError(-221, f"{':'.join(full)} not valid in swept sine")
-        resolved = a.tree.resolve(full, unit.is_query)
-        with a.lock:
-            return resolved.handler(unit.params, resolved.suffix)
+        resolved = host.tree.resolve(full, unit.is_query)
+        with host.lock:
+            return resolved.handler(Call(unit.params, resolved.suffixes, ":".join(full)))
 
     def _wait_idle(self) -> None:
-        a = self.analyser
-        with a.changed:
+        host = self.host
+        with host.changed:
             cleared = self._cleared
-            while a.state != "IDLE" and self._cleared == cleared:
-                a.changed.wait()
+            while host.run.state != "IDLE" and self._cleared == cleared:
+                host.changed.wait()
             if self._cleared != cleared:
                 raise _DeviceCleared

@@ -18,7 +18,12 @@ from viscorig.acquisition.limits import (
     specimen_from_accelerance,
 )
 from viscorig.acquisition.probe import measure_probe, probe_frequencies_hz, probe_test_time_s
-from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
+from viscorig.acquisition.protocol import (
+    Analyser,
+    MeasuredSegment,
+    PointAnalyser,
+    SweepProgressReport,
+)
 from viscorig.acquisition.runner import (
     OVER_LIMIT_CHOICES,
     Outcome,
@@ -47,6 +52,7 @@ __all__ = [
     "MeasuredSegment",
     "NoAnswer",
     "Outcome",
+    "PointAnalyser",
     "ProbeReading",
     "RigEstimate",
     "RunResult",

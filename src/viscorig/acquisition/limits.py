@@ -35,6 +35,12 @@ REDUCE_MARGIN = 0.9
 #: than one that just fits under the shaker limit still fits under it during the probe, and the
 #: source and input limits (set first) hold anything stiffer.
 PROBE_LEVEL_FRACTION = 0.1
+#: A reference reading this far below the level asked for (60 dB: a thousand times) cannot be a
+#: rig that is merely too stiff or held back by a limit: the accelerometer does not see the
+#: motion, so the wiring or the mounting is wrong. Advice built on it would be absurd.
+DEAD_REFERENCE_DB = 60.0
+#: A shaker force below this fraction of its limit means the shaker is hardly driven.
+UNDRIVEN_FORCE_FRACTION = 0.01
 
 
 def source_limit_v(
@@ -105,6 +111,20 @@ class ProbeReading:
         omega2 = (2.0 * math.pi * self.frequency_hz) ** 2
         return self.force_n * omega2 / (abs(complex(self.dynamic_stiffness_n_per_m))
                                         * self.reference_m_per_s2)
+
+    @property
+    def shortfall_db(self) -> float:
+        """How far the reference stayed below the level asked for, dB (inf for no reading)."""
+        if not (math.isfinite(self.reference_m_per_s2) and self.reference_m_per_s2 > 0.0):
+            return math.inf
+        return 20.0 * math.log10(self.level_m_per_s2 / self.reference_m_per_s2)
+
+    @property
+    def table_acceleration_m_per_s2(self) -> float:
+        """|ẍ_s| = |F_e| ω² / |F_e/X_s|: what the table accelerometer read."""
+        omega2 = (2.0 * math.pi * self.frequency_hz) ** 2
+        stiffness = abs(complex(self.dynamic_stiffness_n_per_m))
+        return self.force_n * omega2 / stiffness if stiffness > 0 else math.nan
 
     @property
     def usable(self) -> bool:

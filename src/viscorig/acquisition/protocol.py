@@ -7,7 +7,7 @@ to provide the same few calls. Only the command line wires a concrete driver to 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -58,7 +58,12 @@ class MeasuredSegment(Protocol):
 
     @property
     def started_at_s(self) -> float:
-        """Wall-clock time (``time.time()``) the segment started."""
+        """Wall-clock time (``time.time()``) the segment started.
+
+        A driver may also give ``no_data``: a boolean per point, true where the analyser's
+        trace held its no-data marker (the values there are NaN); the sweep measures such a
+        segment again and never stores those points as measured.
+        """
 
     @property
     def finished_at_s(self) -> float:
@@ -128,3 +133,37 @@ class Analyser(Protocol):
 
     def close(self) -> None:
         """Release the connection."""
+
+
+@runtime_checkable
+class PointAnalyser(Analyser, Protocol):
+    """An analyser that also measures chosen frequencies with their own timing (what an
+    adaptive plan needs): manual sweep mode at arbitrary frequencies, and short linear
+    sub-sweeps with a resolution, settle and integration of their own."""
+
+    def measure_points(
+        self,
+        frequencies_hz: Sequence[float],
+        *,
+        settle_cycles: float | None = None,
+        integrate_cycles: float | None = None,
+        progress: ProgressCallback | None = None,
+        poll_interval_s: float = 0.2,
+    ) -> MeasuredSegment:
+        """Measure the frequencies in the order given (the analyser's own axis returned)."""
+
+    def measure(
+        self,
+        start_hz: float,
+        stop_hz: float,
+        *,
+        resolution_hz: float | None = None,
+        settle_cycles: float | None = None,
+        integrate_cycles: float | None = None,
+        progress: ProgressCallback | None = None,
+        poll_interval_s: float = 0.2,
+    ) -> MeasuredSegment:
+        """Measure a linear sub-band, with this call's grid and timing when given."""
+
+    def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
+        """Time the analyser takes for these points with the settings sent (s)."""

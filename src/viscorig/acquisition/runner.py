@@ -33,10 +33,13 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
-from viscorig.acquisition.console import Console
+from viscorig.acquisition.console import Console, single_line
 from viscorig.acquisition.limits import (
+    DEAD_REFERENCE_DB,
     PROBE_LEVEL_FRACTION,
+    UNDRIVEN_FORCE_FRACTION,
     ForceEstimate,
+    ProbeReading,
     RigEstimate,
     estimate_force,
     estimate_force_from_probe,
@@ -67,6 +70,17 @@ from viscorig.sequences import (
     WaitStep,
 )
 from viscorig.storage import Campaign, RunSettings
+
+#: The table cannot move this many times more than the disc linked to it through a load cell
+#: (about 1.1 times for the paper's hard rubber under preload); a probe that says so misread.
+MAX_MOTION_RATIO = 10.0
+#: Advice to run at a level this many times below the one asked for is never given: a reading
+#: that leads there is a sign of wrong wiring or mounting, and says so instead.
+ABSURD_REDUCTION = 1000.0
+
+
+class RunRefused(Exception):  # noqa: N818 (an outcome, not a fault)
+    """A sweep is not measured; the message says why and what to do."""
 
 
 class RunState(enum.Enum):
@@ -266,12 +280,13 @@ class Runner:
             except (KeyboardInterrupt, SweepInterrupted):
                 return RunResult(Outcome.INTERRUPTED, self._interrupted(current), self.records)
             except InstrumentError as error:
-                return RunResult(Outcome.FAULT, self._fault(current, str(error)), self.records)
+                return RunResult(Outcome.FAULT, self._fault(current, single_line(str(error))),
+                                 self.records)
             except Exception as error:
                 if self.options.instrument_errors and isinstance(
                     error, self.options.instrument_errors
                 ):
-                    message = str(error)
+                    message = single_line(str(error))
                     if self.analyser.resource not in message:
                         message = f"{self.analyser.resource}: {message}"
                     return RunResult(Outcome.FAULT, self._fault(current, message), self.records)
@@ -373,12 +388,13 @@ class Runner:
         limit = self.station.shaker_force_limit_n
         if existing is None:
             level = step.level_m_per_s2
-            estimate = self._predict(step, level)
-            if estimate is not None and estimate.peak_n > limit:
-                level, refusal = self._over_limit(step, estimate)
-                if refusal is not None:
-                    record.move(RunState.FAILED, refusal)
-                    return refusal
+            try:
+                estimate = self._predict(step, level)
+                if estimate is not None and estimate.peak_n > limit:
+                    level = self._over_limit(step, estimate)
+            except RunRefused as refused:
+                record.move(RunState.FAILED, str(refused))
+                return str(refused)
             self.campaign.start_run(step.run, self._settings(step, level))
             self._annotate(step, level, estimate)
             done = 0
@@ -489,20 +505,34 @@ class Runner:
             return self.options.over_limit, "command line"
         return step.over_limit, "sequence"
 
-    def _over_limit(self, step: SweepStep, estimate: ForceEstimate) -> tuple[float, str | None]:
+    def _over_limit(self, step: SweepStep, estimate: ForceEstimate) -> float:
+        """The level to run at when the estimate exceeds the shaker limit.
+
+        Raises
+        ------
+        RunRefused
+            The sweep refuses (``over_limit``), or the level that would fit is absurdly low.
+        """
         limit = self.station.shaker_force_limit_n
         reduced = estimate.level_for(limit, step.level_m_per_s2)
         what = (f"run '{step.run}': estimated force {estimate.peak_n:.3g} N at "
                 f"{estimate.peak_frequency_hz:g} Hz exceeds the shaker limit {limit:g} N "
                 f"(level {step.level}; estimate from {estimate.basis})")
         self.console.warn(what)
+        if reduced * ABSURD_REDUCTION < step.level_m_per_s2:
+            raise RunRefused(
+                f"{what}; not measured. Holding it under the limit would need "
+                f"{reduced:.2g} m/s^2, over {ABSURD_REDUCTION:g} times below the level asked "
+                "for: no specimen is that stiff, so the estimate rests on readings that cannot "
+                "be right. The wiring or the mounting is wrong: check that the device is "
+                "mounted and each transducer is on the input the station file names")
         mode, source = self._over_limit_mode(step)
         chosen = "--over-limit" if source == "command line" else "over_limit in the sequence"
         if mode == "reduce":
             self.console.warn(f"run '{step.run}': level reduced to {reduced:.4g} m/s^2 "
                               f"(requested {step.level}; {chosen} is \"reduce\")")
-            return reduced, None
-        return step.level_m_per_s2, (
+            return reduced
+        raise RunRefused(
             f"{what}; not measured ({chosen} is \"refuse\"). Lower the level, set "
             f"over_limit = \"reduce\" in the sequence, or continue with: viscorig resume "
             f"{self.campaign.path} --over-limit reduce (level {reduced:.3g} m/s^2)"
@@ -569,6 +599,7 @@ class Runner:
                 f"force {reading.force_n:.3g} N at {reading.reference_m_per_s2:.3g} m/s^2"
                 + ("" if reading.usable else "  (not usable)")
             )
+        self._check_probe(step, readings)
         if not readings[0].usable:
             return None
         table = ("the table unknown" if self._table is None
@@ -576,6 +607,49 @@ class Runner:
         basis = f"a probe of the mounted rig at {frequencies} Hz and {table}"
         return estimate_force_from_probe(step.frequencies_hz(), level, readings, self._table,
                                          basis)
+
+    def _check_probe(self, step: SweepStep, readings: tuple[ProbeReading, ...]) -> None:
+        """Refuse a run whose probe shows that the reference does not see the rig it drives:
+        a reference :data:`DEAD_REFERENCE_DB` or more below the level asked for, or a table
+        moving more than :data:`MAX_MOTION_RATIO` times the disc linked to it.
+
+        Raises
+        ------
+        RunRefused
+            With what was read and what to check.
+        """
+        def dead(reading: ProbeReading) -> bool:
+            ratio = reading.motion_ratio
+            return reading.shortfall_db >= DEAD_REFERENCE_DB or (
+                not step.bare_table and math.isfinite(ratio) and ratio > MAX_MOTION_RATIO)
+
+        reading = next((r for r in readings if dead(r)), None)
+        if reading is None:
+            return
+        if step.bare_table:
+            name, channel = "table", self.wiring.table_acceleration
+        else:
+            name, channel = "disc", self.wiring.device_acceleration
+        sensitivity = self.wiring.sensitivities_v_per_eu[channel]
+        read = (f"run '{step.run}': the probe at {reading.frequency_hz:g} Hz asked "
+                f"{reading.level_m_per_s2:.3g} m/s^2 of the {name} accelerometer (input "
+                f"{channel}) and read {reading.reference_m_per_s2:.2g} m/s^2 "
+                f"({reading.shortfall_db:.0f} dB short) while the shaker gave "
+                f"{reading.force_n:.3g} N")
+        check = (f"the {name} accelerometer is on input {channel} with the sensitivity the "
+                 f"station file gives ({sensitivity:g} V/(m/s^2))")
+        if not reading.force_n >= UNDRIVEN_FORCE_FRACTION * self.station.shaker_force_limit_n:
+            why = ("the shaker is hardly driven. Check the amplifier (on, gain), the cable from "
+                   f"the analyser's source, and that {check}")
+        elif step.bare_table:
+            why = f"the table accelerometer does not see the motion. Check that {check}"
+        else:
+            why = (f" and the table {reading.table_acceleration_m_per_s2:.3g} m/s^2: the disc "
+                   f"cannot move {reading.motion_ratio:.3g} times less than the table it is "
+                   "linked to. The wiring or the mounting is wrong: check that the damper device "
+                   f"is mounted and linked to the table, and that {check}")
+        separator = "" if why.startswith(" ") else ": "
+        raise RunRefused(f"{read}{separator}{why}. Nothing was measured")
 
     def _say_estimate(self, step: SweepStep, estimate: ForceEstimate) -> None:
         self.console.say(

@@ -17,7 +17,7 @@ from datetime import datetime
 import numpy as np
 from numpy.typing import NDArray
 
-from viscorig.acquisition.limits import point_flags
+from viscorig.acquisition.limits import AT_FORCE_LIMIT_DB, point_flags
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
@@ -28,7 +28,7 @@ from viscorig.sequences import (
     resume_index,
     time_left_s,
 )
-from viscorig.storage import Campaign, Segment
+from viscorig.storage import SOURCE_AT_LIMIT, Campaign, Segment
 
 #: ``time_s`` clocks: "wall" is seconds of real time since the run started (a real rig);
 #: "test" is accumulated settle and integration time (a simulated rig running faster than
@@ -77,8 +77,10 @@ class Wiring:
 
     @property
     def force_limit_acts_on_excitation(self) -> bool:
-        """The analyser's input limit watches input 1 (inferred): is that the shaker force?"""
-        return self.excitation_force == 1
+        """The analyser's input limit (``SOUR:VOLT:LIM:INP``) holds every input but the
+        auto-level reference, each in its own unit (programming guide, chapter 19); the
+        reference is an accelerometer, so the excitation force input is always held."""
+        return self.excitation_force not in (self.table_acceleration, self.device_acceleration)
 
 
 @dataclass(frozen=True)
@@ -158,6 +160,15 @@ def configure(analyser: Analyser, wiring: Wiring, settings: SweepSettings) -> No
         tolerance_db=step.tolerance_db,
         start_level_vpk=min(settings.start_level_v, settings.source_limit_v),
     )
+
+
+def _no_data(measured: MeasuredSegment) -> NDArray[np.bool_]:
+    """Points where the driver flagged no data (the analyser's marker), if it says."""
+    flags = getattr(measured, "no_data", None)
+    count = np.asarray(measured.frequency_hz).size
+    if flags is None:
+        return np.zeros(count, dtype=bool)
+    return np.asarray(flags, dtype=bool)
 
 
 def _iso_to_epoch(text: str) -> float | None:
@@ -249,11 +260,20 @@ class SweepMeasurement:
         return time_left_s(self.planned_hz, done, step.settle_cycles, step.integrate_cycles)
 
     def _measure_rows(self, rows: slice) -> tuple[MeasuredSegment, bool]:
-        """Measure the planned rows; once more if an input overloaded (flagged if again)."""
+        """Measure the planned rows; once more if an input overloaded (flagged if again) or a
+        point came without data (refused if again: never stored as a measurement)."""
         measured = self._measure_once(rows)
-        if not measured.overload_channels:
+        if not measured.overload_channels and not _no_data(measured).any():
             return measured, False
-        return self._measure_once(rows), True
+        measured = self._measure_once(rows)
+        missing = _no_data(measured)
+        if missing.any():
+            where = ", ".join(f"{f:g}" for f in np.asarray(measured.frequency_hz)[missing][:5])
+            raise InstrumentError(
+                f"{self.analyser.resource}: the analyser gave no data at {missing.sum()} "
+                f"point(s) ({where} Hz) twice in a row"
+            )
+        return measured, True
 
     def _measure_once(self, rows: slice) -> MeasuredSegment:
         frequencies = self.planned_hz[rows]
@@ -347,6 +367,12 @@ class SweepMeasurement:
             force_limit_n=settings.force_limit_n,
             overloaded=bool(measured.overload_channels),
         )
+        if wiring.force_limit_acts_on_excitation:
+            # the input limit also holds the device force: a level missed while the device
+            # force sat at the limit was held by the input limit, not by the source limit
+            device = np.asarray(amplitude.get(wiring.device_force, nan), dtype=float)
+            held = device >= settings.force_limit_n * 10.0 ** (-AT_FORCE_LIMIT_DB / 20.0)
+            flags[held] &= np.uint16(~int(SOURCE_AT_LIMIT) & 0xFFFF)
         return Segment(
             frequency_hz=np.asarray(measured.frequency_hz, dtype=float),
             time_s=time_s,

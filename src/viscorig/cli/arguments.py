@@ -19,6 +19,17 @@ def positive_number(text: str) -> float:
     return value
 
 
+def port_number(text: str) -> int:
+    """An ``argparse`` type: a TCP port, 0 for any free one."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"must be 0-65535, got {port}")
+    return port
+
+
 def parse_band(text: str | None) -> tuple[float, float] | None:
     """``"LO:HI"`` in Hz -> ``(lo, hi)``; :class:`InputError` naming the value when malformed."""
     if text is None:

@@ -3,7 +3,8 @@
 ``export FILE.h5 --run RUN --format uff|csv --out PATH`` writes a run's two accelerances
 (ẍ_s/F_e and ẍ_v/F_v, m/s²/N): a universal file with one dataset 58 per FRF (binary 58 by
 default, so values survive to the last bit; ``--uff-ascii`` for plain ASCII), or a CSV with the
-units in the column names and the point flags.
+units in the column names and the point flags, which spreadsheets and pandas.read_csv open as
+it is, with its metadata beside it in NAME.csv-metadata.json (CSV on the Web).
 
 ``import FILE.h5 --run NAME (--uff PATH | --csv PATH | --sdf PATH [--sdf PATH2])`` adds a new,
 complete run to a campaign file (created when missing): from a universal file's FRF records,
@@ -12,7 +13,8 @@ frequency responses; the first file is ẍ_s/F_e, the second ẍ_v/F_v, or one f
 Units and frequency axis are those the file declares, converted to Hz and m/s²/N; a file whose
 units are not acceleration over force is refused. What the files do not say (specimen, preload,
 hardness) is given with options. Everything is read and checked before the campaign file is
-touched, and an existing run is never overwritten.
+touched, an existing run is never overwritten, and a truncated or inconsistent file is refused
+whole: an import is never partial.
 """
 
 from __future__ import annotations
@@ -94,8 +96,8 @@ def export_handler(args: argparse.Namespace) -> int:
         print(f"{out}: {count} FRF record(s) (dataset 58, {kind}) of run {run.name}, "
               f"{run.points} points")
     else:
-        write_csv(run, out, path.name)
-        print(f"{out}: run {run.name}, {run.points} points")
+        sidecar = write_csv(run, out, path.name)
+        print(f"{out}: run {run.name}, {run.points} points; metadata in {sidecar}")
     return 0
 
 

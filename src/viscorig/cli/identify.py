@@ -13,7 +13,13 @@ import json
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.fitting import FitResult
-from viscorig.identify import TableSource, identify_run, store_fit
+from viscorig.identify import (
+    TableSource,
+    identify_run,
+    is_bare_table,
+    store_fit,
+    table_parameters,
+)
 from viscorig.storage import Campaign
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
@@ -37,6 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="FRFs fitted: table (X_s/F_e), support (X_v/F_v) or both (default: all available)",
     )
+    parser.add_argument(
+        "--table-model",
+        default="table",
+        help="model of the bare-table run whose M_s, K_s, C_s (and covariance) a specimen fit "
+        "inherits, e.g. 'table+frame(2000)' for a 2000 kg frame under the table "
+        "(default: table)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--no-store", action="store_true", help="do not store the fit")
     parser.set_defaults(handler=handler)
@@ -48,7 +61,11 @@ def handler(args: argparse.Namespace) -> int:
     frfs = FRF_CHOICES[args.frf] if args.frf else None
     mode = "r" if args.no_store else "a"
     with Campaign.open(args.file, mode) as campaign:
-        result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs)
+        table = None
+        if not is_bare_table(campaign.run(args.run)):
+            table = table_parameters(campaign, args.table_model)
+        result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs,
+                                     table=table)
         fit_id = None if args.no_store else store_fit(campaign, args.run, result)
     if args.json:
         print(json.dumps(result.to_json(args.run)))
@@ -60,20 +77,39 @@ def handler(args: argparse.Namespace) -> int:
 def format_result(
     run: str, result: FitResult, table: TableSource | None, fit_id: str | None
 ) -> str:
-    """Human-readable report of one fit."""
+    """Human-readable report of one fit: every number with its ±, and what the ± include."""
+    ratio = result.rms_error / result.noise_floor
     lines = [
         f"run {run}: model {result.spec}, {result.band_hz[0]:g}-{result.band_hz[1]:g} Hz, "
         f"{result.points} points, FRFs {', '.join(result.frfs)}",
         f"rms_error {result.rms_error:.3e}   noise_floor {result.noise_floor:.3e}"
-        f"   ({result.rms_error / result.noise_floor:.2f} x floor)",
+        f"   ({ratio:.2f} x floor)",
     ]
+    if result.noise is not None:
+        lines += [f"noise: {text}" for text in result.noise.describe()]
     if table is not None:
-        lines.append(f"table parameters fixed, from {table.source}")
+        inherited = " (with its uncertainty)" if result.inherited else " (exact, as given)"
+        lines.append(f"table parameters fixed at the values from {table.source}{inherited}")
     width = max(len(name) for name in result.parameters)
     for name, estimate in result.parameters.items():
-        fixed = name not in result.free
-        error = "fixed" if fixed else f"± {estimate.stderr:.4g}"
-        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<14} {estimate.unit}")
+        if name in result.free:
+            error = f"± {estimate.stderr:.4g}"
+        elif name in result.inherited:
+            error = f"± {estimate.stderr:.4g} (inherited)"
+        else:
+            error = "fixed"
+        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<24} {estimate.unit}")
+    if result.fits_noise:
+        text = "± are standard uncertainties: the noise (white and drift"
+        text += ", the table's uncertainty" if result.inherited else ""
+        lines.append(text + "), the model fitting to the noise")
+    else:
+        lines.append(
+            f"the model does not fit to the noise ({ratio:.1f} x floor): the ± are those of the "
+            "model's band-average (the noise's, scaled by the misfit, or the residuals' own "
+            "sandwich, whichever is larger), not measurement uncertainties of the specimen"
+        )
+    lines += [f"not in the ±: {text}" for text in result.excludes]
     if result.candidates:
         lines.append(
             "order chosen by BIC among: "

@@ -1,9 +1,16 @@
 """``viscorig report FILE [--out DIR]``: the campaign as one self-contained HTML page.
 
 Writes ``DIR/index.html`` (figures embedded, no script, nothing fetched: it opens offline) and
-every figure as PNG and SVG beside it: per run the measured and model FRFs with the failure
-bands and flagged points, the residual with the noise floor, the diagnosis ladder; E' and η
-against frequency per rubber and the preload effect; Tables 1 and 2 beside the paper's values.
+every figure as PNG and SVG beside it. The page leads with the answer: per run the best model
+the diagnosis ladder reaches, its error against the noise floor, the main parameters with their
+±, where it still fails and the finding in one sentence, then what preload changed (with ±).
+Then Tables 1 and 2 beside the paper's values, E' and η against frequency, and per run the
+FRFs with the bands where the model shown still fails, the residual and the ladder.
+
+The ladder costs seconds per specimen run; runs are climbed in parallel (--jobs).
+--no-ladder diagnoses each run once (about a second for the paper's campaign) and shows what is
+most likely missing; --no-diagnosis leaves diagnosis out. A run's latest stored fit is where its
+diagnosis starts.
 """
 
 from __future__ import annotations
@@ -30,11 +37,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="identification band LO:HI in Hz (default: the paper's 20:120)")
     parser.add_argument("--no-diagnosis", action="store_true",
                         help="leave out the diagnosis (failure bands, findings, ladder)")
-    parser.add_argument("--ladder", action="store_true",
-                        help="climb the whole ladder of effects for each run (adds the best "
-                        "effect and refits until the noise floor; tens of seconds per run); "
-                        "without it each run is diagnosed once and its candidates shown")
+    parser.add_argument("--no-ladder", action="store_true",
+                        help="diagnose each run once instead of climbing the ladder of effects "
+                        "to the best model (faster; shows the most likely missing effect)")
+    parser.add_argument("--ladder", action="store_true", help=argparse.SUPPRESS)  # the default
+    parser.add_argument("--jobs", type=positive_int, default=None,
+                        help="processes climbing ladders at once (default: one per core)")
     parser.set_defaults(handler=handler)
+
+
+def positive_int(text: str) -> int:
+    """An ``argparse`` type: a whole number of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -43,7 +63,7 @@ def handler(args: argparse.Namespace) -> int:
     path = Path(args.file)
     out = Path(args.out) if args.out else path.with_name(path.stem + "-report")
     page = build_report(path, out, band_hz=band, diagnosis=not args.no_diagnosis,
-                        ladder=args.ladder)
+                        ladder=not args.no_ladder, jobs=args.jobs)
     figures = len(list(out.glob("*.png")))
     print(f"{page}  ({figures} figures as PNG and SVG in {out})")
     return 0

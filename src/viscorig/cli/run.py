@@ -32,7 +32,7 @@ from viscorig.acquisition import (
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
 from viscorig.errors import InputError, InstrumentError
-from viscorig.sequences import Sequence, load_sequence, parse_sequence, parse_station
+from viscorig.sequences import Sequence
 from viscorig.storage import Campaign
 
 
@@ -45,9 +45,28 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "sweep and overrides the sequence; otherwise each sweep's over_limit "
                         "(its step, else [defaults]) applies, and 'refuse' when the sequence "
                         "says nothing")
+    parser.add_argument("--live", action="store_true",
+                        help="serve a live view of the campaign on 127.0.0.1 while it runs "
+                        "(as 'viscorig watch' does) and open it in the browser")
+    parser.add_argument("--no-browser", action="store_true",
+                        help="with --live: only print the live view's address")
     parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
+
+
+def _fields_epilog() -> str:
+    import textwrap
+
+    from viscorig.sequences.schema import STEP_TYPES
+
+    lines = ["sequence steps and their fields (reference: sequences/README.md, or",
+             "'viscorig check --fields'):"]
+    for name, schema in STEP_TYPES.items():
+        lines.append(textwrap.fill(f"{name}: {', '.join(schema.names)}", 78,
+                                   initial_indent="  ", subsequent_indent="    "))
+    lines.append("  [defaults]: any sweep field but run")
+    return "\n".join(lines)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -55,7 +74,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run = subparsers.add_parser(
         "run", help=summary_of("run"),
         description="Run a test sequence (TOML) and record every sweep into a new campaign "
-        "file. Without --station, the embedded simulated rig and analyser are used.")
+        "file. Without --station, the embedded simulated rig and analyser are used. The "
+        "sequence (and station) are checked whole before the first prompt, as 'viscorig "
+        "check' does.",
+        epilog=_fields_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
     run.add_argument("--station", metavar="STATION.toml", default=None,
                      help="the lab's station file (analyser resource, transducers, shaker)")
@@ -74,23 +96,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     resume.set_defaults(handler=resume_command)
 
 
-def _read_text(path: str, what: str) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot be read ({type(error).__name__}: {error})", path) from None
-
-
 def run_command(args: argparse.Namespace) -> int:
     """``viscorig run``: check everything, create the file, run the sequence."""
-    sequence = load_sequence(args.sequence)
-    sequence_text = _read_text(args.sequence, "sequence")
-    station = station_text = None
-    if args.station is not None:
-        if args.sim_pace is not None:
-            raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
-        station_text = _read_text(args.station, "station")
-        station = parse_station(station_text, source=args.station)
+    from viscorig.cli.check import check_files, refuse
+
+    if args.station is not None and args.sim_pace is not None:
+        raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
+    checked = check_files(args.sequence, args.station)
+    if not checked.ok:
+        station = f" --station {args.station}" if args.station else ""
+        refuse(checked, f"viscorig check {args.sequence}{station}")
+    sequence, station = checked.sequence, checked.station
     out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.sequence).stem}.h5"
     if out.exists():
         raise InputError(
@@ -100,8 +116,8 @@ def run_command(args: argparse.Namespace) -> int:
         raise InputError("folder does not exist", str(out))
     with _open_station(sequence, station, args.sim_pace) as opened:
         campaign = Campaign.create(
-            out, sequence_text=sequence_text, sequence_file=str(args.sequence),
-            station_text=station_text, station_file=args.station or "",
+            out, sequence_text=checked.sequence_text, sequence_file=str(args.sequence),
+            station_text=checked.station_text, station_file=args.station or "",
             rig=opened.station.rig_attributes(),
         )
         print(f"campaign file: {out}  ({_where(opened)})", flush=True)
@@ -110,19 +126,22 @@ def run_command(args: argparse.Namespace) -> int:
 
 def resume_command(args: argparse.Namespace) -> int:
     """``viscorig resume``: the file holds the sequence and station texts."""
+    from viscorig.cli.check import check_texts, refuse
+
     campaign = Campaign.open(args.file, "a")
     sequence_text = campaign.sequence_text
     if sequence_text is None:
         raise InputError("holds no sequence (/setup/sequence_toml); it was not written by "
                          "'viscorig run'", args.file)
-    sequence = parse_sequence(sequence_text, source=f"{args.file}: /setup/sequence_toml")
     station_text = campaign.station_text
-    station = None
-    if station_text is not None:
-        if args.sim_pace is not None:
-            raise InputError("only for the embedded simulated rig; this campaign used a station "
-                             "file", "--sim-pace")
-        station = parse_station(station_text, source=f"{args.file}: /setup/station_toml")
+    if station_text is not None and args.sim_pace is not None:
+        raise InputError("only for the embedded simulated rig; this campaign used a station "
+                         "file", "--sim-pace")
+    checked = check_texts(sequence_text, f"{args.file}: /setup/sequence_toml", station_text,
+                          f"{args.file}: /setup/station_toml")
+    if not checked.ok:
+        refuse(checked, "")
+    sequence, station = checked.sequence, checked.station
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     if all(statuses.get(name) == "complete" for name in sequence.run_names) and _identified(
         campaign, sequence
@@ -175,8 +194,14 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
     )
     console = Console(yes=args.yes)
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options)
+    live = contextlib.nullcontext()
+    if args.live:
+        from viscorig.cli.watch import live_view
+
+        live = live_view(campaign.path, open_browser=not args.no_browser, say=console.say)
     try:
-        result = runner.run()
+        with live:
+            result = runner.run()
     except NoAnswer:
         print(f"viscorig: a prompt needs an answer and the input is closed; run with --yes, "
               f"then continue with: viscorig resume {campaign.path}", file=sys.stderr)

@@ -2,14 +2,17 @@
 
 Works on a file that is still being written or whose writer crashed (its last run stays
 "running" with every committed segment). A run that cannot be read is listed with the reason,
-the others are still shown, and the exit status is 2.
+the others are still shown, and the exit status is 2. ``--json`` prints the same as one JSON
+object (units in the key names, ``null`` for unknown numbers), for scripts.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
+from typing import Any
 
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
@@ -24,6 +27,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="write the FRF figure of RUN (measured so far) as a PNG instead")
     parser.add_argument("--out", default=None,
                         help="PNG written by --plot (default: FILE-RUN.png beside FILE)")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object: the file, its runs and their fits")
     parser.set_defaults(handler=handler)
 
 
@@ -120,6 +125,81 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
     return lines, problems
 
 
+def _finite(value: float) -> float | None:
+    """A number for JSON: ``None`` for NaN and infinities (JSON has neither)."""
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def fit_json(fit: Fit) -> dict[str, Any]:
+    """One stored fit as JSON (the ``identify --json`` parameter layout)."""
+    return {
+        "id": fit.id,
+        "model": fit.model,
+        "band_hz": [_finite(fit.band_hz[0]), _finite(fit.band_hz[1])],
+        "rms_error": _finite(fit.rms_error),
+        "noise_floor": _finite(fit.noise_floor),
+        "created": fit.created,
+        "parameters": {
+            name: {"value": _finite(p.value), "stderr": _finite(p.stderr), "unit": p.unit}
+            for name, p in fit.parameters.items()
+        },
+    }
+
+
+def run_json(run: Run, fits: list[Fit]) -> dict[str, Any]:
+    """One run as JSON: metadata, points, band, flag counts and fits."""
+    m = run.metadata
+    counts = count_flags(run.flags) if run.points else {}
+    return {
+        "name": run.name,
+        "status": m.status,
+        "points": run.points,
+        "band_hz": ([float(run.frequency_hz.min()), float(run.frequency_hz.max())]
+                    if run.points else None),
+        "level_m_per_s2": _finite(m.level_m_per_s2),
+        "direction": m.direction,
+        "specimen": m.specimen,
+        "hardness_shore_a": _finite(m.hardness_shore_a),
+        "preload_strain": _finite(m.preload_strain),
+        "temperature_c": _finite(m.temperature_c),
+        "simulated": bool(m.simulated),
+        "started": m.started,
+        "finished": m.finished,
+        "flagged_points": int(run.flagged().sum()) if run.points else 0,
+        "flags": {FLAG_NAMES[flag]: int(n) for flag, n in counts.items()},
+        "fits": [fit_json(fit) for fit in fits],
+    }
+
+
+def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
+    """The ``show --json`` object of a campaign file, and the problems met on the way."""
+    campaign = Campaign.open(path)
+    attributes = campaign.attributes
+    files = campaign.setup_files
+    document: dict[str, Any] = {
+        "file": str(path),
+        "format": attributes.get("format"),
+        "format_version": attributes.get("format_version"),
+        "created": attributes.get("created"),
+        "software": attributes.get("software"),
+        "sequence_file": files.get("sequence_file") or None,
+        "station_file": files.get("station_file") or None,
+        "simulated_rig": campaign.station_text is None,
+        "rig": {key: value if isinstance(value, int) else _finite(value)
+                for key, value in campaign.rig.items()},
+        "runs": [],
+    }
+    problems: list[str] = []
+    for name in campaign.run_names:
+        try:
+            document["runs"].append(run_json(campaign.run(name), campaign.fits(name)))
+        except InputError as error:
+            document["runs"].append({"name": name, "error": error.detail})
+            problems.append(str(error))
+    return document, problems
+
+
 def handler(args: argparse.Namespace) -> int:
     """Print the listing; exit status 2 if a run could not be read."""
     if args.plot is not None:
@@ -128,8 +208,12 @@ def handler(args: argparse.Namespace) -> int:
         path = Path(args.file)
         print(plot_run(path, args.plot, default_png(path, args.plot, args.out)))
         return 0
-    lines, problems = describe(Path(args.file))
-    print("\n".join(lines))
+    if args.json:
+        document, problems = describe_json(Path(args.file))
+        print(json.dumps(document, allow_nan=False))
+    else:
+        lines, problems = describe(Path(args.file))
+        print("\n".join(lines))
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         raise InputError(problems[0] + more)

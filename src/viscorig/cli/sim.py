@@ -2,7 +2,8 @@
 
 Prints the VISA resource strings to open with pyvisa-py and serves until Ctrl-C::
 
-    viscorig sim serve --preset soft-0 --prologix --pace 60
+    viscorig sim serve --preset soft-0 --prologix --pace real
+    viscorig sim serve --preset table --pace 60 --fault unplug=3
 """
 
 from __future__ import annotations
@@ -41,19 +42,57 @@ def register(subparsers: Any) -> None:
                        help="port of the Prologix endpoint (default: a free port)")
     serve.add_argument("--pty", action="store_true",
                        help="also serve a Prologix GPIB-USB adapter on a pseudo-terminal")
-    serve.add_argument("--pace", type=positive_number, default=None, metavar="X",
-                       help="simulated seconds per wall-clock second (default: as fast as "
-                       "possible)")
+    serve.add_argument("--pace", type=_pace, default=None, metavar="real|X",
+                       help="take the instrument's time: 'real' (as the 35670A would) or X "
+                       "simulated seconds per wall-clock second (default: as fast as possible)")
     serve.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
                        help="address to bind (default: 127.0.0.1, loopback only)")
     serve.add_argument("--seed", type=int, default=None, help="seed of the sensor noise")
     serve.add_argument("--fault", action="append", default=[], metavar="SPEC",
-                       help="inject a fault once: KIND[=ARG][@MATCH], KIND one of no_reply, "
-                       "drop, garble, error=CODE[,TEXT], overload=CH[:POINTS]; repeatable")
+                       help="inject a fault: KIND[=ARG][@MATCH], KIND one of no_reply, drop, "
+                       "garble, error=CODE[,TEXT], overload=CH[:POINTS], autocal (once); "
+                       "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS (wiring "
+                       "faults, they last); repeatable")
+    serve.add_argument("--max-connections", type=_count, default=8, metavar="N",
+                       help="clients served at once (default 8)")
+    serve.add_argument("--idle-timeout", type=positive_number, default=3600.0, metavar="S",
+                       help="close a connection silent for S seconds (default 3600)")
+    serve.add_argument("--max-message", type=_count, default=65536, metavar="BYTES",
+                       help="longest program message; longer ones get error -100 and the "
+                       "connection is closed (default 65536)")
+    serve.add_argument("--read-timeout-floor", type=_seconds, default=None, metavar="S",
+                       help="shortest wait of the Prologix ++read (default 1 s; 0: exactly "
+                       "++read_tmo_ms)")
     serve.add_argument("--without-option", action="append", default=[], metavar="OPT",
                        choices=("1D2", "AY6"),
                        help="leave an option out of *OPT? (1D2 swept sine, AY6 four channels)")
     serve.set_defaults(handler=serve_command)
+
+
+def _pace(text: str) -> float:
+    if text.strip().lower() == "real":
+        return 1.0
+    return positive_number(text)
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0.0 <= value < 1e6:
+        raise argparse.ArgumentTypeError(f"must be 0 or more seconds, got {text}")
+    return value
 
 
 def _port(text: str) -> int:
@@ -71,7 +110,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from rigsim.analyser import DEFAULT_OPTIONS
     from rigsim.faults import FaultSpecError, parse_fault_spec
     from rigsim.rigfile import RigFileError, load_preset, load_rig
-    from rigsim.server import SimulatedAnalyserServer
+    from rigsim.server import READ_TIMEOUT_FLOOR_S, ServiceLimits, SimulatedAnalyserServer
 
     try:
         rig = load_rig(args.rig) if args.rig else load_preset(args.preset or "table")
@@ -82,9 +121,14 @@ def serve_command(args: argparse.Namespace) -> int:
     except FaultSpecError as error:
         raise InputError(str(error), "--fault") from None
     options = tuple(o for o in DEFAULT_OPTIONS if o not in args.without_option)
+    limits = ServiceLimits(max_message_bytes=args.max_message,
+                           max_connections=args.max_connections,
+                           idle_timeout_s=args.idle_timeout)
+    floor = READ_TIMEOUT_FLOOR_S if args.read_timeout_floor is None else args.read_timeout_floor
     server = SimulatedAnalyserServer(
         rig, port=args.port, prologix=args.prologix, prologix_port=args.prologix_port,
         pty=args.pty, pace=args.pace, seed=args.seed, host=args.host, options=options,
+        limits=limits, read_timeout_floor_s=floor,
     )
     try:
         server.start()
@@ -96,6 +140,8 @@ def serve_command(args: argparse.Namespace) -> int:
     name = rig.name or (args.rig if args.rig else args.preset or "table")
     print(f"virtual 35670A on rig {name}"
           + ("" if args.pace is None else f", {args.pace:g} simulated s per s"))
+    for line in server.analyser.front_end.describe():
+        print(f"wiring fault: {line}")
     print(f"raw SCPI socket:  {server.socket_resource}")
     if server.prologix_resource:
         print(f"Prologix (TCP):   {server.prologix_resource}  then  {server.gpib_resource}")

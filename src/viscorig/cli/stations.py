@@ -10,21 +10,31 @@ rig preset, standing in for the technician.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from viscorig.errors import InputError, InstrumentError
+from viscorig.acquisition.console import single_line
+from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     Channels,
+    FileCheckError,
+    Problem,
     PromptStep,
     Sensitivities,
     Sequence,
     Station,
+    SweepStep,
 )
+from viscorig.sequences.problems import Problems, did_you_mean
 
 #: Preset mounted when a sequence names no simulated rig.
 DEFAULT_PRESET = "table"
+#: A sweep's hardness matches a preset's within this, Shore A.
+HARDNESS_MATCH_SHORE_A = 0.5
+#: A sweep's preload strain matches a preset's within this.
+PRELOAD_MATCH = 0.005
 #: The virtual analyser's source can give 5 V; the shaker's gain and limit lower it.
 SIMULATED_SOURCE_LIMIT_V = 5.0
 
@@ -55,35 +65,157 @@ def _first_preset(sequence: Sequence) -> str:
     return DEFAULT_PRESET
 
 
-def check_presets(sequence: Sequence) -> None:
-    """Every ``simulated_rig`` a sequence names is a shipped preset (before anything runs)."""
-    from rigsim.rigfile import preset_names
+@dataclass(frozen=True)
+class _Mounting:
+    """A preset mounted by a prompt, and the first run measured on it."""
 
-    known = set(preset_names())
+    preset: str
+    prompt: int | None
+    """Step index of the prompt that mounted it (None: mounted when the rig started)."""
+    rig: Any
+    first_run: SweepStep | None = None
+
+
+def _describe_rig(rig: Any) -> str:
+    if rig.device is None:
+        return "no specimens"
+    specimen = rig.specimen
+    hardness = ("" if specimen.hardness_shore_a is None
+                else f"{specimen.hardness_shore_a:g} Shore A, ")
+    return f"{hardness}preload {specimen.preload_strain or 0.0:g}"
+
+
+def _describe_step(step: SweepStep) -> str:
+    if step.bare_table:
+        return "the bare table"
+    hardness = "" if math.isnan(step.hardness_shore_a) else f"{step.hardness_shore_a:g} Shore A, "
+    return f"specimen {step.specimen!r}, {hardness}preload {step.preload_strain:g}"
+
+
+def _fits(rig: Any, step: SweepStep) -> bool:
+    """Does a preset hold what the sweep step says is mounted?"""
+    if step.bare_table or rig.device is None:
+        return step.bare_table and rig.device is None
+    hardness = rig.specimen.hardness_shore_a
+    if not math.isnan(step.hardness_shore_a) and hardness is not None and abs(
+            hardness - step.hardness_shore_a) > HARDNESS_MATCH_SHORE_A:
+        return False
+    return abs((rig.specimen.preload_strain or 0.0) - step.preload_strain) <= PRELOAD_MATCH
+
+
+def simulated_rig_problems(sequence: Sequence, text: str = "") -> list[Problem]:
+    """Every sweep of a sequence that the embedded simulated rig would measure on the wrong rig.
+
+    Walks the steps as the runner mounts presets (a prompt's ``simulated_rig``; the bare table
+    before any), and finds: a preset name that is not shipped; a bare-table run on a rig with
+    specimens; a specimen run with no specimens mounted (it would measure the bare table under
+    its name); a specimen whose hardness or preload differs from the preset's; a run of another
+    specimen than the one measured before on the same mounting (a prompt asked the operator to
+    change it, but named no preset). Each problem names the preset that fits.
+
+    Parameters
+    ----------
+    sequence
+        A valid sequence.
+    text
+        Its TOML text, for line numbers.
+    """
+    from rigsim.rigfile import load_preset, preset_names
+
+    problems = Problems(sequence.source, text)
+    presets = {name: load_preset(name) for name in preset_names()}
+    mounted: _Mounting | None = _Mounting(DEFAULT_PRESET, None, presets[DEFAULT_PRESET])
+    last_prompt: int | None = None
     for index, step in enumerate(sequence.steps):
-        if isinstance(step, PromptStep) and step.simulated_rig and step.simulated_rig not in known:
-            raise InputError(
-                f"{step.simulated_rig!r} is not a simulated rig preset "
-                f"(known: {', '.join(sorted(known))})",
-                f"{sequence.source}: steps[{index}].simulated_rig",
-            )
+        if isinstance(step, PromptStep):
+            last_prompt = index
+            if step.simulated_rig is None:
+                continue
+            if step.simulated_rig not in presets:
+                problems.add(("steps", index, "simulated_rig"),
+                             f"{step.simulated_rig!r} is not a simulated rig preset (known: "
+                             f"{', '.join(presets)})", did_you_mean(step.simulated_rig, presets))
+                mounted = None  # unknown from here on until the next preset
+            else:
+                mounted = _Mounting(step.simulated_rig, index, presets[step.simulated_rig])
+            continue
+        if not isinstance(step, SweepStep) or mounted is None:
+            continue
+        wrong = _wrong_rig(step, mounted, last_prompt)
+        if wrong is not None:
+            word = step.specimen.lower()
+            fitting = sorted((name for name, rig in presets.items() if _fits(rig, step)),
+                             key=lambda name: word not in f"{name} {presets[name].description}"
+                             .lower())
+            problems.add(("steps", index, "run"), wrong, _fix(fitting, last_prompt))
+        elif mounted.first_run is None:
+            mounted = _Mounting(mounted.preset, mounted.prompt, mounted.rig, step)
+    return problems.items
+
+
+def _wrong_rig(step: SweepStep, mounted: _Mounting, last_prompt: int | None) -> str | None:
+    """Why ``step`` cannot be measured on the mounted preset, or None."""
+    where = ("mounted when the rig starts" if mounted.prompt is None
+             else f"mounted at steps[{mounted.prompt}]")
+    rig_text = f"the simulated rig {mounted.preset!r} ({_describe_rig(mounted.rig)}, {where})"
+    if not _fits(mounted.rig, step):
+        if not step.bare_table and mounted.rig.device is None:
+            return (f"run {step.run!r} ({_describe_step(step)}) would measure the bare table "
+                    f"under its name: no simulated rig with specimens is mounted before it")
+        return f"run {step.run!r} ({_describe_step(step)}) does not match {rig_text}"
+    first = mounted.first_run
+    changed = first is not None and (
+        first.specimen != step.specimen
+        or not _same_number(first.hardness_shore_a, step.hardness_shore_a))
+    if changed and last_prompt is not None and (mounted.prompt is None
+                                               or last_prompt > mounted.prompt):
+        return (f"run {step.run!r} ({_describe_step(step)}) would be measured on {rig_text}, "
+                f"which run {first.run!r} measured as specimen {first.specimen!r}: the prompt "
+                f"at steps[{last_prompt}] names no simulated_rig")
+    return None
+
+
+def _same_number(a: float, b: float) -> bool:
+    return (math.isnan(a) and math.isnan(b)) or a == b
+
+
+def _fix(fitting: list[str], last_prompt: int | None) -> str:
+    if not fitting:
+        return "no shipped preset holds that specimen: correct the step, or run it with --station"
+    names = " or ".join(f'simulated_rig = "{name}"' for name in fitting[:3])
+    if last_prompt is None:
+        return f"add a prompt step with {names} before it"
+    return f"add {names} to the prompt at steps[{last_prompt}]"
+
+
+def check_presets(sequence: Sequence, text: str = "") -> None:
+    """The embedded simulated rig can measure every sweep as written (before anything runs).
+
+    Raises
+    ------
+    FileCheckError
+        Every problem :func:`simulated_rig_problems` finds.
+    """
+    problems = simulated_rig_problems(sequence, text)
+    if problems:
+        raise FileCheckError(problems)
 
 
 @contextlib.contextmanager
 def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator[OpenStation]:
     """The embedded simulated rig: a virtual 35670A on loopback, through the real driver.
 
-    The station's transducers, shaker gain and force limit are those of the first preset the
-    sequence mounts (every shipped preset has the same ones).
+    Check the sequence with :func:`check_presets` first. The station's transducers, shaker
+    gain and force limit are those of the first preset the sequence mounts (every shipped
+    preset has the same ones); the rig starts bare, and prompts mount the presets they name.
     """
     from agilent35670a import Agilent35670A
     from rigsim.rigfile import load_preset
     from rigsim.server import SimulatedAnalyserServer
 
-    check_presets(sequence)
-    preset = _first_preset(sequence)
-    rig = load_preset(preset)
-    server = SimulatedAnalyserServer(rig, pace=pace)
+    rig = load_preset(_first_preset(sequence))
+    # the rig starts bare: prompts mount the presets they name (simulated_rig_problems)
+    server = SimulatedAnalyserServer(load_preset(DEFAULT_PRESET), pace=pace)
     server.start()
     try:
         errors = instrument_errors()
@@ -125,7 +257,7 @@ def lab_station(station: Station) -> Iterator[OpenStation]:
     try:
         analyser = Agilent35670A.open(station.resource, adapter=station.adapter)
     except errors as error:
-        raise InstrumentError(f"cannot reach the analyser: {error}") from None
+        raise InstrumentError(f"cannot reach the analyser: {single_line(str(error))}") from None
     try:
         yield OpenStation(station, analyser, False, None, errors)
     finally:

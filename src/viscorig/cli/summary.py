@@ -1,25 +1,41 @@
-"""``viscorig summary FILE [--band LO:HI]``: the paper's Table 1 and Table 2 for every run.
+"""``viscorig summary FILE [--band LO:HI] [--json]``: the paper's Table 1 and Table 2 for every run.
 
-Each specimen run is identified as the paper does (Voigt on ``X_s/F_e`` with the table fixed);
-when the runs carry the paper's names, the published values are printed beside ours, and the
-places where the paper's own numbers disagree with each other are said.
+Each specimen run is identified as the paper does (Voigt on ``X_s/F_e`` with the table fixed at
+the bare-table run's values, their uncertainty propagated); every number comes with its standard
+uncertainty, the preloaded runs with their change against the same specimen without preload, and
+when the runs carry the paper's names the published values are printed beside ours, with the
+places where the paper's own numbers disagree with each other (for the paper's runs present).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+from typing import Any
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
-from viscorig.identify import PAPER_BAND_HZ, RunSummary, TableSource, summarize
+from viscorig.compare import Change
+from viscorig.estimates import Quantity
+from viscorig.identify import (
+    PAPER_BAND_HZ,
+    RunSummary,
+    TableSource,
+    Variation,
+    preload_variations,
+    summarize,
+)
 from viscorig.paper import (
     PAPER_TABLE_1,
-    PAPER_TABLE_2,
     PAPER_TABLE_PARAMETERS,
     consistency_notes,
+    paper_values,
+    paper_variation,
 )
 from viscorig.storage import Campaign
+
+TABLE_UNITS = {"M_s": "kg", "K_s": "N/m", "C_s": "N·s/m"}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -29,6 +45,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--band", default=None, help="band fitted, LO:HI in Hz (default: the paper's 20:120)"
     )
+    parser.add_argument(
+        "--table-model",
+        default="table",
+        help="model of the bare-table run, e.g. 'table+frame(2000)' (default: table)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=handler)
 
 
@@ -36,71 +58,180 @@ def handler(args: argparse.Namespace) -> int:
     """Run ``summary``."""
     band = parse_band(args.band) or PAPER_BAND_HZ
     with Campaign.open(args.file) as campaign:
-        table, runs = summarize(campaign, band)
-    print(format_summary(table, runs))
+        table, runs = summarize(campaign, band, args.table_model)
+    variations = preload_variations(runs)
+    if args.json:
+        print(json.dumps(summary_json(table, runs, variations, band)))
+    else:
+        print(format_summary(table, runs, variations))
     return 0
 
 
 def _pm(value: float, stderr: float, digits: str = ".6g") -> str:
+    if not math.isfinite(stderr):
+        return f"{value:{digits}}"
     return f"{value:{digits}} ± {stderr:.2g}"
 
 
-def format_summary(table: TableSource | None, runs: list[RunSummary]) -> str:
-    """Table 1 and Table 2 as text, with the paper's values where the run names match."""
-    paper_names = any(run.run in PAPER_TABLE_1 for run in runs)
+def _q(quantity: Quantity, digits: str) -> str:
+    return _pm(quantity.value, quantity.stderr, digits)
+
+
+def _change(change: Change) -> str:
+    return change.percent()
+
+
+def format_summary(
+    table: TableSource | None,
+    runs: list[RunSummary],
+    variations: list[Variation] | None = None,
+) -> str:
+    """Table 1, Table 2 and the preload variations as text, with the paper's values beside."""
+    variations = preload_variations(runs) if variations is None else variations
+    present = [run.run for run in runs]
+    paper_names = any(name in PAPER_TABLE_1 for name in present)
     lines = []
     if table is not None:
         lines.append(f"Table suspension (from {table.source}):")
-        for name, unit in (("M_s", "kg"), ("K_s", "N/m"), ("C_s", "N·s/m")):
-            text = f"  {name} = {table.values[name]:.6g} {unit}"
-            if table.fit is not None:
-                text = f"  {name} = {_pm(table.values[name], table.fit.stderr[name])} {unit}"
+        known = table.known
+        for name, unit in TABLE_UNITS.items():
+            stderr = known.stderr(name)
+            text = f"  {name} = {_pm(table.values[name], stderr or math.nan)} {unit}"
+            if stderr is None:
+                text += "   (given, no uncertainty)"
             if paper_names:
                 text += f"   (paper {PAPER_TABLE_PARAMETERS[name]:g})"
             lines.append(text)
-    lines += ["", "Table 1: Voigt fit of X_s/F_e, table fixed"]
+    specimen = [run for run in runs if not run.bare]
+    lines += ["", "Table 1: Voigt fit of X_s/F_e, table fixed (± one standard uncertainty)"]
     header = (
-        f"  {'run':<10} {'K_v [N/m]':>24} {'C_v [N·s/m]':>20} {'M_v [kg]':>18} {'rms/floor':>10}"
+        f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18} "
+        f"{'rms/floor':>9}"
     )
     if paper_names:
         header += f" {'paper K_v':>12} {'paper C_v':>10}"
     lines.append(header)
-    for run in runs:
-        if run.bare:
-            continue
+    misfits = []
+    for run in specimen:
         p = run.fit.parameters
+        ratio = run.fit.rms_error / run.fit.noise_floor
         text = (
-            f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>24} "
-            f"{_pm(p['C_v'].value, p['C_v'].stderr):>20} "
-            f"{_pm(p['M_v'].value, p['M_v'].stderr, '.4g'):>18} "
-            f"{run.fit.rms_error / run.fit.noise_floor:>10.2f}"
+            f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
+            f"{_pm(p['C_v'].value, p['C_v'].stderr, '.5g'):>18} "
+            f"{_pm(p['M_v'].value, p['M_v'].stderr, '.4g'):>18} {ratio:>9.2f}"
         )
+        if not run.fit.fits_noise:
+            text += "*"
+            misfits.append(run.run)
         if run.run in PAPER_TABLE_1:
             k_v, c_v = PAPER_TABLE_1[run.run]
             text += f" {k_v:>12.2f} {c_v:>10.2f}"
         lines.append(text)
+    if misfits:
+        lines.append(
+            "  * the Voigt model does not fit these runs to the noise: their ± are those of the "
+            "model's band-average (scaled by the misfit), not of the specimen"
+        )
     lines += ["", "Table 2: system natural frequency, damping factor, half-power bandwidth"]
     header = (
-        f"  {'run':<10} {'f_r [Hz]':>9} {'ξ':>7} {'2ξf_r [Hz]':>10} {'peak [Hz]':>10} "
-        f"{'B_r meas.':>10}"
+        f"  {'run':<10} {'f_r [Hz]':>16} {'ξ':>18} {'B_r = 2ξf_r [Hz]':>17} "
+        f"{'peak [Hz]':>9} {'B_r meas.':>9}"
     )
     if paper_names:
-        header += f" {'paper f_r':>10} {'ξ':>6} {'B_r':>7}"
+        header += f" {'paper f_r':>9} {'ξ':>6} {'B_r':>6}"
     lines.append(header)
-    for run in runs:
-        if run.system is None:
+    for run in specimen:
+        if run.system_uncertain is None:
             continue
-        s, m = run.system, run.measured
+        s, m = run.system_uncertain, run.measured
         bandwidth = "n/a" if math.isnan(m.bandwidth_hz) else f"{m.bandwidth_hz:.3f}"
         text = (
-            f"  {run.run:<10} {s.natural_frequency_hz:>9.2f} {s.damping_factor:>7.4f} "
-            f"{s.bandwidth_hz:>10.3f} {m.peak_hz:>10.2f} {bandwidth:>10}"
+            f"  {run.run:<10} {_q(s['f_r'], '.4f'):>16} {_q(s['xi'], '.5f'):>18} "
+            f"{_q(s['B_r'], '.4f'):>17} {m.peak_hz:>9.2f} {bandwidth:>9}"
         )
-        if run.run in PAPER_TABLE_2:
-            f_r, xi, b_r = PAPER_TABLE_2[run.run]
-            text += f" {f_r:>10.2f} {xi:>6.3f} {b_r:>7.3f}"
+        paper = paper_values(run.run)
+        if paper is not None:
+            text += f" {paper['f_r']:>9.2f} {paper['xi']:>6.3f} {paper['B_r']:>6.3f}"
         lines.append(text)
+    if variations:
+        lines += ["", "Preload: change against the same specimen without preload"]
+        header = f"  {'run':<22}" + "".join(f" {name:>16}" for name in variations[0].changes)
+        lines.append(header)
+        for variation in variations:
+            label = f"{variation.base} → {variation.run}"
+            lines.append(
+                f"  {label:<22}"
+                + "".join(f" {_change(q):>16}" for q in variation.changes.values())
+            )
+            paper = paper_variation(variation.run, variation.base)
+            if paper is not None:
+                lines.append(
+                    f"  {'  paper':<22}"
+                    + "".join(f" {paper[name]:>+14.2f} %" for name in variation.changes)
+                )
+        bases = dict.fromkeys(phrase for v in variations for phrase in v.basis)
+        lines.append(f"  ± of a change: {'; '.join(bases)}")
     if paper_names:
         lines += ["", "Notes on the paper's numbers:"]
-        lines += [f"  - {note}" for note in consistency_notes()]
+        lines += [f"  - {note}" for note in consistency_notes(present)]
     return "\n".join(lines)
+
+
+def summary_json(
+    table: TableSource | None,
+    runs: list[RunSummary],
+    variations: list[Variation],
+    band_hz: tuple[float, float],
+) -> dict[str, Any]:
+    """The summary as one JSON object: every number as ``{value, stderr, unit}``."""
+    present = [run.run for run in runs]
+    document: dict[str, Any] = {"band_hz": [float(band_hz[0]), float(band_hz[1])]}
+    if table is not None:
+        known = table.known
+        document["table"] = {
+            "source": table.source,
+            "parameters": {
+                name: {"value": float(table.values[name]), "stderr": known.stderr(name),
+                       "unit": unit}
+                for name, unit in TABLE_UNITS.items()
+            },
+            "paper": dict(PAPER_TABLE_PARAMETERS) if any(
+                name in PAPER_TABLE_1 for name in present) else None,
+        }
+    entries = []
+    for run in runs:
+        if run.bare:
+            continue
+        fit = run.fit.to_json(run.run)
+        entry = {
+            "run": run.run,
+            "model": fit["model"],
+            "rms_error": fit["rms_error"],
+            "noise_floor": fit["noise_floor"],
+            "fits_noise": fit["fits_noise"],
+            "parameters": {name: fit["parameters"][name] for name in ("K_v", "C_v", "M_v")},
+            "system": {name: q.to_json() for name, q in (run.system_uncertain or {}).items()},
+            "measured": {
+                "peak_hz": float(run.measured.peak_hz),
+                "bandwidth_hz": None if math.isnan(run.measured.bandwidth_hz)
+                else float(run.measured.bandwidth_hz),
+            },
+            "paper": paper_values(run.run),
+        }
+        entries.append(entry)
+    document["runs"] = entries
+    document["variations"] = [
+        {
+            "run": v.run,
+            "base": v.base,
+            "changes": {name: q.to_json() for name, q in v.changes.items()},
+            "statements": v.statements(),
+            "basis": list(v.basis),
+            "paper": paper_variation(v.run, v.base),
+        }
+        for v in variations
+    ]
+    document["notes"] = (
+        consistency_notes(present) if any(name in PAPER_TABLE_1 for name in present) else []
+    )
+    return document

@@ -66,7 +66,7 @@ class Diagnosis:
         Extra runs that would separate candidates these data cannot tell apart.
     """
 
-    data: DiagnosisData
+    data: DiagnosisData = field(repr=False)
     fit: FitResult
     likelihood: Likelihood
     scan: ScanResult | None = None

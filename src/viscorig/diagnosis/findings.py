@@ -98,7 +98,7 @@ class Finding:
 
     effect: str
     model: str
-    likelihood: Likelihood
+    likelihood: Likelihood = field(repr=False)
     delta_chi2: float
     delta_bic: float
     threshold: float
@@ -107,7 +107,7 @@ class Finding:
     term: str
     explanation: str = ""
     alternatives: list[str] = field(default_factory=list)
-    fit: FitResult | None = None
+    fit: FitResult | None = field(default=None, repr=False)
     dispersion: float = 1.0
     passes_alone: bool = False
     note: str = ""

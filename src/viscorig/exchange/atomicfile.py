@@ -1,35 +1,61 @@
-"""Write an output file so that a failure never leaves a partial or changed file behind."""
+"""Write an output file so that a failure never leaves a partial or changed file behind.
+
+The new content goes to a hidden file next to the target, created with mode 0666 so that the
+user's umask decides its permissions (as for any file a program creates), and is then renamed
+over the target.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
 from viscorig.errors import InputError
+from viscorig.storage.room import cause
+
+
+def _temporary_name(path: Path) -> Path:
+    return path.with_name(f".{path.name}.{secrets.token_hex(6)}.partial")
+
+
+def _create(path: Path) -> tuple[int, Path]:
+    """A new, empty hidden file next to ``path`` (mode 0666 less the umask)."""
+    temporary = _temporary_name(path)
+    try:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+        return os.open(temporary, flags, 0o666), temporary
+    except OSError as error:
+        raise InputError(f"cannot write here ({cause(error, path)})", str(path)) from None
+
+
+def _failed(error: OSError, path: Path) -> InputError:
+    return InputError(f"cannot write ({cause(error, path)})", str(path))
 
 
 def replace_atomically(path: Path, write: Callable[[IO[Any]], None], *, text: bool) -> None:
     """Call ``write(handle)`` on a temporary file next to ``path``, then rename it to ``path``.
 
+    Text is written as UTF-8 with the line endings ``write`` gives (no translation).
+
     Raises
     ------
     InputError
-        The folder is missing or not writable.
+        The folder is missing or not writable, or the disk is full.
     """
-    folder = path.parent if str(path.parent) else Path(".")
+    descriptor, temporary = _create(path)
     try:
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=folder)
-    except OSError as error:
-        raise InputError(f"cannot write here ({error.strerror})", str(path)) from None
-    try:
-        with os.fdopen(handle, "w" if text else "wb", **({"encoding": "utf-8"} if text else {})) \
-                as stream:
+        options: dict[str, Any] = {"encoding": "utf-8", "newline": ""} if text else {}
+        with os.fdopen(descriptor, "w" if text else "wb", **options) as stream:
             write(stream)
         os.replace(temporary, path)
+    except OSError as error:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise _failed(error, path) from None
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(temporary)
@@ -37,17 +63,19 @@ def replace_atomically(path: Path, write: Callable[[IO[Any]], None], *, text: bo
 
 
 def write_via_path(path: Path, write: Callable[[Path], None]) -> None:
-    """Like :func:`replace_atomically` for libraries that want a file name, not a handle."""
-    folder = path.parent if str(path.parent) else Path(".")
+    """Like :func:`replace_atomically` for libraries that want a file name, not a handle.
+
+    The library writes into an existing empty file, which keeps the mode it was created with.
+    """
+    descriptor, temporary = _create(path)
+    os.close(descriptor)
     try:
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=folder)
-    except OSError as error:
-        raise InputError(f"cannot write here ({error.strerror})", str(path)) from None
-    os.close(handle)
-    os.unlink(temporary)  # the library creates the file itself
-    try:
-        write(Path(temporary))
+        write(temporary)
         os.replace(temporary, path)
+    except OSError as error:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise _failed(error, path) from None
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(temporary)

@@ -1,30 +1,42 @@
-"""FRFs as CSV: one row per frequency point, units in the column names, '#' comment header.
+"""FRFs as CSV: one row per frequency point, units in the column names, metadata beside it.
 
-Layout (``#`` lines describe the run; any CSV reader skips them with ``comment='#'``)::
+The CSV opens as it is in a spreadsheet and in ``pandas.read_csv(path)``: RFC 4180 (comma,
+CRLF, UTF-8), one header row, then numbers only; an empty cell is a missing value (the support
+FRF of a bare-table run, the time of an imported point)::
 
-    # viscorig FRF export, campaign paper.h5, run soft-0
-    # ...
     frequency_hz,time_s,accelerance_table_real_m_per_s2_per_n,accelerance_table_imag_m_per_s2_per_n,
     accelerance_support_real_m_per_s2_per_n,accelerance_support_imag_m_per_s2_per_n,flags
 
-(one header line). Numbers are written with Python's shortest round-trip repr, so reading the
-file back gives the same float64 values bit for bit; ``nan`` marks a missing value (the support
-FRF of a bare-table run, the time of an imported point).
+Numbers are written with Python's shortest round-trip repr, so reading the file back gives the
+same float64 values bit for bit.
+
+What a header comment used to say (campaign, run, specimen, what each column means, the flag
+bits) is in a sidecar ``NAME.csv-metadata.json`` in the W3C "CSV on the Web" form, the file name
+CSVW tools look for next to a CSV: the columns with their units and descriptions, and the run's
+metadata under ``notes``.
+
+Reading accepts these files, and older ones whose first lines are ``#`` comments. A line longer
+than any row of this table, a cell that is not a number, or more rows than a run holds is an
+error naming the line; nothing is imported from a file with an error.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import math
-from collections.abc import Iterable
+from dataclasses import asdict
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
+from viscorig import __version__
 from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.exchange.frfset import FrfSet
 from viscorig.storage import FLAG_NAMES, Run
+from viscorig.storage.layout import MAX_RUN_POINTS
 
 COLUMNS = (
     "frequency_hz",
@@ -35,31 +47,56 @@ COLUMNS = (
     "accelerance_support_imag_m_per_s2_per_n",
     "flags",
 )
+#: What each column holds, for the sidecar.
+DESCRIPTIONS = {
+    "frequency_hz": "frequency, Hz",
+    "time_s": "time since the run started at the end of the point, s (empty when unknown)",
+    "accelerance_table_real_m_per_s2_per_n":
+        "real part of x''_s/F_e, table acceleration / excitation force, m/s^2/N",
+    "accelerance_table_imag_m_per_s2_per_n": "imaginary part of x''_s/F_e, m/s^2/N",
+    "accelerance_support_real_m_per_s2_per_n":
+        "real part of x''_v/F_v, disc acceleration / load-cell force, m/s^2/N "
+        "(empty on a bare-table run)",
+    "accelerance_support_imag_m_per_s2_per_n": "imaginary part of x''_v/F_v, m/s^2/N",
+    "flags": "bit mask: " + ", ".join(f"{int(flag)} {name}" for flag, name in FLAG_NAMES.items()),
+}
+#: The longest line read: a row of seven numbers is under 200 characters.
+MAX_LINE_CHARACTERS = 4096
+
+
+def sidecar_path(path: Path) -> Path:
+    """Where the CSVW metadata of CSV file ``path`` goes (``NAME.csv-metadata.json``)."""
+    path = Path(path)
+    return path.with_name(f"{path.name}-metadata.json")
 
 
 def _number(value: float) -> str:
-    return "nan" if math.isnan(value) else repr(float(value))
+    return "" if math.isnan(value) else repr(float(value))
 
 
-def header_lines(run: Run, campaign_name: str) -> list[str]:
-    """The ``#`` comment lines describing a run."""
-    m = run.metadata
-    flags = ", ".join(f"{int(flag)} {name}" for flag, name in FLAG_NAMES.items())
-    return [
-        f"viscorig FRF export, campaign {campaign_name}, run {run.name}",
-        f"specimen {m.specimen}; hardness_shore_a {m.hardness_shore_a:g}; "
-        f"preload_strain {m.preload_strain:g}; level_m_per_s2 {m.level_m_per_s2:g}; "
-        f"status {m.status}; points {run.points}",
-        "accelerance_table = table acceleration / excitation force (x''_s/F_e), in m/s^2/N",
-        "accelerance_support = disc acceleration / load-cell force (x''_v/F_v), in m/s^2/N "
-        "(nan on a bare-table run)",
-        "frequency_hz in Hz; time_s in s since the run started; "
-        f"flags is a bit mask: {flags}",
+def metadata(run: Run, csv_name: str, campaign_name: str) -> dict:
+    """The CSVW sidecar document of a run's CSV."""
+    columns = [
+        {"name": name, "titles": name, "datatype": "integer" if name == "flags" else "double",
+         "dc:description": DESCRIPTIONS[name]}
+        for name in COLUMNS
     ]
+    run_metadata = {key: (None if isinstance(value, float) and math.isnan(value) else value)
+                    for key, value in asdict(run.metadata).items()}
+    return {
+        "@context": "http://www.w3.org/ns/csvw",
+        "url": csv_name,
+        "dc:title": f"viscorig FRF export, campaign {campaign_name}, run {run.name}",
+        "dc:source": campaign_name,
+        "dc:creator": f"viscorig {__version__}",
+        "dialect": {"header": True, "encoding": "utf-8"},
+        "tableSchema": {"columns": columns},
+        "notes": [{"run": run.name, "points": run.points, "metadata": run_metadata}],
+    }
 
 
-def write_csv(run: Run, path: Path, campaign_name: str = "") -> None:
-    """Write a run's FRFs to ``path`` (replaced atomically).
+def write_csv(run: Run, path: Path, campaign_name: str = "") -> Path:
+    """Write a run's FRFs to ``path`` and its metadata beside it (each replaced atomically).
 
     Parameters
     ----------
@@ -68,26 +105,64 @@ def write_csv(run: Run, path: Path, campaign_name: str = "") -> None:
     path
         The CSV file to write.
     campaign_name
-        Name of the campaign file, for the header.
-    """
-    rows: list[Iterable[str]] = []
-    for i in range(run.points):
-        table, support = run.accelerance_table[i], run.accelerance_support[i]
-        rows.append((
-            _number(run.frequency_hz[i]), _number(run.time_s[i]),
-            _number(table.real), _number(table.imag),
-            _number(support.real), _number(support.imag),
-            str(int(run.flags[i])),
-        ))
+        Name of the campaign file, for the metadata.
 
-    def write(handle) -> None:
-        for line in header_lines(run, campaign_name):
-            handle.write(f"# {line}\n")
-        writer = csv.writer(handle, lineterminator="\n")
+    Returns
+    -------
+    Path
+        The sidecar written (:func:`sidecar_path`).
+    """
+    path = Path(path)
+    table, support = run.accelerance_table, run.accelerance_support
+    columns = (run.frequency_hz, run.time_s, table.real, table.imag, support.real, support.imag)
+    rows = [[_number(column[i]) for column in columns] + [str(int(run.flags[i]))]
+            for i in range(run.points)]
+
+    def write(handle: IO[str]) -> None:
+        writer = csv.writer(handle)  # RFC 4180: comma, CRLF
         writer.writerow(COLUMNS)
         writer.writerows(rows)
 
-    replace_atomically(Path(path), write, text=True)
+    def write_sidecar(handle: IO[str]) -> None:
+        json.dump(metadata(run, path.name, campaign_name), handle, indent=1, ensure_ascii=False)
+        handle.write("\n")
+
+    replace_atomically(path, write, text=True)
+    sidecar = sidecar_path(path)
+    replace_atomically(sidecar, write_sidecar, text=True)
+    return sidecar
+
+
+def _lines(path: Path):
+    """(line number, text without its line end) of each line; refuses an overlong line
+    without reading the rest of it."""
+    try:
+        handle = open(path, encoding="utf-8-sig", newline="")  # noqa: SIM115
+    except OSError as error:
+        raise InputError(f"cannot read the CSV file ({error.strerror})", str(path)) from None
+    with handle:
+        number = 0
+        while True:
+            number += 1
+            try:
+                line = handle.readline(MAX_LINE_CHARACTERS + 1)
+            except (OSError, UnicodeDecodeError) as error:
+                raise InputError(f"cannot be read as UTF-8 text ({error})",
+                                 f"{path}:{number}") from None
+            if not line:
+                return
+            if len(line) > MAX_LINE_CHARACTERS and not line.endswith(("\n", "\r")):
+                raise InputError(
+                    f"line longer than {MAX_LINE_CHARACTERS} characters; a row of this table "
+                    f"has {len(COLUMNS)} numbers", f"{path}:{number}")
+            yield number, line.rstrip("\r\n")
+
+
+def _cells(line: str, where: str) -> list[str]:
+    try:
+        return [cell.strip() for cell in next(csv.reader([line]))]
+    except (csv.Error, StopIteration) as error:
+        raise InputError(f"not a CSV row ({error})", where) from None
 
 
 def read_csv(path: Path) -> FrfSet:
@@ -96,45 +171,49 @@ def read_csv(path: Path) -> FrfSet:
     Raises
     ------
     InputError
-        Missing file, missing or unknown columns, a value that is not a number.
+        Missing file, missing or unknown columns, a value that is not a number, an overlong
+        line, more rows than a run holds.
     """
     path = Path(path)
     where = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot read the CSV file ({error})", where) from None
-    lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
-             if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise InputError("no header line and no data", where)
-    header_number, header_line = lines[0]
-    header = [name.strip() for name in next(csv.reader([header_line]))]
-    missing = [name for name in COLUMNS if name not in header]
-    unknown = [name for name in header if name not in COLUMNS]
-    if missing or unknown:
-        raise InputError(
-            (f"missing columns {', '.join(missing)}" if missing else "")
-            + ("; " if missing and unknown else "")
-            + (f"unknown columns {', '.join(unknown)} (units must be those of the names)"
-               if unknown else ""),
-            f"{where}:{header_number}",
-        )
-    index = [header.index(name) for name in COLUMNS]
-    values = np.empty((len(lines) - 1, len(COLUMNS)))
-    for row, (number, line) in enumerate(lines[1:]):
-        cells = next(csv.reader([line]))
+    header: list[str] | None = None
+    index: list[int] = []
+    rows: list[list[float]] = []
+    for number, line in _lines(path):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        cells = _cells(line, f"{where}:{number}")
+        if header is None:
+            header = cells
+            missing = [name for name in COLUMNS if name not in header]
+            unknown = [name for name in header if name not in COLUMNS]
+            if missing or unknown:
+                raise InputError(
+                    (f"missing columns {', '.join(missing)}" if missing else "")
+                    + ("; " if missing and unknown else "")
+                    + (f"unknown columns {', '.join(unknown)} (units must be those of the "
+                       "names)" if unknown else ""),
+                    f"{where}:{number}",
+                )
+            index = [header.index(name) for name in COLUMNS]
+            continue
         if len(cells) != len(header):
             raise InputError(f"{len(cells)} cells, the header has {len(header)}",
                              f"{where}:{number}")
+        if len(rows) >= MAX_RUN_POINTS:
+            raise InputError(f"more than {MAX_RUN_POINTS} rows; a run holds at most "
+                             f"{MAX_RUN_POINTS} points", f"{where}:{number}")
         try:
-            values[row] = [float(cells[i]) for i in index]
+            rows.append([float(cells[i]) if cells[i] else math.nan for i in index])
         except ValueError:
             raise InputError("a cell is not a number", f"{where}:{number}") from None
-    if values.shape[0] == 0:
+    if header is None:
+        raise InputError("no header line and no data", where)
+    if not rows:
         raise InputError("no data rows", where)
+    values = np.asarray(rows)
     flags = values[:, 6]
-    if np.any((flags < 0) | (flags > 0xFFFF) | (flags != np.round(flags))):
+    if np.any(~np.isfinite(flags) | (flags < 0) | (flags > 0xFFFF) | (flags != np.round(flags))):
         raise InputError("flags must be integers 0..65535", where)
     return FrfSet(
         frequency_hz=values[:, 0],

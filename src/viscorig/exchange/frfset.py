@@ -1,8 +1,10 @@
 """FRFs travelling between viscorig and other tools, and how they enter a campaign run.
 
 Every reader (UFF 58, CSV, SDF) returns an :class:`FrfSet`: accelerances in m/s²/N on one
-frequency axis in Hz, whatever units the file used. :func:`import_run` then writes it as one
-new run of a campaign file, after every check has passed, so bad input never changes the file.
+frequency axis in Hz, whatever units the file used. :func:`import_run` then checks that the set
+is whole (every value finite, lengths equal, within a run's bound of points) and writes it as
+one new run of a campaign file in a single commit, so bad input never changes the file and an
+import is never partial.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.storage import Campaign, RunSettings, Segment
 from viscorig.storage.campaign import check_name
+from viscorig.storage.layout import MAX_RUN_POINTS
 
 #: Relative tolerance within which two files' frequency axes count as the same.
 AXIS_RTOL = 1e-9
@@ -92,6 +95,38 @@ def combine(
     return FrfSet(axis, frfs[0], support, source=source)
 
 
+def check_whole(frfs: FrfSet) -> None:
+    """Refuse a set that a truncated or inconsistent file would give.
+
+    Raises
+    ------
+    InputError
+        Lengths differ, more points than a run holds, a frequency that is not finite and
+        positive, a non-finite value of ẍ_s/F_e, or a ẍ_v/F_v that is only partly present.
+    """
+    where = frfs.source or "import"
+    n = frfs.frequency_hz.size
+    lengths = {len(frfs.accelerance_table), len(frfs.accelerance_support),
+               len(frfs.flags), len(frfs.time_s)}  # type: ignore[arg-type]
+    if lengths != {n}:
+        raise InputError(f"columns of different lengths ({n} frequencies)", where)
+    if n == 0:
+        raise InputError("holds no point", where)
+    if n > MAX_RUN_POINTS:
+        raise InputError(f"{n} points; a run holds at most {MAX_RUN_POINTS}", where)
+    bad = int(np.count_nonzero(~np.isfinite(frfs.frequency_hz) | (frfs.frequency_hz <= 0)))
+    if bad:
+        raise InputError(f"{bad} of {n} frequencies are not finite and positive", where)
+    bad = int(np.count_nonzero(~np.isfinite(frfs.accelerance_table)))
+    if bad:
+        raise InputError(f"{bad} of {n} values of ẍ_s/F_e are not finite (a truncated or "
+                         "damaged file?)", where)
+    missing = int(np.count_nonzero(~np.isfinite(frfs.accelerance_support)))
+    if 0 < missing < n:
+        raise InputError(f"{missing} of {n} values of ẍ_v/F_v are not finite (a truncated or "
+                         "damaged file?)", where)
+
+
 @dataclass(frozen=True)
 class ImportSettings:
     """What the user says about an imported run (the files do not carry it)."""
@@ -107,7 +142,8 @@ def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: Impor
     """Store ``frfs`` as a new, complete run ``run_name`` of a campaign file.
 
     The campaign file is created when it does not exist. Everything is checked before the file
-    is touched; the run is written in one segment and marked complete.
+    is touched; the run is written whole and complete in one commit (and a campaign file this
+    call created is removed again if that commit fails).
 
     Returns
     -------
@@ -120,6 +156,7 @@ def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: Impor
         Bad run name, run exists, the file is not a campaign, or the data cannot be stored.
     """
     check_name(run_name, "--run")
+    check_whole(frfs)
     if settings.specimen.strip().lower() in {"none", ""} and np.any(
         np.isfinite(frfs.accelerance_support)
     ):
@@ -161,14 +198,16 @@ def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: Impor
     )
     segment.columns()  # raises ValueError on inconsistent arrays, before the file is touched
     path = Path(campaign_path)
-    if path.exists():
-        campaign = Campaign.open(path, "a")
+    created = not path.exists()
+    campaign = Campaign.create(path, sequence_text="", sequence_file="") if created \
+        else Campaign.open(path, "a")
+    with campaign:
         if run_name in campaign.run_names:
             raise InputError("run exists; imports never overwrite a run",
                              f"{path}: /runs/{run_name}")
-    else:
-        campaign = Campaign.create(path, sequence_text="", sequence_file="")
-    campaign.start_run(run_name, run_settings)
-    stored = campaign.append_segment(run_name, segment)
-    campaign.finish_run(run_name, "complete")
-    return stored
+        try:
+            return campaign.add_run(run_name, run_settings, segment)
+        except BaseException:
+            if created:
+                path.unlink(missing_ok=True)
+            raise

@@ -67,6 +67,8 @@ FREQUENCY_DOMAIN = 0
 FREQUENCY_RESPONSE = 4
 #: SDF data type code -> big-endian struct letter and size
 NUMBER_TYPES = {1: ("h", 2), 2: ("l", 4), 3: ("f", 4), 4: ("d", 8)}
+#: The largest SDF file read.
+MAX_SDF_BYTES = 16 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -139,6 +141,10 @@ def read_sdf(path: Path) -> list[SdfFrf]:
     path = Path(path)
     where = str(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_SDF_BYTES:
+            raise InputError(f"{size} bytes; an SDF file is read up to {MAX_SDF_BYTES} (a "
+                             "35670A saves to 1.44 MB disks)", where)
         data = path.read_bytes()
     except OSError as error:
         raise InputError(f"cannot read the file ({error.strerror})", where) from None

@@ -21,6 +21,11 @@ Import accepts any dataset 58 of function type 4 whose ordinate is acceleration,
 displacement and whose denominator is a force; units come from the axis labels, else from the
 file's dataset 164. The records go to the run in order (first ẍ_s/F_e, then ẍ_v/F_v) unless ID
 line 1 names the dataset as viscorig writes it.
+
+A universal file is a sequence of datasets, each between two ``    -1`` delimiter lines. pyuff
+silently drops a last dataset that has lost its closing delimiter, and reads as many points as
+the bytes it finds; so before pyuff reads it, a file must end with a closing delimiter, and
+after, every FRF must hold the number of points its record 7 declares, every one finite.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from viscorig.exchange import units
 from viscorig.exchange.atomicfile import write_via_path
 from viscorig.exchange.frfset import FrfSet, combine
 from viscorig.storage import Run
+from viscorig.storage.layout import MAX_RUN_POINTS
 
 FRF_FUNCTION_TYPE = 4
 FREQUENCY_DATA_TYPE = 18
@@ -49,6 +55,10 @@ ACCELERATION_DATA_TYPE = 12
 REACTION_FORCE_DATA_TYPE = 9
 EXCITATION_FORCE_DATA_TYPE = 13
 COMPLEX_TYPES = (5, 6)
+#: The largest universal file read (two FRFs of the most points a run holds, in ASCII, are
+#: about 12 MB).
+MAX_UFF_BYTES = 64 * 1024 * 1024
+DELIMITER = b"    -1"
 
 #: dataset name -> (node, entity name, description)
 _NODES = {
@@ -209,6 +219,48 @@ def _abscissa_hz(record: dict[str, Any], where: str) -> np.ndarray:
     return np.asarray(record["x"], dtype=float) * scale
 
 
+def _delimiters(data: bytes) -> list[int]:
+    """Offsets of the ``    -1`` delimiter lines, found as pyuff finds them."""
+    found, at = [], data.find(DELIMITER)
+    while at != -1:
+        end = at + len(DELIMITER)
+        if end == len(data) or data[end] in (10, 13) or data[end:at + 80] == b" " * (80 - 6):
+            found.append(at)
+        at = data.find(DELIMITER, at + 1)
+    return found
+
+
+def check_blocks(data: bytes, where: str) -> None:
+    """Refuse a universal file whose last dataset is not closed (a truncated file).
+
+    Raises
+    ------
+    InputError
+        No delimiter, an odd number of them, or anything but blanks after the last.
+    """
+    delimiters = _delimiters(data)
+    if not delimiters:
+        raise InputError("no universal-file dataset found (not a UFF file?)", where)
+    if len(delimiters) % 2:
+        raise InputError(f"the dataset that starts at byte {delimiters[-1]} has no closing "
+                         f"'    -1' line: the file is truncated", where)
+    tail = data[delimiters[-1] + len(DELIMITER):]
+    if tail.strip():
+        raise InputError(f"{len(tail.strip())} bytes after the last dataset's closing "
+                         "'    -1' line: a dataset without delimiters, or a damaged file", where)
+
+
+def _check_points(record: dict[str, Any], here: str) -> None:
+    declared = int(record.get("num_pts", -1))
+    found, axis = np.asarray(record["data"]).size, np.asarray(record["x"]).size
+    if declared > MAX_RUN_POINTS:
+        raise InputError(f"declares {declared} points; a run holds at most {MAX_RUN_POINTS}",
+                         here)
+    if found != declared or axis != declared:
+        raise InputError(f"declares {declared} points but holds {found} values and {axis} "
+                         "frequencies: a truncated or damaged record", here)
+
+
 def read_uff(path: Path) -> FrfSet:
     """Read the FRFs (dataset 58, function type 4) of a universal file as accelerances.
 
@@ -222,6 +274,14 @@ def read_uff(path: Path) -> FrfSet:
     where = str(path)
     if not path.is_file():
         raise InputError("no such file", where)
+    size = path.stat().st_size
+    if size > MAX_UFF_BYTES:
+        raise InputError(f"{size} bytes; a universal file of one run is read up to "
+                         f"{MAX_UFF_BYTES}", where)
+    try:
+        check_blocks(path.read_bytes(), where)
+    except OSError as error:
+        raise InputError(f"cannot read the file ({error.strerror})", where) from None
     try:
         with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -242,6 +302,7 @@ def read_uff(path: Path) -> FrfSet:
         here = f"{where}: dataset {index + 1} (58, '{_label(record, 'id1')}')"
         if int(record.get("ord_data_type", 0)) not in COMPLEX_TYPES:
             raise InputError("ordinate is real; a frequency response must be complex", here)
+        _check_points(record, here)
         frequency = _abscissa_hz(record, here)
         ordinate, power = _ordinate_factor(record, system, here)
         denominator = _denominator_factor(record, system, here)

@@ -141,6 +141,7 @@ class FrfNoise:
     _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
         default_factory=dict, repr=False, compare=False
     )
+    _effective: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.white_power = np.maximum(np.asarray(self.white_power, dtype=float), 1e-300)
@@ -223,6 +224,8 @@ class FrfNoise:
         so white noise gives ``2n`` and a part dominated by a drift of correlation length ``ℓ``
         points gives about ``n/ℓ`` (the participation ratio of its eigenvalues).
         """
+        if self._effective is not None:
+            return self._effective
         n = self.size
         total = 0.0
         for part in PARTS:
@@ -236,6 +239,7 @@ class FrfNoise:
             np.fill_diagonal(off, 0.0)
             scaled = off / np.sqrt(np.outer(diagonal, diagonal))
             total += n * n / (n + float(np.sum(scaled**2)))
+        self._effective = total
         return total
 
     def select(self, index: NDArray) -> FrfNoise:
@@ -350,14 +354,18 @@ class NoiseModel:
         joined = np.concatenate([np.asarray(residuals[frf]) for frf in frfs], axis=0)
         return np.concatenate([joined.real, joined.imag], axis=0)
 
-    def whiten_stacked(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
-        """``Σ^{-1/2} values`` for a real vector or matrix in the stacked layout of ``frfs``."""
+    def _blockwise(self, values: NDArray, frfs: Sequence[str], operation: str) -> NDArray:
+        """``FrfNoise.<operation>(part, rows)`` on every block's rows of the stacked layout."""
         values = np.asarray(values, dtype=float)
         out = np.empty_like(values)
         for part, offset, block in self._segments(frfs):
             rows = slice(offset, offset + block.size)
-            out[rows] = block.whiten_part(part, values[rows])
+            out[rows] = getattr(block, operation)(part, values[rows])
         return out
+
+    def whiten_stacked(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
+        """``Σ^{-1/2} values`` for a real vector or matrix in the stacked layout of ``frfs``."""
+        return self._blockwise(values, frfs, "whiten_part")
 
     def whiten(self, residuals: Mapping[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
         """Whitened residual: a real vector whose squared norm is ``rᵀ Σ⁻¹ r`` (unit variance,
@@ -375,12 +383,7 @@ class NoiseModel:
 
     def apply_covariance(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
         """``Σ @ values`` for a real vector or matrix in the stacked layout of ``frfs``."""
-        values = np.asarray(values, dtype=float)
-        out = np.empty_like(values)
-        for part, offset, block in self._segments(frfs):
-            rows = slice(offset, offset + block.size)
-            out[rows] = block.apply_covariance(part, values[rows])
-        return out
+        return self._blockwise(values, frfs, "apply_covariance")
 
     def chi2(self, residuals: Mapping[str, NDArray[np.complex128]]) -> float:
         """``rᵀ Σ⁻¹ r``: chi-square with (real observations − parameters) degrees of freedom

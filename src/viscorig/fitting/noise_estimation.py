@@ -42,7 +42,11 @@ index (the grid is uniform or smoothly graded), and keeps of the noise
    expectation, a robust cut that removes outliers and local modes and is corrected for, the
    mean of ``χ²₁`` below 9 being 0.973) are fitted by weighted least squares, ``a`` and ``σ²``
    being linear unknowns; the ``τ`` of least misfit wins. ``a`` absorbs what the lag-1 white
-   estimate and the lag-``h`` statistics disagree on.
+   estimate and the lag-``h`` statistics disagree on. The correlated part is kept only when it
+   lowers the weighted misfit by :data:`SIGNIFICANCE` (a χ² with two degrees of freedom under
+   white noise: 1 % false alarms). A first look at the shortest and the longest lag alone
+   skips the whole analysis when the longest shows no excess over the shortest (two standard
+   errors): most runs have no drift, and the look costs a fraction of the analysis.
 
 What the data cannot tell. A drift slower than the longest lag looks like a smooth change of
 the FRF: only its rate ``σ²/τ`` shows. Its correlation length is then set at the resolution
@@ -58,7 +62,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,7 +80,7 @@ OUTLIER_LEVEL = 30.0
 #: Order of the differences at several lags that estimate the correlated part.
 LAG_ORDER = 3
 #: Lags (points) of the correlated part's differences (those with enough points are used).
-LAGS = (1, 2, 3, 4, 6, 8, 12)
+LAGS = (1, 2, 4, 8, 12)
 #: A statistic above this multiple of its expectation is left out (χ²₁: 0.27 % of pure noise).
 REJECT = 9.0
 #: Mean of an exponential variable below :data:`REJECT` times its mean, relative to its mean.
@@ -92,8 +95,10 @@ _MEAN_VARIANCE = 4.62
 #: Least drop of the weighted misfit (a χ² with two degrees of freedom under white noise) for a
 #: correlated part to be kept: 1 % false alarms.
 SIGNIFICANCE = 9.2
+#: Width of the bins (in natural log) of the windows' mean steps along the axis.
+_STEP_BIN = 0.05
 #: Correlation lengths tried, relative to the data's mean step on the axis.
-_TAU_GRID = np.geomspace(0.3, 60.0, 24)
+_TAU_GRID = np.geomspace(0.3, 30.0, 13)
 #: Fewest points for an estimate of the correlated part.
 MIN_CORRELATION_POINTS = 40
 
@@ -102,15 +107,14 @@ def _binomial(order: int) -> NDArray[np.float64]:
     return np.array([(-1) ** k * math.comb(order, k) for k in range(order + 1)], dtype=float)
 
 
-def _combine(windows: NDArray[np.complex128], weights: NDArray[np.float64]) -> NDArray:
-    """``windows @ weights`` for complex windows (numpy's mixed-type product is slow)."""
-    return windows.real @ weights + 1j * (windows.imag @ weights)
-
-
-@lru_cache(maxsize=64)
-def _windows(size: int, order: int, lag: int) -> NDArray[np.intp]:
-    """Index of every window ``i, i+h, …, i+m·h`` (rows)."""
-    return np.arange(size - order * lag)[:, None] + lag * np.arange(order + 1)[None, :]
+def _lagged(values: NDArray, weights: NDArray[np.float64], lag: int) -> NDArray:
+    """``Σ_k weights[k] · values[i + k·lag]`` for every window (slices, no gathering)."""
+    order = weights.size - 1
+    n = values.size - order * lag
+    total = weights[0] * values[:n]
+    for k in range(1, order + 1):
+        total = total + weights[k] * values[k * lag : k * lag + n]
+    return total
 
 
 def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
@@ -134,17 +138,18 @@ def _outlier_statistic(
     centre point's own error they imply, ``(|d|² − Σ_{k≠c} b_k² |Z_k|² w_k) / (b_c² |Z_c|²)``,
     both put on the centre points (zero at the ends)."""
     weights = _binomial(OUTLIER_ORDER)
-    index = _windows(z.size, OUTLIER_ORDER, 1)
-    window_z = z[index]
-    power = np.abs(window_z) ** 2 * white[index]
-    difference = np.abs(_combine(window_z, weights)) ** 2
-    expected = power @ weights**2
+    modulus2 = z.real**2 + z.imag**2
+    d = _lagged(z, weights, 1)
+    difference = d.real**2 + d.imag**2
+    expected = _lagged(modulus2 * white, weights**2, 1)
     centre = OUTLIER_ORDER // 2
-    others = expected - weights[centre] ** 2 * power[:, centre]
-    own = (difference - others) / (weights[centre] ** 2 * np.abs(window_z[:, centre]) ** 2)
+    count = difference.size
+    centre_power = (modulus2 * white)[centre : centre + count]
+    others = expected - weights[centre] ** 2 * centre_power
+    own = (difference - others) / (weights[centre] ** 2 * modulus2[centre : centre + count])
     ratio, own_power = np.zeros(z.size), np.zeros(z.size)
-    ratio[centre : centre + index.shape[0]] = difference / expected
-    own_power[centre : centre + index.shape[0]] = own
+    ratio[centre : centre + count] = difference / expected
+    own_power[centre : centre + count] = own
     return ratio, own_power
 
 
@@ -153,24 +158,20 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDA
 
     The lag-1 sixth difference centred on a point weighs it by 20 and its neighbours by at most
     15: a point whose centred difference exceeds :data:`OUTLIER_LEVEL` times its expectation
-    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``) and exceeds those centred on
-    both neighbours is an outlier. A feature several points wide (a mode) is not: its
+    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``; the expectation from the white
+    part, or the local median level of the differences when that is higher) and exceeds those
+    centred on both neighbours is an outlier. A feature several points wide (a mode) is not: its
     neighbours' differences are as large.
     """
     centred, _ = _outlier_statistic(z, white)
+    # Against the statistic's own local level, so that roughness the white part does not hold
+    # (a drift's) does not make ordinary points stand out.
+    centred = centred / np.maximum(running_median(centred, WHITE_WINDOW) / math.log(2.0), 1.0)
     peak = np.zeros(z.size, dtype=bool)
     peak[1:-1] = (centred[1:-1] > centred[:-2]) & (centred[1:-1] > centred[2:])
     return peak & (centred > OUTLIER_LEVEL)
 
 
-def _difference_statistic(
-    z: NDArray[np.complex128], order: int
-) -> tuple[NDArray[np.intp], NDArray[np.complex128], NDArray[np.float64]]:
-    """Windows of the lag-1 differences of ``order``, ``|Z|²`` in them, and ``|d|²``."""
-    weights = _binomial(order)
-    index = _windows(z.size, order, 1)
-    window_z = z[index]
-    return index, np.abs(window_z) ** 2, np.abs(_combine(window_z, weights)) ** 2
 
 
 def white_power(
@@ -188,18 +189,22 @@ def white_power(
     and its source (``"differences"`` or ``"analyser variance"``).
     """
     order = WHITE_ORDER if frequency_known else OUTLIER_ORDER
-    weights2 = _binomial(order) ** 2
-    index, modulus2, difference = _difference_statistic(z, order)
-    clean = np.ones(index.shape[0], dtype=bool) if skip is None else ~skip[index].any(axis=1)
+    weights = _binomial(order)
+    modulus2 = z.real**2 + z.imag**2
+    d = _lagged(z, weights, 1)
+    difference = d.real**2 + d.imag**2
+    clean = np.ones(difference.size, dtype=bool)
+    if skip is not None:
+        clean = _lagged(skip.astype(float), np.ones(order + 1), 1) == 0
     if not np.any(clean):
         clean[:] = True
     if variance is not None:
-        expected = (modulus2 * variance[index]) @ weights2
+        expected = _lagged(modulus2 * variance, weights**2, 1)
         ratio = (difference / expected)[clean]
         kept = ratio < REJECT * np.median(ratio) / math.log(2.0)
         kappa = float(np.mean(ratio[kept])) / _EXP_TRUNCATED_MEAN
         return variance * kappa, "analyser variance"
-    local = _centred(difference / (modulus2 @ weights2), z.size, order)
+    local = _centred(difference / _lagged(modulus2, weights**2, 1), z.size, order)
     median = running_median(local, window)
     if not np.all(clean):
         dirty = _centred((~clean).astype(float), z.size, order) > 0
@@ -236,59 +241,106 @@ def _correlated_part(
     resolution = 2.0 * mean_step * (lags[-1] if lags else 1)
     if n < MIN_CORRELATION_POINTS or len(lags) < 3 or not mean_step > 0:
         return (0.0, 0.0), mean_step, resolution
-    weights = _binomial(LAG_ORDER)
     taus = _TAU_GRID * mean_step
     taus = taus[taus <= resolution]
-    # Every window of every lag at once, each labelled with its lag and with its mean step
-    # along the axis rounded to 5 % (the correlation enters through that step alone).
-    index, lag_of = _lag_windows(n, tuple(lags))
+    modulus2 = z.real**2 + z.imag**2
+    noise2 = modulus2 * white
+    # A first look at the shortest and the longest lag: white noise shows the same mean there
+    # (within 2 standard errors, a loose screen: the full test below decides).
+    first_look = _lag_statistics(z, noise2, axis, skip, [lags[0], lags[-1]])
+    stats, lag_of, clean = first_look[0], first_look[3], first_look[4]
+    drift = False
+    for values in stats:
+        kept = (values < REJECT) & clean
+        count = np.maximum(np.bincount(lag_of[kept], minlength=2), 1)
+        means = np.bincount(lag_of[kept], values[kept], 2) / count
+        drift |= bool(means[1] - means[0] > 2.0 * np.sqrt(_MEAN_VARIANCE * np.sum(1.0 / count)))
+    if not drift:
+        return (0.0, 0.0), float(taus[-1]), resolution
+    # The lags in between, stacked after the first two (their order does not matter below).
+    rest = _lag_statistics(z, noise2, axis, skip, lags[1:-1])
+    lags = [lags[0], lags[-1], *lags[1:-1]]
+    stats, step, expected, _, clean, modulus_centre2 = (
+        np.concatenate([a, b], axis=-1) for a, b in zip(first_look, rest, strict=True)
+    )
+    lag_of = np.concatenate([first_look[3], rest[3] + 2])
     sizes = [n - LAG_ORDER * h for h in lags]
-    clean = ~skip[index].any(axis=1)
-    window_z = z[index]
-    centre = 0.5 * (window_z[:, 1] + window_z[:, 2])
-    modulus_centre = np.abs(centre)
-    rotated = _combine(window_z, weights) * centre.conj() / np.maximum(modulus_centre, 1e-300)
-    expected = (np.abs(window_z) ** 2 * white[index]) @ weights**2 / 2.0
-    stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
-    step = np.maximum(np.abs(axis[index[:, -1]] - axis[index[:, 0]]) / LAG_ORDER, 1e-12)
-    steps, step_of = np.unique(np.round(np.log(step) / 0.05), return_inverse=True)
+    step = np.maximum(step / LAG_ORDER, 1e-12)
+    level = np.floor(np.log(step) / _STEP_BIN).astype(np.intp)
+    lowest = int(level.min())
+    step_of = level - lowest
+    bins = int(step_of.max()) + 1
     cell = step_of * len(lags) + lag_of  # (step, lag) cell of each window
-    cells = steps.size * len(lags)
-    scale = modulus_centre**2 / expected  # the gain is kernel(φ) times this
-    kernel = _kernel(np.exp(-np.exp(steps * 0.05)[None, :] / taus[:, None]))  # (τ, step)
+    scale = modulus_centre2 / expected  # the gain is kernel(φ) times this
+    bin_steps = np.exp((lowest + 0.5 + np.arange(bins)) * _STEP_BIN)
+    kernel = _kernel(np.exp(-bin_steps[None, :] / taus[:, None]))  # (τ, step)
     weight = np.array(sizes, dtype=float) / _MEAN_VARIANCE  # 1 / variance of each lag's mean
-    scores, powers, white_only = [], [], []
-    for part in range(2):
-        values = stats[part]
-        expectation = np.ones_like(values)  # the robust cut is redone against the first fit
-        for _ in range(2):
-            kept = (values < REJECT * expectation) & clean
-            count = np.maximum(np.bincount(lag_of[kept], minlength=len(lags)), 1)
-            means = np.bincount(lag_of[kept], values[kept], len(lags)) / count
-            means /= _CHI2_1_TRUNCATED_MEAN
-            summed = np.bincount(cell[kept], scale[kept], cells).reshape(steps.size, -1)
-            g = kernel @ summed / count[None, :]  # (τ, lags): mean gain of the kept windows
-            a, sigma2, score = _linear_fit(means, g, weight)
-            choice = int(np.argmin(score))
-            expectation = a[choice] + sigma2[choice] * kernel[choice, step_of] * scale
-        scores.append(score)
-        powers.append(sigma2)
-        white_only.append(float(np.sum(weight * (means - np.sum(weight * means) / np.sum(weight))
-                                       ** 2)))
-    total = scores[0] + scores[1]
+
+    def pooled(values, expectation):
+        """Per τ: the fit of the lags' robust means, and the white-only misfit."""
+        kept = (values < REJECT * expectation) & clean
+        count = np.maximum(np.bincount(lag_of[kept], minlength=len(lags)), 1)
+        means = np.bincount(lag_of[kept], values[kept], len(lags)) / count
+        means /= _CHI2_1_TRUNCATED_MEAN
+        summed = np.bincount(cell[kept], scale[kept], bins * len(lags)).reshape(bins, -1)
+        g = kernel @ summed / count[None, :]  # (τ, lags): mean gain of the kept windows
+        a, sigma2, score = _linear_fit(means, g, weight)
+        flat = means - (weight @ means) / weight.sum()
+        return a, sigma2, score, float(weight @ flat**2)
+
+    first = [pooled(stats[part], 1.0) for part in range(2)]
+    total = first[0][2] + first[1][2]
     choice = int(np.argmin(total))
-    found = [float(powers[part][choice]) for part in range(2)]
-    if white_only[0] + white_only[1] - total[choice] < SIGNIFICANCE:
-        found = [0.0, 0.0]
-    return (found[0], found[1]), float(taus[choice]), resolution
+    if first[0][3] + first[1][3] - total[choice] < SIGNIFICANCE:
+        return (0.0, 0.0), float(taus[choice]), resolution
+    # Redo the robust cut against the expectation of the first fit (a strong drift makes
+    # large-lag statistics legitimately large), then choose τ again.
+    second = []
+    for part in range(2):
+        a, sigma2, score, _ = first[part]
+        best = int(np.argmin(score))
+        if sigma2[best] <= 0.0:  # no drift on this part: the first cut stands
+            second.append(first[part])
+            continue
+        expectation = a[best] + sigma2[best] * kernel[best, step_of] * scale
+        second.append(pooled(stats[part], expectation))
+    total = second[0][2] + second[1][2]
+    choice = int(np.argmin(total))
+    found = (float(second[0][1][choice]), float(second[1][1][choice]))
+    return found, float(taus[choice]), resolution
 
 
-@lru_cache(maxsize=32)
-def _lag_windows(size: int, lags: tuple[int, ...]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Windows of every lag, stacked, and the lag (position in ``lags``) of each."""
-    index = np.concatenate([_windows(size, LAG_ORDER, h) for h in lags])
-    sizes = [size - LAG_ORDER * h for h in lags]
-    return index, np.repeat(np.arange(len(lags)), sizes)
+def _lag_statistics(
+    z: NDArray[np.complex128],
+    noise2: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    skip: NDArray[np.bool_],
+    lags: list[int],
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray | bool, NDArray]:
+    """For every window of every lag (stacked): the two parts' statistics ``s`` (real and
+    imaginary projections of the third difference over their white expectation), the window's
+    span along the axis, its white expectation, its lag (position in ``lags``), whether it
+    holds no outlier, and ``|Z|²`` at its centre."""
+    n = z.size
+    weights = _binomial(LAG_ORDER)
+    bad = skip.astype(float) if np.any(skip) else None
+    parts: dict[str, list] = {"d": [], "centre": [], "expected": [], "clean": [], "step": []}
+    for h in lags:
+        size = n - LAG_ORDER * h
+        parts["d"].append(_lagged(z, weights, h))
+        parts["centre"].append(0.5 * (z[h : h + size] + z[2 * h : 2 * h + size]))
+        parts["expected"].append(_lagged(noise2, weights**2, h) / 2.0)
+        if bad is not None:
+            parts["clean"].append(_lagged(bad, np.ones(LAG_ORDER + 1), h) == 0)
+        parts["step"].append(np.abs(axis[LAG_ORDER * h :] - axis[:size]))
+    d, centre, expected, step = (np.concatenate(parts[key]) for key in
+                                 ("d", "centre", "expected", "step"))
+    clean = np.concatenate(parts["clean"]) if bad is not None else np.ones(d.size, dtype=bool)
+    lag_of = np.repeat(np.arange(len(lags)), [n - LAG_ORDER * h for h in lags])
+    modulus_centre2 = centre.real**2 + centre.imag**2
+    rotated = d * centre.conj() / np.sqrt(np.maximum(modulus_centre2, 1e-300))
+    stats = np.stack([rotated.real**2, rotated.imag**2]) / expected  # (part, window)
+    return stats, step, expected, lag_of, clean, modulus_centre2
 
 
 def _kernel(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -302,17 +354,14 @@ def _linear_fit(
 ) -> tuple[NDArray, NDArray, NDArray]:
     """For every ``τ`` (rows of ``g``): ``means ≈ a + σ² g`` by weighted least squares with
     ``σ² ≥ 0``; returns ``a, σ², weighted misfit``."""
-    w = weight[None, :]
-    sw, sg, sgg = np.sum(w), np.sum(w * g, axis=1), np.sum(w * g * g, axis=1)
-    sy, sgy = np.sum(w * means), np.sum(w * g * means, axis=1)
+    sw, sy = weight.sum(), weight @ means
+    sg, sgg, sgy = g @ weight, (g * g) @ weight, g @ (weight * means)
     det = sw * sgg - sg**2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sigma2 = np.where(det > 0, (sw * sgy - sg * sy) / det, 0.0)
-    sigma2 = np.maximum(np.nan_to_num(sigma2), 0.0)
+    safe = np.where(det > 0, det, 1.0)
+    sigma2 = np.where(det > 0, np.maximum((sw * sgy - sg * sy) / safe, 0.0), 0.0)
     a = (sy - sigma2 * sg) / sw
     residual = means[None, :] - a[:, None] - sigma2[:, None] * g
-    score = np.sum(w * residual**2, axis=1)
-    return a, sigma2, score
+    return a, sigma2, (residual**2) @ weight
 
 
 def estimate_frf_noise(
@@ -354,7 +403,9 @@ def estimate_frf_noise(
         z = 1.0 / frf
     else:
         frequency = np.asarray(frequency_hz, dtype=float)
-        order = np.argsort(frequency, kind="stable")
+        steps = np.diff(frequency)
+        order = (np.arange(frf.size) if np.all(steps > 0)
+                 else np.argsort(frequency, kind="stable"))
         omega = 2 * np.pi * frequency[order]
         z = -(omega**2) / frf[order]
     var = None
@@ -371,7 +422,9 @@ def estimate_frf_noise(
     axis_sorted = np.arange(frf.size, dtype=float)
     if time_s is not None:
         time = np.asarray(time_s, dtype=float)[order]
-        if np.all(np.isfinite(time)) and np.unique(time).size == time.size:
+        steps = np.diff(time)
+        if np.all(np.isfinite(time)) and (np.all(steps > 0) or np.all(steps < 0)
+                                          or np.unique(time).size == time.size):
             axis_sorted, axis_unit = time, "s"
     powers, tau, resolution = (0.0, 0.0), 1.0, math.inf
     if correlated and frequency_hz is not None:

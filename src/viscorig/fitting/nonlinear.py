@@ -426,6 +426,7 @@ def _fit_concrete(
         noise_covariance=uncertainty.noise_covariance,
         misfit_scale=uncertainty.misfit_scale,
         fits_noise=uncertainty.fits_noise,
+        influence=uncertainty.influence,
         inherited_from=known.source if known is not None and inherited else "",
     )
 

@@ -79,6 +79,17 @@ class Known:
         return cls(dict(values), (), np.zeros((0, 0)), source)
 
     @classmethod
+    def from_fit(cls, result, names: Sequence[str], source: str = "") -> Known:
+        """Some of a fit's values, with their joint covariance (fitted or themselves
+        inherited), as another fit inherits them (the table's from the bare-table run)."""
+        names = tuple(names)
+        known = [name for name in names if name in result.covariance_names]
+        index = [result.covariance_names.index(name) for name in known]
+        covariance = np.asarray(result.joint_covariance)[np.ix_(index, index)]
+        return cls({name: float(result.values[name]) for name in names}, tuple(known),
+                   covariance, source)
+
+    @classmethod
     def with_stderr(
         cls, values: Mapping[str, float], stderr: Mapping[str, float], source: str = ""
     ) -> Known:
@@ -156,6 +167,11 @@ class Uncertainty:
         ``rms_error ≤ MISFIT_RATIO · noise_floor``.
     warnings
         Rank deficiency, strongly correlated pairs.
+    influence
+        ``∂p/∂ε`` of the fitted parameters (SI) with respect to the stacked residual
+        (``fitted parameters × 2N``, first order: ``δp = −influence @ ε``), from which the
+        covariance of two fits whose residuals share a misfit is built
+        (:mod:`viscorig.compare`).
     """
 
     names: tuple[str, ...]
@@ -164,6 +180,7 @@ class Uncertainty:
     misfit_scale: float
     fits_noise: bool
     warnings: list[str]
+    influence: NDArray[np.float64] | None = None
 
 
 def _inverse(jac: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
@@ -179,21 +196,25 @@ def _inverse(jac: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     return inverse, bool(np.all(keep))
 
 
-def residual_meat(
-    jac: NDArray[np.float64], residual: NDArray[np.float64], blocks: Sequence[int]
-) -> NDArray[np.float64]:
-    """``Σ_l w_l Σ_i g_i g_{i+l}ᵀ`` with ``g_i = J_i r_i``, Bartlett weights ``w_l = 1 −
+def bartlett_meat(g: NDArray[np.float64], blocks: Sequence[int]) -> NDArray[np.float64]:
+    """``Σ_l w_l Σ_i g_i g_{i+l}ᵀ`` over the rows ``g_i``, Bartlett weights ``w_l = 1 −
     l/(L+1)`` over ``|l| ≤ L`` (:data:`HAC_LAGS`), never across the boundary of two blocks
-    (sizes ``blocks``, in the stacked order: parts and FRFs)."""
-    g = jac * residual[:, None]
+    (sizes ``blocks``, in the stacked order: parts and FRFs). Positive semi-definite."""
     meat = g.T @ g
     block_of = np.repeat(np.arange(len(blocks)), blocks)
     for lag in range(1, HAC_LAGS + 1):
         same = block_of[lag:] == block_of[:-lag]
         cross = (g[lag:] * same[:, None]).T @ g[:-lag]
         meat += (1.0 - lag / (HAC_LAGS + 1)) * (cross + cross.T)
+    return meat
+
+
+def residual_meat(
+    jac: NDArray[np.float64], residual: NDArray[np.float64], blocks: Sequence[int]
+) -> NDArray[np.float64]:
+    """:func:`bartlett_meat` of ``g_i = J_i r_i``, with the small-sample factor ``n/(n−k)``."""
     n, k = jac.shape
-    return meat * (n / max(n - k, 1))
+    return bartlett_meat(jac * residual[:, None], blocks) * (n / max(n - k, 1))
 
 
 def fit_covariance(
@@ -248,6 +269,7 @@ def fit_covariance(
     noise_cov = (inverse @ meat @ inverse) * np.outer(scale, scale)
     blocks = [block.size for _ in range(2) for frf in frfs for block in noise.blocks[frf]]
     robust = inverse @ residual_meat(jac, residual, blocks) @ inverse * np.outer(scale, scale)
+    influence = (inverse @ jac.T) * scale[:, None]
     noise_sigma = np.sqrt(np.abs(np.diag(noise_cov)))
     sigma = np.maximum(noise_sigma * np.sqrt(misfit_scale), np.sqrt(np.abs(np.diag(robust))))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -270,4 +292,5 @@ def fit_covariance(
                 warnings.append(
                     f"{names[i]} and {names[j]} are strongly correlated (ρ = {rho[i, j]:+.3f})"
                 )
-    return Uncertainty(names, covariance, noise_cov, misfit_scale, fits_noise, warnings)
+    return Uncertainty(names, covariance, noise_cov, misfit_scale, fits_noise, warnings,
+                       influence)

@@ -572,9 +572,16 @@ def parse_spec(spec: str) -> Model:
         if match is None:
             raise InputError(f"malformed term '{part.strip()}' in '{spec}'", "model spec")
         keyword, argument = match.group(1).lower(), match.group(2)
-        if keyword not in TERMS:
-            known = ", ".join(sorted(TERMS))
-            raise InputError(f"unknown term '{keyword}' in '{spec}' (known: {known})", "model spec")
+        if keyword not in TERMS:  # perhaps a term of another package (viscorig.terms)
+            from viscorig.models.entry_points import load_entry_point_terms
+
+            problems = "".join(f"; not loaded: {text}" for text in load_entry_point_terms())
+            if keyword not in TERMS:
+                known = ", ".join(sorted(TERMS))
+                raise InputError(
+                    f"unknown term '{keyword}' in '{spec}' (known: {known}{problems})",
+                    "model spec",
+                )
         terms.append(TERMS[keyword].from_argument(argument or None))
     model = Model(terms)
     if model.modulus_term is None:

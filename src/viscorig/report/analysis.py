@@ -1,27 +1,38 @@
-"""Everything the report shows, computed once per run: models, residuals, K*, diagnosis.
+"""Everything the report shows, computed once per run: the model reached, its failures, K*.
 
-Which model a run shows: its latest stored fit (``/runs/<run>/fits``) when there is one, else a
-fit made on the fly. The on-the-fly fits are the ones the paper's procedure needs anyway, so
-nothing is fitted twice: the table (``table`` model, bare run), Voigt on ``X_s/F_e`` with the
-table fixed (Table 1 and 2, :func:`viscorig.identify.summarize`), and Maxwell on ``X_v/F_v``
-(``K*`` from Eq. 5, for ``E'`` and ``η`` against frequency). When diagnosis is available, the
-shown model is diagnosed on both FRFs (its fit then replaces the Table 1 Voigt on the FRF
-figures, since it is fitted to what the figures show) and the ladder is climbed with
-:meth:`~viscorig.diagnosis.Diagnosis.auto`.
+Which model a specimen run shows: the best the diagnosis reached. The run is diagnosed (both
+FRFs, the table held at the bare-table run's values) starting from its latest stored fit's
+model when the file has one, else from Voigt, and the diagnosis ladder is climbed
+(:meth:`~viscorig.diagnosis.Diagnosis.auto`: the best significant effect is added and the
+model refitted until the error reaches the noise floor or nothing significant is left). The
+shown model, its failure bands and its parameters' ± all come from the last rung. Without the
+ladder (``ladder=False``) the first rung is shown, with the effect most likely missing; without
+diagnosis, the latest stored fit, else the Table 1 Voigt fit.
+
+The ladders of different runs are independent, so they are climbed in parallel processes
+(``jobs``); each returns plain data (:class:`Climb`), never the fitted objects themselves.
+
+Also computed once: Table 1 and 2 (:func:`viscorig.identify.summarize`, the numbers ``summary``
+prints) and, per specimen run, ``K*`` from Eq. (5) for ``E'`` and ``η`` against frequency with
+the model's uncertainty band (:func:`viscorig.estimates.modulus_band`), and each FRF's residual
+against the local σ of the noise model of the run (the one every fit uses).
 """
 
 from __future__ import annotations
 
+import itertools
+import logging
 import math
-from collections.abc import Callable
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from viscorig.compare import Estimates
 from viscorig.errors import InputError
-from viscorig.estimates import kstar_from_support
-from viscorig.fitting import FitResult, local_noise_power
+from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
+from viscorig.fitting import FitResult, estimate_noise
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -30,7 +41,8 @@ from viscorig.identify import (
     run_data,
     summarize,
 )
-from viscorig.models import Context, parse_spec
+from viscorig.models import Context, Model, parse_spec
+from viscorig.report.parallel import default_jobs, parallel_map
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Fit, Run
 
@@ -39,44 +51,52 @@ try:  # diagnosis is optional: the report is built without its sections when it 
 except ImportError:  # pragma: no cover - depends on the installed tree
     _diagnosis = None
 
-Predictor = Callable[[NDArray[np.float64], NDArray | None, NDArray | None],
-                     dict[str, NDArray[np.complex128]]]
+_log = logging.getLogger(__name__)
 
 
 @dataclass
 class ModelCurve:
-    """A fitted model as the report draws it.
+    """A fitted model as the report shows it: plain values, picklable, evaluated on demand.
 
     Attributes
     ----------
     spec
         Canonical model spec.
     source
-        Where it comes from, for legends and the page ("stored fit 0002", "fitted here").
-    predict
-        ``predict(frequency_hz, time_s, reference_amplitude) -> {"table": ..., "support": ...}``.
-    kstar
-        ``kstar(frequency_hz) -> K*`` in N/m, or ``None`` for the bare table.
+        Where it comes from, for legends and the page ("stored fit 0002", "diagnosis ladder").
     values
-        Parameter values by name.
+        Every parameter's value by name.
+    stderr
+        Standard error of every parameter the fit estimated (NaN when unknown).
+    free
+        Names of the estimated parameters.
+    estimates
+        What comparisons and uncertainty bands need (:class:`viscorig.compare.Estimates`): the
+        joint covariance of the fitted and inherited parameters (for a stored fit, from its
+        standard errors and correlation matrix), and a fit's residuals and their influence.
     rms_error, noise_floor
-        As stored or fitted.
+        As fitted (or stored).
+    frfs
+        FRFs fitted.
     """
 
     spec: str
     source: str
-    predict: Predictor
-    kstar: Callable[[NDArray[np.float64]], NDArray[np.complex128]] | None
     values: dict[str, float]
+    stderr: dict[str, float]
+    free: tuple[str, ...]
+    estimates: Estimates
     rms_error: float
     noise_floor: float
+    frfs: tuple[str, ...] = ("table", "support")
 
     @classmethod
     def from_fit(cls, result: FitResult, source: str) -> ModelCurve:
         """From a fit made here."""
-        has_disc = result.model.modulus_term is not None and result.model.modulus_term.has_disc
-        return cls(result.spec, source, result.predict, result.kstar if has_disc else None,
-                   dict(result.values), result.rms_error, result.noise_floor)
+        return cls(result.spec, source, {k: float(v) for k, v in result.values.items()},
+                   {name: float(result.stderr.get(name, math.nan)) for name in result.free},
+                   tuple(result.free), Estimates.of(result), float(result.rms_error),
+                   float(result.noise_floor), tuple(result.frfs))
 
     @classmethod
     def from_stored(cls, stored: Fit) -> ModelCurve:
@@ -87,16 +107,92 @@ class ModelCurve:
         if missing:
             raise InputError(f"stored fit {stored.id} lacks {', '.join(missing)}",
                              f"run '{stored.run}'")
+        estimates = Estimates.of(stored)
+        known = {name: estimates.stderr(name) for name in estimates.covariance_names}
+        return cls(model.spec, f"stored fit {stored.id}", values, known, tuple(known),
+                   estimates, stored.rms_error, stored.noise_floor)
 
-        def predict(f, time_s=None, reference=None):
-            return model.predict(Context(np.asarray(f, float), time_s, reference), values)
+    @property
+    def model(self) -> Model:
+        """The model, rebuilt from the spec (once, by :attr:`estimates`)."""
+        return self.estimates.model
 
-        def kstar(f):
-            return model.kstar(Context(np.asarray(f, float)), values)
+    @property
+    def has_disc(self) -> bool:
+        """A specimen model (it predicts K*), not the bare table."""
+        term = self.model.modulus_term
+        return term is not None and term.has_disc
 
-        has_disc = model.modulus_term is not None and model.modulus_term.has_disc
-        return cls(model.spec, f"stored fit {stored.id}", predict, kstar if has_disc else None,
-                   values, stored.rms_error, stored.noise_floor)
+    @property
+    def parameters(self) -> dict[str, tuple[float, float, str]]:
+        """``{name: (value, stderr, unit)}`` in the model's order; stderr NaN when fixed."""
+        return {p.name: (self.values[p.name], self.stderr.get(p.name, math.nan), p.unit)
+                for p in self.model.parameters}
+
+    @property
+    def ratio(self) -> float:
+        """``rms_error / noise_floor`` (NaN when the floor is unknown)."""
+        return self.rms_error / self.noise_floor if self.noise_floor > 0 else math.nan
+
+    def predict(self, frequency_hz, time_s=None, reference=None
+                ) -> dict[str, NDArray[np.complex128]]:
+        """The model's accelerances on any grid."""
+        return self.model.predict(Context(np.asarray(frequency_hz, float), time_s, reference),
+                                  self.values)
+
+    def kstar(self, frequency_hz) -> NDArray[np.complex128]:
+        """``K*`` (N/m) on any grid."""
+        return self.model.kstar(Context(np.asarray(frequency_hz, float)), self.values)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A candidate effect the diagnosis fitted and tested (a finding, as plain data)."""
+
+    effect: str
+    model: str
+    term: str
+    rms_error: float
+    delta_bic: float
+    significant: bool
+    explanation: str
+    parameters: dict[str, tuple[float, float, str]] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, finding) -> Candidate:
+        """From a :class:`viscorig.diagnosis.Finding`."""
+        parameters = {name: (float(p["value"]), float(p["stderr"]), str(p["unit"]))
+                      for name, p in finding.parameters().items()}
+        return cls(finding.effect, finding.model, finding.term, float(finding.rms_error),
+                   float(finding.delta_bic), bool(finding.significant), finding.explanation,
+                   parameters)
+
+
+@dataclass(frozen=True)
+class Rung:
+    """One rung of the diagnosis ladder: the model, its error, and the finding that led to it
+    (``None`` on the first rung)."""
+
+    model: str
+    rms_error: float
+    noise_floor: float
+    added: Candidate | None = None
+
+
+@dataclass
+class Climb:
+    """What the diagnosis of one run found, as plain data (returned by a worker process)."""
+
+    rungs: list[Rung]
+    final: ModelCurve
+    failures: list
+    candidates: list[Candidate]
+    """The first rung's candidate effects, best first."""
+    missing: list[Candidate]
+    """The last rung's significant candidates (what is still missing), best first."""
+    advice: list[str]
+    seconds: float
+    climbed: bool
 
 
 @dataclass
@@ -107,21 +203,16 @@ class FrfResidual:
     frequency_hz: NDArray[np.float64]
     magnitude: NDArray[np.float64]
     noise: NDArray[np.float64]
-    """Local relative noise ``σ_i`` (:func:`viscorig.fitting.local_noise_power`)."""
-
-
-@dataclass
-class LadderStep:
-    """One rung of the diagnosis ladder."""
-
-    model: str
-    rms_error: float
-    noise_floor: float
+    """Local relative noise ``σ_i``: ``NoiseModel.scale(frf)`` of the run's noise model."""
+    floor: float
+    """The noise floor of this FRF (``NoiseModel.floor_of``)."""
 
 
 @dataclass
 class ModulusCurves:
-    """``K*`` of a specimen run against frequency: Eq. (5) estimates and the Maxwell model."""
+    """``K*`` of a specimen run against frequency: Eq. (5) estimates and a model's, with the
+    model's ``K'`` and ``η`` uncertainty band (``band``, ``K'`` in N/m: θ = 1) and what a
+    comparison of two runs' models needs (``estimates``)."""
 
     frequency_hz: NDArray[np.float64]
     measured: NDArray[np.complex128]
@@ -129,6 +220,8 @@ class ModulusCurves:
     spec: str
     source: str
     disc_mass_kg: float
+    band: ModulusBand | None = None
+    estimates: Estimates | None = None
 
 
 @dataclass
@@ -142,9 +235,7 @@ class RunAnalysis:
     residuals: list[FrfResidual] = field(default_factory=list)
     modulus: ModulusCurves | None = None
     summary: RunSummary | None = None
-    failures: list = field(default_factory=list)
-    findings: list = field(default_factory=list)
-    ladder: list[LadderStep] = field(default_factory=list)
+    climb: Climb | None = None
     diagnosis_error: str = ""
     notes: list[str] = field(default_factory=list)
 
@@ -152,6 +243,21 @@ class RunAnalysis:
     def name(self) -> str:
         """Run name."""
         return self.run.name
+
+    @property
+    def failures(self) -> list:
+        """Failure bands of the model shown (none when it was not diagnosed)."""
+        return self.climb.failures if self.climb is not None else []
+
+    @property
+    def ladder(self) -> list[Rung]:
+        """The rungs climbed (one when the ladder was not climbed)."""
+        return self.climb.rungs if self.climb is not None else []
+
+    @property
+    def candidates(self) -> list[Candidate]:
+        """The first rung's candidate effects."""
+        return self.climb.candidates if self.climb is not None else []
 
 
 @dataclass
@@ -164,7 +270,12 @@ class CampaignAnalysis:
     theta_m: float | None
     band_hz: tuple[float, float]
     diagnosis_available: bool
+    ladder: bool = False
     notes: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    diagnosis_seconds: float = 0.0
+    """CPU-side sum of every run's diagnosis (and ladder) time."""
+    jobs: int = 1
 
     def run(self, name: str) -> RunAnalysis:
         """One run's analysis by name."""
@@ -177,31 +288,91 @@ def _band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
     return (lo, hi) if lo < hi else (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
 
 
+def _in_band(run: Run, band: tuple[float, float]) -> NDArray[np.intp]:
+    """Indices of the unoverloaded points in the band, in frequency order."""
+    keep = np.flatnonzero((run.frequency_hz >= band[0]) & (run.frequency_hz <= band[1])
+                          & ~run.flagged(INPUT_OVERLOAD))
+    return keep[np.argsort(run.frequency_hz[keep])]
+
+
 def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[FrfResidual]:
-    keep = (run.frequency_hz >= band[0]) & (run.frequency_hz <= band[1]) & ~run.flagged(
-        INPUT_OVERLOAD)
-    order = np.argsort(run.frequency_hz[keep])
-    f = run.frequency_hz[keep][order]
-    predicted = curve.predict(f, run.time_s[keep][order], run.reference_amplitude[keep][order])
-    out = []
-    for name, measured in (("table", run.accelerance_table), ("support", run.accelerance_support)):
-        values = measured[keep][order]
-        if name not in predicted or f.size < 10 or not np.all(np.isfinite(values)):
-            continue
-        noise = np.sqrt(local_noise_power(values))
-        out.append(FrfResidual(name, f, np.abs(predicted[name] / values - 1.0), noise))
-    return out
+    """The shown model's residual of each FRF, beside the local σ of the run's noise model
+    (estimated on the same points as a fit of the band estimates it)."""
+    data = run_data(run).in_band(band)
+    if data.frequency_hz.size < 10:
+        return []
+    order = np.argsort(data.frequency_hz, kind="stable")
+    f = data.frequency_hz[order]
+    predicted = curve.predict(data.frequency_hz, data.time_s, data.reference_amplitude)
+    frfs = [name for name in ("table", "support") if name in predicted
+            and data.frf(name) is not None and np.all(np.isfinite(data.frf(name)))
+            and np.all(data.frf(name) != 0)]
+    if not frfs:
+        return []
+    noise = estimate_noise(data, tuple(frfs))
+    return [FrfResidual(name, f, np.abs(predicted[name] / data.frf(name) - 1.0)[order],
+                        noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
 
 
-def _modulus(run: Run, result: FitResult, band: tuple[float, float]) -> ModulusCurves:
-    keep = (run.frequency_hz >= band[0]) & (run.frequency_hz <= band[1]) & ~run.flagged(
-        INPUT_OVERLOAD)
-    order = np.argsort(run.frequency_hz[keep])
-    f = run.frequency_hz[keep][order]
-    mass = float(result.values["M_v"])
-    measured = kstar_from_support(f, run.accelerance_support[keep][order], mass)
-    return ModulusCurves(f, measured, result.kstar(f), result.spec,
-                         "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)", mass)
+def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
+             ) -> ModulusCurves:
+    index = _in_band(run, band)
+    f = run.frequency_hz[index]
+    mass = float(curve.values["M_v"])
+    measured = kstar_from_support(f, run.accelerance_support[index], mass)
+    grid = np.linspace(f.min(), f.max(), 121) if f.size else f
+    return ModulusCurves(f, measured, curve.kstar(f), curve.spec, source, mass,
+                         modulus_band(curve.estimates, grid, 1.0), curve.estimates)
+
+
+def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
+          ) -> Climb | str:
+    """Diagnose one run from ``spec`` and climb the ladder; plain data, or why it failed.
+
+    Runs in a worker process: it opens the campaign itself and returns nothing that holds a
+    fitted model object.
+    """
+    started = time.perf_counter()
+    try:
+        with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
+            campaign = Campaign.open(path)
+            data = _diagnosis.from_campaign(campaign, run_name, band_hz=band_hz)
+            first = _diagnosis.diagnose(data, spec)
+            steps = first.auto() if ladder else [first]
+    except InputError as error:
+        return str(error.detail)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
+        return f"diagnosis failed ({type(error).__name__}: {error})"
+    seconds = time.perf_counter() - started
+    last = steps[-1]
+    _log.info("run %s: %d rung(s), %s at %.2f× the noise floor, %.2f s", run_name, len(steps),
+              last.model, last.rms_error / last.noise_floor, seconds)
+    return climb_from(steps, seconds, ladder)
+
+
+def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb:
+    """The plain-data :class:`Climb` of a ladder of :class:`viscorig.diagnosis.Diagnosis`
+    (one element when the ladder was not climbed)."""
+    rungs = [Rung(steps[0].model, float(steps[0].rms_error), float(steps[0].noise_floor))]
+    for before, after in itertools.pairwise(steps):
+        added = next((f for f in before.findings if f.model == after.model), None)
+        rungs.append(Rung(after.model, float(after.rms_error), float(after.noise_floor),
+                          Candidate.of(added) if added is not None else None))
+    first, last = steps[0], steps[-1]
+    source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
+    final = ModelCurve.from_fit(last.fit, f"{source}, both FRFs")
+    final.noise_floor = float(last.noise_floor)
+    return Climb(rungs, final, list(last.failures), [Candidate.of(f) for f in first.findings],
+                 [Candidate.of(f) for f in last.significant], list(last.advice), seconds,
+                 climbed)
+
+
+def _climb_all(path: str, requests: list[tuple[str, tuple[float, float], str]], ladder: bool,
+               jobs: int) -> dict[str, Climb | str]:
+    """:func:`climb` for every request, in ``jobs`` processes (in this one when 1)."""
+    results = parallel_map(climb, [(path, name, band, spec, ladder)
+                                   for name, band, spec in requests], jobs)
+    return {name: result for (name, _, _), result in zip(requests, results, strict=True)}
 
 
 def analyse_campaign(
@@ -209,7 +380,8 @@ def analyse_campaign(
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     *,
     diagnosis: bool = True,
-    ladder: bool = False,
+    ladder: bool = True,
+    jobs: int | None = None,
 ) -> CampaignAnalysis:
     """Fit, diagnose and gather what the report shows, every fit made once.
 
@@ -219,17 +391,19 @@ def analyse_campaign(
         The open campaign.
     band_hz
         Band of the identification (the paper's 20-120 Hz by default; clipped to each run).
-    diagnosis, ladder
-        Diagnose each specimen run (failure bands, candidate effects), and climb the whole
-        ladder of effects (:meth:`~viscorig.diagnosis.Diagnosis.auto`: a fit per candidate per
-        rung, tens of seconds per run, so off by default).
+    diagnosis
+        Diagnose each specimen run (failure bands, candidate effects).
+    ladder
+        Climb the ladder of effects to the best model (seconds per run); else diagnose once.
+    jobs
+        Processes climbing ladders at once (default: one per core).
     """
     from viscorig.fitting import fit
 
+    started = time.perf_counter()
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
     runs = [campaign.run(name) for name in campaign.run_names]
-    measured = [run for run in runs if run.points >= 10]
     for run in runs:
         if 0 < run.points < 10:
             notes.append(f"run {run.name}: {run.points} points, too few to fit; shown as measured")
@@ -239,8 +413,9 @@ def analyse_campaign(
         table, summaries = None, []
         notes.append(f"Table 1 and 2 not computed: {error}")
     by_name = {summary.run: summary for summary in summaries}
-    analyses = []
     use_diagnosis = diagnosis and _diagnosis is not None
+    analyses: list[RunAnalysis] = []
+    requests: list[tuple[str, tuple[float, float], str]] = []
     for run in runs:
         bare = is_bare_table(run)
         if not run.points:
@@ -251,54 +426,62 @@ def analyse_campaign(
             band = _band(run, band_hz)
         analysis = RunAnalysis(run, bare, band, summary=by_name.get(run.name))
         analyses.append(analysis)
-        if run not in measured:
+        if run.points < 10:
             continue
         stored = campaign.fits(run.name)
-        curve = None
         if stored:
             try:
-                curve = ModelCurve.from_stored(stored[-1])
+                analysis.shown = ModelCurve.from_stored(stored[-1])
             except InputError as error:
                 analysis.notes.append(f"stored fit not shown: {error}")
-        if not bare and use_diagnosis and table is not None:
-            spec = curve.spec if curve is not None else "voigt"
-            try:
-                data = _diagnosis.from_campaign(campaign, run.name, band_hz=band)
-                diagnosed = _diagnosis.diagnose(data, spec)
-                analysis.failures = list(diagnosed.failures)
-                analysis.findings = list(diagnosed.findings)
-                steps = diagnosed.auto() if ladder else [diagnosed]
-                analysis.ladder = [LadderStep(s.model, s.rms_error, s.noise_floor) for s in steps]
-                if curve is None:
-                    curve = ModelCurve.from_fit(diagnosed.fit, "fitted here, both FRFs")
-            except InputError as error:
-                analysis.diagnosis_error = str(error)
-            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
-                analysis.diagnosis_error = f"diagnosis failed ({type(error).__name__}: {error})"
-        elif not bare and use_diagnosis:
+        if bare or not use_diagnosis:
+            continue
+        if table is None:
             analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
                                         "run, no /rig values)")
-        if curve is None and analysis.summary is not None:
-            frfs = "X_s/F_e" if not bare else "the bare table"
-            curve = ModelCurve.from_fit(analysis.summary.fit, f"fitted here to {frfs}")
-        analysis.shown = curve
-        if curve is not None:
-            analysis.residuals = _residuals(run, curve, band)
-        if not bare:
-            try:
-                data = run_data(run)
-                result = fit("maxwell", data, frfs=("support",), band_hz=band,
+            continue
+        spec = "voigt"
+        if analysis.shown is not None and analysis.shown.has_disc:
+            spec = analysis.shown.spec
+            analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
+        requests.append((run.name, band, spec))
+    jobs = default_jobs() if jobs is None else max(1, int(jobs))
+    climbs = _climb_all(str(campaign.path), requests, ladder, jobs) if requests else {}
+    for analysis in analyses:
+        outcome = climbs.get(analysis.name)
+        if isinstance(outcome, str):
+            analysis.diagnosis_error = outcome
+        elif outcome is not None:
+            analysis.climb = outcome
+            analysis.shown = outcome.final
+        if analysis.shown is None and analysis.summary is not None:
+            frfs = "X_s/F_e" if not analysis.bare else "the bare table"
+            analysis.shown = ModelCurve.from_fit(analysis.summary.fit, f"fitted here to {frfs}")
+        run, band = analysis.run, analysis.band_hz
+        if analysis.shown is not None and run.points >= 10:
+            analysis.residuals = _residuals(run, analysis.shown, band)
+        if analysis.bare or run.points < 10:
+            continue
+        shown = analysis.shown
+        try:
+            if analysis.climb is not None and shown is not None and shown.has_disc:
+                analysis.modulus = _modulus(run, shown, band, f"{shown.spec} ({shown.source})")
+            else:
+                result = fit("maxwell", run_data(run), frfs=("support",), band_hz=band,
                              fixed=table.values if table is not None else None)
-                analysis.modulus = _modulus(run, result, band)
-            except (InputError, ValueError, np.linalg.LinAlgError) as error:
-                analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
+                analysis.modulus = _modulus(run, ModelCurve.from_fit(result, "Maxwell fit"),
+                                            band, "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)")
+        except (InputError, ValueError, np.linalg.LinAlgError) as error:
+            analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
     if not use_diagnosis:
         notes.append("diagnosis sections left out: "
                      + ("the diagnosis package is not installed" if _diagnosis is None
                         else "switched off"))
-    theta = rig.theta
-    return CampaignAnalysis(str(campaign.path), analyses, table, theta, band_hz,
-                            use_diagnosis, notes)
+    spent = sum(c.seconds for c in climbs.values() if isinstance(c, Climb))
+    return CampaignAnalysis(str(campaign.path), analyses, table, rig.theta, band_hz,
+                            use_diagnosis, ladder and use_diagnosis, notes,
+                            time.perf_counter() - started, spent,
+                            min(jobs, max(1, len(requests))))
 
 
 def storage_and_loss(curves: ModulusCurves, theta_m: float | None
@@ -321,6 +504,33 @@ def rubbers(analysis: CampaignAnalysis) -> dict[str, list[RunAnalysis]]:
     return groups
 
 
+def preload_pairs(analysis: CampaignAnalysis) -> list[tuple[RunAnalysis, RunAnalysis]]:
+    """``(without, with preload)`` runs of the same specimen and sweep direction.
+
+    Each preloaded run is paired with the specimen's least preloaded run, at the level nearest
+    its own (a run measured at a reduced level is still compared, and the page says so).
+    """
+    groups: dict[tuple, list[RunAnalysis]] = {}
+    for run in analysis.runs:
+        m = run.run.metadata
+        if run.bare or run.run.points < 10:
+            continue
+        hardness = m.hardness_shore_a if math.isfinite(m.hardness_shore_a) else None
+        groups.setdefault((m.specimen, hardness, m.direction), []).append(run)
+    pairs = []
+    for members in groups.values():
+        least = min(r.run.metadata.preload_strain for r in members)
+        bases = [r for r in members if r.run.metadata.preload_strain == least]
+        for other in members:
+            if other.run.metadata.preload_strain <= least:
+                continue
+            level = other.run.metadata.level_m_per_s2
+            base = min(bases, key=lambda r: abs(math.log(r.run.metadata.level_m_per_s2 / level)))
+            pairs.append((base, other))
+    return pairs
+
+
 def finite(value: float) -> bool:
     """A number that is not NaN or infinite."""
     return isinstance(value, float | int) and math.isfinite(value)
+

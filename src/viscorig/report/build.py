@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import time
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +13,12 @@ from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report.analysis import analyse_campaign
 from viscorig.report.figures import campaign_figures
 from viscorig.report.page import build_page
+from viscorig.report.parallel import default_jobs
 from viscorig.storage import Campaign
 
 PAGE_NAME = "index.html"
+
+_log = logging.getLogger(__name__)
 
 
 def build_report(
@@ -22,9 +27,13 @@ def build_report(
     *,
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     diagnosis: bool = True,
-    ladder: bool = False,
+    ladder: bool = True,
+    jobs: int | None = None,
 ) -> Path:
     """Write ``out_dir/index.html`` and every figure as ``.png`` and ``.svg``; return the page.
+
+    ``diagnosis``, ``ladder`` and ``jobs`` as in
+    :func:`~viscorig.report.analysis.analyse_campaign`.
 
     Raises
     ------
@@ -39,9 +48,15 @@ def build_report(
     except OSError as error:
         raise InputError(f"cannot create the report folder ({error.strerror})",
                          str(out_dir)) from None
+    jobs = default_jobs() if jobs is None else max(1, jobs)
     with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
-        analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder)
-    figures = campaign_figures(analysis, out_dir)
+        analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder,
+                                    jobs=jobs)
+    _log.info("analysis: %.1f s (diagnosis %.1f s over %d process(es))", analysis.seconds,
+              analysis.diagnosis_seconds, analysis.jobs)
+    started = time.perf_counter()
+    figures = campaign_figures(analysis, out_dir, jobs)
+    _log.info("%d figures (PNG and SVG): %.1f s", len(figures), time.perf_counter() - started)
     page = out_dir / PAGE_NAME
     page.write_text(build_page(analysis, figures, f"viscorig report: {Path(campaign_path).name}"),
                     encoding="utf-8")

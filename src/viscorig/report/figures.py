@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from viscorig.compare import Pair, loss_factor_of, storage_stiffness_of
 from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, storage_and_loss
 from viscorig.storage import INPUT_OVERLOAD, Run
 
@@ -130,9 +131,9 @@ def residual_figure(analysis: RunAnalysis) -> Figure | None:
         ax.semilogy(residual.frequency_hz, residual.magnitude, "-", lw=0.8,
                     color=MODEL, label=f"|model/measured − 1|, {curve.spec}")
         ax.semilogy(residual.frequency_hz, residual.noise, "-", lw=1.0, color="grey",
-                    label="local noise σ (from the data)")
-        floor = float(np.sqrt(np.mean(residual.noise**2)))
-        ax.axhline(floor, ls="--", lw=1.0, color="black", label=f"noise floor {floor:.2g}")
+                    label="local noise σ (the run's noise model)")
+        ax.axhline(residual.floor, ls="--", lw=1.0, color="black",
+                   label=f"noise floor {residual.floor:.2g}")
         ax.set_title(f"residual, {FRF_TITLES[residual.frf]}")
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("relative error")
@@ -157,7 +158,7 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
         colours = [MODEL] * len(steps)
         title = f"run {analysis.name}: error as effects are added (ladder)"
     else:
-        found = sorted(analysis.findings, key=lambda f: f.rms_error)[:8]
+        found = sorted(analysis.candidates, key=lambda f: f.rms_error)[:8]
         labels = [steps[0].model] + ["+ " + _added(steps[0].model, f.model) for f in found]
         errors = [steps[0].rms_error] + [f.rms_error for f in found]
         colours = [MODEL] + [MODEL if f.significant else "#aaaaaa" for f in found]
@@ -188,23 +189,35 @@ def _added(before: str, after: str) -> str:
 
 
 def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None) -> Figure:
-    """E' (or K') and η against frequency, each preload, like the paper's Figures 10-12."""
+    """E' (or K') and η against frequency, each preload, like the paper's Figures 10-12; the
+    model's curves with their ± one standard uncertainty band."""
     figure = Figure(figsize=(10.4, 3.6), layout=None)
     stiffness_ax, loss_ax = figure.subplots(1, 2, sharex=True)
     figure.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.14, wspace=0.25)
     scale, unit = (1e-6, "E' [MPa]") if theta_m else (1e-3, "K' = Re K* [kN/m]")
+    to_modulus = scale / theta_m if theta_m else scale
     for index, member in enumerate(members):
         curves = member.modulus
-        e_meas, e_model, eta_meas, eta_model = storage_and_loss(curves, theta_m)
+        e_meas, _, eta_meas, _ = storage_and_loss(curves, theta_m)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{member.name} (preload {member.run.metadata.preload_strain:g})"
         marker = PRELOAD_STYLES[index % len(PRELOAD_STYLES)]
         stiffness_ax.plot(curves.frequency_hz, e_meas * scale, marker, ms=2, alpha=0.5,
                           color=colour, label=f"{label}, Eq. 5")
-        stiffness_ax.plot(curves.frequency_hz, e_model * scale, "-", lw=1.5, color=colour,
-                          label=f"{label}, {curves.spec}")
         loss_ax.plot(curves.frequency_hz, eta_meas, marker, ms=2, alpha=0.5, color=colour)
-        loss_ax.plot(curves.frequency_hz, eta_model, "-", lw=1.5, color=colour)
+        band = curves.band
+        if band is None:
+            continue
+        storage = band.storage_modulus * to_modulus
+        storage_u = band.storage_modulus_stderr * to_modulus
+        stiffness_ax.plot(band.frequency_hz, storage, "-", lw=1.5, color=colour,
+                          label=f"{label}, {curves.spec} ± 1σ")
+        stiffness_ax.fill_between(band.frequency_hz, storage - storage_u, storage + storage_u,
+                                  color=colour, alpha=0.25, lw=0)
+        loss_ax.plot(band.frequency_hz, band.loss_factor, "-", lw=1.5, color=colour)
+        loss_ax.fill_between(band.frequency_hz, band.loss_factor - band.loss_factor_stderr,
+                             band.loss_factor + band.loss_factor_stderr, color=colour,
+                             alpha=0.25, lw=0)
     stiffness_ax.set_ylabel(unit)
     loss_ax.set_ylabel("loss factor η")
     for ax in (stiffness_ax, loss_ax):
@@ -216,67 +229,88 @@ def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None
 
 
 def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
-    """The preload effect: change of K' (%) and of η against frequency, per rubber."""
+    """The preload effect per rubber: relative change of K' (= of E') and of η against
+    frequency, with the ± one standard uncertainty band of the change
+    (:class:`viscorig.compare.Pair`)."""
     pairs = {name: (members[0], members[-1]) for name, members in groups.items()
              if len(members) >= 2 and members[-1].run.metadata.preload_strain
-             > members[0].run.metadata.preload_strain}
+             > members[0].run.metadata.preload_strain
+             and members[0].modulus.estimates is not None
+             and members[-1].modulus.estimates is not None}
     if not pairs:
         return None
     figure = Figure(figsize=(10.4, 3.4), layout=None)
     stiffness_ax, loss_ax = figure.subplots(1, 2, sharex=True)
     figure.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.15, wspace=0.25)
     for index, (name, (none, loaded)) in enumerate(pairs.items()):
-        f = none.modulus.frequency_hz
-        k0 = none.modulus.model
-        k1 = np.interp(f, loaded.modulus.frequency_hz, loaded.modulus.model.real) + 1j * np.interp(
-            f, loaded.modulus.frequency_hz, loaded.modulus.model.imag)
+        lo = max(none.modulus.frequency_hz.min(), loaded.modulus.frequency_hz.min())
+        hi = min(none.modulus.frequency_hz.max(), loaded.modulus.frequency_hz.max())
+        f = np.linspace(lo, hi, 61)
+        pair = Pair(none.modulus.estimates, loaded.modulus.estimates)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{name}: {loaded.name} vs {none.name}"
-        stiffness_ax.plot(f, (k1.real / k0.real - 1) * 100, "-", color=colour, label=label)
-        loss_ax.plot(f, k1.imag / k1.real - k0.imag / k0.real, "-", color=colour, label=label)
+        for ax, part in ((stiffness_ax, storage_stiffness_of), (loss_ax, loss_factor_of)):
+            change, stderr = pair.relative(part(pair.a.model, f), part(pair.b.model, f))
+            ax.plot(f, 100 * change, "-", color=colour, label=label)
+            ax.fill_between(f, 100 * (change - stderr), 100 * (change + stderr), color=colour,
+                            alpha=0.25, lw=0)
     stiffness_ax.set_ylabel("change of K' (= change of E') [%]")
-    loss_ax.set_ylabel("change of η")
+    loss_ax.set_ylabel("change of η [%]")
     for ax in (stiffness_ax, loss_ax):
         ax.set_xlabel("frequency [Hz]")
         ax.grid(True, alpha=0.3)
         ax.axhline(0, color="black", lw=0.6)
     stiffness_ax.legend(fontsize=7)
-    figure.suptitle("preload effect (Maxwell models of K* from Eq. 5)", fontsize=11)
+    figure.suptitle("preload effect (K* of the models shown, ± one standard uncertainty)",
+                    fontsize=11)
     return figure
 
 
-def campaign_figures(analysis: CampaignAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
-    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``)."""
+def run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
+    """The figures of one run (FRFs, residual, ladder), by stem."""
+    saved: dict[str, SavedFigure] = {}
+    if not run.run.points:
+        return saved
+    saved[f"frf-{run.name}"] = save(
+        frf_figure(run), folder, f"frf-{run.name}",
+        f"Run {run.name}: measured FRFs and the model shown; shaded: bands where that "
+        "model still fails (diagnosis); crosses: flagged points.")
+    residual = residual_figure(run)
+    if residual is not None:
+        saved[f"residual-{run.name}"] = save(
+            residual, folder, f"residual-{run.name}",
+            f"Run {run.name}: relative residual of the model shown, with the local noise "
+            "estimated from the data and the noise floor.")
+    ladder = ladder_figure(run)
+    if ladder is not None:
+        saved[f"ladder-{run.name}"] = save(
+            ladder, folder, f"ladder-{run.name}",
+            f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
+            "effect is added, step by step (or, without the ladder, each candidate alone).")
+    return saved
+
+
+def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
+                     jobs: int = 1) -> dict[str, SavedFigure]:
+    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``).
+
+    The runs' figures are drawn in ``jobs`` processes at once.
+    """
     from viscorig.report.analysis import rubbers
+    from viscorig.report.parallel import parallel_map
 
     saved: dict[str, SavedFigure] = {}
-    for run in analysis.runs:
-        if not run.run.points:
-            continue
-        saved[f"frf-{run.name}"] = save(
-            frf_figure(run), folder, f"frf-{run.name}",
-            f"Run {run.name}: measured FRFs and the model; shaded: bands where the model "
-            "fails (diagnosis); crosses: flagged points.")
-        residual = residual_figure(run)
-        if residual is not None:
-            saved[f"residual-{run.name}"] = save(
-                residual, folder, f"residual-{run.name}",
-                f"Run {run.name}: relative residual of the model shown, with the local noise "
-                "estimated from the data and the noise floor.")
-        ladder = ladder_figure(run)
-        if ladder is not None:
-            saved[f"ladder-{run.name}"] = save(
-                ladder, folder, f"ladder-{run.name}",
-                f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
-                "effect is added, step by step.")
+    for figures in parallel_map(run_figures, [(run, folder) for run in analysis.runs], jobs):
+        saved.update(figures)
     groups = rubbers(analysis)
     for name, members in groups.items():
         saved[f"moduli-{name}"] = save(
             moduli_figure(name, members, analysis.theta_m), folder, f"moduli-{name}",
             f"{name}: storage {'modulus' if analysis.theta_m else 'stiffness'} and loss factor "
-            "against frequency, Eq. (5) estimates (points) and Maxwell model (lines).")
+            "against frequency, Eq. (5) estimates (points) and the K* of the models shown "
+            "(lines).")
     preload = preload_figure(groups)
     if preload is not None:
         saved["preload"] = save(preload, folder, "preload",
-                                "Preload effect per rubber, from the Maxwell models.")
+                                "Preload effect per rubber, from the K* of the models shown.")
     return saved

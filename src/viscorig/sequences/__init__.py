@@ -1,11 +1,14 @@
 """Test sequences and station files (TOML): typed, validated steps and lab descriptions.
 
 A sequence is a list of small steps (prompt, wait, sweep, identify_table) with defaults at the
-top; a station file says what is attached to the analyser. Both are checked field by field, and
-every problem is one :class:`viscorig.errors.InputError` naming the file and the field.
+top; a station file says what is attached to the analyser. Both are read against the schema of
+:mod:`viscorig.sequences.schema`, which also generates their reference, and every problem of a
+file is reported at once (:class:`FileCheckError`, an :class:`viscorig.errors.InputError`), each
+naming the file, line and field.
 """
 
 from viscorig.sequences.levels import parse_level
+from viscorig.sequences.problems import FileCheckError, Problem
 from viscorig.sequences.segments import (
     ANALYSER_MAX_POINTS,
     DEFAULT_SEGMENT_S,
@@ -41,7 +44,9 @@ __all__ = [
     "DEFAULT_SEGMENT_S",
     "OVER_LIMIT_CHOICES",
     "Channels",
+    "FileCheckError",
     "IdentifyTableStep",
+    "Problem",
     "PromptStep",
     "Sensitivities",
     "Sequence",

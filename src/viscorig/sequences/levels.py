@@ -1,18 +1,23 @@
-"""Acceleration levels written with their unit: ``"1.4 m/s^2"``, ``"15 mm/s^2"``, ``"0.15 g"``.
+"""Acceleration levels written with their unit: ``"1.4 m/s^2"``, ``"15 mm/s2"``, ``"0.15 g"``.
 
 The paper's level is ambiguous by three orders of magnitude (physics.md, open points), so a
 level is never a bare number: the unit is part of the value. Levels are peak amplitudes unless
 ``rms`` follows the unit.
+
+A unit may be spelt as technicians write it: ``m/s^2``, ``m/s2``, ``m/s²``, ``m/s**2``,
+``m s^-2``, ``m·s⁻²``, ``m/s/s`` (and the same with ``cm`` or ``mm``), ``g`` or ``mg``
+(standard gravity, 9.80665 m/s²).
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 
 STANDARD_GRAVITY_M_PER_S2 = 9.80665
 
-#: unit (spaces removed, ``²`` and ``**2`` written ``^2``) -> metres per second squared
+#: canonical unit -> metres per second squared
 ACCELERATION_UNITS: dict[str, float] = {
     "m/s^2": 1.0,
     "cm/s^2": 1e-2,
@@ -21,10 +26,34 @@ ACCELERATION_UNITS: dict[str, float] = {
     "mg": 1e-3 * STANDARD_GRAVITY_M_PER_S2,
 }
 
+#: What the examples and the reference show for each canonical unit.
+UNIT_SPELLINGS = ("m/s^2", "m/s2", "m/s²", "m/s**2", "m s^-2", "m/s/s", "cm/s^2", "mm/s^2", "g",
+                  "mg")
+
 _LEVEL = re.compile(
     r"^\s*(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?P<unit>.*?)"
-    r"(?:\s+(?P<kind>peak|pk|rms))?\s*$"
+    r"(?:\s+(?P<kind>peak|pk|rms))?\s*$",
+    re.IGNORECASE,
 )
+_LENGTH = {"m": "m", "cm": "cm", "mm": "mm"}
+
+
+def canonical_unit(unit: str) -> str | None:
+    """The canonical spelling of an acceleration unit (``"m/s^2"``, ``"g"``...), or None.
+
+    Examples
+    --------
+    >>> canonical_unit("mm/s²"), canonical_unit("m s^-2"), canonical_unit("G")
+    ('mm/s^2', 'm/s^2', None)
+    """
+    compact = (unit.replace(" ", "").replace("·", "").replace("*", "")
+               .replace("²", "2").replace("⁻", "-").replace("^", ""))
+    if compact in ("g", "mg"):
+        return compact
+    match = re.fullmatch(r"(?P<length>c?m|mm)(?:/s2|/s/s|s-2)", compact)
+    if match is None:
+        return None
+    return f"{_LENGTH[match['length']]}/s^2"
 
 
 def parse_level(text: str) -> float:
@@ -33,8 +62,8 @@ def parse_level(text: str) -> float:
     Parameters
     ----------
     text
-        A number, a unit (m/s^2, cm/s^2, mm/s^2, g, mg; ``²`` for ``^2`` is accepted) and
-        optionally ``peak`` (the default) or ``rms``.
+        A number, a unit (see the module's docstring) and optionally ``peak`` (the default)
+        or ``rms``.
 
     Returns
     -------
@@ -53,22 +82,34 @@ def parse_level(text: str) -> float:
     0.015
     >>> round(parse_level("0.15 g"), 4)
     1.471
+    >>> parse_level("1.4 m/s2")
+    1.4
     """
     if not isinstance(text, str):
-        raise ValueError(f"a level is text with its unit, e.g. \"1.4 m/s^2\", not {text!r}")
+        shown = f"\"{text:g} m/s^2\"" if isinstance(text, int | float) and not isinstance(
+            text, bool) else "\"1.4 m/s^2\""
+        raise ValueError(f"a level is text with its unit, e.g. {shown}, not {text!r}")
     match = _LEVEL.match(text)
     if match is None:
         raise ValueError(f"{text!r} is not a number followed by a unit, e.g. \"1.4 m/s^2\"")
-    unit = match["unit"].replace(" ", "").replace("²", "^2").replace("**", "^")
-    if not unit:
+    written = match["unit"].strip()
+    if not written:
         raise ValueError(
-            f"{text!r} has no unit; write it out, e.g. \"1.4 m/s^2\" (peak) or \"0.14 g\""
+            f"{text!r} has no unit; write it out, e.g. \"{match['number']} m/s^2\" (peak) or "
+            f"\"{match['number']} g\""
         )
-    if unit not in ACCELERATION_UNITS:
-        known = ", ".join(ACCELERATION_UNITS)
-        raise ValueError(f"unit {match['unit']!r} of {text!r} is not one of {known}")
+    unit = canonical_unit(written)
+    if unit is None:
+        close = difflib.get_close_matches(
+            written, [unit for unit in UNIT_SPELLINGS if unit.isascii()], n=1, cutoff=0.5)
+        if canonical_unit(written.lower()) is not None:
+            close = [written.lower()]
+        hint = f"; did you mean \"{match['number']} {close[0]}\"?" if close else ""
+        raise ValueError(
+            f"unit {written!r} of {text!r} is not one of {', '.join(UNIT_SPELLINGS)}{hint}"
+        )
     value = float(match["number"]) * ACCELERATION_UNITS[unit]
-    if match["kind"] == "rms":
+    if (match["kind"] or "").lower() == "rms":
         value *= math.sqrt(2.0)
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f"level {text!r} must be positive and finite")

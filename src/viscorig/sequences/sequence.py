@@ -5,11 +5,9 @@
     name = "paper"
     description = "..."
 
-    [defaults]                 # any sweep field; a step's own value wins
+    [defaults]                 # any sweep field but run; a step's own value wins
     band_hz = [20.0, 120.0]
     level = "1.4 m/s^2"
-    over_limit = "refuse"      # or "reduce": a sweep whose predicted force exceeds the shaker
-                               # limit (viscorig run --over-limit overrides it)
 
     [[steps]]
     type = "prompt"            # prompt | wait | sweep | identify_table
@@ -19,26 +17,35 @@
     [[steps]]
     type = "sweep"
     run = "soft-0"
-    specimen = "soft 25 Shore A"
+    specimen = "soft"
 
-Errors name the file and the field, ``paper.toml: steps[3].level: ...`` (steps count from 0).
+The fields are those of :mod:`viscorig.sequences.schema` (``sequences/README.md`` lists
+them). Every problem of a file is found in one reading and reported together
+(:class:`~viscorig.sequences.problems.FileCheckError`), each as ``paper.toml:57:
+steps[3].level: ...`` (steps count from 0), with a did-you-mean for a misspelt name.
 """
 
 from __future__ import annotations
 
 import math
-import re
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from viscorig.errors import InputError
-from viscorig.sequences import segments
-from viscorig.sequences.fields import TableReader, kind_name
-from viscorig.sequences.levels import parse_level
+from viscorig.sequences import schema, segments
+from viscorig.sequences.problems import Problems, did_you_mean
+from viscorig.sequences.schema import (
+    DEFAULTS,
+    SEQUENCE,
+    STEP_TYPES,
+    SWEEP,
+    FieldError,
+    ReadTable,
+    read_table,
+)
 from viscorig.sequences.steps import (
-    OVER_LIMIT_CHOICES,
     IdentifyTableStep,
     PromptStep,
     Sequence,
@@ -46,21 +53,28 @@ from viscorig.sequences.steps import (
     SweepStep,
     WaitStep,
 )
-from viscorig.storage import layout
 
-PRESET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
-
-SWEEP_FIELDS = (
-    "run", "specimen", "hardness_shore_a", "preload_strain", "temperature_c", "band_hz",
-    "resolution_hz", "settle_cycles", "integrate_cycles", "level", "tolerance_db", "direction",
-    "segment_s", "segment_points", "over_limit",
-)
-#: The analyser's highest frequency with four channels, Hz.
-MAX_FREQUENCY_HZ = 25_600.0
-#: Frequencies are set in steps of 15.625 mHz.
-MIN_RESOLUTION_HZ = 0.015625
+#: Kept for callers that name them here.
+PRESET_NAME = schema.PRESET_NAME
+MAX_FREQUENCY_HZ = schema.MAX_FREQUENCY_HZ
+MIN_RESOLUTION_HZ = schema.MIN_RESOLUTION_HZ
+SWEEP_FIELDS = SWEEP.names
 #: A sanity limit on one run (100 000 points is over a day of dwell at 100+100 cycles).
 MAX_RUN_POINTS = 100_000
+
+
+def read_text(path: str | Path) -> str:
+    """A file's text.
+
+    Raises
+    ------
+    InputError
+        The file is missing, unreadable or not UTF-8.
+    """
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"cannot be read ({type(error).__name__}: {error})", str(path)) from None
 
 
 def load_sequence(path: str | Path) -> Sequence:
@@ -69,49 +83,11 @@ def load_sequence(path: str | Path) -> Sequence:
     Raises
     ------
     InputError
-        The file is missing or unreadable, not TOML, or any field is wrong; the message names
-        the file and the field.
+        The file is missing or unreadable, or not TOML.
+    FileCheckError
+        Fields are wrong: every one of them, with file and line.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot be read ({type(error).__name__}: {error})", str(path)) from None
-    return parse_sequence(text, source=str(path))
-
-
-def parse_sequence(text: str, source: str = "sequence") -> Sequence:
-    """Validate a sequence given as TOML text; ``source`` names it in messages."""
-    document = parse_toml(text, source)
-    top = TableReader(document, source, top_level=True)
-    name = top.text("name", "sequence")
-    description = top.raw("description", "")
-    if not isinstance(description, str):
-        raise top.fail("description", f"expected text, got {kind_name(description)}")
-    defaults = top.subtable("defaults", required=False) or {}
-    for key in defaults:
-        if key not in SWEEP_FIELDS or key == "run":
-            allowed = ", ".join(field for field in SWEEP_FIELDS if field != "run")
-            raise InputError(f"unknown default (allowed: {allowed})", f"{source}: defaults.{key}")
-    raw_steps = top.raw("steps")
-    if not isinstance(raw_steps, list) or not raw_steps:
-        raise top.fail("steps", "expected a non-empty array of tables ([[steps]])")
-    top.finish()
-
-    steps: list[Step] = []
-    run_steps: dict[str, int] = {}
-    for index, raw in enumerate(raw_steps):
-        where = f"{source}: steps[{index}]"
-        step = _parse_step(raw, where, defaults, f"{source}: defaults", steps)
-        if isinstance(step, SweepStep):
-            if step.run in run_steps:
-                raise InputError(
-                    f"duplicate run name {step.run!r} (also steps[{run_steps[step.run]}])",
-                    f"{where}.run",
-                )
-            run_steps[step.run] = index
-        steps.append(step)
-    return Sequence(name=name, description=description, steps=tuple(steps), source=source)
+    return parse_sequence(read_text(path), source=str(path))
 
 
 def parse_toml(text: str, source: str) -> dict[str, Any]:
@@ -124,124 +100,167 @@ def parse_toml(text: str, source: str) -> dict[str, Any]:
         raise InputError(f"not valid TOML: {error}", source) from None
 
 
-def _parse_step(
-    raw: object, where: str, defaults: Mapping[str, Any], defaults_where: str, before: list[Step]
-) -> Step:
+def parse_sequence(text: str, source: str = "sequence") -> Sequence:
+    """Validate a sequence given as TOML text; ``source`` names it in messages.
+
+    Raises
+    ------
+    InputError
+        Not TOML.
+    FileCheckError
+        Every problem of the file.
+    """
+    document = parse_toml(text, source)
+    problems = Problems(source, text)
+    top = read_table(problems, (), document, SEQUENCE, also_known=("defaults", "steps"))
+    defaults = document.get("defaults", {})
+    if not isinstance(defaults, Mapping):
+        problems.add(("defaults",), f"expected a table ([defaults]), got "
+                     f"{schema.kind_name(defaults)}")
+        defaults = {}
+    _check_defaults(problems, defaults)
+    raw_steps = document.get("steps")
+    if not isinstance(raw_steps, list) or not raw_steps:
+        problems.add(("steps",), "expected a non-empty array of tables ([[steps]])",
+                     "add a [[steps]] table with type = \"sweep\" (see sequences/README.md)")
+        raw_steps = []
+
+    steps: list[Step | _Unread | None] = []
+    run_steps: dict[str, int] = {}
+    for index, raw in enumerate(raw_steps):
+        step = _parse_step(problems, index, raw, defaults, steps)
+        if step is None and isinstance(raw, Mapping) and raw.get("type") == "sweep":
+            steps.append(_Unread(raw.get("run")))  # no second problem about its run
+            continue
+        if isinstance(step, SweepStep):
+            if step.run in run_steps:
+                problems.add(("steps", index, "run"), f"duplicate run name {step.run!r} (also "
+                             f"steps[{run_steps[step.run]}])")
+            run_steps.setdefault(step.run, index)
+        steps.append(step)
+    problems.raise_if_any()
+    return Sequence(name=top["name"], description=top["description"],
+                    steps=tuple(steps), source=source)  # type: ignore[arg-type]
+
+
+class _Unread:
+    """A sweep step with problems, standing in for it while the later steps are read."""
+
+    def __init__(self, run: object) -> None:
+        self.run = run
+
+
+def _check_defaults(problems: Problems, defaults: Mapping[str, Any]) -> None:
+    """Unknown keys of ``[defaults]``, and each default's value, reported once here."""
+    for key, value in defaults.items():
+        if key in DEFAULTS.names:
+            try:
+                DEFAULTS.field(key).convert(value)
+            except FieldError as error:
+                problems.add(("defaults", key), error.message, error.hint)
+            continue
+        hint = did_you_mean(key, DEFAULTS.names)
+        if not hint:
+            hint = ("the run is named in each sweep step" if key == "run"
+                    else f"allowed: {', '.join(DEFAULTS.names)}")
+        problems.add(("defaults", key), "unknown default", hint)
+
+
+def _parse_step(problems: Problems, index: int, raw: object, defaults: Mapping[str, Any],
+                before: list[Step | _Unread | None]) -> Step | None:
+    path = ("steps", index)
     if not isinstance(raw, Mapping):
-        raise InputError(f"expected a table, got {kind_name(raw)}", where)
-    kind = TableReader(raw, where).text(
-        "type", choices=("prompt", "wait", "sweep", "identify_table")
-    )
-    if kind == "sweep":
-        fields = TableReader(raw, where, defaults, defaults_where)
-        fields.used.add("type")
-        step: Step = _parse_sweep(fields)
-    else:
-        fields = TableReader(raw, where)
-        fields.used.add("type")
-        if kind == "prompt":
-            step = _parse_prompt(fields)
-        elif kind == "wait":
-            step = WaitStep(
-                seconds=fields.number("seconds", low=0.0, high=86_400.0, low_open=True, unit="s"),
-                message=fields.text("message", "Waiting"),
-            )
+        problems.add(path, f"expected a table, got {schema.kind_name(raw)}")
+        return None
+    kind = raw.get("type")
+    if not isinstance(kind, str) or kind not in STEP_TYPES:
+        if "type" not in raw:
+            problems.add((*path, "type"), "missing",
+                         f"one of {', '.join(STEP_TYPES)}, e.g. type = \"sweep\"")
+        elif not isinstance(kind, str):
+            problems.add((*path, "type"), f"expected text, got {schema.kind_name(kind)}")
         else:
-            step = _parse_identify_table(fields, before)
-    fields.finish()
-    return step
+            problems.add((*path, "type"), f"{kind!r} is not one of {', '.join(STEP_TYPES)}",
+                         did_you_mean(kind, STEP_TYPES, cutoff=0.5))
+        return None
+    step_schema = STEP_TYPES[kind]
+    if kind == "sweep":
+        fields = read_table(problems, path, raw, step_schema, defaults=defaults,
+                            defaults_path=("defaults",), also_known=("type",))
+        return _sweep(problems, path, fields)
+    fields = read_table(problems, path, raw, step_schema, also_known=("type",))
+    if kind == "identify_table":
+        return _identify_table(problems, path, fields, before)
+    if not fields.ok:
+        return None
+    if kind == "prompt":
+        return PromptStep(message=fields["message"], simulated_rig=fields["simulated_rig"])
+    return WaitStep(seconds=fields["seconds"], message=fields["message"])
 
 
-def _parse_prompt(fields: TableReader) -> PromptStep:
-    preset = fields.raw("simulated_rig", None)
-    if preset is not None:
-        preset = fields.text("simulated_rig")
-        if not PRESET_NAME.match(preset):
-            raise fields.fail("simulated_rig", f"{preset!r} is not a rig preset name")
-    return PromptStep(message=fields.text("message"), simulated_rig=preset)
-
-
-def _band(fields: TableReader, key: str) -> tuple[float, float]:
-    value = fields.raw(key)
-    if (
-        not isinstance(value, list)
-        or len(value) != 2
-        or any(isinstance(item, bool) or not isinstance(item, int | float) for item in value)
-    ):
-        raise fields.fail(key, f"expected [low, high] in Hz, got {value!r}")
-    lo, hi = float(value[0]), float(value[1])
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi <= MAX_FREQUENCY_HZ):
-        raise fields.fail(key, f"[{lo:g}, {hi:g}] Hz must satisfy 0 < low < high <= 25600")
-    return lo, hi
-
-
-def _parse_sweep(fields: TableReader) -> SweepStep:
-    run = fields.text("run")
-    if not layout.NAME.match(run):  # run names become HDF5 group names in the campaign file
-        raise fields.fail("run", f"{run!r}: use {layout.NAME_RULE}")
-    specimen = fields.text("specimen")
-    band = _band(fields, "band_hz")
-    resolution = fields.number("resolution_hz", low=MIN_RESOLUTION_HZ, high=1000.0, unit="Hz")
-    try:
-        points = segments.point_count(band, resolution)
-    except ValueError as error:
-        raise fields.fail("resolution_hz", str(error)) from None
-    if points > MAX_RUN_POINTS:
-        raise fields.fail(
-            "resolution_hz",
-            f"{points} points in one run; at most {MAX_RUN_POINTS} (the analyser's 801-point "
-            "limit applies per segment, and runs are split into segments)",
-        )
-    level_text = fields.raw("level")
-    try:
-        level = parse_level(level_text)
-    except ValueError as error:
-        raise fields.fail("level", str(error)) from None
-    if level > 500.0:
-        raise fields.fail("level", f"{level:g} m/s^2 peak is beyond any shaker rig (max 500)")
-    hardness = fields.number("hardness_shore_a", math.nan, low=0.0, high=100.0)
-    preload = fields.number("preload_strain", 0.0, low=0.0, high=0.5)
-    if specimen == "none":
-        if not math.isnan(hardness):
-            raise fields.fail("hardness_shore_a", "the bare table (specimen \"none\") has none")
-        if preload != 0.0:
-            raise fields.fail("preload_strain", "the bare table (specimen \"none\") has none")
-    segment_points = fields.integer(
-        "segment_points", segments.ANALYSER_MAX_POINTS, low=1, high=segments.ANALYSER_MAX_POINTS
-    )
+def _sweep(problems: Problems, path: tuple, fields: ReadTable) -> SweepStep | None:
+    values = fields.values
+    if "band_hz" in values and "resolution_hz" in values:
+        try:
+            points = segments.point_count(values["band_hz"], values["resolution_hz"])
+        except ValueError as error:
+            lo, hi = values["band_hz"]
+            problems.add(fields.origin["resolution_hz"], str(error),
+                         f"make {hi:g} - {lo:g} a multiple of the resolution")
+            fields.failed.add("resolution_hz")
+        else:
+            if points > MAX_RUN_POINTS:
+                problems.add(fields.origin["resolution_hz"], (
+                    f"{points} points in one run; at most {MAX_RUN_POINTS} (the analyser's "
+                    "801-point limit applies per segment, and runs are split into segments)"))
+                fields.failed.add("resolution_hz")
+    if values.get("specimen") == "none":
+        for key in ("hardness_shore_a", "preload_strain"):
+            given = values.get(key)
+            if key in fields.origin and given is not None and not (
+                    math.isnan(given) if key == "hardness_shore_a" else given == 0.0):
+                problems.add(fields.origin[key], "the bare table (specimen \"none\") has none",
+                             f"remove {key} from this step")
+                fields.failed.add(key)
+    if not fields.ok:
+        return None
+    level, level_text = values["level"]
     return SweepStep(
-        run=run,
-        specimen=specimen,
-        band_hz=band,
-        resolution_hz=resolution,
-        settle_cycles=fields.integer("settle_cycles", low=0, high=100_000),
-        integrate_cycles=fields.integer("integrate_cycles", low=1, high=100_000),
-        level_m_per_s2=level,
-        level=level_text,
-        tolerance_db=fields.number("tolerance_db", 1.0, low=0.1, high=20.0, unit="dB"),
-        direction=fields.text("direction", "up", choices=("up", "down")),
-        hardness_shore_a=hardness,
-        preload_strain=preload,
-        temperature_c=fields.number("temperature_c", math.nan, low=-40.0, high=150.0),
-        segment_s=fields.number("segment_s", segments.DEFAULT_SEGMENT_S, low=1.0, high=3600.0,
-                                unit="s"),
-        segment_points=segment_points,
-        over_limit=fields.text("over_limit", "refuse", choices=OVER_LIMIT_CHOICES),
+        run=values["run"], specimen=values["specimen"], band_hz=values["band_hz"],
+        resolution_hz=values["resolution_hz"], settle_cycles=values["settle_cycles"],
+        integrate_cycles=values["integrate_cycles"], level_m_per_s2=level, level=level_text,
+        tolerance_db=values["tolerance_db"], direction=values["direction"],
+        hardness_shore_a=values["hardness_shore_a"], preload_strain=values["preload_strain"],
+        temperature_c=values["temperature_c"], segment_s=values["segment_s"],
+        segment_points=values["segment_points"], over_limit=values["over_limit"],
     )
 
 
-def _parse_identify_table(fields: TableReader, before: list[Step]) -> IdentifyTableStep:
-    run = fields.text("run")
-    sweep = next((step for step in before if isinstance(step, SweepStep) and step.run == run),
-                 None)
+def _identify_table(problems: Problems, path: tuple, fields: ReadTable,
+                    before: list[Step | _Unread | None]) -> IdentifyTableStep | None:
+    if "run" not in fields.values:
+        return None
+    run = fields["run"]
+    if any(isinstance(step, _Unread) and step.run == run for step in before):
+        return None  # its sweep has problems of its own
+    sweeps = [step for step in before if isinstance(step, SweepStep)]
+    sweep = next((step for step in sweeps if step.run == run), None)
     if sweep is None:
-        raise fields.fail("run", f"no earlier sweep step measures run {run!r}")
+        bare = [step.run for step in sweeps if step.bare_table]
+        problems.add((*path, "run"), f"no earlier sweep step measures run {run!r}",
+                     did_you_mean(run, bare, cutoff=0.5)
+                     or "identify_table follows the bare-table sweep it fits")
+        return None
     if not sweep.bare_table:
-        raise fields.fail("run", f"run {run!r} has specimen {sweep.specimen!r}, not \"none\"")
-    band = None
-    if fields.raw("band_hz", None) is not None:
-        band = _band(fields, "band_hz")
-        lo, hi = sorted(sweep.band_hz)
+        problems.add((*path, "run"), f"run {run!r} has specimen {sweep.specimen!r}, not "
+                     "\"none\"")
+        return None
+    band = fields.values.get("band_hz")
+    if band is not None:
+        lo, hi = sweep.band_hz
         if band[0] < lo or band[1] > hi:
-            raise fields.fail("band_hz", f"outside the run's band {lo:g}-{hi:g} Hz")
+            problems.add((*path, "band_hz"), f"outside the run's band {lo:g}-{hi:g} Hz")
+            return None
+    if not fields.ok:
+        return None
     return IdentifyTableStep(run=run, band_hz=band)

@@ -37,16 +37,14 @@
 
 from __future__ import annotations
 
-import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from viscorig.errors import InputError
-from viscorig.sequences.fields import TableReader
-from viscorig.sequences.sequence import parse_toml
+from viscorig.sequences.problems import Problems
+from viscorig.sequences.schema import STATION_SECTIONS, STATION_TOP, ReadTable, read_table
+from viscorig.sequences.sequence import parse_toml, read_text
 
-_RESOURCE = re.compile(r"^[A-Za-z][A-Za-z0-9-]*::\S+::(INSTR|SOCKET|INTFC)$")
 #: The analyser's source output limit, V peak.
 SOURCE_MAX_V = 5.0
 
@@ -128,104 +126,79 @@ def load_station(path: str | Path) -> Station:
     Raises
     ------
     InputError
-        Missing or unreadable file, bad TOML, or a wrong field (named with the file).
+        Missing or unreadable file, or bad TOML.
+    FileCheckError
+        Every wrong field, named with the file and line.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot be read ({type(error).__name__}: {error})", str(path)) from None
-    return parse_station(text, source=str(path))
-
-
-def _resource(fields: TableReader, key: str) -> str:
-    value = fields.text(key)
-    if not _RESOURCE.match(value):
-        raise fields.fail(key, f"{value!r} is not a VISA resource like \"GPIB0::11::INSTR\"")
-    return value
+    return parse_station(read_text(path), source=str(path))
 
 
 def parse_station(text: str, source: str = "station") -> Station:
-    """Validate a station given as TOML text; ``source`` names it in messages."""
-    top = TableReader(parse_toml(text, source), source, top_level=True)
-    resource = _resource(top, "resource")
-    adapter = _resource(top, "adapter") if top.raw("adapter", None) is not None else None
-    if adapter is not None and not adapter.endswith("::INTFC"):
-        raise top.fail("adapter", "a GPIB adapter resource ends with ::INTFC")
+    """Validate a station given as TOML text; ``source`` names it in messages.
 
-    channels = TableReader(top.subtable("channels"), f"{source}: channels")
-    numbers = {key: channels.integer(key, low=1, high=4) for key in
-               ("excitation_force", "table_acceleration", "device_force", "device_acceleration")}
-    channels.finish()
+    Raises
+    ------
+    InputError
+        Not TOML.
+    FileCheckError
+        Every problem of the file.
+    """
+    document = parse_toml(text, source)
+    problems = Problems(source, text)
+    names = tuple(section.name for section in STATION_SECTIONS)
+    top = read_table(problems, (), document, STATION_TOP, also_known=names)
+    adapter = top.values.get("adapter")
+    if adapter is not None and not adapter.endswith("::INTFC"):
+        problems.add(("adapter",), "a GPIB adapter resource ends with ::INTFC")
+    sections: dict[str, ReadTable | None] = {}
+    for section in STATION_SECTIONS:
+        if section.name not in document:
+            sections[section.name] = None
+            if section.required:
+                example = "; ".join(f"{item.name} = {item.example}" for item in section.fields
+                                    if item.required)
+                problems.add((section.name,), "missing",
+                             f"add a [{section.name}] table: {example}")
+            continue
+        sections[section.name] = read_table(problems, (section.name,), document[section.name],
+                                            section)
+    _check_channels(problems, sections["channels"])
+    problems.raise_if_any()
+    return _station(top, sections, source)
+
+
+def _check_channels(problems: Problems, channels: ReadTable | None) -> None:
+    if channels is None or not channels.ok:
+        return
+    numbers = channels.values
     if len(set(numbers.values())) != 4:
-        raise InputError("the four transducers need four different inputs", f"{source}: channels")
+        problems.add(("channels",), "the four transducers need four different inputs")
+        return
     for force, acceleration in (("excitation_force", "table_acceleration"),
                                 ("device_force", "device_acceleration")):
         if numbers[force] % 2 != 1 or numbers[acceleration] != numbers[force] + 1:
-            raise InputError(
+            problems.add(
+                ("channels", acceleration),
                 f"{force} must be on input 1 or 3 and {acceleration} on the next input: the "
                 "analyser's REF PAIR takes input 1 as reference of 2 and 3 of 4",
-                f"{source}: channels.{acceleration}",
             )
 
-    sensitivity = TableReader(top.subtable("sensitivity"), f"{source}: sensitivity")
-    sensitivities = Sensitivities(
-        excitation_force_v_per_n=sensitivity.number(
-            "excitation_force_v_per_n", low=1e-6, high=10.0, unit="V/N"),
-        table_acceleration_v_per_m_s2=sensitivity.number(
-            "table_acceleration_v_per_m_s2", low=1e-6, high=10.0, unit="V/(m/s^2)"),
-        device_force_v_per_n=sensitivity.number(
-            "device_force_v_per_n", low=1e-6, high=10.0, unit="V/N"),
-        device_acceleration_v_per_m_s2=sensitivity.number(
-            "device_acceleration_v_per_m_s2", low=1e-6, high=10.0, unit="V/(m/s^2)"),
-    )
-    sensitivity.finish()
 
-    shaker = TableReader(top.subtable("shaker"), f"{source}: shaker")
-    force_limit = shaker.number("force_limit_n", low=0.0, high=1e5, low_open=True, unit="N")
-    gain = shaker.number("gain_n_per_v", math.nan, low=0.0, high=1e6, low_open=True, unit="N/V")
-    shaker.finish()
-
-    source_table = TableReader(top.subtable("source"), f"{source}: source")
-    limit_v = source_table.number("limit_v", low=0.0, high=SOURCE_MAX_V, low_open=True, unit="V")
-    source_table.finish()
-
-    table = None
-    raw_table = top.subtable("table", required=False)
-    if raw_table is not None:
-        reader = TableReader(raw_table, f"{source}: table")
-        table = TableParameters(
-            mass_kg=reader.number("mass_kg", low=0.0, high=1e4, low_open=True, unit="kg"),
-            stiffness_n_per_m=reader.number("stiffness_n_per_m", low=0.0, high=1e10,
-                                            low_open=True, unit="N/m"),
-            damping_ns_per_m=reader.number("damping_ns_per_m", low=0.0, high=1e7,
-                                           unit="N*s/m"),
-        )
-        reader.finish()
-
-    specimen = None
-    raw_specimen = top.subtable("specimen", required=False)
-    if raw_specimen is not None:
-        reader = TableReader(raw_specimen, f"{source}: specimen")
-        factor = reader.number("geometry_factor_m", math.nan, low=0.0, high=100.0,
-                               low_open=True, unit="m")
-        specimen = SpecimenGeometry(
-            diameter_m=reader.number("diameter_m", low=0.0, high=1.0, low_open=True, unit="m"),
-            height_m=reader.number("height_m", low=0.0, high=1.0, low_open=True, unit="m"),
-            count=reader.integer("count", low=1, high=16),
-            geometry_factor_m=None if math.isnan(factor) else factor,
-        )
-        reader.finish()
-    top.finish()
+def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
+    values = {name: (None if table is None else table.values)
+              for name, table in sections.items()}
+    shaker, limits = values["shaker"], values["source"]
+    table = values["table"]
+    specimen = values["specimen"]
     return Station(
-        resource=resource,
-        adapter=adapter,
-        channels=Channels(**numbers),
-        sensitivity=sensitivities,
-        shaker_force_limit_n=force_limit,
-        shaker_gain_n_per_v=None if math.isnan(gain) else gain,
-        source_limit_v=limit_v,
-        table=table,
-        specimen=specimen,
+        resource=top["resource"],
+        adapter=top.values["adapter"],
+        channels=Channels(**values["channels"]),
+        sensitivity=Sensitivities(**values["sensitivity"]),
+        shaker_force_limit_n=shaker["force_limit_n"],
+        shaker_gain_n_per_v=shaker["gain_n_per_v"],
+        source_limit_v=limits["limit_v"],
+        table=None if table is None else TableParameters(**table),
+        specimen=None if specimen is None else SpecimenGeometry(**specimen),
         source=source,
     )

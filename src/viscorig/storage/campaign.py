@@ -12,12 +12,27 @@ Additions to the contract, both readable by any HDF5 tool:
   ``station_file`` name the original files. ``resume`` needs nothing but the campaign file.
 - Fit ids are four-digit counters per run (``0001``, ``0002``, ...); each parameter is a scalar
   float64 dataset holding the value, with attributes ``stderr`` and ``units``.
+- Dimension scales (HDF5 Dimension Scale specification, as netCDF-4 uses them):
+  ``/runs/<name>/frequency_hz`` is a dimension scale named ``frequency_hz`` (attributes
+  ``CLASS = "DIMENSION_SCALE"``, ``NAME``, ``REFERENCE_LIST``), and every other 1-D dataset of
+  the run has it attached to its only dimension (attribute ``DIMENSION_LIST``). xarray (through
+  h5netcdf), Panoply and MATLAB's ``ncread`` then see frequency as the coordinate of each run.
+  They are attributes only: format_version stays 1, a reader that ignores them reads the file
+  as before, and a file written without them gains them at its next write to that run.
+- Next to the file, while a writer has it: ``.NAME.lock``, the writer lock and a JSON record of
+  who holds it (:mod:`viscorig.storage.writelock`); during a commit, ``.NAME.commit``, the new
+  file before it replaces the old one (:mod:`viscorig.storage.atomic`).
+- Bounds a reader enforces before reading any value (:mod:`viscorig.storage.layout`): at most
+  100,000 points per run and 1,000,000 per file, 1,000 runs, 1,000 fits per run, 64 objects per
+  run or fit, 256 attributes per object, 16 values and 64 KiB per attribute, 1 MiB per setup
+  text, 16 MiB per chunk, 256 MiB per file; only hard links.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import weakref
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict
 from datetime import UTC, datetime
@@ -31,7 +46,7 @@ from numpy.typing import ArrayLike
 
 from viscorig import __version__
 from viscorig.errors import InputError
-from viscorig.storage import layout, reading
+from viscorig.storage import layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import Fit, Run, RunSettings, Segment
 
@@ -65,6 +80,21 @@ class Campaign:
         self.path = path
         self.mode = mode
         self.durable = durable
+        self._writer: weakref.finalize | None = None
+
+    def _hold(self) -> None:
+        """Take the writer lock (mode "a"), released by :meth:`close`, at the latest at exit."""
+        if self._writer is not None and self._writer.alive:
+            return
+        try:
+            writelock.acquire(self.path)
+        except OSError as error:
+            raise room.write_failure(error, self.path, before_writing=True) from None
+        self._writer = weakref.finalize(self, writelock.release, self.path)
+
+    def _release(self) -> None:
+        if self._writer is not None:
+            self._writer()
 
     # -- opening ---------------------------------------------------------------------------
 
@@ -85,12 +115,32 @@ class Campaign:
         ------
         InputError
             The file is missing, not HDF5, damaged, or not a viscorig format 1 campaign.
+        CampaignInUseError
+            Mode "a" and another process is writing the file (its error names it).
+        NoRoomError
+            Mode "a" and there is no room to commit (disk full, ``ulimit -f``, read-only).
+
+        Notes
+        -----
+        Mode "a" takes the file's writer lock before anything else and holds it until
+        :meth:`close` (or the end of the process): one writer per campaign file, while any
+        number of readers may read it (:mod:`viscorig.storage.writelock`).
         """
         if mode not in ("r", "a"):
             raise ValueError(f"mode must be 'r' or 'a', not {mode!r}")
         campaign = cls(Path(path), mode, durable)
-        with campaign._reading() as h5:
-            reading.check_root(h5, campaign.path)
+        if mode == "a":
+            reading.check_path(campaign.path)
+            campaign._hold()
+        try:
+            with campaign._reading() as h5:
+                reading.check_structure(h5, campaign.path)
+            if mode == "a":
+                size = campaign.path.stat().st_size
+                room.check_room(campaign.path, size + room.HEADROOM_BYTES)
+        except BaseException:
+            campaign._release()
+            raise
         return campaign
 
     @classmethod
@@ -127,7 +177,13 @@ class Campaign:
         """
         rig_attributes = _checked_rig(dict(rig or {}), str(path))
         campaign = cls(Path(path), "a", durable)
+        folder = campaign.path.parent if str(campaign.path.parent) else Path(".")
+        if not folder.is_dir():
+            raise InputError("cannot create the campaign file (folder does not exist)",
+                             str(path))
+        campaign._hold()
         try:
+            room.check_room(campaign.path, room.HEADROOM_BYTES)
             with atomic_commit(campaign.path, create=True, durable=durable) as h5:
                 h5.attrs["format"] = layout.FORMAT_NAME
                 h5.attrs["format_version"] = np.int64(layout.FORMAT_VERSION)
@@ -145,9 +201,11 @@ class Campaign:
                     setup.create_dataset(layout.STATION_TEXT, data=station_text, dtype=text)
                 setup.attrs["station_file"] = station_file
         except FileExistsError:
+            campaign._release()
             raise InputError("file exists; campaigns are never overwritten", str(path)) from None
-        except OSError as error:
-            raise InputError(f"cannot create the campaign file ({error})", str(path)) from None
+        except BaseException:
+            campaign._release()
+            raise
         return campaign
 
     def __enter__(self) -> Self:
@@ -162,7 +220,11 @@ class Campaign:
         self.close()
 
     def close(self) -> None:
-        """Nothing to release (no handle is held); kept for symmetry with files."""
+        """Release the writer lock (mode "a"); no HDF5 handle is held between calls.
+
+        A write after :meth:`close` takes the lock again.
+        """
+        self._release()
 
     # -- reading ---------------------------------------------------------------------------
 
@@ -173,7 +235,7 @@ class Campaign:
     def attributes(self) -> dict[str, object]:
         """The root attributes: format, format_version, created, software."""
         with self._reading() as h5, reading.guarded(self.path, "/"):
-            return {key: reading._decode(value) for key, value in h5.attrs.items()}
+            return reading.attributes(h5, self.path)
 
     @property
     def rig(self) -> dict[str, float | int]:
@@ -185,7 +247,10 @@ class Campaign:
     def run_names(self) -> list[str]:
         """Names of the runs, in the order they were started."""
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}"):
-            return list(h5[layout.RUNS_GROUP].keys())
+            names = untrusted.members(h5[layout.RUNS_GROUP], self.path, layout.MAX_RUNS)
+            for name in names:
+                untrusted.check_name(name, self.path, f"/{layout.RUNS_GROUP}", "run")
+            return names
 
     def run(self, name: str) -> Run:
         """Read run ``name`` whole (metadata and every dataset).
@@ -212,13 +277,15 @@ class Campaign:
     def _setup_text(self, dataset: str) -> str | None:
         where = f"/{layout.SETUP_GROUP}/{dataset}"
         with self._reading() as h5, reading.guarded(self.path, where):
-            item = h5.get(where)
+            untrusted.check_link(h5, layout.SETUP_GROUP, self.path)
+            setup = h5.get(layout.SETUP_GROUP)
+            if not isinstance(setup, h5py.Group):
+                return None
+            untrusted.check_link(setup, dataset, self.path)
+            item = setup.get(dataset)
             if item is None:
                 return None
-            text = isinstance(item, h5py.Dataset) and item.shape == () and item.dtype.kind in "OS"
-            if not text:
-                raise InputError("not a text dataset", f"{self.path}: {where}")
-            return str(reading._decode(item[()]))
+            return reading.read_setup_text(item, self.path)
 
     @property
     def sequence_text(self) -> str | None:
@@ -234,10 +301,11 @@ class Campaign:
     def setup_files(self) -> dict[str, str]:
         """Names of the files the sequence and station texts came from."""
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.SETUP_GROUP}"):
+            untrusted.check_link(h5, layout.SETUP_GROUP, self.path)
             group = h5.get(layout.SETUP_GROUP)
             if not isinstance(group, h5py.Group):
                 return {}
-            return {key: str(reading._decode(value)) for key, value in group.attrs.items()}
+            return {key: str(value) for key, value in reading.attributes(group, self.path).items()}
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -246,13 +314,14 @@ class Campaign:
         """One atomic commit; file-system failures become InputErrors naming the file."""
         if self.mode != "a":
             raise InputError("opened read-only; open with mode='a' to change it", str(self.path))
-        with self._reading() as h5:  # never build on a file that is not a campaign
-            reading.check_root(h5, self.path)
+        self._hold()
         try:
             with atomic_commit(self.path, durable=self.durable) as h5:
+                reading.check_root(h5, self.path)  # never build on a file that is not a campaign
                 yield h5
         except OSError as error:
-            raise InputError(f"cannot write the campaign file ({error})", str(self.path)) from None
+            raise InputError(f"cannot read the campaign file to change it ({error.strerror})",
+                             str(self.path)) from None
 
     def start_run(self, name: str, settings: RunSettings) -> None:
         """Create ``/runs/<name>`` with status "running" and empty datasets.
@@ -265,16 +334,46 @@ class Campaign:
         check_name(name, f"{self.path}: run name")
         attributes = _settings_attributes(settings)
         with self._commit() as h5:
-            runs = h5[layout.RUNS_GROUP]
-            if name in runs:
-                raise InputError("run exists", f"{self.path}: /{layout.RUNS_GROUP}/{name}")
-            group = runs.create_group(name)
-            group.attrs.update(attributes)
-            group.attrs["status"] = "running"
-            group.attrs["started"] = utc_now()
-            group.attrs["finished"] = ""
-            for spec in layout.REQUIRED_DATASETS:
-                _create_column(group, spec.name, _STORED_DTYPES[spec.kind], spec.units)
+            self._new_run(h5, name, attributes)
+
+    def _new_run(self, h5: h5py.File, name: str, attributes: dict[str, object]) -> h5py.Group:
+        runs = h5[layout.RUNS_GROUP]
+        if name in runs:
+            raise InputError("run exists", f"{self.path}: /{layout.RUNS_GROUP}/{name}")
+        if len(runs) >= layout.MAX_RUNS:
+            raise InputError(f"holds {layout.MAX_RUNS} runs, the most a campaign file may hold",
+                             f"{self.path}: /{layout.RUNS_GROUP}")
+        group = runs.create_group(name)
+        group.attrs.update(attributes)
+        group.attrs["status"] = "running"
+        group.attrs["started"] = utc_now()
+        group.attrs["finished"] = ""
+        for spec in layout.REQUIRED_DATASETS:
+            _create_column(group, spec.name, _STORED_DTYPES[spec.kind], spec.units)
+        _link_frequency_scale(group)
+        return group
+
+    def add_run(self, name: str, settings: RunSettings, segment: Segment,
+                status: str = "complete") -> int:
+        """Store a whole run (e.g. an import) in one commit: all of it, or nothing.
+
+        Returns
+        -------
+        int
+            The number of points stored.
+        """
+        check_name(name, f"{self.path}: run name")
+        if status not in layout.RUN_STATUSES:
+            raise ValueError(f"status must be one of {layout.RUN_STATUSES}, not {status!r}")
+        attributes = _settings_attributes(settings)
+        columns = segment.columns()
+        with self._commit() as h5:
+            group = self._new_run(h5, name, attributes)
+            points = _append_columns(group, columns, self.path)
+            group.attrs["status"] = status
+            if status != "running":
+                group.attrs["finished"] = utc_now()
+            return points
 
     def append_segment(self, run_name: str, segment: Segment) -> int:
         """Append a segment's points to a running run in one atomic commit.
@@ -298,21 +397,7 @@ class Campaign:
             if status != "running":
                 raise InputError(f"run is {status}; only a running run takes points",
                                  f"{self.path}: {group.name}")
-            points = group["frequency_hz"].shape[0]
-            present = {key for key, item in group.items() if isinstance(item, h5py.Dataset)}
-            if points and set(columns) != present:
-                raise ValueError(
-                    f"segment datasets {sorted(columns)} differ from the run's {sorted(present)}"
-                )
-            for key, (values, units) in columns.items():
-                if key not in group:
-                    spec = layout.KNOWN_DATASETS.get(key)
-                    _create_column(group, key, values.dtype,
-                                   spec.units if spec else units or "1")
-                dataset = group[key]
-                dataset.resize((points + len(values),))
-                dataset[points:] = values
-            return points + len(columns["frequency_hz"][0])
+            return _append_columns(group, columns, self.path)
 
     def finish_run(self, run_name: str, status: str = "complete") -> None:
         """Mark a run "complete" or "aborted" and stamp ``finished``."""
@@ -404,7 +489,8 @@ class Campaign:
             name -> (value, stderr, unit); stderr NaN when unknown.
         correlation
             (names, matrix): the correlation matrix of the named parameters, stored as the
-            2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order).
+            2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order,
+            separated by spaces).
 
         Returns
         -------
@@ -444,7 +530,7 @@ class Campaign:
                 dataset.attrs["units"] = unit
             if matrix is not None:
                 dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
-                dataset.attrs["parameters"] = np.array(names, dtype=h5py.string_dtype())
+                dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
                 dataset.attrs["units"] = "1"
             return fit_id
 
@@ -457,6 +543,48 @@ def _create_column(group: h5py.Group, name: str, dtype: object, units: str) -> N
         name, shape=(0,), maxshape=(None,), chunks=(layout.CHUNK_POINTS,), dtype=dtype
     )
     dataset.attrs["units"] = units
+
+
+def _append_columns(group: h5py.Group, columns: dict[str, tuple[np.ndarray, str | None]],
+                    path: Path) -> int:
+    """Append one segment's columns to a run group; return the run's points after it."""
+    points = group["frequency_hz"].shape[0]
+    present = {key for key, item in group.items() if isinstance(item, h5py.Dataset)}
+    if points and set(columns) != present:
+        raise ValueError(
+            f"segment datasets {sorted(columns)} differ from the run's {sorted(present)}"
+        )
+    total = points + len(columns["frequency_hz"][0])
+    if total > layout.MAX_RUN_POINTS:
+        raise InputError(f"{total} points; a run holds at most {layout.MAX_RUN_POINTS}",
+                         f"{path}: {group.name}")
+    created = False
+    for key, (values, units) in columns.items():
+        if key not in group:
+            spec = layout.KNOWN_DATASETS.get(key)
+            _create_column(group, key, values.dtype, spec.units if spec else units or "1")
+            created = True
+        dataset = group[key]
+        dataset.resize((total,))
+        dataset[points:] = values
+    if created or not h5py.h5ds.is_scale(group["frequency_hz"].id):
+        _link_frequency_scale(group)
+    return total
+
+
+def _link_frequency_scale(group: h5py.Group) -> None:
+    """Make ``frequency_hz`` the dimension scale of every per-point dataset of a run, so that
+    netCDF-aware tools (xarray with h5netcdf, Panoply) see frequency as the coordinate.
+
+    Idempotent; a file written before scales existed gains them at its next write.
+    """
+    frequency = group["frequency_hz"]
+    if not h5py.h5ds.is_scale(frequency.id):
+        frequency.make_scale("frequency_hz")
+    for item in group.values():
+        if isinstance(item, h5py.Dataset) and item.ndim == 1 and item.name != frequency.name \
+                and not h5py.h5ds.is_attached(item.id, frequency.id, 0):
+            item.dims[0].attach_scale(frequency)
 
 
 def _settings_attributes(settings: RunSettings) -> dict[str, object]:

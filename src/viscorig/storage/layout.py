@@ -47,6 +47,31 @@ FIT_CORRELATION = "correlation"
 #: Elements of each dataset: 1-D, chunked, resizable.
 CHUNK_POINTS = 256
 
+# -- bounds: what a campaign file may declare before anything in it is read -------------------
+# A file from elsewhere is checked against these before a value is read, so that memory stays
+# bounded (a few hundred MB at most) whatever sizes the file declares.
+
+#: Points in one run: the bound a sequence accepts (over a day of dwell at 100+100 cycles; the
+#: analyser's 801-point limit applies per segment, and runs are split into segments).
+MAX_RUN_POINTS = 100_000
+#: Points in all the runs of a file together.
+MAX_CAMPAIGN_POINTS = 1_000_000
+#: Runs in one file, fits of one run.
+MAX_RUNS = 1_000
+MAX_FITS = 1_000
+#: Objects in one run group (datasets and ``fits``) or one fit group (parameters).
+MAX_MEMBERS = 64
+#: Attributes of one object, values in one attribute, and the bytes of one attribute.
+MAX_ATTRIBUTES = 256
+MAX_ATTRIBUTE_VALUES = 16
+MAX_ATTRIBUTE_BYTES = 64 * 1024
+#: Characters of a ``/setup`` text (a sequence or station file).
+MAX_SETUP_TEXT = 1024 * 1024
+#: Bytes of one chunk of a dataset (HDF5 reads a whole chunk to read one value of it).
+MAX_CHUNK_BYTES = 16 * 1024 * 1024
+#: Bytes of a campaign file; also bounds what a variable-length text can hold.
+MAX_FILE_BYTES = 256 * 1024 * 1024
+
 
 @dataclass(frozen=True)
 class DatasetSpec:

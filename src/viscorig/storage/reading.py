@@ -1,8 +1,11 @@
 """Reading a campaign file defensively: every defect becomes an InputError naming the object.
 
 A campaign file may come from another program (MATLAB, a colleague's h5py script) or from a
-damaged disk, so nothing is trusted: each attribute and dataset is checked for presence, type,
-shape and units before it is used.
+damaged disk, so nothing is trusted: the structure is checked before any value is read
+(:mod:`viscorig.storage.untrusted`: links, sizes, dtypes), each attribute and dataset is checked
+for presence, type, shape and units before it is used, and every text is handed out without
+control characters (:func:`viscorig.storage.text.printable`). The file is opened read-only and
+never written, so reading works on a full disk or a read-only mount.
 """
 
 from __future__ import annotations
@@ -18,22 +21,37 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.storage import layout
+from viscorig.storage import layout, untrusted
 from viscorig.storage.records import Fit, FitParameter, Run, RunMetadata
+from viscorig.storage.text import printable
 
 #: What h5py raises on damaged objects, missing members, or values of an unexpected type.
 HDF5_FAULTS = (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError)
 
 
-@contextlib.contextmanager
-def open_for_reading(path: Path) -> Iterator[h5py.File]:
-    """Open a campaign file read-only, turning every failure into an InputError."""
+def check_path(path: Path) -> None:
+    """The path names a regular file no larger than any campaign file."""
     if not path.exists():
         raise InputError("no such file", str(path))
     if not path.is_file():
         raise InputError("not a file", str(path))
+    size = path.stat().st_size
+    if size > layout.MAX_FILE_BYTES:
+        raise InputError(f"{size} bytes; a campaign file holds at most {layout.MAX_FILE_BYTES}",
+                         str(path))
+
+
+@contextlib.contextmanager
+def open_for_reading(path: Path) -> Iterator[h5py.File]:
+    """Open a campaign file read-only, turning every failure into an InputError.
+
+    HDF5's own file lock is taken where the file system allows it ("best-effort"): a campaign
+    file is replaced, never changed in place, so readers need no lock, and file systems without
+    ``flock`` (some network mounts) would otherwise refuse to open the file at all.
+    """
+    check_path(path)
     try:
-        h5 = h5py.File(path, "r")
+        h5 = h5py.File(path, "r", locking="best-effort")
     except HDF5_FAULTS as error:
         reason = str(error).split("(")[0].strip().rstrip(":") or type(error).__name__
         raise InputError(
@@ -58,19 +76,58 @@ def guarded(path: Path, what: str) -> Iterator[None]:
         raise InputError(f"cannot be read ({detail})", f"{path}: {what}") from None
 
 
-def _decode(value: Any) -> Any:
+def _decode(value: Any, keep: str = "") -> Any:
     if isinstance(value, bytes):
-        return value.decode("utf-8", errors="replace")
+        return printable(value.decode("utf-8", errors="replace"), keep=keep)
+    if isinstance(value, str):
+        return printable(value, keep=keep)
     if isinstance(value, np.ndarray) and value.shape == ():
-        return _decode(value[()])
+        return _decode(value[()], keep)
     if isinstance(value, np.generic):
         return value.item()
     return value
 
 
+def attribute(obj: h5py.HLObject, name: str, path: Path) -> Any:
+    """An attribute's value, checked for size and kind before it is read; text is printable.
+
+    Returns ``None`` when the attribute is absent.
+    """
+    if name not in obj.attrs:
+        return None
+    untrusted.check_attributes(obj, path)
+    untrusted.check_attribute(obj, name, path)
+    value = _decode(obj.attrs[name])
+    if isinstance(value, str) and len(value) > layout.MAX_ATTRIBUTE_BYTES:
+        raise InputError(f"text of {len(value)} characters; at most "
+                         f"{layout.MAX_ATTRIBUTE_BYTES}", f"{path}: {obj.name}.{name}")
+    return value
+
+
+def attributes(obj: h5py.HLObject, path: Path) -> dict[str, Any]:
+    """Every attribute of an object whose name is printable, each read as :func:`attribute`."""
+    untrusted.check_attributes(obj, path)
+    return {printable(key): attribute(obj, key, path) for key in obj.attrs}
+
+
+def read_setup_text(item: h5py.HLObject, path: Path) -> str:
+    """A ``/setup`` text dataset (scalar string), newlines and tabs kept."""
+    where = f"{path}: {item.name}"
+    text = isinstance(item, h5py.Dataset) and item.shape == () and (
+        h5py.check_string_dtype(item.dtype) is not None)
+    if not text:
+        raise InputError("not a text dataset", where)
+    untrusted.check_values_dataset(item, path, scalar=True)
+    value = _decode(item[()], keep="\n\t")
+    if len(value) > layout.MAX_SETUP_TEXT:
+        raise InputError(f"text of {len(value)} characters; at most {layout.MAX_SETUP_TEXT}",
+                         where)
+    return str(value)
+
+
 def read_text(obj: h5py.HLObject, name: str, path: Path) -> str:
     """A string attribute."""
-    value = _decode(obj.attrs[name]) if name in obj.attrs else None
+    value = attribute(obj, name, path)
     if not isinstance(value, str):
         problem = "missing" if value is None else f"not text ({type(value).__name__})"
         raise InputError(f"attribute {problem}", f"{path}: {obj.name}.{name}")
@@ -82,7 +139,7 @@ def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = Fa
     where = f"{path}: {obj.name}.{name}"
     if name not in obj.attrs:
         raise InputError("attribute missing", where)
-    value = _decode(obj.attrs[name])
+    value = attribute(obj, name, path)
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InputError(f"not a number ({type(value).__name__})", where)
     if integer:
@@ -97,7 +154,7 @@ def read_bool(obj: h5py.HLObject, name: str, path: Path) -> bool:
     where = f"{path}: {obj.name}.{name}"
     if name not in obj.attrs:
         raise InputError("attribute missing", where)
-    value = _decode(obj.attrs[name])
+    value = attribute(obj, name, path)
     if isinstance(value, bool) or value in (0, 1):
         return bool(value)
     raise InputError(f"not a boolean ({value!r})", where)
@@ -127,13 +184,22 @@ def check_root(h5: h5py.File, path: Path) -> None:
                 "viscorig reads",
                 f"{path}: /",
             )
+        untrusted.check_link(h5, layout.RUNS_GROUP, path)
         group = h5.get(layout.RUNS_GROUP)
         if not isinstance(group, h5py.Group):
             raise InputError("group missing", f"{path}: /{layout.RUNS_GROUP}")
 
 
+def check_structure(h5: h5py.File, path: Path) -> None:
+    """:func:`check_root`, then the whole layout's structure (links, names, bounds)."""
+    check_root(h5, path)
+    with guarded(path, "/"):
+        untrusted.check_structure(h5, path)
+
+
 def read_rig(h5: h5py.File, path: Path) -> dict[str, float | int]:
     """The /rig attributes this layout defines (others are kept out); {} if /rig is absent."""
+    untrusted.check_link(h5, layout.RIG_GROUP, path)
     group = h5.get(layout.RIG_GROUP)
     if group is None:
         return {}
@@ -153,10 +219,12 @@ def read_rig(h5: h5py.File, path: Path) -> dict[str, float | int]:
 def run_group(h5: h5py.File, name: str, path: Path) -> h5py.Group:
     """The group of run ``name``."""
     where = f"{path}: /{layout.RUNS_GROUP}/{name}"
+    untrusted.check_link(h5, layout.RUNS_GROUP, path)
     runs = h5[layout.RUNS_GROUP]
     if name not in runs:
-        known = ", ".join(runs.keys()) or "none"
-        raise InputError(f"no such run (runs: {known})", where)
+        known = ", ".join(printable(key) for key in untrusted.members(runs, path, layout.MAX_RUNS))
+        raise InputError(f"no such run (runs: {known or 'none'})", where)
+    untrusted.check_link(runs, name, path)
     group = runs[name]
     if not isinstance(group, h5py.Group):
         raise InputError("not a group", where)
@@ -184,53 +252,59 @@ def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
     )
 
 
-def _complex_from_compound(values: np.ndarray) -> NDArray[np.complex128] | None:
-    names = values.dtype.names or ()
-    for real, imag in (("r", "i"), ("real", "imag"), ("re", "im"), ("Re", "Im")):
-        if set(names) == {real, imag}:
-            return values[real].astype(np.float64) + 1j * values[imag].astype(np.float64)
-    return None
+def _values(dataset: h5py.Dataset) -> NDArray:
+    """A checked 1-D dataset of numbers as float64 or complex128 (compounds r, i converted)."""
+    values = dataset[()]
+    fields = untrusted.complex_fields(dataset.dtype) if dataset.dtype.names else None
+    if fields is not None:
+        real, imag = fields
+        return values[real].astype(np.float64) + 1j * values[imag].astype(np.float64)
+    return values.astype(np.complex128 if values.dtype.kind == "c" else np.float64)
 
 
 def read_column(group: h5py.Group, spec: layout.DatasetSpec, path: Path) -> NDArray:
     """One per-point dataset: 1-D, of the expected kind, with the expected units."""
     where = f"{path}: {group.name}/{spec.name}"
+    untrusted.check_link(group, spec.name, path)
     dataset = group.get(spec.name)
     if dataset is None:
         raise InputError("dataset missing", where)
     if not isinstance(dataset, h5py.Dataset):
         raise InputError("not a dataset", where)
-    if dataset.ndim != 1:
-        raise InputError(f"shape {dataset.shape} is not 1-D", where)
-    units = _decode(dataset.attrs.get("units"))
+    untrusted.check_values_dataset(dataset, path)
+    units = attribute(dataset, "units", path)
     if not isinstance(units, str):
         raise InputError("no units attribute", where)
     if not layout.unit_matches(spec.units, units):
         raise InputError(f"units {units!r}, expected {spec.units!r}", where)
     dtype = dataset.dtype
-    values = dataset[()]
+    kind = untrusted.number_kind(dtype)
     if spec.kind == "complex":
-        if dtype.kind == "c":
-            return values.astype(np.complex128)
-        converted = _complex_from_compound(values) if dtype.names else None
-        if converted is None:
+        if kind != "complex":
             raise InputError(f"dtype {dtype} is not complex (compound r, i)", where)
-        return converted
+        return _values(dataset)
     if spec.kind == "flags":
-        if dtype.kind not in "iu":
+        if kind != "integer":
             raise InputError(f"dtype {dtype} is not an integer bit mask", where)
+        values = dataset[()]
         if values.size and (values.min() < 0 or values.max() > 0xFFFF):
             raise InputError("flags outside 0..65535", where)
         return values.astype(np.uint16)
-    if dtype.kind not in "fiu":
+    if kind not in ("real", "integer"):
         raise InputError(f"dtype {dtype} is not a real number", where)
-    return values.astype(np.float64)
+    return _values(dataset)
 
 
 def read_run(h5: h5py.File, name: str, path: Path) -> Run:
     """A whole run, checked: attributes, datasets, equal lengths."""
     group = run_group(h5, name, path)
     with guarded(path, group.name):
+        untrusted.check_run(group, path)  # links, names, points: before any value is read
+        lengths = {key: item.shape[0] for key, item in group.items()
+                   if isinstance(item, h5py.Dataset) and item.ndim == 1}
+        if len(set(lengths.values())) > 1:
+            detail = ", ".join(f"{key} {length}" for key, length in lengths.items())
+            raise InputError(f"datasets differ in length ({detail})", f"{path}: {group.name}")
         metadata = read_metadata(group, path)
         columns = {spec.name: read_column(group, spec, path) for spec in layout.REQUIRED_DATASETS}
         for spec in layout.OPTIONAL_DATASETS:
@@ -239,13 +313,10 @@ def read_run(h5: h5py.File, name: str, path: Path) -> Run:
         for key, item in group.items():
             if key in layout.KNOWN_DATASETS or not isinstance(item, h5py.Dataset):
                 continue
-            if item.ndim == 1 and item.dtype.kind in "fiuc":
-                extra[key] = (item[()], str(_decode(item.attrs.get("units", ""))))
-        lengths = {key: len(value) for key, value in columns.items() if value is not None}
-        lengths.update({key: len(value) for key, (value, _) in extra.items()})
-        if len(set(lengths.values())) > 1:
-            detail = ", ".join(f"{key} {length}" for key, length in lengths.items())
-            raise InputError(f"datasets differ in length ({detail})", f"{path}: {group.name}")
+            if item.ndim == 1 and untrusted.number_kind(item.dtype) is not None:
+                units = attribute(item, "units", path)
+                extra[key] = (_values(item) if item.dtype.names else item[()],
+                              str(units if units is not None else ""))
         for values in (*columns.values(), *(value for value, _ in extra.values())):
             if values is not None:
                 values.setflags(write=False)
@@ -255,21 +326,30 @@ def read_run(h5: h5py.File, name: str, path: Path) -> Run:
 def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
     """The fits of a run, in id order."""
     group = run_group(h5, run_name, path)
+    untrusted.check_link(group, layout.FITS_GROUP, path)
     fits_group = group.get(layout.FITS_GROUP)
     if fits_group is None:
         return []
     result = []
     with guarded(path, f"{group.name}/{layout.FITS_GROUP}"):
-        for fit_id in sorted(fits_group):
+        if not isinstance(fits_group, h5py.Group):
+            raise InputError("not a group", f"{path}: {fits_group.name}")
+        for fit_id in sorted(untrusted.members(fits_group, path, layout.MAX_FITS)):
+            untrusted.check_name(fit_id, path, fits_group.name, "fit")
             fit = fits_group[fit_id]
             if not isinstance(fit, h5py.Group):
                 raise InputError("not a group", f"{path}: {fit.name}")
-            band = np.asarray(fit.attrs.get("band_hz", []), dtype=float).ravel()
+            band_value = attribute(fit, "band_hz", path)
+            try:
+                band = np.asarray([] if band_value is None else band_value, dtype=float).ravel()
+            except (TypeError, ValueError):
+                band = np.empty(0)
             if band.shape != (2,):
                 raise InputError("band_hz is not [lo, hi]", f"{path}: {fit.name}.band_hz")
             parameters = {}
-            for key, item in fit.items():
-                parameter = _read_parameter(item, path)
+            for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
+                untrusted.check_name(key, path, fit.name, "parameter")
+                parameter = _read_parameter(fit[key], path)
                 if parameter is not None:
                     parameters[key] = parameter
             correlation = _read_correlation(fit, path)
@@ -296,9 +376,10 @@ def _read_correlation(
     item = fit.get(layout.FIT_CORRELATION)
     if not isinstance(item, h5py.Dataset) or item.ndim != 2:
         return None
-    names = tuple(
-        n.decode() if isinstance(n, bytes) else str(n) for n in item.attrs.get("parameters", [])
-    )
+    stored = item.attrs.get("parameters", "")
+    if isinstance(stored, np.ndarray):  # names as an array of texts
+        stored = " ".join(v.decode() if isinstance(v, bytes) else str(v) for v in stored.ravel())
+    names = tuple((stored.decode() if isinstance(stored, bytes) else str(stored)).split())
     matrix = np.asarray(item[()], dtype=float)
     if matrix.shape != (len(names), len(names)):
         raise InputError("correlation does not match its parameter names", f"{path}: {item.name}")
@@ -309,8 +390,9 @@ def _read_parameter(item: h5py.HLObject, path: Path) -> FitParameter | None:
     """A parameter stored as a scalar dataset (attrs stderr, units) or a group (attrs value,
     stderr, units); other objects in a fit group are not parameters."""
     if isinstance(item, h5py.Dataset):
-        if item.shape != () or item.dtype.kind not in "fiu":
+        if item.shape != () or untrusted.number_kind(item.dtype) not in ("real", "integer"):
             return None
+        untrusted.check_values_dataset(item, path, scalar=True)
         value = float(item[()])
     else:
         value = read_number(item, "value", path)

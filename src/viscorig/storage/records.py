@@ -168,19 +168,20 @@ class Run:
 
     name: str
     metadata: RunMetadata
-    frequency_hz: NDArray[np.float64]
-    time_s: NDArray[np.float64]
-    accelerance_table: NDArray[np.complex128]
+    # arrays are left out of repr(), which would otherwise print every point
+    frequency_hz: NDArray[np.float64] = field(repr=False)
+    time_s: NDArray[np.float64] = field(repr=False)
+    accelerance_table: NDArray[np.complex128] = field(repr=False)
     """ẍ_s / F_e, m/s²/N."""
-    accelerance_support: NDArray[np.complex128]
+    accelerance_support: NDArray[np.complex128] = field(repr=False)
     """ẍ_v / F_v, m/s²/N (NaN on a bare-table run)."""
-    reference_amplitude: NDArray[np.float64]
-    source_amplitude: NDArray[np.float64]
-    force_amplitude: NDArray[np.float64]
-    flags: NDArray[np.uint16]
-    variance_table: NDArray[np.float64] | None = None
-    variance_support: NDArray[np.float64] | None = None
-    extra: dict[str, tuple[NDArray, str]] = field(default_factory=dict)
+    reference_amplitude: NDArray[np.float64] = field(repr=False)
+    source_amplitude: NDArray[np.float64] = field(repr=False)
+    force_amplitude: NDArray[np.float64] = field(repr=False)
+    flags: NDArray[np.uint16] = field(repr=False)
+    variance_table: NDArray[np.float64] | None = field(default=None, repr=False)
+    variance_support: NDArray[np.float64] | None = field(default=None, repr=False)
+    extra: dict[str, tuple[NDArray, str]] = field(default_factory=dict, repr=False)
     """Other per-point datasets an instrument added: name -> (values, units)."""
 
     @property

@@ -1,108 +1,162 @@
-"""``INPut`` and ``SENSe:VOLTage``: channels on and off, coupling, ranges, engineering units."""
+"""``INPut`` (chapter 12) and ``[SENSe:]VOLTage`` (18): inputs, ranges, engineering units."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
 
-from rigsim.analyser.limits import MAX_FREQUENCY_4CH_HZ
-from rigsim.analyser.params import Params, limited, one
-from rigsim.analyser.worker import SweepWorker
-from rigsim.measurement import INPUT_RANGES_DBVRMS
+from rigsim.analyser.commands.table import boolean, choice, declare, integer, real, text
+from rigsim.analyser.host import Host
+from rigsim.analyser.inputs import range_step_dbvrms, snap_range_dbvrms
+from rigsim.analyser.settings import Spec, check_option, one
+from rigsim.analyser.units import LEVEL_UNITS, Level, from_vpk, to_vpk
 from rigsim.scpi import (
+    OUT_OF_RANGE,
+    Call,
     CommandTree,
-    Quantity,
     ScpiError,
     format_bool,
     format_real,
+    format_string,
     parse_bool,
-    parse_choice,
     parse_quantity,
-    unquote,
 )
 
-__all__ = ["InputCommands"]
+__all__ = ["TRANSDUCER_LABELS", "register"]
+
+#: ``VOLT:RANG:UNIT:XDCR:LAB`` labels (chapter 18).
+TRANSDUCER_LABELS = ("PA", "G", "M/S2", "M/S", "M", "KG", "N", "DYN", "INCH/S2", "INCH/S",
+                     "INCH", "MIL", "LB", "USER")
+_TOP_DBVRMS, _BOTTOM_DBVRMS = 27.0, -51.0
 
 
-class InputCommands(SweepWorker):
-    """Handlers of ``INPut#`` and ``[SENSe:]VOLTage#`` (a base of the analyser)."""
+def _channel(call: Call) -> int:
+    number = 1 if call.suffix is None else call.suffix
+    if not 1 <= number <= 4:
+        raise ScpiError(-114, f"{call.header}: suffix {number} (1..4)")
+    return number
 
-    def _register_input_commands(self, t: CommandTree) -> None:
-        t.add("INPut#[:STATe]", setter=self._input_state,
-              query=lambda p, s: format_bool(self._channel(s).enabled))
-        t.add("INPut#:COUPling", setter=self._channel_choice("coupling", ("AC", "DC")),
-              query=lambda p, s: self._channel(s).coupling)
-        t.add("INPut#:LOW", setter=self._channel_choice("low", ("GROund", "FLOat")),
-              query=lambda p, s: self._channel(s).low)
-        t.add("INPut#:BIAS[:STATe]", setter=self._channel_bool("bias"),
-              query=lambda p, s: format_bool(self._channel(s).bias))
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe[:UPPer]", setter=self._range,
-              query=lambda p, s: format_real(self._channel(s).range_dbvrms))
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe:AUTO", setter=self._channel_bool("autorange"),
-              query=lambda p, s: format_bool(self._channel(s).autorange))
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe:AUTO:DIRection", setter=self._autorange_direction)
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe:UNIT:XDCR:LABel", setter=self._label,
-              query=lambda p, s: self._channel(s).label)
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe:UNIT:USER:SFACtor", setter=self._sfac,
-              query=lambda p, s: format_real(self._channel(s).user_sfac_v_per_eu))
-        t.add("[SENSe:]VOLTage#[:DC]:RANGe:UNIT:USER[:STATe]", setter=self._channel_bool(
-            "user_units"), query=lambda p, s: format_bool(self._channel(s).user_units))
 
-    def _input_state(self, params: Params, suffix: int | None) -> None:
-        n = 1 if suffix is None else suffix
-        channel = self._channel(n)
-        on = parse_bool(one(params))
-        if n == 1 and not on:
-            raise ScpiError(-221, "channel 1 is always on")  # (inferred)
-        if n >= 3 and on and "AY6" not in self.options:
-            raise ScpiError(-241, "four channels need option AY6")
-        channel.enabled = on
-        if self._four_channel():
-            limit = MAX_FREQUENCY_4CH_HZ  # clamp to the four-channel band (inferred)
-            for s in self.modes.values():
-                s.start_hz, s.stop_hz = min(s.start_hz, limit), min(s.stop_hz, limit)
+def register(tree: CommandTree, a: Host) -> None:
+    """Register the input and range commands."""
+    store = a.store
+    channel = {"scope": ("channel",)}
+    store.define("inp.state", Spec("bool", lambda mode, index: index[0] <= 2, scope=("channel",)))
 
-    def _channel_choice(self, name: str, choices: Sequence[str]) -> Callable[..., None]:
-        def setter(params: Params, suffix: int | None) -> None:
-            setattr(self._channel(suffix), name, parse_choice(one(params), choices))
-        return setter
+    def set_state(call: Call) -> None:
+        number = _channel(call)
+        on = parse_bool(one(call))
+        if number >= 3:
+            check_option("AY6", a.options)
+        if number == 1 and not on:
+            raise ScpiError(-200, "Channel 1 input cannot be disabled.")
+        if number >= 3:  # inputs 3 and 4 go together: four-channel mode (chapter 12)
+            store.set("inp.state", on, (3,))
+            store.set("inp.state", on, (4,))
+        else:
+            store.set("inp.state", on, (number,))
+            if number == 2 and not on:
+                store.set("inp.state", False, (3,))
+                store.set("inp.state", False, (4,))
+        a.settings_changed("channels")
 
-    def _channel_bool(self, name: str) -> Callable[..., None]:
-        def setter(params: Params, suffix: int | None) -> None:
-            setattr(self._channel(suffix), name, parse_bool(one(params)))
-        return setter
+    tree.add("INPut#[:STATe]", setter=set_state,
+             query=lambda c: format_bool(a.inputs.enabled(_channel(c))))
+    declare(tree, store, [
+        ("INPut#:BIAS[:STATe]", "inp.bias", boolean(False, **channel)),
+        ("INPut#:COUPling", "inp.coup", choice("DC", "AC", "DC", **channel)),
+        ("INPut#:LOW", "inp.low", choice("FLO", "GROund", "FLOat", **channel)),
+        ("INPut#:FILTer:AWEighting[:STATe]", "inp.awe", boolean(False, **channel)),
+        ("INPut#:FILTer[:LPASs][:STATe]", "inp.filt", boolean(True, **channel)),
+        ("INPut#:REFerence:DIRection", "inp.ref.dir", integer(0, 0, 32767, keep=True, **channel)),
+        ("INPut#:REFerence:POINt", "inp.ref.poin", integer(0, 0, 32767, keep=True, **channel)),
+    ])
 
-    def _range(self, params: Params, suffix: int | None) -> None:
-        channel = self._channel(suffix)
-        q = parse_quantity(one(params), ("DBVRMS", "VPK"), "DBVRMS")
-        if q.keyword is None and q.unit == "VPK":
-            if q.value <= 0:
-                raise ScpiError(-222, "range must be positive; value not changed")
-            q = Quantity(20 * math.log10(q.value / math.sqrt(2.0)), "DBVRMS")
-        value = limited(q, channel.range_dbvrms, float(INPUT_RANGES_DBVRMS[-1]),
-                        float(INPUT_RANGES_DBVRMS[0]), 2.0)
-        # the smallest range that holds the requested level (inferred)
-        candidates = INPUT_RANGES_DBVRMS[value - 1e-9 <= INPUT_RANGES_DBVRMS]
-        channel.range_dbvrms = float(candidates[-1])
-        channel.autorange = False  # a fixed range turns autorange off (inferred)
+    volt = "[SENSe:]VOLTage#[:DC]:RANGe"
+    declare(tree, store, [
+        (f"{volt}:AUTO", "volt.auto", boolean(True, **channel)),
+        (f"{volt}:UNIT:USER:LABel", "volt.user.label", text("EU", 4, **channel)),
+        (f"{volt}:UNIT:USER[:STATe]", "volt.user", boolean(False, **channel)),
+        (f"{volt}:UNIT:XDCR:LABel", "volt.xdcr", choice("USER", *TRANSDUCER_LABELS, **channel)),
+    ])
+    store.define("volt.sfac", real(1.0, -9.9e37, 9.9e37, ("V/EU", "EU/V"), **channel))
 
-    def _autorange_direction(self, params: Params, suffix: int | None) -> None:
-        self._channel(suffix)
-        direction = parse_choice(one(params), ("UP", "EITHer"))
-        if direction == "UP":
-            self._forbid_in_sine("VOLT:RANG:AUTO:DIR UP")
+    def set_sfac(call: Call) -> None:
+        number = _channel(call)
+        q = parse_quantity(one(call), ("V/EU", "EU/V"))
+        current = float(store.get("volt.sfac", (number,)))
+        if q.keyword is not None:
+            value = {"MAX": 9.9e37, "MIN": -9.9e37}.get(q.keyword)
+            if value is None:
+                raise ScpiError(-224, q.keyword)
+        else:
+            value = q.value
+            if q.unit == "EU/V":
+                if value == 0:
+                    raise ScpiError(-222, OUT_OF_RANGE)
+                value = 1.0 / value
+        if not -9.9e37 <= value <= 9.9e37 or value == 0:
+            raise ScpiError(-222, OUT_OF_RANGE)
+        del current
+        store.set("volt.sfac", value, (number,))
 
-    def _label(self, params: Params, suffix: int | None) -> None:
-        text = one(params)
-        label = unquote(text) if text[:1] in "'\"" else text
-        if not label or len(label) > 6:
-            raise ScpiError(-224, f"transducer label {text}")
-        self._channel(suffix).label = label.upper()
+    tree.add(f"{volt}:UNIT:USER:SFACtor", setter=set_sfac,
+             query=lambda c: _answer(c, format_real(float(store.get("volt.sfac",
+                                                                    (_channel(c),)))), "V/EU"))
 
-    def _sfac(self, params: Params, suffix: int | None) -> None:
-        channel = self._channel(suffix)
-        q = parse_quantity(one(params), ("V/EU",), "V/EU")
-        value = limited(q, channel.user_sfac_v_per_eu, 1e-12, 1e12, 0.0)
-        if value <= 0:
-            raise ScpiError(-222, "sensitivity must be positive; value not changed")
-        channel.user_sfac_v_per_eu = value
+    store.define("volt.range", Spec("level", Level(math.sqrt(2.0) * 10 ** (-51 / 20), "DBVRMS"),
+                                    units=LEVEL_UNITS, default_unit="DBVRMS", **channel))
+
+    def set_range(call: Call) -> None:
+        number = _channel(call)
+        q = parse_quantity(one(call), LEVEL_UNITS)
+        current: Level = store.get("volt.range", (number,))
+        current_db = 20 * math.log10(current.vpk / math.sqrt(2.0))
+        unit = q.unit or "DBVRMS"
+        if q.keyword in ("UP", "DOWN"):
+            value_db = range_step_dbvrms(current_db, 1 if q.keyword == "UP" else -1)
+            unit = current.unit
+        elif q.keyword in ("MAX", "MIN"):
+            value_db = _TOP_DBVRMS if q.keyword == "MAX" else _BOTTOM_DBVRMS
+            unit = current.unit
+        elif q.keyword is not None:
+            raise ScpiError(-224, q.keyword)
+        else:
+            vpk = to_vpk(q.value, unit, a.v_per_eu(number))
+            if vpk <= 0:
+                raise ScpiError(-222, OUT_OF_RANGE)
+            value_db = 20 * math.log10(vpk / math.sqrt(2.0))
+            if not _BOTTOM_DBVRMS - 1e-6 <= value_db <= _TOP_DBVRMS + 1e-3:
+                raise ScpiError(-222, OUT_OF_RANGE)
+        snapped = snap_range_dbvrms(value_db)
+        store.set("volt.range", Level(math.sqrt(2.0) * 10 ** (snapped / 20), unit), (number,))
+        store.set("volt.auto", False, (number,))  # a fixed range turns autorange off
+
+    def range_query(call: Call) -> str:
+        number = _channel(call)
+        level: Level = store.get("volt.range", (number,))
+        unit = level.unit
+        if unit in ("EU", "DBEU") and a.v_per_eu(number) is None:
+            unit = "DBVRMS"
+        return _answer(call, format_real(from_vpk(level.vpk, unit, a.v_per_eu(number))), unit)
+
+    tree.add(f"{volt}[:UPPer]", setter=set_range, query=range_query)
+    store.define("volt.auto.dir", choice("EITH", "UP", "EITHer", **channel))
+
+    def set_direction(call: Call) -> None:
+        number = _channel(call)
+        word = one(call).strip().upper()
+        if word not in ("UP", "EITH", "EITHER"):
+            raise ScpiError(-141, f"{word[:20]} is not one of UP|EITH")
+        # in swept sine the analyser ignores it (chapter 18): stored, not used
+        store.set("volt.auto.dir", "UP" if word == "UP" else "EITH", (number,))
+
+    tree.add(f"{volt}:AUTO:DIRection", setter=set_direction,
+             query=lambda c: str(store.get("volt.auto.dir", (_channel(c),))))
+
+
+def _answer(call: Call, value: str, unit: str) -> str:
+    if not call.params:
+        return value
+    if len(call.params) == 1 and call.params[0].strip().upper() == "UNIT":
+        return format_string(unit)
+    raise ScpiError(-108, call.params[0][:40])

@@ -1,29 +1,36 @@
-"""``ABORt`` and ``INITiate``: start, pause, resume and stop the measurement."""
+"""``ABORt`` (chapter 4), ``INITiate`` (11) and ``CALibration`` (7)."""
 
 from __future__ import annotations
 
-from rigsim.analyser.params import Params, one
-from rigsim.analyser.worker import SweepWorker
-from rigsim.scpi import CommandTree, format_bool, parse_bool
+from rigsim.analyser.commands.table import boolean, declare
+from rigsim.analyser.host import Host
+from rigsim.analyser.settings import Spec, one
+from rigsim.scpi import Call, CommandTree, ScpiError, format_int, parse_bool
 
-__all__ = ["RunCommands"]
+__all__ = ["register"]
 
 
-class RunCommands(SweepWorker):
-    """Handlers of ``ABORt`` and ``INITiate`` (a base of the analyser)."""
+def register(tree: CommandTree, a: Host) -> None:
+    """Register ``ABOR``, ``INIT`` and ``CAL``."""
+    tree.add("ABORt", setter=lambda c: a.abort())
+    tree.add("INITiate[:IMMediate]", setter=lambda c: a.initiate())
+    declare(tree, a.store, [
+        ("INITiate:CONTinuous", "init.cont", boolean(True, rst=False)),
+    ], after=lambda name, value, index: a.set_continuous(bool(value)))
+    tree.add("CALibration[:ALL]", query=lambda c: (a.calibrate_now(), format_int(0))[1])
+    a.store.define("cal.auto", Spec("bool", True, rst=False))
 
-    def _register_run_commands(self, t: CommandTree) -> None:
-        t.add("ABORt", setter=lambda p, s: self._abort())
-        t.add("INITiate[:IMMediate]", setter=lambda p, s: self._initiate())
-        t.add("INITiate:CONTinuous", setter=self._continuous,
-              query=lambda p, s: format_bool(self.continuous))
+    def set_auto(call: Call) -> None:
+        word = one(call).strip().upper()
+        if word == "ONCE":
+            a.calibrate_now()
+            return
+        try:
+            value = parse_bool(word)
+        except ScpiError:
+            raise ScpiError(-141, f"{word[:20]} is not one of OFF|0|ON|1|ONCE") from None
+        a.store.set("cal.auto", value)
+        a.settings_changed("cal.auto")
 
-    def _continuous(self, params: Params, suffix: int | None) -> None:
-        # In swept sine, INIT:CONT OFF pauses and ON resumes a sweep in progress; a finished
-        # sweep is not restarted (inferred).
-        on = parse_bool(one(params))
-        self.continuous = on
-        if on:
-            self._resume()
-        else:
-            self._pause()
+    tree.add("CALibration:AUTO", setter=set_auto,
+             query=lambda c: format_int(int(bool(a.store.get("cal.auto")))))

@@ -1,160 +1,105 @@
-"""``CALCulate``, ``TRACe`` and ``FORMat``: trace feeds and formats, data registers, data format.
-
-``CALCn:DATA?`` answers trace n in its display format; ``TRAC:DATA? D1`` answers a register
-untransformed (complex values as real, imaginary pairs). What each feed holds:
-:mod:`rigsim.analyser.traces`.
-"""
+"""``TRACe`` (chapter 23) and ``FORMat`` (chapter 9): data registers and the data format."""
 
 from __future__ import annotations
 
 import re
 
-from rigsim.analyser.params import Params, one
-from rigsim.analyser.state import Register
-from rigsim.analyser.traces import (
-    FORMATS,
-    Feed,
-    encode,
-    form_trace,
-    formatted,
-    interleaved,
-    parse_feed,
-)
-from rigsim.analyser.worker import SweepWorker
+import numpy as np
+
+from rigsim.analyser.host import Host
+from rigsim.analyser.settings import Spec, one
+from rigsim.analyser.traces import Register, encode, interleaved
 from rigsim.scpi import (
+    Call,
     CommandTree,
     ScpiError,
+    block_payload,
     format_int,
     format_string,
     parse_choice,
-    unquote,
+    parse_number,
 )
 
-__all__ = ["TraceCommands"]
-
-TRACE_COUNT = 4
+__all__ = ["register"]
 
 
-class TraceCommands(SweepWorker):
-    """Handlers of ``CALCulate#``, ``TRACe`` and ``FORMat`` (a base of the analyser)."""
+def _register_name(word: str) -> tuple[str, int]:
+    match = re.fullmatch(r"(D|TRAC(?:E)?|CAL(?:C)?)([1-8])", word.strip().upper())
+    if match is None:
+        raise ScpiError(-141, f"{word[:20]} (expected D1..D8 or TRAC1..TRAC4)")
+    kind = {"D": "D", "TRAC": "TRAC", "TRACE": "TRAC", "CAL": "TRAC", "CALC": "TRAC"}[
+        match.group(1)]
+    number = int(match.group(2))
+    if kind == "TRAC" and number > 4:
+        raise ScpiError(-141, word[:20])
+    return kind, number
 
-    def _register_trace_commands(self, t: CommandTree) -> None:
-        t.add("CALCulate#:FEED", setter=self._feed, query=lambda p, s: format_string(
-            self.settings.feeds[self._trace_index(s)]))
-        t.add("CALCulate#:FORMat", setter=self._calc_format,
-              query=lambda p, s: self.settings.formats[self._trace_index(s)])
-        t.add("CALCulate#:DATA", query=self._calc_data)
-        t.add("CALCulate#:X[:DATA]", query=self._calc_x)
-        t.add("CALCulate#:DATA:HEADer:POINts", query=lambda p, s: format_int(
-            self.trace(self._trace_index(s) + 1).x.size))
-        t.add("TRACe[:DATA]", setter=self._trace_copy, query=self._trace_data)
-        t.add("TRACe:X[:DATA]", query=self._trace_x)
-        t.add("FORMat[:DATA]", setter=self._format_set,
-              query=lambda p, s: f"{self.format[0]},{self.format[1]:+d}")
 
-    def trace(self, number: int) -> Register:
-        """The current data of trace ``number`` (1..4, CALC1..CALC4) in engineering units."""
-        with self.lock:
-            return form_trace(parse_feed(self.settings.feeds[number - 1]), self._measured)
+def register(tree: CommandTree, a: Host) -> None:
+    """Register ``TRACe`` and ``FORMat``."""
+    store = a.store
+    store.define("form", Spec("pair", ("ASC", 12)))
 
-    def _validate_feed(self, feed: Feed) -> None:
-        if self.mode == "SINE" and feed.kind == "COH":
-            raise ScpiError(-221, "coherence is an FFT measurement")
-        for channel in feed.channels:
-            if not self.channels[channel - 1].enabled:
-                raise ScpiError(-221, f"channel {channel} is off (INP{channel} ON first)")
-        if feed.kind == "RAT" and self.mode == "SINE":
-            out, ref = feed.channels
-            pair = self.settings.reference == "PAIR"
-            allowed = {(2, 1), (4, 3)} if pair else {(2, 1), (3, 1), (4, 1)}
-            if (out, ref) not in allowed:
-                raise ScpiError(-221, f"XFR:POW:RAT {out},{ref} with REF {self.settings.reference}")
-
-    # ---------------------------------------------------------------- CALCulate
-
-    @staticmethod
-    def _trace_index(suffix: int | None) -> int:
-        n = 1 if suffix is None else suffix
-        if not 1 <= n <= TRACE_COUNT:
-            raise ScpiError(-114, f"trace {n}")
-        return n - 1
-
-    def _feed(self, params: Params, suffix: int | None) -> None:
-        index = self._trace_index(suffix)
-        feed = parse_feed(unquote(one(params)))
-        self._validate_feed(feed)
-        self.settings.feeds[index] = feed.text
-
-    def _calc_format(self, params: Params, suffix: int | None) -> None:
-        index = self._trace_index(suffix)
-        self.settings.formats[index] = parse_choice(one(params), FORMATS)
-
-    def _calc_data(self, params: Params, suffix: int | None) -> bytes:
-        index = self._trace_index(suffix)
-        register = self.trace(index + 1)
-        return encode(formatted(register, self.settings.formats[index]), self.format)
-
-    def _calc_x(self, params: Params, suffix: int | None) -> bytes:
-        return encode(self.trace(self._trace_index(suffix) + 1).x, self.format)
-
-    # ---------------------------------------------------------------- TRACe (data registers)
-
-    @staticmethod
-    def _register_name(word: str) -> tuple[str, int]:
-        match = re.fullmatch(r"(D|TRAC(?:E)?)([1-8])", word.strip().upper())
-        if match is None:
-            raise ScpiError(-224, f"{word} (expected D1..D8 or TRAC1..TRAC4)")
-        kind = "D" if match.group(1) == "D" else "TRAC"
-        number = int(match.group(2))
-        if kind == "TRAC" and number > TRACE_COUNT:
-            raise ScpiError(-224, word)
-        return kind, number
-
-    def _register(self, word: str) -> Register:
-        kind, number = self._register_name(word)
+    def source(word: str) -> Register:
+        kind, number = _register_name(word)
         if kind == "TRAC":
-            return self.trace(number)
-        if number not in self.registers:
-            raise ScpiError(-221, f"data register D{number} is empty")
-        return self.registers[number]
+            return a.trace(number)
+        if number not in a.registers:
+            raise ScpiError(-200, "Cannot edit an empty data register.")
+        return a.registers[number]
 
-    def _trace_copy(self, params: Params, suffix: int | None) -> None:
-        if len(params) != 2:
-            raise ScpiError(-109 if len(params) < 2 else -108, "TRAC:DATA <register>,<trace>")
-        kind, number = self._register_name(params[0])
+    def copy(call: Call) -> None:
+        if len(call.params) < 2:
+            raise ScpiError(-109, "TRAC:DATA <register>,<source>")
+        kind, number = _register_name(call.params[0])
         if kind != "D":
-            raise ScpiError(-224, f"{params[0]}: copy into a data register D1..D8")
-        source = self._register(params[1])
-        self.registers[number] = Register(source.feed, source.x.copy(), source.y.copy())
-
-    def _trace_data(self, params: Params, suffix: int | None) -> bytes:
-        register = self._register(one(params))
-        # frequency responses and spectra: interleaved real, imag
-        values = interleaved(register.y) if register.is_complex else register.y
-        return encode(values, self.format)
-
-    def _trace_x(self, params: Params, suffix: int | None) -> bytes:
-        return encode(self._register(one(params)).x, self.format)
-
-    # ---------------------------------------------------------------- FORMat
-
-    def _format_set(self, params: Params, suffix: int | None) -> None:
-        if not params or len(params) > 2:
-            raise ScpiError(-109 if not params else -108)
-        kind = parse_choice(params[0], ("ASCii", "REAL"))
-        if kind == "ASC":
-            length = 12 if len(params) == 1 else _format_length(params[1])
-            if not 3 <= length <= 12:
-                raise ScpiError(-224, f"ASCII length {length} (3..12)")
+            raise ScpiError(-141, f"{call.params[0][:20]}: data goes into D1..D8")
+        first = call.params[1].strip()
+        if len(call.params) == 2 and not first.startswith("#") and re.match(r"[A-Za-z]", first):
+            a.registers[number] = source(first).copy()
+            return
+        if number not in a.registers:
+            raise ScpiError(-200, "Cannot edit an empty data register.")
+        target = a.registers[number]
+        if first.startswith("#"):
+            width = 8 if store.get("form")[1] == 64 else 4
+            payload = block_payload(first)
+            if len(payload) % width:
+                raise ScpiError(-161, f"{len(payload)} bytes is not a whole number of values")
+            values = np.frombuffer(payload, f">f{width}").astype(float)
         else:
-            length = 64 if len(params) == 1 else _format_length(params[1])
-            if length not in (32, 64):
-                raise ScpiError(-224, f"REAL length {length} (32 or 64)")
-        self.format = (kind, length)
+            values = np.array([parse_number(p) for p in call.params[1:]])
+        expected = 2 * target.y.size if target.is_complex else target.y.size
+        if values.size != expected:
+            raise ScpiError(-161, f"{values.size} values for a register of {expected}")
+        y = values[0::2] + 1j * values[1::2] if target.is_complex else values
+        a.registers[number] = Register(target.feed, target.x.copy(), y, target.power,
+                                       target.displayed, target.domain, target.kind)
 
+    def data(call: Call) -> bytes:
+        register = source(one(call))
+        values = interleaved(register.y) if register.is_complex else register.y
+        return encode(values, store.get("form"))
 
-def _format_length(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise ScpiError(-224, f"format length {text}") from None
+    tree.add("TRACe[:DATA]", setter=copy, query=data)
+    tree.add("TRACe:X[:DATA]", query=lambda c: encode(source(one(c)).x, store.get("form")))
+    tree.add("TRACe:X:UNIT", query=lambda c: format_string(
+        "HZ" if source(one(c)).domain == "freq" else "S"))
+    tree.add("TRACe:Z:UNIT", query=lambda c: (source(one(c)), format_string("COUNTS"))[1])
+    tree.add("TRACe:Z[:DATA]", query=lambda c: (source(one(c)), encode(np.array([1.0]),
+                                                                         store.get("form")))[1])
+
+    def set_format(call: Call) -> None:
+        if not call.params or len(call.params) > 2:
+            raise ScpiError(-109 if not call.params else -108)
+        kind = parse_choice(call.params[0], ("ASCii", "REAL"))
+        default = 12 if kind == "ASC" else 64
+        length = default if len(call.params) == 1 else round(parse_number(call.params[1]))
+        if kind == "ASC" and not 3 <= length <= 12:
+            raise ScpiError(-222, "Out of range: value not changed.")
+        if kind == "REAL" and length not in (32, 64):
+            raise ScpiError(-224, "REAL format length is only 32 and 64.")
+        store.set("form", (kind, length))
+
+    tree.add("FORMat[:DATA]", setter=set_format,
+             query=lambda c: f"{store.get('form')[0]},{format_int(store.get('form')[1])}")

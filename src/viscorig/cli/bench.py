@@ -1,0 +1,105 @@
+"""``viscorig bench check``: a one-minute self-test of the station before a campaign.
+
+    viscorig bench check --station lab.toml     # the rig in the lab
+    viscorig bench check                        # the embedded simulated rig (soft specimens)
+
+One line per check, each with its verdict and, when it fails, what to do; exit status 0 only
+when every check passes (1 otherwise; 2 for bad input, 3 when the analyser cannot be reached).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+from collections.abc import Iterator
+from typing import Any
+
+from viscorig.cli import summary_of
+from viscorig.errors import InputError, InstrumentError
+
+#: Rig mounted on the embedded simulated rig unless --preset says otherwise: the bench check
+#: expects transducers on all four inputs, so specimens are mounted.
+DEFAULT_PRESET = "soft-0"
+
+
+def register(subparsers: Any) -> None:
+    """Add ``bench check`` to the command line."""
+    bench = subparsers.add_parser("bench", help=summary_of("bench"),
+                                  description="Checks of the test station.")
+    commands = bench.add_subparsers(title="commands", dest="bench_command", required=True)
+    check = commands.add_parser(
+        "check", help="one-minute self-test of the station",
+        description="Identity and options of the analyser; each input's range and noise with "
+        "the source off; a low-level sine at 10, 25 and 45 Hz where each transducer must "
+        "answer as its role implies; the level loop; overloads. One line per check.")
+    check.add_argument("--station", metavar="STATION.toml", default=None,
+                       help="the lab's station file (default: the embedded simulated rig)")
+    check.add_argument("--preset", metavar="NAME", default=None,
+                       help=f"simulated rig preset without --station (default {DEFAULT_PRESET})")
+    check.set_defaults(handler=check_command)
+
+
+@contextlib.contextmanager
+def _opened(args: argparse.Namespace) -> Iterator[Any]:
+    """The station to check: the lab's, or the embedded simulated rig with its table filled in
+    from the preset (a station file gives its own [table])."""
+    from viscorig.cli.stations import check_presets, lab_station, simulated_station
+    from viscorig.sequences import PromptStep, Sequence, load_station
+
+    if args.station is not None:
+        if args.preset is not None:
+            raise InputError("only for the embedded simulated rig (no --station)", "--preset")
+        with lab_station(load_station(args.station)) as opened:
+            yield opened
+        return
+    preset = args.preset or DEFAULT_PRESET
+    sequence = Sequence("bench check", "", (PromptStep("", simulated_rig=preset),),
+                        source="--preset")
+    check_presets(sequence)
+    from rigsim.rigfile import load_preset
+
+    from viscorig.sequences.station import TableParameters
+
+    rig = load_preset(preset)
+    table = rig.table
+    with simulated_station(sequence) as opened:
+        opened.mount(rig)  # the embedded rig starts bare; the check needs every transducer
+        opened.station = dataclasses.replace(opened.station, table=TableParameters(
+            table.mass_kg, table.stiffness_n_per_m, table.damping_ns_per_m))
+        yield opened
+
+
+def check_command(args: argparse.Namespace) -> int:
+    """Measure, judge, print one line per check."""
+    from viscorig.acquisition import Wiring
+    from viscorig.benchcheck import judge, measure
+    from viscorig.benchcheck.checks import Rig, Roles
+
+    with _opened(args) as opened:
+        station = opened.station
+        print(f"bench check of {station.source or station.resource} "
+              f"(analyser {opened.analyser.resource})", flush=True)
+        wiring = Wiring.from_station(station)
+        channels = station.channels
+        roles = Roles(channels.excitation_force, channels.table_acceleration,
+                      channels.device_force, channels.device_acceleration)
+        gain = station.shaker_gain_n_per_v
+        source_limit = station.source_limit_v
+        if gain:
+            source_limit = min(source_limit, station.shaker_force_limit_n / gain)
+        try:
+            readings = measure(opened.analyser, roles, dict(wiring.sensitivities_v_per_eu),
+                               source_limit, station.shaker_force_limit_n)
+        except opened.instrument_errors as error:
+            raise InstrumentError(f"{opened.analyser.resource}: {error}") from None
+    table = station.table
+    rig = Rig(None if table is None else (table.mass_kg, table.stiffness_n_per_m,
+                                          table.damping_ns_per_m), gain)
+    verdicts = judge(readings, roles, rig)
+    for verdict in verdicts:
+        print(verdict.line())
+    failed = [v for v in verdicts if not v.passed]
+    print(f"bench check: {len(verdicts) - len(failed)} of {len(verdicts)} checks passed"
+          + ("" if not failed else "; fix the failures before the campaign"))
+    return 0 if not failed else 1
