@@ -263,17 +263,19 @@ def table(results: Iterable[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--quick", action="store_true", help="2 seeds, white noise, 1 % only")
+    parser.add_argument("--quick", action="store_true", help="2 seeds, white noise, 1 %% only")
     parser.add_argument("--seeds", type=int, default=10, help="seeds per planted case")
     parser.add_argument("--clean-seeds", type=int, default=50, help="clean cases per noise")
     parser.add_argument("--noise", nargs="*", default=list(heldout.NOISE_TYPES))
     parser.add_argument("--effects", nargs="*", default=list(EFFECTS))
+    parser.add_argument("--levels", nargs="*", type=float, default=list(heldout.NOISE_LEVELS),
+                        help="relative rms noise levels (0.01 is 1 %%)")
     parser.add_argument("--presets", action="store_true", help="also the paper-like presets")
     parser.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1)))
     parser.add_argument("--out", type=Path, default=None,
                         help="results (JSON lines, one case each; a rerun resumes from it)")
     args = parser.parse_args(argv)
-    levels = heldout.NOISE_LEVELS
+    levels = tuple(args.levels)
     seeds, clean_seeds, noise = args.seeds, args.clean_seeds, args.noise
     if args.quick:
         seeds, clean_seeds, noise, levels = 2, 4, ["white"], (0.01,)
