@@ -17,7 +17,7 @@ parameters, when the model is right. ``rms_error`` stays the design's measure.
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,9 +72,9 @@ class Likelihood:
     values: dict[str, float]
     free: tuple[str, ...]
     chi2: float
-    whitened: NDArray[np.float64]
-    jacobian: NDArray[np.float64]
-    residuals: dict[str, NDArray[np.complex128]]
+    whitened: NDArray[np.float64] = field(repr=False)
+    jacobian: NDArray[np.float64] = field(repr=False)
+    residuals: dict[str, NDArray[np.complex128]] = field(repr=False)
     fitted: tuple[str, ...] = ()
     """Names of the parameters the fit moved (``free`` unless it held some at their start)."""
 
