@@ -182,7 +182,7 @@ def test_run_live_serves_the_campaign_while_it_runs(tmp_path) -> None:
     while process.poll() is None:
         try:
             snapshot = json.loads(get(url + "state.json")[2])["snapshot"]
-        except urllib.error.URLError:  # the run ended and stopped its live view
+        except OSError:  # the run ended and stopped its live view, perhaps mid-request
             break
         if snapshot is not None:
             last = snapshot
