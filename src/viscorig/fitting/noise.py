@@ -130,14 +130,14 @@ class FrfNoise:
     """
 
     frf: str
-    white_power: NDArray[np.float64]
+    white_power: NDArray[np.float64] = field(repr=False)
     correlated_power: tuple[float, float] = (0.0, 0.0)
     correlation_length: float = 1.0
-    axis: NDArray[np.float64] | None = None
+    axis: NDArray[np.float64] | None = field(default=None, repr=False)
     axis_unit: str = "point"
     resolution: float = math.inf
     source: str = "differences"
-    outliers: NDArray[np.bool_] | None = None
+    outliers: NDArray[np.bool_] | None = field(default=None, repr=False)
     _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
         default_factory=dict, repr=False, compare=False
     )
