@@ -4,7 +4,8 @@ A replicate is a campaign in small: a noisy bare-table run (the paper's table sw
 at 0.125 Hz, 200 settle periods), then a noisy run of a Voigt specimen on the same table
 (20-120 Hz at 0.25 Hz, 100 + 100 periods, rigid link: the model is exact), each with its own
 noise. The table is identified from its run and the specimen fitted with the table held at
-those values, their covariance propagated, as ``viscorig identify`` does. The deviation of each
+those values, their covariance propagated, each point weighted by its noise, as ``viscorig
+identify`` does. The deviation of each
 fitted parameter from the simulator's truth, in reported standard errors, is recorded.
 
 The same for the change between two runs of one specimen, without and with preload, on one
@@ -52,10 +53,11 @@ def replicate(noise: dict, seed: int, frfs: tuple[str, ...] | None = None) -> Re
         rig_text(noise=noise), seed=2 * seed + 1, start_hz=12.0, stop_hz=28.0, step_hz=0.125,
         settle_cycles=200.0,
     )  # fmt: skip
-    table = fit("table", table_run.frf_data("table"))
+    table = fit("table", table_run.frf_data("table"), weighting="noise")
     known = Known.from_fit(table, TABLE_NAMES, "run 'table'")
     specimen = simulate_run(rig_text(VOIGT, noise=noise), seed=2 * seed + 2)
-    result = fit("voigt", specimen.frf_data("specimen"), frfs=frfs, known=known)
+    result = fit("voigt", specimen.frf_data("specimen"), frfs=frfs, known=known,
+                 weighting="noise")
     return Replicate(
         {name: (result.values[name] - value) / result.stderr[name] for name, value in
          TRUTH.items()},
@@ -103,14 +105,17 @@ class ChangeReplicate:
 def change_replicate(noise: dict, seed: int, fixtures: list[dict] | None = None,
                      frfs: tuple[str, ...] | None = None) -> ChangeReplicate:
     """A noisy bare-table run, then the specimen without and with preload on that table, each
-    run with its own noise; both specimen fits inherit the one table fit."""
+    run with its own noise; both specimen fits inherit the one table fit, every point weighted
+    the same (the paper's method, as ``summary`` and the report fit the runs they compare)."""
     table_run = simulate_run(
         rig_text(noise=noise), seed=3 * seed + 1, start_hz=12.0, stop_hz=28.0, step_hz=0.125,
         settle_cycles=200.0,
     )  # fmt: skip
-    known = Known.from_fit(fit("table", table_run.frf_data("table")), TABLE_NAMES, "run 'table'")
+    table = fit("table", table_run.frf_data("table"), weighting="uniform")
+    known = Known.from_fit(table, TABLE_NAMES, "run 'table'")
     fits = [fit("voigt", simulate_run(rig_text(device, noise=noise, fixtures=fixtures),
-                                      seed=3 * seed + k).frf_data(), frfs=frfs, known=known)
+                                      seed=3 * seed + k).frf_data(), frfs=frfs, known=known,
+                weighting="uniform")
             for k, device in ((2, VOIGT), (3, PRELOADED))]
     deviation, independent, ratio = {}, {}, {}
     for change in compare_fits(*fits, TRUE_CHANGE):

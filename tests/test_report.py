@@ -91,16 +91,25 @@ def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
     assert hard.shown.rms_error == pytest.approx(hard.ladder[-1].rms_error)
     assert hard.shown.rms_error < 2 * hard.shown.noise_floor
     assert hard.failures is hard.climb.failures
-    # Each rung after the first was added for a significant candidate, and lowered the error.
+    # Each rung after the first either added significant candidates, whose terms it holds, and
+    # lowered the error, or took out a term of the rung before and added nothing.
     for before, after in zip(hard.ladder, hard.ladder[1:], strict=False):
-        assert after.added is not None and after.added.significant
+        if after.removed:
+            assert not after.added and all(t in before.model.split("+") for t in after.removed)
+            assert all(t not in after.model.split("+") for t in after.removed)
+            continue
+        assert after.added and all(a.significant for a in after.added)
+        assert all(a.term in after.model.split("+") or a.model == after.model
+                   for a in after.added)
         assert after.rms_error < before.rms_error
+    removed = [t for rung in hard.ladder for t in rung.removed]
     # The shown parameters carry their ± from the last fit (covariance of the free ones).
     assert set(hard.shown.free) <= set(hard.shown.values)
     assert all(hard.shown.stderr[name] > 0 for name in hard.shown.free)
     page = build_report(path, tmp_path / "r", jobs=1).read_text(encoding="utf-8")
     assert "How the model was reached" in page
     assert "load-cell link is not rigid" in page  # the effect the ladder added first
+    assert all(f"took out <code>{t}</code>" in page for t in removed)
 
 
 def test_shading_is_only_where_the_model_shown_fails(quick_report: Path, campaign_file: Path):
@@ -328,3 +337,17 @@ def test_the_finding_names_a_missing_fixture_mode_with_or_without_its_frequency(
     unplaced = finding_sentence("voigt", [], {}, 3e-2, 1e-3, "fixture_resonance", True)
     assert unplaced == "voigt is far above the noise: 30× the floor; most likely missing: a " \
         "fixture mode."
+
+
+def test_a_rung_that_takes_a_term_out_is_shown_as_such():
+    from viscorig.report.analysis import Rung, term_change
+    from viscorig.report.page import _rung_change
+
+    assert term_change("voigt+load_cell", "fractional+load_cell+fixture(58)") == (
+        ["fractional", "fixture(58)"], ["voigt"])
+    assert term_change("fractional+fixture(58)+fixture(38)", "fractional+fixture(58)") == (
+        [], ["fixture(38)"])
+    change, evidence = _rung_change(Rung("fractional+fixture(58)", 1e-3, 1e-3,
+                                         removed=("fixture(38)",)), 3)
+    assert change == "took out <code>fixture(38)</code>" and "no longer worth" in evidence
+    assert _rung_change(Rung("voigt", 1e-2, 1e-3), 0) == ("start", "")

@@ -47,6 +47,11 @@ mass_kg = 0.005
 force_v_per_n = 0.01124
 acceleration_v_per_m_s2 = 0.0102
 
+[sensors.device_force]
+gain = 1.02
+highpass_hz = 0.5
+lowpass_hz = 5000.0
+
 [noise]
 device_force_n_per_sqrt_hz = 1e-4
 seed = 4
@@ -75,6 +80,9 @@ def test_good_file_reads_every_section() -> None:
     assert rig.fixtures[0].frequency_hz == 58.0
     assert rig.noise.seed == 4 and rig.noise.adc_noise_db_re_range_per_sqrt_hz == -100.0
     assert rig.delays.as_tuple() == (0.0, 0.0, 0.0, 1e-5)
+    assert rig.sensors.gains() == (1.0, 1.0, 1.02, 1.0)
+    assert rig.sensors.conditioning[2].highpass_hz == 0.5
+    assert rig.sensors.conditioning[2].lowpass_hz == 5000.0
     assert rig.drift.scale(1800.0) == pytest.approx(0.99)
     assert rig.amplitude.scale(1e-4) == pytest.approx(0.9)
     assert rig.frame.mass_kg == 2000.0

@@ -354,6 +354,7 @@ class Agilent35670A(Subsystem):
         resolution_hz: float | None = None,
         settle_cycles: float | None = None,
         integrate_cycles: float | None = None,
+        start_level_vpk: float | None = None,
         progress: Progress | None = None,
         timeout_s: float | None = None,
         poll_interval_s: float = 0.2,
@@ -373,6 +374,9 @@ class Agilent35670A(Subsystem):
             Band in Hz; ``(stop - start) / resolution + 1`` must be at most 801 points.
         resolution_hz, settle_cycles, integrate_cycles
             This segment's grid and timing (default: as configured).
+        start_level_vpk
+            The source level the auto-level controller starts this segment from (default: as
+            set), within the source limit.
         progress
             Called at each poll with a :class:`SweepProgress`; it may call :meth:`pause`,
             :meth:`resume` or :meth:`abort`.
@@ -402,6 +406,10 @@ class Agilent35670A(Subsystem):
                 sweep.sent.get("settle_cycles", 0.0) if settle_cycles is None else settle_cycles,
                 sweep.sent.get("integrate_cycles", 1.0) if integrate_cycles is None
                 else integrate_cycles, "CYCLE")
+        if start_level_vpk is not None:
+            limit = self.source.sent.get("limit_vpk")
+            self.source.level_vpk = (min(start_level_vpk, limit) if limit is not None
+                                     else start_level_vpk)
         self.verify_configuration([sweep])
         grid = start + float(resolution) * np.arange(points)
         segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
@@ -422,6 +430,7 @@ class Agilent35670A(Subsystem):
         *,
         settle_cycles: float | None = None,
         integrate_cycles: float | None = None,
+        start_levels_vpk: Sequence[float] | None = None,
         progress: Progress | None = None,
         timeout_s: float | None = None,
         poll_interval_s: float = 0.2,
@@ -432,7 +441,10 @@ class Agilent35670A(Subsystem):
         For each frequency: ``FREQ:MAN`` (read back: the analyser rounds down to 15.625 mHz),
         a measurement, the traces read. The band is set to cover all the frequencies (a manual
         frequency must lie within start..stop). Settle and integration cycles given here apply
-        to these points (and stay set).
+        to these points (and stay set). Each measurement starts the auto-level controller at
+        the source level (``SOUR:VOLT``): ``start_levels_vpk`` sets it before each point (the
+        level the controller is expected to land at, so that a point starts where the one
+        before it left the rig), within the source limit.
 
         Returns
         -------
@@ -456,8 +468,15 @@ class Agilent35670A(Subsystem):
         sweep.manual_frequency_hz = frequencies[0]
         self.verify_configuration([sweep])
         manual = type(sweep).manual_frequency_hz
+        if start_levels_vpk is not None and len(start_levels_vpk) != len(frequencies):
+            raise SettingOutOfRange(f"{len(start_levels_vpk)} start levels for "
+                                    f"{len(frequencies)} frequencies")
+        limit = self.source.sent.get("limit_vpk")
         pieces: list[SweepSegment] = []
-        for frequency in frequencies:
+        for number, frequency in enumerate(frequencies):
+            if start_levels_vpk is not None:
+                start = float(start_levels_vpk[number])
+                self.source.level_vpk = min(start, limit) if limit is not None else start
             sweep.manual_frequency_hz = frequency
             problem = manual.check(sweep)
             if problem is not None:

@@ -12,9 +12,15 @@ specimens, each carrying its arm force as a state:
 - fixture modes: masses on spring-dampers attached to the disc;
 - frame ``g`` (optional): mass on its isolators to ground.
 
-State ``z = [x (nodes), v (nodes), f (arm forces)]``, ``ż = A z + b F_e``. Output rows give the
-four channels in engineering units (N, m/s², N, m/s²) as ``y = C z + d F_e``, and the displacement
-across the specimens ``x_v - x_g``.
+State ``z = [x (nodes), v (nodes), f (arm forces), conditioning filters]``, ``ż = A z + b F_e``.
+Output rows give the four channels in engineering units (N, m/s², N, m/s²) as ``y = C z + d F_e``,
+and the displacement across the specimens ``x_v - x_g``.
+
+A channel whose conditioning filters (``[sensors.<channel>]`` of the rig file) adds one state per
+first-order filter: a high-pass ``iω/(iω + ω_h)`` (a charge amplifier) is the transducer's
+signal minus its low-passed copy ``w``, ``ẇ = ω_h (y - w)``; a low-pass ``ω_l/(iω + ω_l)`` (an
+anti-alias filter, a cable) is a state ``u``, ``u̇ = ω_l (y_h - u)``, read as the channel. The
+filters start at rest with the structure and carry their transients from point to point.
 
 With the eigen-decomposition ``A = V Λ V⁻¹`` everything the measurement needs is elementwise in
 the modal coordinates ``q = V⁻¹ z``; see :class:`ModalSystem`.
@@ -162,6 +168,36 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0) -> StateSpace:
         relative[disc] = 1.0
         if frame is not None:
             relative[frame] = -1.0
+    return _with_conditioning(StateSpace(a=a, b=b, c=c, d=d, relative_displacement=relative),
+                              rig)
+
+
+def _with_conditioning(space: StateSpace, rig: Rig) -> StateSpace:
+    """``space`` with a state per conditioning filter, its channel rows reading the filter."""
+    a, b, c, d = space.a, space.b, space.c.copy(), space.d.copy()
+    for channel, conditioning in enumerate(rig.sensors.conditioning):
+        for kind, corner_hz in (("highpass", conditioning.highpass_hz),
+                                ("lowpass", conditioning.lowpass_hz)):
+            if corner_hz is None:
+                continue
+            rate = 2.0 * np.pi * corner_hz
+            size = a.shape[0]
+            grown = np.zeros((size + 1, size + 1))
+            grown[:size, :size] = a
+            # new state s: ṡ = rate (y - s) with y = c z + d F, the channel's present reading
+            grown[size, :size] = rate * c[channel]
+            grown[size, size] = -rate
+            b = np.append(b, rate * d[channel])
+            c = np.hstack([c, np.zeros((4, 1))])
+            if kind == "highpass":  # the channel reads y - s
+                c[channel, size] = -1.0
+            else:  # the channel reads s
+                c[channel] = 0.0
+                c[channel, size] = 1.0
+                d[channel] = 0.0
+            a = grown
+    relative = np.zeros(a.shape[0])
+    relative[: space.relative_displacement.size] = space.relative_displacement
     return StateSpace(a=a, b=b, c=c, d=d, relative_displacement=relative)
 
 

@@ -162,9 +162,10 @@ class RigSimulator:
         self._a_per_scale = build_state_space(rig, 2.0).a - base.a
         self._state = np.zeros(base.a.shape[0])
         self._scale = 1.0
+        # The true sensitivity of each channel: the nominal one times its gain error.
         self._sensitivity = np.array(
             [rig.sensors.force_v_per_n, rig.sensors.acceleration_v_per_m_s2] * 2
-        )
+        ) * np.array(rig.sensors.gains())
         self._delays = np.array(rig.delays.as_tuple())
         noise = rig.noise
         self._gain_drift = np.zeros(CHANNEL_COUNT)

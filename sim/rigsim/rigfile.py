@@ -24,6 +24,14 @@ A rig file is TOML. The sections ``[table]``, ``[device]``, ``[load_cell]``, ``[
 ``[delays]``
     Per-channel sensor (conditioning) delays in seconds: ``excitation_force_s``,
     ``table_acceleration_s``, ``device_force_s``, ``disc_acceleration_s``.
+``[sensors.<channel>]``
+    How one channel's transducer and conditioning differ from the nominal chain, for
+    ``<channel>`` one of ``excitation_force``, ``table_acceleration``, ``device_force``,
+    ``disc_acceleration``: ``gain`` (true sensitivity over the nominal one of ``[sensors]``,
+    which the analyser's engineering units assume; 1.02 is a transducer reading 2 % high),
+    ``highpass_hz`` (corner of a first-order high-pass, as a charge amplifier's), ``lowpass_hz``
+    (corner of a first-order low-pass, as an anti-alias filter or a long cable's). The filters
+    are states of the simulated rig, so they have transients like the structure.
 ``[amplitude]``
     Payne-like softening of the rubber with the displacement amplitude ``x`` across the
     specimens: the whole K* is scaled by ``1 - softening_fraction * r / (1 + r)`` with
@@ -51,7 +59,9 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "CHANNEL_KEYS",
     "AmplitudeDependence",
+    "Conditioning",
     "Delays",
     "Device",
     "Drift",
@@ -144,12 +154,47 @@ class FixtureMode:
     mass_kg: float
 
 
+#: Channel names in channel order 1..4 (the keys of ``[delays]`` without ``_s``).
+CHANNEL_KEYS = ("excitation_force", "table_acceleration", "device_force", "disc_acceleration")
+
+
+@dataclass(frozen=True)
+class Conditioning:
+    """How one channel's transducer and conditioning differ from the nominal chain.
+
+    Attributes
+    ----------
+    gain
+        True sensitivity over the nominal one (the analyser converts volts with the nominal).
+    highpass_hz
+        Corner of a first-order high-pass ``iω/(iω + ω_h)`` (a charge amplifier), or ``None``.
+    lowpass_hz
+        Corner of a first-order low-pass ``ω_l/(iω + ω_l)`` (anti-alias filter, cable), or
+        ``None``.
+    """
+
+    gain: float = 1.0
+    highpass_hz: float | None = None
+    lowpass_hz: float | None = None
+
+    @property
+    def filtered(self) -> bool:
+        """The channel has a filter (extra states in the rig's state space)."""
+        return self.highpass_hz is not None or self.lowpass_hz is not None
+
+
 @dataclass(frozen=True)
 class Sensors:
-    """Transducer sensitivities of the simulated channels."""
+    """Transducer sensitivities of the simulated channels (nominal), and per channel how the
+    real chain differs from them (``conditioning``, channel order 1..4)."""
 
     force_v_per_n: float = 0.01124
     acceleration_v_per_m_s2: float = 0.0102
+    conditioning: tuple[Conditioning, ...] = (Conditioning(),) * 4
+
+    def gains(self) -> tuple[float, ...]:
+        """True over nominal sensitivity of each channel, in channel order."""
+        return tuple(channel.gain for channel in self.conditioning)
 
 
 @dataclass(frozen=True)
@@ -510,9 +555,30 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
     sensors = Sensors()
     sec = top.section("sensors")
     if sec is not None:
+        conditioning = []
+        for key in CHANNEL_KEYS:
+            channel = sec.section(key)
+            if channel is None:
+                conditioning.append(Conditioning())
+                continue
+            conditioning.append(
+                Conditioning(
+                    gain=channel.number("gain", 1.0, minimum=0.1, maximum=10.0),
+                    highpass_hz=channel.number(
+                        "highpass_hz", required=False, minimum=1e-3, maximum=1e3
+                    ),
+                    lowpass_hz=channel.number(
+                        "lowpass_hz", required=False, minimum=1.0, maximum=1e9
+                    ),
+                )
+            )
+            channel.finish()
         sensors = Sensors(
-            force_v_per_n=sec.positive("force_v_per_n"),
-            acceleration_v_per_m_s2=sec.positive("acceleration_v_per_m_s2"),
+            force_v_per_n=sec.positive("force_v_per_n", Sensors.force_v_per_n),
+            acceleration_v_per_m_s2=sec.positive(
+                "acceleration_v_per_m_s2", Sensors.acceleration_v_per_m_s2
+            ),
+            conditioning=tuple(conditioning),
         )
         sec.finish()
 

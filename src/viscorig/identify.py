@@ -43,23 +43,21 @@ def is_bare_table(run: Run) -> bool:
 
 
 def run_data(run: Run) -> FrfData:
-    """A run's FRFs as :class:`FrfData`, without the overloaded points."""
-    keep = ~run.flagged(INPUT_OVERLOAD)
+    """A run's FRFs as every analysis reads them (:class:`FrfData`): without the overloaded
+    points, in frequency order, repeats of one frequency merged (:meth:`Run.merged`), so that
+    a run an adaptive plan measured (repeats, any order) is fitted, diagnosed and reported as a
+    full sweep is."""
+    run = run.select(~run.flagged(INPUT_OVERLOAD)).merged()
     bare = is_bare_table(run)
-    support = None if bare else run.accelerance_support[keep]
-
-    def variance(values):
-        return None if values is None else np.asarray(values)[keep]
-
     return FrfData(
-        run.frequency_hz[keep],
-        run.accelerance_table[keep],
-        support,
-        run.time_s[keep],
-        run.reference_amplitude[keep],
+        run.frequency_hz,
+        run.accelerance_table,
+        None if bare else run.accelerance_support,
+        run.time_s,
+        run.reference_amplitude,
         name=f"run '{run.name}'",
-        variance_table=variance(run.variance_table),
-        variance_support=None if bare else variance(run.variance_support),
+        variance_table=run.variance_table,
+        variance_support=None if bare else run.variance_support,
     )
 
 
@@ -104,7 +102,7 @@ def table_parameters(campaign: Campaign, spec: str = "table") -> TableSource | N
     for name in campaign.run_names:
         run = campaign.run(name)
         if is_bare_table(run) and run.points:
-            result = fit(model, run_data(run))
+            result = fit(model, run_data(run), weighting="noise")
             values = {n: result.values[n] for n in TABLE_NAMES}
             return TableSource(values, f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
@@ -130,6 +128,7 @@ def identify_run(
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
     table: TableSource | None = None,
+    weighting: str = "noise",
 ) -> tuple[FitResult, TableSource | None]:
     """Fit a model to one run of a campaign.
 
@@ -147,6 +146,9 @@ def identify_run(
         FRFs to fit; default every FRF the model predicts and the run has.
     table
         Table parameters to use (default: :func:`table_parameters`).
+    weighting
+        ``"noise"`` (the project's estimate) or ``"uniform"`` (the paper's method); see
+        :mod:`viscorig.fitting.nonlinear`.
 
     Returns
     -------
@@ -154,7 +156,7 @@ def identify_run(
         The fit, and the table parameters it used (``None`` for a bare-table run).
     """
     return _identify(campaign, campaign.run(run_name), spec, band_hz=band_hz, frfs=frfs,
-                     table=table)
+                     table=table, weighting=weighting)
 
 
 def _identify(
@@ -165,6 +167,7 @@ def _identify(
     band_hz: tuple[float, float] | None,
     frfs: Sequence[str] | None,
     table: TableSource | None,
+    weighting: str = "noise",
 ) -> tuple[FitResult, TableSource | None]:
     """:func:`identify_run` on a run already read (``campaign`` only for the table)."""
     run_name = run.name
@@ -181,7 +184,7 @@ def _identify(
                 f"model '{model.spec}' needs a specimen: use 'table'",
                 f"run '{run_name}'",
             )
-        return fit(model, data, frfs=frfs, band_hz=band_hz), None
+        return fit(model, data, frfs=frfs, band_hz=band_hz, weighting=weighting), None
     if model.modulus_term is not None and not model.modulus_term.has_disc:
         raise InputError("has a specimen; the 'table' model is for bare-table runs", run_name)
     if data.support is None and (frfs is None or "support" in frfs):
@@ -195,8 +198,9 @@ def _identify(
                 "no table_* attributes in /rig; fit the support FRF only (--frf support)",
                 f"run '{run_name}'",
             )
-        return fit(model, data, frfs=frfs, band_hz=band_hz), None
-    return fit(model, data, frfs=frfs, band_hz=band_hz, known=table.known), table
+        return fit(model, data, frfs=frfs, band_hz=band_hz, weighting=weighting), None
+    return fit(model, data, frfs=frfs, band_hz=band_hz, known=table.known,
+               weighting=weighting), table
 
 
 def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
@@ -219,6 +223,7 @@ def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
             for name, e in result.parameters.items()
         },
         correlation=(tuple(result.covariance_names), result.correlation),
+        weighting=result.weighting,
     )
 
 
@@ -226,7 +231,9 @@ def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
 class RunSummary:
     """Table 1 and Table 2 quantities of one run (Voigt on the table FRF, as the paper).
 
-    ``system_uncertain`` holds ``f_r``, ``xi`` and ``B_r`` with their uncertainty
+    ``fit`` is the paper's method (every point weighted the same); ``weighted`` the same model
+    fitted by the project's estimate (weighted by the noise, as ``identify``); ``None`` for the
+    bare table. ``system_uncertain`` holds ``f_r``, ``xi`` and ``B_r`` with their uncertainty
     (:func:`viscorig.estimates.system_properties_with_uncertainty`); ``specimen``,
     ``hardness_shore_a`` and ``preload_strain`` come from the run's metadata.
     """
@@ -240,6 +247,7 @@ class RunSummary:
     specimen: str = ""
     hardness_shore_a: float = math.nan
     preload_strain: float = 0.0
+    weighted: FitResult | None = None
 
 
 @dataclass(frozen=True)
@@ -295,7 +303,10 @@ def summarize(
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     table_model: str = "table",
 ) -> tuple[TableSource | None, list[RunSummary]]:
-    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed.
+    """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed,
+    every point weighted the same (the paper's method, which the simulated rigs were calibrated
+    to reproduce Table 1 with); beside it the same fit by the project's estimate (weighted by
+    the noise, :attr:`RunSummary.weighted`).
 
     ``table_model``: the bare table's model (``"table+frame(2000)"`` takes the frame out of
     ``K_s``; the specimen fits then stay Voigt, as the paper's)."""
@@ -306,6 +317,7 @@ def summarize(
         if not run.points:
             continue
         data = run_data(run)
+        weighted = None
         if is_bare_table(run):
             band = None
             if table is not None and table.fit is not None and table.source == f"run '{name}'":
@@ -322,8 +334,11 @@ def summarize(
                 )
             band = _band_within(data, band_hz)
             result, _ = _identify(
-                campaign, run, "voigt", band_hz=band, frfs=("table",), table=table
+                campaign, run, "voigt", band_hz=band, frfs=("table",), table=table,
+                weighting="uniform",
             )
+            weighted = fit("voigt", data, frfs=("table",), band_hz=band, known=table.known,
+                           noise=result.noise, weighting="noise")
             system = voigt_system_properties(result.values)
         inside = data.in_band(band)
         metadata = run.metadata
@@ -340,6 +355,7 @@ def summarize(
                 str(metadata.specimen),
                 hardness,
                 preload if math.isfinite(preload) else 0.0,
+                weighted,
             )
         )
     return table, summaries

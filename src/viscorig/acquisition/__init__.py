@@ -1,10 +1,15 @@
 """Acquisition: drive an analyser through a sequence, segment by segment, into a campaign file.
 
-The core knows analysers only through :class:`~viscorig.acquisition.protocol.Analyser`, a
-structural protocol that the 35670A driver satisfies; the command line wires a driver in.
+A sequence is a plan of small steps (:mod:`~viscorig.acquisition.plans`,
+:mod:`~viscorig.acquisition.stubs`, the adaptive sweep of :mod:`~viscorig.acquisition.adaptive`)
+that a run engine executes (:mod:`~viscorig.acquisition.engine`). The core knows analysers only
+through :class:`~viscorig.acquisition.protocol.Analyser`, a structural protocol that the 35670A
+driver satisfies; the command line wires a driver in.
 """
 
 from viscorig.acquisition.console import Console, NoAnswer, format_duration
+from viscorig.acquisition.engine import EngineState, Msg, RunEngine, RunRefused
+from viscorig.acquisition.forecast import Floor, StepForecast, forecast_sequence, format_forecast
 from viscorig.acquisition.limits import (
     PROBE_LEVEL_FRACTION,
     ForceEstimate,
@@ -17,6 +22,7 @@ from viscorig.acquisition.limits import (
     source_limit_v,
     specimen_from_accelerance,
 )
+from viscorig.acquisition.plans import SweepMeasurement
 from viscorig.acquisition.probe import measure_probe, probe_frequencies_hz, probe_test_time_s
 from viscorig.acquisition.protocol import (
     Analyser,
@@ -37,7 +43,6 @@ from viscorig.acquisition.sweep import (
     SegmentDone,
     SweepHooks,
     SweepInterrupted,
-    SweepMeasurement,
     SweepSettings,
     Wiring,
     configure,
@@ -48,18 +53,24 @@ __all__ = [
     "PROBE_LEVEL_FRACTION",
     "Analyser",
     "Console",
+    "EngineState",
+    "Floor",
     "ForceEstimate",
     "MeasuredSegment",
+    "Msg",
     "NoAnswer",
     "Outcome",
     "PointAnalyser",
     "ProbeReading",
     "RigEstimate",
+    "RunEngine",
+    "RunRefused",
     "RunResult",
     "RunState",
     "Runner",
     "RunnerOptions",
     "SegmentDone",
+    "StepForecast",
     "StepRecord",
     "SweepHooks",
     "SweepInterrupted",
@@ -70,7 +81,9 @@ __all__ = [
     "configure",
     "estimate_force",
     "estimate_force_from_probe",
+    "forecast_sequence",
     "format_duration",
+    "format_forecast",
     "measure_probe",
     "motion_ratio",
     "point_flags",

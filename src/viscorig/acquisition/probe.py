@@ -33,18 +33,43 @@ from viscorig.acquisition.sweep import (
 from viscorig.errors import InstrumentError
 from viscorig.sequences import SweepStep, point_durations_s
 
+#: Frequencies the analyser sets are multiples of this (Hz).
+FREQUENCY_STEP_HZ = 0.015625
+#: Settle and integration of a probe point before an adaptive plan, whose own are bounds:
+#: enough to settle a damping ratio of a few hundredths, integrated as the plan's first look.
+ADAPTIVE_PROBE_CYCLES = (100, 10)
+
 
 def probe_frequencies_hz(step: SweepStep) -> tuple[float, ...]:
-    """The band's lowest and highest grid frequencies (one when the grid has one point)."""
-    grid = step.frequencies_hz()
-    lo, hi = float(grid.min()), float(grid.max())
+    """The band's lowest and highest grid frequencies (one when the grid has one point); for
+    an adaptive plan, the band's edges as the analyser sets them."""
+    if step.adaptive:
+        lo = math.ceil(step.band_hz[0] / FREQUENCY_STEP_HZ - 1e-9) * FREQUENCY_STEP_HZ
+        hi = math.floor(step.band_hz[1] / FREQUENCY_STEP_HZ + 1e-9) * FREQUENCY_STEP_HZ
+    else:
+        grid = step.frequencies_hz()
+        lo, hi = float(grid.min()), float(grid.max())
     return (lo,) if hi <= lo else (lo, hi)
+
+
+def probe_cycles(step: SweepStep) -> tuple[int, int]:
+    """Settle and integration cycles of a probe point before ``step``: the step's own, or for an
+    adaptive plan :data:`ADAPTIVE_PROBE_CYCLES` within its bounds."""
+    if not step.adaptive and step.settle_cycles is not None \
+            and step.integrate_cycles is not None:
+        return step.settle_cycles, step.integrate_cycles
+    settle, integrate = ADAPTIVE_PROBE_CYCLES
+    if step.settle_cycles is not None:
+        settle = min(settle, step.settle_cycles)
+    if step.integrate_cycles is not None:
+        integrate = min(integrate, step.integrate_cycles)
+    return settle, integrate
 
 
 def probe_test_time_s(step: SweepStep) -> float:
     """Settle and integration time of a probe before ``step``, s."""
     frequencies = np.array(probe_frequencies_hz(step))
-    return float(point_durations_s(frequencies, step.settle_cycles, step.integrate_cycles).sum())
+    return float(point_durations_s(frequencies, *probe_cycles(step)).sum())
 
 
 def probe_settings(settings: SweepSettings) -> SweepSettings:
@@ -77,7 +102,14 @@ def measure_probe(
     """
     hooks = hooks or SweepHooks()
     low = probe_settings(settings)
-    configure(analyser, wiring, low)
+    if settings.step.adaptive:  # no grid of its own: the band's edges at the probe's cycles
+        edges = probe_frequencies_hz(settings.step)
+        settle, integrate = probe_cycles(settings.step)
+        span = max(edges[-1] - edges[0], FREQUENCY_STEP_HZ)
+        configure(analyser, wiring, low, band_hz=(edges[0], edges[0] + span), resolution_hz=span,
+                  settle_cycles=settle, integrate_cycles=integrate)
+    else:
+        configure(analyser, wiring, low)
     readings = []
     for frequency in probe_frequencies_hz(settings.step):
         measured = _measure(analyser, frequency, low, hooks)
@@ -138,8 +170,7 @@ def _reading(measured: MeasuredSegment, frequency_hz: float, wiring: Wiring,
     flags = point_flags([reference], [force], level_m_per_s2=settings.level_m_per_s2,
                         tolerance_db=step.tolerance_db, force_limit_n=settings.force_limit_n,
                         overloaded=bool(measured.overload_channels))
-    duration = point_durations_s(np.array([frequency_hz]), step.settle_cycles,
-                                 step.integrate_cycles)
+    duration = point_durations_s(np.array([frequency_hz]), *probe_cycles(step))
     return ProbeReading(
         frequency_hz=float(measured.frequency_hz[0]),
         dynamic_stiffness_n_per_m=stiffness,

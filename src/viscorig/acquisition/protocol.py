@@ -147,10 +147,12 @@ class PointAnalyser(Analyser, Protocol):
         *,
         settle_cycles: float | None = None,
         integrate_cycles: float | None = None,
+        start_levels_vpk: Sequence[float] | None = None,
         progress: ProgressCallback | None = None,
         poll_interval_s: float = 0.2,
     ) -> MeasuredSegment:
-        """Measure the frequencies in the order given (the analyser's own axis returned)."""
+        """Measure the frequencies in the order given (the analyser's own axis returned), each
+        starting the auto-level controller at its start level when given."""
 
     def measure(
         self,
@@ -160,10 +162,12 @@ class PointAnalyser(Analyser, Protocol):
         resolution_hz: float | None = None,
         settle_cycles: float | None = None,
         integrate_cycles: float | None = None,
+        start_level_vpk: float | None = None,
         progress: ProgressCallback | None = None,
         poll_interval_s: float = 0.2,
     ) -> MeasuredSegment:
-        """Measure a linear sub-band, with this call's grid and timing when given."""
+        """Measure a linear sub-band, with this call's grid, timing and start level when
+        given."""
 
     def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
         """Time the analyser takes for these points with the settings sent (s)."""

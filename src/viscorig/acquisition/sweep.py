@@ -1,10 +1,7 @@
-"""Measure one sweep run segment by segment, committing each segment as soon as it is read.
+"""The vocabulary of a sweep: how a run is measured (settings, wiring), how the analyser is set
+up for it, and how what the analyser returns becomes a stored segment with its flags.
 
-A run is split by :func:`viscorig.sequences.plan_segments` (by default at most about a minute
-of test time per segment, at most 801 points). Each segment is one analyser sweep; what the
-analyser returns becomes one :class:`viscorig.storage.Segment` with its flags, appended to the
-campaign file in one atomic commit. A run that already holds points continues from its first
-missing point, so a crash or an abort loses at most the segment in flight.
+The plans that measure runs segment by segment are in :mod:`viscorig.acquisition.plans`.
 """
 
 from __future__ import annotations
@@ -18,17 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.acquisition.limits import AT_FORCE_LIMIT_DB, point_flags
-from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
+from viscorig.acquisition.protocol import Analyser, MeasuredSegment
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     Station,
     SweepStep,
-    plan_segments,
-    point_durations_s,
-    resume_index,
-    time_left_s,
 )
-from viscorig.storage import SOURCE_AT_LIMIT, Campaign, Segment
+from viscorig.storage import SOURCE_AT_LIMIT, Segment
 
 #: ``time_s`` clocks: "wall" is seconds of real time since the run started (a real rig);
 #: "test" is accumulated settle and integration time (a simulated rig running faster than
@@ -134,15 +127,27 @@ class SweepHooks:
     """``measuring[0]`` is true while the analyser is measuring (for signal handlers)."""
 
 
-def configure(analyser: Analyser, wiring: Wiring, settings: SweepSettings) -> None:
+def configure(
+    analyser: Analyser,
+    wiring: Wiring,
+    settings: SweepSettings,
+    *,
+    band_hz: tuple[float, float] | None = None,
+    resolution_hz: float | None = None,
+    settle_cycles: int | None = None,
+    integrate_cycles: int | None = None,
+) -> None:
     """Set the analyser up for a run; the source limit is part of it and precedes the source.
 
     The analyser's input limit (shaker force) is used only when it watches the excitation
-    force (input 1); otherwise the source limit alone bounds the drive.
+    force (input 1); otherwise the source limit alone bounds the drive. The grid and timing are
+    the step's (a full plan), or given here (an adaptive plan, whose measurements then set
+    their own for each sub-sweep or point).
     """
     step = settings.step
-    grid = np.sort(step.frequencies_hz())
-    first_stop = grid[min(grid.size - 1, 800)]
+    if band_hz is None:
+        grid = np.sort(step.frequencies_hz())
+        band_hz = (float(grid[0]), float(grid[min(grid.size - 1, 800)]))
     reference = wiring.table_acceleration if step.bare_table else wiring.device_acceleration
     analyser.configure_swept_sine(
         sensitivities_v_per_eu=dict(wiring.sensitivities_v_per_eu),
@@ -151,18 +156,18 @@ def configure(analyser: Analyser, wiring: Wiring, settings: SweepSettings) -> No
         force_limit_n=settings.force_limit_n if wiring.force_limit_acts_on_excitation else None,
         reference_channel=reference,
         four_channels=True,
-        resolution_hz=step.resolution_hz,
-        start_hz=float(grid[0]),
-        stop_hz=float(first_stop),
-        settle_cycles=step.settle_cycles,
-        integrate_cycles=step.integrate_cycles,
+        resolution_hz=step.resolution_hz if resolution_hz is None else resolution_hz,
+        start_hz=float(band_hz[0]),
+        stop_hz=float(band_hz[1]),
+        settle_cycles=step.settle_cycles if settle_cycles is None else settle_cycles,
+        integrate_cycles=step.integrate_cycles if integrate_cycles is None else integrate_cycles,
         direction=step.direction.upper(),
         tolerance_db=step.tolerance_db,
         start_level_vpk=min(settings.start_level_v, settings.source_limit_v),
     )
 
 
-def _no_data(measured: MeasuredSegment) -> NDArray[np.bool_]:
+def no_data(measured: MeasuredSegment) -> NDArray[np.bool_]:
     """Points where the driver flagged no data (the analyser's marker), if it says."""
     flags = getattr(measured, "no_data", None)
     count = np.asarray(measured.frequency_hz).size
@@ -171,217 +176,109 @@ def _no_data(measured: MeasuredSegment) -> NDArray[np.bool_]:
     return np.asarray(flags, dtype=bool)
 
 
-def _iso_to_epoch(text: str) -> float | None:
+def iso_to_epoch(text: str) -> float | None:
+    """An ISO 8601 time as seconds since the epoch (``None`` when it does not read)."""
     try:
         return datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()
     except ValueError:
         return None
 
 
-class SweepMeasurement:
-    """Measure (or continue) one run of a campaign.
+def check_axis(measured: MeasuredSegment, frequencies: NDArray[np.float64],
+               resource: str) -> None:
+    """The analyser measured the frequencies asked for (within half its frequency step).
 
-    Parameters
-    ----------
-    campaign
-        The campaign file, open for appending; the run must exist (started or resumed).
-    analyser
-        Any :class:`~viscorig.acquisition.protocol.Analyser`, already configured for the run
-        (:func:`configure`).
-    wiring, settings
-        Inputs and how the run is measured.
-    hooks
-        Stop request and progress callbacks.
+    Raises
+    ------
+    InstrumentError
+        It did not.
     """
-
-    def __init__(
-        self,
-        campaign: Campaign,
-        analyser: Analyser,
-        wiring: Wiring,
-        settings: SweepSettings,
-        hooks: SweepHooks | None = None,
-    ) -> None:
-        self.campaign = campaign
-        self.analyser = analyser
-        self.wiring = wiring
-        self.settings = settings
-        self.hooks = hooks or SweepHooks()
-        step = settings.step
-        self.planned_hz = step.frequencies_hz()
-        self.durations_s = point_durations_s(self.planned_hz, step.settle_cycles,
-                                             step.integrate_cycles)
-
-    def run(self) -> int:
-        """Measure every missing point; return the run's point count (all planned points).
-
-        Raises
-        ------
-        SweepInterrupted
-            ``hooks.should_stop()`` turned true; the segment in flight was dropped.
-        InstrumentError
-            The analyser returned a segment that does not match the plan.
-        Exception
-            Whatever the driver raises on an instrument fault (the caller classifies it).
-        """
-        step = self.settings.step
-        stored = self.campaign.run(step.run)
-        where = f"{self.campaign.path}: /runs/{step.run}"
-        done = resume_index(self.planned_hz, stored.frequency_hz, where=where)
-        last_time_s = float(stored.time_s[-1]) if stored.points else 0.0
-        run_started = _iso_to_epoch(stored.metadata.started)
-        remaining = self.planned_hz[done:]
-        plan = plan_segments(remaining, step.settle_cycles, step.integrate_cycles,
-                             max_segment_s=step.segment_s, max_points=step.segment_points)
-        for number, piece in enumerate(plan, start=1):
-            if self.hooks.should_stop():
-                raise SweepInterrupted(step.run)
-            rows = slice(done + piece.start, done + piece.stop)
-            measured, remeasured = self._measure_rows(rows)
-            segment = self._to_segment(measured, rows, last_time_s, run_started)
-            total = self.campaign.append_segment(step.run, segment)
-            last_time_s = float(np.asarray(segment.time_s)[-1])
-            if self.hooks.on_segment is not None:
-                self.hooks.on_segment(SegmentDone(
-                    run=step.run, number=number, count=len(plan), points_done=total,
-                    points_total=self.planned_hz.size,
-                    frequency_hz=np.asarray(segment.frequency_hz),
-                    reference_amplitude=np.asarray(segment.reference_amplitude),
-                    force_amplitude=np.asarray(segment.force_amplitude),
-                    flags=np.asarray(segment.flags, dtype=np.uint16),
-                    remeasured=remeasured,
-                    seconds_left=self._seconds_left(total),
-                ))
-        return self.planned_hz.size
-
-    # -- one segment -------------------------------------------------------------------------
-    def _seconds_left(self, done: int) -> float:
-        step = self.settings.step
-        return time_left_s(self.planned_hz, done, step.settle_cycles, step.integrate_cycles)
-
-    def _measure_rows(self, rows: slice) -> tuple[MeasuredSegment, bool]:
-        """Measure the planned rows; once more if an input overloaded (flagged if again) or a
-        point came without data (refused if again: never stored as a measurement)."""
-        measured = self._measure_once(rows)
-        if not measured.overload_channels and not _no_data(measured).any():
-            return measured, False
-        measured = self._measure_once(rows)
-        missing = _no_data(measured)
-        if missing.any():
-            where = ", ".join(f"{f:g}" for f in np.asarray(measured.frequency_hz)[missing][:5])
-            raise InstrumentError(
-                f"{self.analyser.resource}: the analyser gave no data at {missing.sum()} "
-                f"point(s) ({where} Hz) twice in a row"
-            )
-        return measured, True
-
-    def _measure_once(self, rows: slice) -> MeasuredSegment:
-        frequencies = self.planned_hz[rows]
-        cumulative = np.cumsum(self.durations_s[rows])
-        left_after = self._seconds_left(rows.stop)
-
-        def progress(report: SweepProgressReport) -> None:
-            if self.hooks.should_stop():
-                self.analyser.abort()
-                return
-            if self.hooks.on_poll is not None:
-                index = min(int(np.searchsorted(cumulative, report.elapsed_s)), cumulative.size - 1)
-                in_flight = max(float(cumulative[-1]) - float(report.elapsed_s), 0.0)
-                self.hooks.on_poll(float(frequencies[index]), left_after + in_flight)
-
-        poll = self.settings.poll_interval_s
-        self.hooks.measuring[0] = True
-        try:
-            if frequencies.size == 1:
-                measured = self.analyser.measure_point(
-                    float(frequencies[0]), progress=progress, poll_interval_s=poll)
-            else:
-                lo, hi = float(frequencies.min()), float(frequencies.max())
-                measured = self.analyser.measure(lo, hi, progress=progress, poll_interval_s=poll)
-        except Exception as error:
-            if self.hooks.should_stop():
-                raise SweepInterrupted(self.settings.step.run) from error
-            raise
-        finally:
-            self.hooks.measuring[0] = False
-        if self.hooks.should_stop():  # stopped as the segment ended: drop it all the same
-            raise SweepInterrupted(self.settings.step.run)
-        self._check_axis(measured, frequencies)
-        return measured
-
-    def _check_axis(self, measured: MeasuredSegment, frequencies: NDArray[np.float64]) -> None:
-        axis = np.asarray(measured.frequency_hz, dtype=float)
-        if axis.shape != frequencies.shape or not np.allclose(
-            axis, frequencies, rtol=0.0, atol=FREQUENCY_MATCH_HZ
-        ):
-            shown = f"{axis.size} points" + (f" from {axis[0]:g} to {axis[-1]:g} Hz"
-                                             if axis.size else "")
-            raise InstrumentError(
-                f"{self.analyser.resource}: the analyser returned {shown}; expected "
-                f"{frequencies.size} from {frequencies[0]:g} to {frequencies[-1]:g} Hz"
-            )
-
-    def _to_segment(
-        self, measured: MeasuredSegment, rows: slice, last_time_s: float,
-        run_started: float | None,
-    ) -> Segment:
-        """The storage segment of a measured one: FRFs by wiring, amplitudes, time, flags."""
-        step, wiring, settings = self.settings.step, self.wiring, self.settings
-        count = rows.stop - rows.start
-        excitation_first = wiring.excitation_force == 1
-        frf_43 = measured.frf_43
-        if frf_43 is None:
-            frf_43 = np.full(count, complex(math.nan, math.nan))
-        table, support = (measured.frf_21, frf_43) if excitation_first else (frf_43,
-                                                                              measured.frf_21)
-        amplitude, variance = measured.amplitude_eu, measured.variance
-        nan = np.full(count, math.nan)
-        reference_channel = (wiring.table_acceleration if step.bare_table
-                             else wiring.device_acceleration)
-        reference = np.asarray(amplitude.get(reference_channel, nan), dtype=float)
-        force = np.asarray(amplitude.get(wiring.excitation_force, nan), dtype=float)
-
-        def pair_variance(a: int, b: int) -> NDArray[np.float64]:
-            if a in variance and b in variance:
-                return np.asarray(variance[a], float) + np.asarray(variance[b], float)
-            return nan
-
-        variance_table = pair_variance(wiring.excitation_force, wiring.table_acceleration)
-        variance_support = pair_variance(wiring.device_force, wiring.device_acceleration)
-        if step.bare_table:
-            support = np.full(count, complex(math.nan, math.nan))
-            variance_support = nan
-
-        durations = self.durations_s[rows]
-        if settings.time_base == "test" or run_started is None:
-            time_s = last_time_s + np.cumsum(durations)
-        else:
-            share = np.cumsum(durations) / durations.sum()
-            wall = measured.started_at_s + share * (measured.finished_at_s - measured.started_at_s)
-            time_s = np.maximum(wall - run_started, last_time_s)
-
-        flags = point_flags(
-            reference, force,
-            level_m_per_s2=settings.level_m_per_s2,
-            tolerance_db=step.tolerance_db,
-            force_limit_n=settings.force_limit_n,
-            overloaded=bool(measured.overload_channels),
+    axis = np.asarray(measured.frequency_hz, dtype=float)
+    if axis.shape != frequencies.shape or not np.allclose(
+        axis, frequencies, rtol=0.0, atol=FREQUENCY_MATCH_HZ
+    ):
+        shown = f"{axis.size} points" + (f" from {axis[0]:g} to {axis[-1]:g} Hz"
+                                         if axis.size else "")
+        raise InstrumentError(
+            f"{resource}: the analyser returned {shown}; expected "
+            f"{frequencies.size} from {frequencies[0]:g} to {frequencies[-1]:g} Hz"
         )
-        if wiring.force_limit_acts_on_excitation:
-            # the input limit also holds the device force: a level missed while the device
-            # force sat at the limit was held by the input limit, not by the source limit
-            device = np.asarray(amplitude.get(wiring.device_force, nan), dtype=float)
-            held = device >= settings.force_limit_n * 10.0 ** (-AT_FORCE_LIMIT_DB / 20.0)
-            flags[held] &= np.uint16(~int(SOURCE_AT_LIMIT) & 0xFFFF)
-        return Segment(
-            frequency_hz=np.asarray(measured.frequency_hz, dtype=float),
-            time_s=time_s,
-            accelerance_table=np.asarray(table, dtype=complex),
-            accelerance_support=np.asarray(support, dtype=complex),
-            reference_amplitude=reference,
-            source_amplitude=nan,
-            force_amplitude=force,
-            flags=flags,
-            variance_table=variance_table,
-            variance_support=variance_support,
-        )
+
+
+def segment_of(
+    measured: MeasuredSegment,
+    wiring: Wiring,
+    settings: SweepSettings,
+    time_s: NDArray[np.float64],
+    cycles: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+) -> Segment:
+    """The storage segment of a measured one: FRFs by wiring, amplitudes, time, flags (and the
+    per-point settle and integration cycles, when given)."""
+    step = settings.step
+    count = np.asarray(measured.frequency_hz).size
+    excitation_first = wiring.excitation_force == 1
+    frf_43 = measured.frf_43
+    if frf_43 is None:
+        frf_43 = np.full(count, complex(math.nan, math.nan))
+    table, support = (measured.frf_21, frf_43) if excitation_first else (frf_43,
+                                                                          measured.frf_21)
+    amplitude, variance = measured.amplitude_eu, measured.variance
+    nan = np.full(count, math.nan)
+    reference_channel = (wiring.table_acceleration if step.bare_table
+                         else wiring.device_acceleration)
+    reference = np.asarray(amplitude.get(reference_channel, nan), dtype=float)
+    force = np.asarray(amplitude.get(wiring.excitation_force, nan), dtype=float)
+
+    def pair_variance(a: int, b: int) -> NDArray[np.float64]:
+        if a in variance and b in variance:
+            return np.asarray(variance[a], float) + np.asarray(variance[b], float)
+        return nan
+
+    variance_table = pair_variance(wiring.excitation_force, wiring.table_acceleration)
+    variance_support = pair_variance(wiring.device_force, wiring.device_acceleration)
+    if step.bare_table:
+        support = np.full(count, complex(math.nan, math.nan))
+        variance_support = nan
+    flags = point_flags(
+        reference, force,
+        level_m_per_s2=settings.level_m_per_s2,
+        tolerance_db=step.tolerance_db,
+        force_limit_n=settings.force_limit_n,
+        overloaded=bool(measured.overload_channels),
+    )
+    if wiring.force_limit_acts_on_excitation:
+        # the input limit also holds the device force: a level missed while the device
+        # force sat at the limit was held by the input limit, not by the source limit
+        device = np.asarray(amplitude.get(wiring.device_force, nan), dtype=float)
+        held = device >= settings.force_limit_n * 10.0 ** (-AT_FORCE_LIMIT_DB / 20.0)
+        flags[held] &= np.uint16(~int(SOURCE_AT_LIMIT) & 0xFFFF)
+    return Segment(
+        frequency_hz=np.asarray(measured.frequency_hz, dtype=float),
+        time_s=time_s,
+        accelerance_table=np.asarray(table, dtype=complex),
+        accelerance_support=np.asarray(support, dtype=complex),
+        reference_amplitude=reference,
+        source_amplitude=nan,
+        force_amplitude=force,
+        flags=flags,
+        variance_table=variance_table,
+        variance_support=variance_support,
+        settle_cycles=None if cycles is None else cycles[0],
+        integrate_cycles=None if cycles is None else cycles[1],
+    )
+
+
+def point_times_s(
+    measured: MeasuredSegment, durations_s: NDArray[np.float64], time_base: str
+) -> NDArray[np.float64]:
+    """Rig time each point took: its settle and integration on a simulated rig's test clock;
+    on a real one the segment's wall-clock time shared out in proportion to them, never less
+    than them (no point takes less than its settle and integration; an analyser that answers
+    faster is a simulation)."""
+    durations = np.asarray(durations_s, dtype=float)
+    if time_base == "test":
+        return durations
+    wall = float(measured.finished_at_s) - float(measured.started_at_s)
+    if not (math.isfinite(wall) and wall > 0):
+        return durations
+    return np.maximum(wall * durations / durations.sum(), durations)

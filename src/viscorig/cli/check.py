@@ -155,6 +155,10 @@ def check_command(args: argparse.Namespace) -> int:
 
     where = (f"station {args.station}" if args.station
              else "the embedded simulated rig: every run matches the rig its prompt mounts")
+    adaptive = sum(step.adaptive for step in sequence.sweeps)
+    plans = (f" and {adaptive} adaptive plan{'s' if adaptive > 1 else ''} (viscorig plan "
+             "predicts them)" if adaptive else "")
     print(f"{args.sequence}: OK, {len(sequence.steps)} steps, {len(runs)} runs "
-          f"({', '.join(runs)}), {format_duration(test_time_s)} of sweep test time; {where}")
+          f"({', '.join(runs)}), {format_duration(test_time_s)} of sweep test time{plans}; "
+          f"{where}")
     return 0

@@ -3,7 +3,7 @@
 Fits the model (default ``voigt`` on both FRFs, the table held at the file's bare-table run or
 ``/rig`` values), shows where it departs from the measurements, which effect is most likely
 missing and why, and the exact ``identify`` command with that effect added. ``--auto`` adds the
-best significant effect and refits until the error reaches the noise floor or nothing
+best significant effect (and the local modes significant next to it) and refits until nothing
 significant is left, and prints the ladder. Runs of the same specimen at other levels or in the
 other sweep direction are diagnosed jointly (``--alone`` to diagnose the run by itself).
 The file is only read.
@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--auto", action="store_true",
-        help="add the best significant effect and refit until the noise floor",
+        help="add the best significant effect and refit until nothing significant is left",
     )
     parser.add_argument("--band", default=None, help="band, LO:HI in Hz (default: all points)")
     parser.add_argument(
@@ -89,6 +89,7 @@ def format_diagnosis(
         f"rms_error {d.rms_error:.3e}   noise_floor {d.noise_floor:.3e}   "
         f"({d.rms_error / d.noise_floor:.2f} x floor"
         + (", at the noise floor)" if d.at_noise_floor else ")"),
+        "noise: " + "; ".join(d.data.noise.describe()),
     ]
     if d.failures:
         lines.append("where it fails:")
@@ -99,13 +100,23 @@ def format_diagnosis(
                 f"{band.what}"
             )
     if d.findings:
-        lines.append("candidate effects (best first; significant = beyond noise):")
+        lines.append(
+            "candidate effects (* significant: its χ² drop beyond its threshold, next to the "
+            "ones before it):"
+        )
         for finding in d.findings:
             mark = "*" if finding.significant else " "
             lines.append(
                 f" {mark} {finding.effect:<28} {finding.model:<36} rms {finding.rms_error:.3e}"
-                f"  ΔBIC {finding.delta_bic:+.4g}"
+                f"  ΔBIC {finding.delta_bic:+.4g}  Δχ² {finding.delta_chi2:.4g}"
+                f" (needs {finding.threshold:.3g})"
             )
+    if d.scan is not None:
+        lines.append(
+            f"scan for local modes: {d.scan.templates} frequencies and widths, "
+            f"{d.scan.length:.0f} correlation lengths; a mode needs Δχ² > {d.scan.threshold:.1f} "
+            f"({d.scan.threshold ** 0.5:.1f} standard errors) after looking everywhere"
+        )
     best = d.significant[0] if d.significant else None
     if best is None:
         lines.append(

@@ -2,7 +2,9 @@
 
 Fits a model to one run and stores the fit in the campaign file (``--no-store`` to leave the
 file untouched). Without ``--model``, a bare-table run gets ``table`` and a specimen run
-``voigt``. Without ``--frf``, every FRF the model predicts and the run has is fitted.
+``voigt``. Without ``--frf``, every FRF the model predicts and the run has is fitted. Each point
+is weighted by its noise (the project's estimate); ``--weights uniform`` weighs every point the
+same, as the paper does.
 """
 
 from __future__ import annotations
@@ -50,6 +52,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "inherits, e.g. 'table+frame(2000)' for a 2000 kg frame under the table "
         "(default: table)",
     )
+    parser.add_argument(
+        "--weights",
+        choices=("noise", "uniform"),
+        default="noise",
+        help="each point weighted by its noise (default: the project's estimate) or every point "
+        "the same (the paper's method)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--no-store", action="store_true", help="do not store the fit")
     parser.set_defaults(handler=handler)
@@ -65,7 +74,7 @@ def handler(args: argparse.Namespace) -> int:
         if not is_bare_table(campaign.run(args.run)):
             table = table_parameters(campaign, args.table_model)
         result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs,
-                                     table=table)
+                                     table=table, weighting=args.weights)
         fit_id = None if args.no_store else store_fit(campaign, args.run, result)
     if args.json:
         print(json.dumps(result.to_json(args.run)))
@@ -81,7 +90,9 @@ def format_result(
     ratio = result.rms_error / result.noise_floor
     lines = [
         f"run {run}: model {result.spec}, {result.band_hz[0]:g}-{result.band_hz[1]:g} Hz, "
-        f"{result.points} points, FRFs {', '.join(result.frfs)}",
+        f"{result.points} points, FRFs {', '.join(result.frfs)}, "
+        + ("each point weighted by its noise" if result.weighting == "noise"
+           else "every point weighted the same (the paper's method)"),
         f"rms_error {result.rms_error:.3e}   noise_floor {result.noise_floor:.3e}"
         f"   ({ratio:.2f} x floor)",
     ]

@@ -154,6 +154,25 @@ def resume_command(args: argparse.Namespace) -> int:
         return _run(campaign, sequence, opened, args)
 
 
+def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
+    """Print the predicted test time of the steps left (as ``viscorig plan`` does); return the
+    floors of the adaptive steps, for the time left."""
+    from viscorig.acquisition import forecast_sequence, format_forecast
+    from viscorig.cli.plan import simulated_floors
+
+    statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
+    floors = simulated_floors(sequence) if opened.simulated else {}
+    station = opened.station
+    forecasts = forecast_sequence(
+        sequence, table_known=station.table is not None, floors=floors,
+        force_limit_n=station.shaker_force_limit_n, status=statuses.get,
+    )  # fmt: skip
+    left = [item for item in forecasts
+            if not (item.kind.endswith("sweep") and statuses.get(item.name) == "complete")]
+    print(format_forecast(left, "predicted test time:"), flush=True)
+    return floors
+
+
 def _identified(campaign: Campaign, sequence: Sequence) -> bool:
     from viscorig.sequences import IdentifyTableStep
 
@@ -193,7 +212,9 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
         instrument_errors=opened.instrument_errors,
     )
     console = Console(yes=args.yes)
-    runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options)
+    floors = _forecast(campaign, sequence, opened)
+    runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
+                    floors=floors)
     live = contextlib.nullcontext()
     if args.live:
         from viscorig.cli.watch import live_view

@@ -14,6 +14,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
@@ -71,6 +73,7 @@ def fit_lines(fit: Fit) -> list[str]:
     lines = [
         f"  {fit.run}/{fit.id}  {fit.model}  {lo:g}-{hi:g} Hz  rms_error {_number(fit.rms_error)}"
         f"  noise_floor {_number(fit.noise_floor)}  {fit.created}"
+        + (f"  weighted by {fit.weighting}" if fit.weighting else "")
     ]
     for name, parameter in fit.parameters.items():
         stderr = "" if math.isnan(parameter.stderr) else f" ± {parameter.stderr:.3g}"
@@ -106,10 +109,14 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
              "flagged"]]
     problems: list[str] = []
     fits: list[str] = []
+    plans: list[str] = []
     for name in campaign.run_names:
         try:
             run = campaign.run(name)
             rows.append(run_row(run))
+            plan = plan_line(run, campaign.run_attributes(name))
+            if plan:
+                plans.append(plan)
             for fit in campaign.fits(name):
                 fits.extend(fit_lines(fit))
         except InputError as error:
@@ -120,9 +127,28 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
     else:
         lines.append("")
         lines.extend(table(rows))
+    if plans:
+        lines.extend(["", *plans])
     if fits:
         lines.extend(["", "fits", *fits])
     return lines, problems
+
+
+def plan_line(run: Run, attributes: dict[str, Any]) -> str:
+    """One line on a run an adaptive plan measured (``""`` for a full sweep)."""
+    if attributes.get("plan") != "adaptive":
+        return ""
+    from viscorig.acquisition import format_duration
+
+    reason = attributes.get("plan_reason") or f"stopped while {attributes.get('plan_state')}"
+    frequencies = np.unique(run.frequency_hz).size
+    rig_time = attributes.get("test_time_s")
+    text = (f"{run.name}: adaptive plan for {attributes.get('plan_model', '?')} "
+            f"({attributes.get('plan_targets', '')}): {reason}; {run.points} points at "
+            f"{frequencies} frequencies")
+    if isinstance(rig_time, int | float) and math.isfinite(rig_time):
+        text += f", rig time {format_duration(float(rig_time))}"
+    return text
 
 
 def _finite(value: float) -> float | None:
@@ -139,6 +165,7 @@ def fit_json(fit: Fit) -> dict[str, Any]:
         "band_hz": [_finite(fit.band_hz[0]), _finite(fit.band_hz[1])],
         "rms_error": _finite(fit.rms_error),
         "noise_floor": _finite(fit.noise_floor),
+        "weighting": fit.weighting or None,
         "created": fit.created,
         "parameters": {
             name: {"value": _finite(p.value), "stderr": _finite(p.stderr), "unit": p.unit}
@@ -168,6 +195,7 @@ def run_json(run: Run, fits: list[Fit]) -> dict[str, Any]:
         "finished": m.finished,
         "flagged_points": int(run.flagged().sum()) if run.points else 0,
         "flags": {FLAG_NAMES[flag]: int(n) for flag, n in counts.items()},
+        "frequencies": int(np.unique(run.frequency_hz).size),
         "fits": [fit_json(fit) for fit in fits],
     }
 

@@ -1,10 +1,12 @@
 """``viscorig summary FILE [--band LO:HI] [--json]``: the paper's Table 1 and Table 2 for every run.
 
-Each specimen run is identified as the paper does (Voigt on ``X_s/F_e`` with the table fixed at
-the bare-table run's values, their uncertainty propagated); every number comes with its standard
-uncertainty, the preloaded runs with their change against the same specimen without preload, and
-when the runs carry the paper's names the published values are printed beside ours, with the
-places where the paper's own numbers disagree with each other (for the paper's runs present).
+Each specimen run is identified as the paper does (Voigt on ``X_s/F_e`` with the table fixed at the
+bare-table run's values, their uncertainty propagated, every point weighted the same), and beside
+it by the project's estimate (each point weighted by its noise, as ``identify`` fits); every number
+comes with its standard uncertainty, the preloaded runs with their change against the same specimen
+without preload, and when the runs carry the paper's names the published values are printed beside
+ours, with the places where the paper's own numbers disagree with each other (for the paper's runs
+present).
 """
 
 from __future__ import annotations
@@ -103,7 +105,8 @@ def format_summary(
                 text += f"   (paper {PAPER_TABLE_PARAMETERS[name]:g})"
             lines.append(text)
     specimen = [run for run in runs if not run.bare]
-    lines += ["", "Table 1: Voigt fit of X_s/F_e, table fixed (± one standard uncertainty)"]
+    lines += ["", "Table 1: Voigt fit of X_s/F_e, table fixed, every point weighted the same as "
+              "in the paper (± one standard uncertainty)"]
     header = (
         f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18} "
         f"{'rms/floor':>9}"
@@ -132,6 +135,20 @@ def format_summary(
             "  * the Voigt model does not fit these runs to the noise: their ± are those of the "
             "model's band-average (scaled by the misfit), not of the specimen"
         )
+    weighted = [run for run in specimen if run.weighted is not None]
+    if weighted:
+        lines += ["", "The same fits by the project's estimate, each point weighted by its "
+                  "noise (as identify fits)"]
+        lines.append(f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18}")
+        for run in weighted:
+            assert run.weighted is not None
+            p = run.weighted.parameters
+            lines.append(
+                f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
+                f"{_pm(p['C_v'].value, p['C_v'].stderr, '.5g'):>18} "
+                f"{_pm(p['M_v'].value, p['M_v'].stderr, '.4g'):>18}"
+                + ("" if run.weighted.fits_noise else "*")
+            )
     lines += ["", "Table 2: system natural frequency, damping factor, half-power bandwidth"]
     header = (
         f"  {'run':<10} {'f_r [Hz]':>16} {'ξ':>18} {'B_r = 2ξf_r [Hz]':>17} "
@@ -209,7 +226,14 @@ def summary_json(
             "rms_error": fit["rms_error"],
             "noise_floor": fit["noise_floor"],
             "fits_noise": fit["fits_noise"],
+            "weighting": fit["weighting"],
             "parameters": {name: fit["parameters"][name] for name in ("K_v", "C_v", "M_v")},
+            "noise_weighted": None if run.weighted is None else {
+                "parameters": {name: run.weighted.to_json(run.run)["parameters"][name]
+                               for name in ("K_v", "C_v", "M_v")},
+                "rms_error": float(run.weighted.rms_error),
+                "fits_noise": bool(run.weighted.fits_noise),
+            },
             "system": {name: q.to_json() for name, q in (run.system_uncertain or {}).items()},
             "measured": {
                 "peak_hz": float(run.measured.peak_hz),

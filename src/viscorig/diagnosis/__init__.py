@@ -17,20 +17,23 @@ from viscorig.diagnosis.core import (
     diagnose_run,
 )
 from viscorig.diagnosis.data import DiagnosisData, combine, companions, from_campaign
-from viscorig.diagnosis.findings import SIGNIFICANT_DELTA_BIC, Finding, whitened_bic
+from viscorig.diagnosis.findings import Finding
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
-from viscorig.diagnosis.screening import Signature, screen
+from viscorig.diagnosis.scan import ScanResult
+from viscorig.diagnosis.screening import Candidate, screen
+from viscorig.diagnosis.significance import FAMILY_ALPHA
 
 __all__ = [
     "AT_FLOOR_RATIO",
     "DEFAULT_MODEL",
-    "SIGNIFICANT_DELTA_BIC",
+    "FAMILY_ALPHA",
+    "Candidate",
     "Diagnosis",
     "DiagnosisData",
     "FailureBand",
     "Finding",
     "FrfResidual",
-    "Signature",
+    "ScanResult",
     "analyse",
     "combine",
     "companions",
@@ -40,5 +43,4 @@ __all__ = [
     "from_campaign",
     "residuals",
     "screen",
-    "whitened_bic",
 ]

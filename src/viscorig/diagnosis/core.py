@@ -3,7 +3,7 @@
 >>> d = diagnose_run(campaign, "soft-0", "voigt")      # or diagnose(frf_data, "voigt", table=...)
 >>> d.failures[0].what, d.findings[0].effect, d.findings[0].explanation
 >>> d2 = d.with_effect("fixture(58)")                  # add it in one step; d2.rms_error falls
->>> ladder = d.auto()                                  # until the noise floor or nothing left
+>>> ladder = d.auto()                                  # until nothing significant is left
 """
 
 from __future__ import annotations
@@ -11,11 +11,23 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
-from viscorig.diagnosis.findings import Finding, candidate_spec, confirm, fit_with
+from viscorig.diagnosis.findings import (
+    Finding,
+    candidate_spec,
+    carried_values,
+    confirm,
+    fit_with,
+    identify_fit,
+    unpaid_term,
+)
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
+from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
+from viscorig.diagnosis.weighted import Likelihood, ml_refit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, fit
 from viscorig.models import parse_spec
@@ -25,6 +37,9 @@ from viscorig.storage import Campaign
 AT_FLOOR_RATIO = 1.25
 #: The model diagnosed when none is given: Voigt K*, on both FRFs.
 DEFAULT_MODEL = "voigt"
+#: A residual this many standard deviations high, alone (its neighbours within
+#: ``SPIKE_NEIGHBOUR``), is an outlier point, not something a model should explain.
+SPIKE, SPIKE_NEIGHBOUR = 5.0, 3.0
 #: Most effects ``auto`` adds.
 MAX_AUTO_STEPS = 6
 
@@ -38,7 +53,11 @@ class Diagnosis:
     data
         The runs diagnosed (:class:`~viscorig.diagnosis.data.DiagnosisData`).
     fit
-        The fit of the model diagnosed.
+        The fit of the model diagnosed (as ``identify`` makes it).
+    likelihood
+        Its maximum-likelihood fit on the whitened residual, which the tests compare.
+    scan
+        The scan for local modes (peaks, length, threshold).
     findings
         Candidate effects, fitted and tested, lowest ΔBIC first.
     failures
@@ -49,9 +68,13 @@ class Diagnosis:
 
     data: DiagnosisData = field(repr=False)
     fit: FitResult
+    likelihood: Likelihood
+    scan: ScanResult | None = None
     findings: list[Finding] = field(default_factory=list)
     failures: list[FailureBand] = field(default_factory=list)
     advice: list[str] = field(default_factory=list)
+    together: Likelihood | None = None
+    """Likelihood fit of the model with every significant finding added."""
 
     @property
     def model(self) -> str:
@@ -68,10 +91,38 @@ class Diagnosis:
         """The ``rms_error`` a perfect model would reach, from the data alone."""
         return self.data.noise_floor
 
+    def outliers(self) -> dict[str, np.ndarray]:
+        """Outlier points per FRF: those the noise model found, and isolated spikes of this
+        fit's residual (more than :data:`SPIKE` standard deviations, both neighbours within
+        :data:`SPIKE_NEIGHBOUR`; noise alone makes one in 10¹⁰)."""
+        out = {}
+        masks = self.data.outliers
+        for frf in self.fit.frfs:
+            z = np.abs(self.fit.residuals[frf]) / np.sqrt(self.data.noise_power[frf])
+            left = np.concatenate([[0.0], z[:-1]])
+            right = np.concatenate([z[1:], [0.0]])
+            spike = (z > SPIKE) & (left < SPIKE_NEIGHBOUR) & (right < SPIKE_NEIGHBOUR)
+            out[frf] = masks[frf] | spike
+        return out
+
+    @property
+    def outlier_points(self) -> int:
+        """Points left out of the comparison with the noise floor (:meth:`outliers`)."""
+        return int(sum(np.count_nonzero(mask) for mask in self.outliers().values()))
+
+    @property
+    def rms_error_without_outliers(self) -> float:
+        """``rms_error`` over every point but the outliers: what the noise floor describes."""
+        masks = self.outliers()
+        kept = np.concatenate([np.abs(self.fit.residuals[frf][~masks[frf]]) ** 2
+                               for frf in self.fit.frfs])
+        return float(np.sqrt(np.mean(kept))) if kept.size else self.rms_error
+
     @property
     def at_noise_floor(self) -> bool:
-        """``rms_error`` within :data:`AT_FLOOR_RATIO` of the noise floor."""
-        return self.rms_error <= AT_FLOOR_RATIO * self.noise_floor
+        """The error is within :data:`AT_FLOOR_RATIO` of the noise floor, outlier points left
+        out on both sides (the noise floor describes the noise without them)."""
+        return self.rms_error_without_outliers <= AT_FLOOR_RATIO * self.noise_floor
 
     @property
     def significant(self) -> list[Finding]:
@@ -89,31 +140,80 @@ class Diagnosis:
         or a whole spec (``"fractional+delay"``).
         """
         if isinstance(effect, Finding):
-            return analyse(self.data, effect.fit, effect.bic)
+            return self._with_finding(effect)
         text = effect.strip()
         for finding in self.findings:
             if finding.term == text:
-                return analyse(self.data, finding.fit, finding.bic)
+                return self._with_finding(finding)
         if "+" in text:
             return diagnose(self.data, text)
         candidate_spec(self.fit.model, text)  # checks the term
         return analyse(self.data, fit_with(self.fit, self.data, text))
 
-    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
-        """Add the best significant effect and refit, until the noise floor or nothing is left.
+    def _with_finding(self, finding: Finding) -> Diagnosis:
+        if finding.fit is None:
+            finding.fit = identify_fit(finding.likelihood, self.data)
+        return analyse(self.data, finding.fit, finding.likelihood)
 
-        Returns the ladder: this diagnosis, then one per effect added.
+    def with_significant(self) -> Diagnosis:
+        """The diagnosis of this model with its best finding added, and with every local mode
+        found significant next to it (local modes at other frequencies do not compete with
+        it; any other effect waits for the next step, where it is judged against a model that
+        holds the best one)."""
+        found = self.significant
+        modes = [f for f in found[1:] if f.effect == "fixture_resonance"]
+        if not modes or self.together is None:
+            return self.with_effect(found[0])
+        spec = self.fit.model
+        for finding in (found[0], *modes):
+            spec = parse_spec(candidate_spec(spec, finding.term))
+        start = {**carried_values(self.together, spec)}
+        for finding in (found[0], *modes):
+            start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
+                          if k not in start})
+        fixed = dict(self.data.table or {})
+        result = fit(spec, self.data.data, frfs=self.data.frfs, fixed=fixed,
+                     noise=self.data.noise,
+                     start={k: v for k, v in start.items() if k not in fixed})
+        return analyse(self.data, result)
+
+    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
+        """Add the significant effects and refit, until nothing significant is left.
+
+        At the noise floor a small effect can still be significant (a local mode a few points
+        wide hardly moves the rms error): the ladder goes on while the tests find one.
+
+        Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
+        the local modes found significant next to it (:meth:`with_significant`). Last, any
+        effect that no longer pays for itself in the final model is taken out again, one step
+        each (:meth:`without_unpaid`).
         """
         ladder = [self]
         while len(ladder) <= max_steps:
             current = ladder[-1]
-            if current.at_noise_floor or not current.significant:
+            if not current.significant:
                 break
-            ladder.append(current.with_effect(current.significant[0]))
+            ladder.append(current.with_significant())
+        while len(ladder) > 1:
+            lighter = ladder[-1].without_unpaid()
+            if lighter is None:
+                break
+            ladder.append(lighter)
         return ladder
 
+    def without_unpaid(self) -> Diagnosis | None:
+        """The diagnosis of this model less the effect term that no longer pays for itself in
+        it (:func:`~viscorig.diagnosis.findings.unpaid_term`), or ``None``."""
+        threshold = self.scan.threshold if self.scan is not None else 0.0
+        found = unpaid_term(self.likelihood, self.data, threshold)
+        if found is None:
+            return None
+        _, reduced = found
+        return analyse(self.data, identify_fit(reduced, self.data))
+
     def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
-        """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``)."""
+        """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
+        ``outlier_points`` and ``scan``: what the thresholds rest on)."""
         document: dict[str, object] = {
             "run": self.data.run,
             "runs": list(self.data.runs),
@@ -121,6 +221,13 @@ class Diagnosis:
             "rms_error": float(self.rms_error),
             "noise_floor": float(self.noise_floor),
             "at_noise_floor": bool(self.at_noise_floor),
+            "outlier_points": self.outlier_points,
+            "noise": self.data.noise.describe(),
+            "scan": None if self.scan is None else {
+                "templates": self.scan.templates,
+                "correlation_lengths": float(self.scan.length),
+                "threshold_delta_chi2": float(self.scan.threshold),
+            },
             "failures": [band.to_json() for band in self.failures],
             "findings": [finding.to_json() for finding in self.findings],
             "advice": list(self.advice),
@@ -134,10 +241,21 @@ class Diagnosis:
         return document
 
 
-def analyse(data: DiagnosisData, result: FitResult, bic: float | None = None) -> Diagnosis:
-    """Failures, screening and confirmed findings of a fit already made on ``data``."""
-    result.noise_floor = data.noise_floor
-    findings = confirm(result, data, screen(result, data), bic)
+def analyse(
+    data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None
+) -> Diagnosis:
+    """Failures, screening and confirmed findings of a fit already made on ``data``.
+
+    ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
+    """
+    current = ml_refit(result, data) if likelihood is None else likelihood
+    residual = Residual(current, data)
+    existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
+    peaks = scan(current, data, existing)
+    findings, together = confirm(current, data, screen(current, data, residual, peaks))
+    best = next((finding for finding in findings if finding.significant), None)
+    if best is not None and best.fit is None:
+        best.fit = identify_fit(best.likelihood, data)
     advice: list[str] = []
     for finding in findings:
         finding.explanation = explain(finding, data)
@@ -147,7 +265,8 @@ def analyse(data: DiagnosisData, result: FitResult, bic: float | None = None) ->
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    return Diagnosis(data, result, findings, failure_bands(result, data), advice)
+    return Diagnosis(data, result, current, peaks, findings, failure_bands(result, data), advice,
+                     together)
 
 
 def diagnose(
@@ -178,8 +297,7 @@ def diagnose(
     spec = parse_spec(model or DEFAULT_MODEL)
     if spec.modulus_term is None or not spec.modulus_term.has_disc:
         raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
-    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}))
-    result.noise_floor = data.noise_floor
+    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}), noise=data.noise)
     return analyse(data, result)
 
 

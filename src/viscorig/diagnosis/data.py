@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FrfData, local_noise_power
+from viscorig.fitting import FrfData, NoiseModel, estimate_noise
 from viscorig.storage import Campaign, Run
 
 
@@ -35,7 +35,7 @@ class Segment:
 
 @dataclass(frozen=True)
 class DiagnosisData:
-    """The runs diagnosed together, as one :class:`FrfData`, with per-point noise power.
+    """The runs diagnosed together, as one :class:`FrfData`, with their noise model.
 
     Attributes
     ----------
@@ -47,16 +47,18 @@ class DiagnosisData:
         FRFs diagnosed (``"table"`` needs ``table``).
     table
         The table's ``M_s, K_s, C_s`` held fixed, or ``None`` (support FRF only).
-    noise_power
-        FRF name -> ``E|ε_i|²`` at every point (:func:`viscorig.fitting.local_noise_power`,
-        estimated run by run, from the data alone).
+    noise
+        The shared noise model of the core (:class:`viscorig.fitting.NoiseModel`: white power
+        along the band, a drift correlated in test time, outlier points), estimated run by run
+        from the data alone and joined in the order of the segments. The error floor, the
+        whitening of every comparison and so every threshold of diagnosis rest on it.
     """
 
     data: FrfData
     segments: tuple[Segment, ...]
     frfs: tuple[str, ...]
     table: dict[str, float] | None
-    noise_power: dict[str, NDArray[np.float64]]
+    noise: NoiseModel
 
     @property
     def run(self) -> str:
@@ -85,7 +87,111 @@ class DiagnosisData:
     @property
     def noise_floor(self) -> float:
         """``sqrt(mean σ_i²)`` over every point of every FRF: the rms a perfect model reaches."""
-        return float(np.sqrt(np.mean(np.concatenate(list(self.noise_power.values())))))
+        return self.noise.floor_of(self.frfs)
+
+    @property
+    def noise_power(self) -> dict[str, NDArray[np.float64]]:
+        """FRF name -> ``σ_i² = E|ε_i|²`` at every point (white plus correlated)."""
+        return {frf: self.noise.power(frf) for frf in self.frfs}
+
+    @property
+    def outliers(self) -> dict[str, NDArray[np.bool_]]:
+        """FRF name -> points the noise model found far outside the noise (heavy tails)."""
+        out = {}
+        for frf in self.frfs:
+            parts = [np.zeros(b.size, bool) if b.outliers is None else np.asarray(b.outliers)
+                     for b in self.noise.blocks[frf]]
+            out[frf] = np.concatenate(parts)
+        return out
+
+    @property
+    def residual_count(self) -> int:
+        """Real residuals that count (real and imaginary part of every point not an outlier)."""
+        return 2 * sum(int(np.count_nonzero(~mask)) for mask in self.outliers.values())
+
+    @property
+    def effective_points(self) -> float:
+        """Independent real observations the data are worth (fewer than 2N with a drift)."""
+        return max(self.noise.effective_points(self.frfs), 2.0)
+
+    def whiten(
+        self, residuals: dict[str, NDArray[np.complex128]], exact: bool = True
+    ) -> NDArray[np.float64]:
+        """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, one column per
+        vector) whitened by the noise model: real numbers of unit variance, independent, when
+        they are noise, in the noise model's layout (real parts of every FRF, then imaginary
+        parts). Outlier points are left out (their residual counts as zero).
+
+        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening matrix
+        formed once (a diagonal for white noise, ``L⁻¹`` of a drift's Cholesky factor ``L``)
+        so that the many evaluations of a fit cost a product each. ``exact=False`` divides
+        each point by its total ``σ`` instead (the drift's correlation left out): a cheap
+        stand-in for fits whose result is then judged with the exact whitening."""
+        masks = self._masks()
+        operators = self._operators() if exact else self._diagonal_operators()
+        parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
+        for frf in self.frfs:
+            r = np.asarray(residuals[frf], dtype=complex)
+            keep = masks[frf] if r.ndim == 1 else masks[frf][:, None]
+            r = np.where(keep, r, 0.0)
+            for rows, by_part in operators[frf]:
+                for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
+                    operator = by_part[part]
+                    if operator.ndim == 1:
+                        scale = operator if values.ndim == 1 else operator[:, None]
+                        parts[part].append(values * scale)
+                    else:
+                        parts[part].append(operator @ values)
+        return np.concatenate(parts["re"] + parts["im"])
+
+    def _diagonal_operators(self):
+        """Per FRF: ``(rows, {part: 1/σ of each point's part})`` of each noise block."""
+        return self._built("_diagonal", False)
+
+    def _operators(self):
+        """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""
+        return self._built("_whitening", True)
+
+    def _built(self, key: str, exact: bool):
+        cached = self.__dict__.get(key)
+        if cached is None:
+            cached = {}
+            for frf in self.frfs:
+                blocks, start = [], 0
+                for block in self.noise.blocks[frf]:
+                    rows = slice(start, start + block.size)
+                    by_part = {}
+                    for part in ("re", "im"):
+                        white, correlated = block.part_variance(part)
+                        if exact and correlated > 0:
+                            by_part[part] = block.whiten_part(part, np.eye(block.size))
+                        else:
+                            by_part[part] = 1.0 / np.sqrt(white + (0.0 if exact else correlated))
+                    blocks.append((rows, by_part))
+                    start += block.size
+                cached[frf] = blocks
+            object.__setattr__(self, key, cached)
+        return cached
+
+    def whitened_power(self, residuals: dict[str, NDArray[np.complex128]]) -> dict[str, NDArray]:
+        """Whitened residual power per point and FRF (mean 1 when the residual is noise): the
+        squares of :meth:`whiten`'s real and imaginary components of each point, halved."""
+        e = self.whiten(residuals)
+        sizes = [self.noise.points(frf) for frf in self.frfs]
+        half = e.size // 2
+        out, start = {}, 0
+        for frf, size in zip(self.frfs, sizes, strict=True):
+            re, im = e[start : start + size], e[half + start : half + start + size]
+            out[frf] = (re**2 + im**2) / 2.0
+            start += size
+        return out
+
+    def _masks(self) -> dict[str, NDArray[np.bool_]]:
+        cached = self.__dict__.get("_kept")
+        if cached is None:
+            cached = {frf: ~mask for frf, mask in self.outliers.items()}
+            object.__setattr__(self, "_kept", cached)
+        return cached
 
 
 def _direction(frequency_hz: NDArray[np.float64]) -> str:
@@ -125,15 +231,14 @@ def combine(
         raise InputError(
             "the table FRF needs the table's M_s, K_s, C_s (a bare-table run or /rig)", main.name
         )
-    segments, noise = [], {name: [] for name in frfs}
+    segments, noises = [], []
     start = 0
     for name, data in pieces:
         data.checked(frfs, None)
         n = data.frequency_hz.size
         segments.append(Segment(name, slice(start, start + n), _level(data), _direction(
             data.frequency_hz)))
-        for frf in frfs:
-            noise[frf].append(local_noise_power(data.frf(frf)))
+        noises.append(estimate_noise(data, frfs))
         start += n
 
     def joined(field: str) -> NDArray | None:
@@ -155,7 +260,7 @@ def combine(
         tuple(segments),
         frfs,
         None if table is None else dict(table),
-        {frf: np.concatenate(parts) for frf, parts in noise.items()},
+        NoiseModel.join(noises),
     )
 
 

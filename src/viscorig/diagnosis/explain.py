@@ -1,18 +1,97 @@
-"""Sentences for people: what is missing, why we think so, what to do, which run would decide."""
+"""Sentences for people: what is missing, on which channel, how much (with its ±), what to do,
+which run would decide."""
 
 from __future__ import annotations
 
+import math
+
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.findings import Finding
+from viscorig.models.sensors import CHANNELS
 
 
-def _value(finding: Finding, local: str) -> float:
-    """Value of the added parameter with local name ``local`` (suffix ``_1``, ``_2`` allowed)."""
+def _estimate(finding: Finding, local: str) -> tuple[float, float]:
+    """Value and stderr of the added parameter with local name ``local`` (``_1``... allowed)."""
     for name, estimate in finding.parameters().items():
         suffix = name[len(local) + 1 :]
         if name == local or (name.startswith(local + "_") and suffix.isdigit()):
-            return float(estimate["value"])
-    return float("nan")
+            return float(estimate["value"]), float(estimate["stderr"])
+    return math.nan, math.nan
+
+
+def _pm(value: float, stderr: float, scale: float = 1.0, digits: int | None = None) -> str:
+    """``value ± stderr`` in a unit ``scale`` times smaller, to the stderr's precision."""
+    v, s = value * scale, stderr * scale
+    if digits is None:
+        digits = 1 if not (math.isfinite(s) and s > 0) else max(0, 1 - math.floor(math.log10(s)))
+    if not math.isfinite(s):
+        return f"{v:.{digits}f}"
+    return f"{v:.{digits}f} ± {s:.{digits}f}"
+
+
+def _pm_g(value: float, stderr: float) -> str:
+    """``value ± stderr`` in ``g`` format, the value to the digits its stderr leaves."""
+    if not (math.isfinite(stderr) and stderr > 0 and value != 0):
+        return f"{value:.3g}"
+    digits = max(2, math.ceil(math.log10(abs(value) / stderr)) + 1)
+    return f"{value:.{digits}g} ± {stderr:.2g}"
+
+
+def _channel_of(term: str):
+    inside = term[term.index("(") + 1 : term.index(")")] if "(" in term else ""
+    return CHANNELS.get(inside)
+
+
+def _sensor(finding: Finding) -> str:
+    effect, why, term = finding.effect, finding.evidence, finding.term
+    channel = _channel_of(term)
+    if term == "delay":
+        tau, se = _estimate(finding, "tau_d")
+        return (
+            f"Both accelerometers lag the force channels by {_pm(tau, se, 1e6)} µs (their "
+            f"conditioning or filters): {why}. Use the same conditioning on force and "
+            f"acceleration channels, or keep `{term}` in the model."
+        )
+    if channel is None:
+        return why
+    others = [c for c in CHANNELS.values() if c.frf == channel.frf and c is not channel]
+    partner = others[0]
+    if effect == "sensor_delay" and term.startswith("lowpass"):
+        corner, se = _estimate(finding, f"f_lp_{channel.name}")
+        lag = 1e6 / (2 * math.pi * corner)
+        return (
+            f"The {channel.label} ({channel.quantity}) is low-pass filtered with a corner near "
+            f"{_pm(corner, se, digits=0)} Hz, a lag of about {lag:.0f} µs that also lowers its "
+            f"magnitude at high frequency (an anti-alias filter or a long cable): {why}. Check "
+            f"its conditioning against the {partner.label}'s, or add `{term}` to the model."
+        )
+    if effect == "sensor_delay":
+        tau, se = _estimate(finding, f"tau_{channel.name}")
+        return (
+            f"The {channel.label} ({channel.quantity}) lags the {partner.label} "
+            f"({partner.quantity}) by {_pm(tau, se, 1e6)} µs (a filter or cable): {why}. Match "
+            f"the two channels' conditioning, or add `{term}` to the model."
+        )
+    if effect == "sensor_highpass":
+        corner, se = _estimate(finding, f"f_hp_{channel.name}")
+        return (
+            f"The {channel.label} ({channel.quantity}) is high-pass filtered with a corner at "
+            f"{_pm(corner, se)} Hz (a charge amplifier's time constant, "
+            f"{1 / (2 * math.pi * corner):.2g} s): {why}. Set a longer time constant on its "
+            f"amplifier, or add `{term}` to the model."
+        )
+    if effect == "sensor_gain":
+        gain, se = _estimate(finding, f"gain_{channel.name}")
+        change = (gain - 1) * 100
+        direction = "high" if change > 0 else "low"
+        opposite = "low" if change > 0 else "high"
+        return (
+            f"The {channel.label} ({channel.quantity}) reads {_pm(abs(change), se * 100)} % "
+            f"{direction} against the {partner.label} ({partner.quantity}), or that one reads "
+            f"{opposite}: {why}. Check both sensitivities (calibration, the analyser's "
+            f"engineering units), or add `{term}` to the model."
+        )
+    return why
 
 
 def explain(finding: Finding, data: DiagnosisData) -> str:
@@ -20,33 +99,41 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
     effect = finding.effect
     why = finding.evidence
     if not finding.significant:
+        reason = finding.note or (
+            f"within what noise explains (Δχ² {finding.delta_chi2:.1f}, "
+            f"needs {finding.threshold:.1f})"
+        )
         return (
             f"No clear sign of {effect.replace('_', ' ')}: adding {finding.term} leaves the "
-            f"error at {finding.rms_error:.3g} (ΔBIC {finding.delta_bic:+.0f}), within what "
-            "noise explains."
+            f"error at {finding.rms_error:.3g}; {reason}."
         )
+    if effect.startswith("sensor_"):
+        return _sensor(finding)
     if effect == "fixture_resonance":
-        f_n, zeta, m = (_value(finding, p) for p in ("f_n", "zeta", "m"))
+        f_n, f_se = _estimate(finding, "f_n")
+        zeta, _ = _estimate(finding, "zeta")
+        m, m_se = _estimate(finding, "m")
         return (
-            f"A local mode near {f_n:.1f} Hz ({m * 1e3:.2g} g, damping {zeta * 100:.1g} %) rings "
-            f"with the disc: {why}. Tap-test the disc, bolts, load cell and sensor mounts for a "
-            f"part resonating near {f_n:.0f} Hz and tighten or stiffen it, or keep "
-            f"fixture({f_n:.2f}) in the model."
+            f"A local mode at {_pm(f_n, f_se)} Hz ({_pm(m, m_se, 1e3)} g, damping "
+            f"{zeta * 100:.2g} %) rings with the disc: {why}. Tap-test the disc, bolts, load "
+            f"cell and sensor mounts for a part resonating near {f_n:.0f} Hz and tighten or "
+            f"stiffen it, or keep fixture({f_n:.2f}) in the model."
         )
     if effect == "load_cell_compliance":
-        k_c = _value(finding, "K_c")
+        k_c, se = _estimate(finding, "K_c")
         return (
-            f"The link between table and device is not rigid (K_c = {k_c:.3g} N/m): {why}. "
-            "Stiffen the load cell's linkage (stinger, bolts) or keep load_cell in the model; "
-            "use the support FRF (Eq. 5) for K*, which does not need a rigid link."
+            f"The link between table and device is not rigid (K_c = {_pm_g(k_c, se)} N/m): "
+            f"{why}. Stiffen the load cell's linkage (stinger, bolts) or keep load_cell in the "
+            "model; use the support FRF (Eq. 5) for K*, which does not need a rigid link."
         )
-    if effect == "sensor_delay":
-        tau = _value(finding, "tau_d")
-        lagging = "response (acceleration)" if tau > 0 else "force"
+    if effect == "frame_mode":
+        mass, mass_se = _estimate(finding, "M_f")
+        f_g, f_se = _estimate(finding, "f_g")
         return (
-            f"The {lagging} channel lags by {abs(tau) * 1e6:.1f} µs: {why}. Check that force "
-            "and acceleration channels use the same conditioning (filters, amplifier settings, "
-            "cable lengths), or keep delay in the model."
+            f"The inertial frame under the table moves on its isolators (a mode near "
+            f"{_pm(f_g, f_se)} Hz of a frame of about {_pm_g(mass, mass_se)} kg): {why}. It "
+            "makes the table and the specimens read stiffer; fit the bare-table run with "
+            "`frame` too, or keep `frame` in the model, and measure well above the frame's mode."
         )
     if effect == "frequency_dependent_modulus":
         return (
@@ -54,18 +141,20 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
             f"and dashpot cannot follow that; use {finding.term} for K*."
         )
     if effect == "amplitude_dependence":
-        beta = _value(finding, "beta")
+        beta, se = _estimate(finding, "beta")
         change = (1 - 2 ** (-beta)) * 100
+        change_se = abs(math.log(2) * 2 ** (-beta) * se) * 100
         return (
-            f"The rubber's stiffness depends on the vibration amplitude ({abs(change):.2g} % "
-            f"{'softer' if change > 0 else 'stiffer'} per doubling of displacement): {why}. "
-            "Report K* with the amplitude it was measured at, or test at the amplitude of use."
+            f"The rubber's stiffness depends on the vibration amplitude "
+            f"({_pm(abs(change), change_se)} % {'softer' if change > 0 else 'stiffer'} per "
+            f"doubling of displacement): {why}. Report K* with the amplitude it was measured "
+            "at, or test at the amplitude of use."
         )
     if effect == "thermal_drift":
-        kappa = _value(finding, "kappa")
+        kappa, se = _estimate(finding, "kappa")
         return (
-            f"The modulus drifts by {kappa * 3600 * 100:+.2f} % per hour of test: {why}. Let "
-            "the specimens settle thermally before sweeping (a wait step), record the "
+            f"The modulus drifts by {_pm(kappa, se, 3600 * 100)} % per hour of test: {why}. "
+            "Let the specimens settle thermally before sweeping (a wait step), record the "
             "temperature, or keep drift in the model."
         )
     return why

@@ -1,55 +1,57 @@
-"""Confirmation: fit each candidate warm-started from the current fit, rank by BIC, test it.
+"""Confirmation: fit each candidate, rank it, and test it next to the effects found before it.
 
-Fits. Every candidate is fitted as ``identify`` fits it (the design's error measure, so its
-``rms_error`` and parameters are the ones ``identify --model`` gives); for the statistic below
-the fit is then polished to maximum likelihood (:mod:`viscorig.diagnosis.weighted`).
+Fits. Every candidate is fitted by maximum likelihood on the whitened residual
+(:mod:`viscorig.diagnosis.weighted`), warm-started from the current model and the start
+screening found (a K* that replaces the current one is first fitted as ``identify`` fits it).
+Its ``χ²`` drop ``Δχ²`` against the current model, and ``delta_bic = −Δχ² + k ln n`` (``k`` added
+parameters, ``n`` the independent observations the noise model says the data are worth), rank
+the candidates, best first.
 
-Statistic. The noise of an FRF changes by orders of magnitude along a band (constant
-acceleration), so every comparison is made on the residual *whitened* by the local noise
-estimate of the data (:func:`viscorig.fitting.local_noise_power`):
-``χ² = Σ 2|r_i|²/σ_i²`` over every point of every FRF, which is a chi-square with ``n = 2N``
-degrees of freedom when the model is right (real and imaginary parts each carry ``σ²/2``).
-The Bayesian information criterion with known noise is ``BIC = χ² + k ln n`` (``k`` free
-parameters); ``delta_bic`` of a candidate is its BIC minus the current model's, negative when
-it is better.
+Significance. Candidates are taken best first, and each is tested against the best model so
+far, that is the current model with every effect already found significant: it is fitted with
+them, and is significant when its own ``Δχ²`` there still exceeds its threshold
+(:mod:`viscorig.diagnosis.significance`, against the misfit ``φ`` of the larger model) and it
+removes at least :data:`MIN_EXCESS_FRACTION` of that model's ``χ²`` in excess of what noise
+gives (``χ² − (n − p)``, none when the model is at the noise). An effect that only soaked up the
+misfit of a grossly wrong model (a drift "explaining" part of a frequency-dependent modulus)
+does not survive next to the effect that was really missing.
 
-Significance. A candidate is ``significant`` when ``delta_bic < −SIGNIFICANT_DELTA_BIC``: its
-improvement is beyond what ``k`` extra parameters fitted to noise give (on average ``k``, so
-``ΔBIC ≈ k(ln n − 1) > 0``), with a margin for the search a fixture or a delay makes over the
-band. On clean simulated data (no hidden effect, several seeds, every candidate) the best
-candidate's ΔBIC stayed above the threshold (see the tests and the report).
-
-Relevance. A statistically clear improvement can still be too small to matter: near the noise
-floor, with thousands of points, a term such as ``drift`` may absorb a sliver of a systematic
-misfit it does not explain. A significant finding must therefore also remove at least
-:data:`MIN_EXCESS_FRACTION` of the current model's error above the noise floor,
-``rms² − floor²``; a model at or below the floor leaves nothing to remove.
+Amplitude dependence and thermal drift scale the whole K* smoothly along one
+constant-acceleration up sweep: from one run they cannot be told apart from each other (nor,
+where a causal K* happens to follow the same change, from a frequency-dependent modulus). A
+finding of one of them names the others the data cannot separate from it, and the run that
+would.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
-from viscorig.diagnosis.screening import Signature
-from viscorig.diagnosis.weighted import polish
+from viscorig.diagnosis.screening import Candidate
+from viscorig.diagnosis.significance import dispersion, judge, threshold
+from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.models import TERMS, Fixture, Model, parse_spec
+from viscorig.models.sensors import CHANNELS, Delay
 
-#: ΔBIC (whitened) below minus this is beyond noise.
-SIGNIFICANT_DELTA_BIC = 20.0
-#: A significant finding removes at least this share of the error above the noise floor.
-MIN_EXCESS_FRACTION = 0.1
-#: Two candidates within this ΔBIC of each other are not told apart by the data.
+#: Two confounded candidates within this ΔBIC of each other are not told apart by the data.
 AMBIGUOUS_DELTA_BIC = 10.0
 #: ... or when the other's rms_error is within this factor: the two differ only in the exact
 #: shape of a smooth change along the band, which the data alone do not vouch for.
 AMBIGUOUS_RMS_RATIO = 1.5
 #: Effects that all reshape K* smoothly along a constant-acceleration up sweep.
 CONFOUNDED = ("frequency_dependent_modulus", "amplitude_dependence", "thermal_drift")
+#: Which effect comes first when the data cannot tell two apart (their Δχ² differ by less than
+#: the test's threshold): the rig's mechanics before its instrumentation, as a mechanical cause
+#: is the commoner one and a calibration error of the size the mechanics would need is rare.
+PRIORITY = (
+    "frequency_dependent_modulus", "load_cell_compliance", "fixture_resonance", "frame_mode",
+    "sensor_delay", "sensor_highpass", "sensor_gain", "amplitude_dependence", "thermal_drift",
+)
 
 
 @dataclass
@@ -62,56 +64,86 @@ class Finding:
         Name from the vocabulary (``fixture_resonance``...).
     model
         Spec of the candidate model, accepted as is by ``identify --model``.
-    fit
-        Its fit on the diagnosed data.
+    likelihood
+        Its maximum-likelihood fit on the diagnosed data.
+    delta_chi2
+        Drop of ``χ²`` against the model diagnosed.
     delta_bic
-        Whitened BIC of the candidate minus that of the current model.
+        ``−Δχ² + k ln n``: negative when the candidate is better by the Bayesian criterion.
+    threshold
+        ``Δχ²`` its test needs (:mod:`viscorig.diagnosis.significance`).
     significant
-        Improvement beyond what noise explains.
-    explanation
-        One or two sentences a technician can act on.
+        It still pays for its parameters next to the effects found before it.
     evidence
         What screening saw.
-    alternatives
-        Effects the data cannot tell apart from this one (ΔBIC within
-        :data:`AMBIGUOUS_DELTA_BIC`).
     term
         Spec text of the term the finding adds (or the K* term it puts instead).
+    explanation
+        One or two sentences a technician can act on.
+    alternatives
+        Effects the data cannot tell apart from this one.
+    fit
+        The fit ``identify --model`` makes of :attr:`model` (the best finding only, and any
+        finding added with :meth:`Diagnosis.with_effect`); ``None`` otherwise.
+    dispersion
+        ``φ`` of the candidate's fit (1 when it fits to the noise).
+    passes_alone
+        It passes its test against the model diagnosed, before any other effect is added.
+    note
+        Why a finding that passes alone is not significant.
+    identifiable
+        These data can tell the effect apart from the other smooth changes of K* (false for
+        amplitude dependence from one level, drift from one sweep direction).
     """
 
     effect: str
     model: str
-    fit: FitResult = field(repr=False)
+    likelihood: Likelihood = field(repr=False)
+    delta_chi2: float
     delta_bic: float
+    threshold: float
     significant: bool
     evidence: str
     term: str
     explanation: str = ""
     alternatives: list[str] = field(default_factory=list)
-    bic: float = float("nan")
-    """Whitened BIC of the candidate."""
+    fit: FitResult | None = field(default=None, repr=False)
+    dispersion: float = 1.0
+    passes_alone: bool = False
+    note: str = ""
+    identifiable: bool = True
 
     @property
     def rms_error(self) -> float:
-        """``rms_error`` of the candidate model."""
-        return self.fit.rms_error
+        """``rms_error`` of the candidate model (of :attr:`fit` when made)."""
+        return self.fit.rms_error if self.fit is not None else self.likelihood.rms_error
 
     def parameters(self) -> dict[str, dict[str, float | str]]:
         """The parameters the finding adds (or the new K* term's), with stderr and unit."""
-        new = added_parameters(self.fit.model, self.term)
+        new = added_parameters(self.likelihood.model, self.term)
+        stderr = self.likelihood.stderr()
+        scale = np.sqrt(self.dispersion)
+        model = self.likelihood.model
         return {
-            name: {"value": float(e.value), "stderr": float(e.stderr), "unit": e.unit}
-            for name, e in self.fit.parameters.items()
+            name: {
+                "value": float(self.likelihood.values[name]),
+                "stderr": float(stderr.get(name, np.nan) * scale),
+                "unit": model.by_name[name].unit,
+            }
+            for name in model.names
             if name in new
         }
 
     def to_json(self) -> dict[str, object]:
-        """The finding as in the ``diagnose --json`` contract (plus ``alternatives``)."""
+        """The finding as in the ``diagnose --json`` contract (plus ``delta_chi2``,
+        ``threshold``, ``alternatives``)."""
         return {
             "effect": self.effect,
             "model": self.model,
             "rms_error": float(self.rms_error),
             "delta_bic": float(self.delta_bic),
+            "delta_chi2": float(self.delta_chi2),
+            "threshold": float(self.threshold),
             "significant": bool(self.significant),
             "explanation": self.explanation,
             "parameters": self.parameters(),
@@ -126,24 +158,9 @@ def added_parameters(model: Model, term_text: str) -> set[str]:
             return set(model.local_names(term).values())
     keyword = term_text.split("(")[0]
     for term in model.terms:
-        if term.keyword == keyword:
+        if term.keyword == keyword and term.kind == "modulus":
             return set(model.local_names(term).values())
     return set()
-
-
-def whitened_chi2(result: FitResult, data: DiagnosisData) -> float:
-    """``Σ 2|r_i|²/σ_i²`` over every point of every FRF fitted."""
-    return float(
-        sum(np.sum(2 * np.abs(result.residuals[frf]) ** 2 / data.noise_power[frf])
-            for frf in result.frfs)
-    )
-
-
-def whitened_bic(result: FitResult, data: DiagnosisData) -> float:
-    """``χ² + k ln n`` with ``n`` real residuals and ``k`` free parameters (of a fit polished
-    by :func:`viscorig.diagnosis.weighted.polish`, for the statistic to be calibrated)."""
-    n = 2 * sum(data.noise_power[frf].size for frf in result.frfs)
-    return whitened_chi2(result, data) + len(result.free) * np.log(n)
 
 
 def candidate_spec(current: Model, term_text: str) -> str:
@@ -154,7 +171,7 @@ def candidate_spec(current: Model, term_text: str) -> str:
     return f"{current.spec}+{term_text}"
 
 
-def carried_values(old: FitResult, new: Model) -> dict[str, float]:
+def carried_values(old: FitResult | Likelihood, new: Model) -> dict[str, float]:
     """Values of ``old`` for every term ``new`` shares with it, under ``new``'s names."""
     values = {name: old.values[name] for name in ("M_s", "K_s", "C_s") if name in old.values}
     old_terms = {term.spec: term for term in old.model.terms}
@@ -167,114 +184,306 @@ def carried_values(old: FitResult, new: Model) -> dict[str, float]:
             values[name] = old.values[old_names[local]]
         if term.kind == "modulus" and "M_v" in old.values:
             values["M_v"] = old.values["M_v"]
+    if "M_v" not in values and "M_v" in old.values and "M_v" in new.names:
+        values["M_v"] = old.values["M_v"]
     return values
 
 
+def _start_of(model: Model, term_text: str, local: dict[str, float]) -> dict[str, float]:
+    """Global names of the start values ``local`` of the term ``term_text`` in ``model``."""
+    for term in model.effects:
+        if term.spec == term_text:
+            names = model.local_names(term)
+            return {names[k]: v for k, v in local.items() if k in names}
+    return {}
+
+
 def fit_with(
-    current: FitResult, data: DiagnosisData, term_text: str, start: dict[str, float] | None = None
+    current: FitResult | Likelihood,
+    data: DiagnosisData,
+    term_text: str,
+    start: dict[str, float] | None = None,
 ) -> FitResult:
-    """Fit the current model plus ``term_text``, warm-started from the current fit."""
-    spec = candidate_spec(current.model, term_text)
-    model = parse_spec(spec)
+    """Fit (as ``identify`` does) the current model plus ``term_text``, warm-started."""
+    model = parse_spec(candidate_spec(current.model, term_text))
     values = carried_values(current, model)
-    if start:
-        added = [t for t in model.effects if t.spec == term_text]
-        names = model.local_names(added[-1]) if added else {}
-        values.update({names[k]: v for k, v in start.items() if k in names})
+    values.update(_start_of(model, term_text, start or {}))
     fixed = dict(data.table or {})
-    result = fit(model, data.data, frfs=data.frfs, fixed=fixed,
+    result = fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
                  start={k: v for k, v in values.items() if k not in fixed})
-    result.noise_floor = data.noise_floor
     return result
 
 
-def confirm(
-    current: FitResult,
-    data: DiagnosisData,
-    signatures: list[Signature],
-    base_bic: float | None = None,
-) -> list[Finding]:
-    """Fit every screened candidate and return the findings, best (lowest ΔBIC) first.
+def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
+    """The fit ``identify --model`` makes of a model, started at its likelihood fit."""
+    fixed = dict(data.table or {})
+    return fit(likelihood.model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
+               start={k: v for k, v in likelihood.values.items() if k not in fixed})
 
-    ``base_bic``: the current fit's whitened BIC when already known (a finding's ``bic``).
+
+def _broad(model: Model) -> set[str]:
+    """Parameters that shape the whole band: K*'s, the disc mass, the load cell's."""
+    names = set(model.local_names(model.modulus_term).values()) | {"M_v"}
+    return names | {n for t in model.effects if t.keyword == "load_cell"
+                    for n in model.local_names(t).values()}
+
+
+def fit_term(
+    current: Likelihood, data: DiagnosisData, term_text: str, start: dict[str, float]
+) -> Likelihood:
+    """Maximum-likelihood fit of the current model with ``term_text`` added (or as its K*).
+
+    The new term's parameters are fitted with those that shape the whole band (:func:`_broad`);
+    the other terms' (a local mode elsewhere, a sensor's) stay at their current values, which a
+    new term barely moves: the drop of ``χ²`` is then a lower bound, and the fit several times
+    faster. The fit weighs each point by its own noise (the drift's correlation left out) and
+    its ``χ²`` is the exact one at the values found: again a lower bound of the drop.
     """
-    base = whitened_bic(polish(current, data), data) if base_bic is None else base_bic
+    model = parse_spec(candidate_spec(current.model, term_text))
+    only = _broad(model) | added_parameters(model, term_text)
+    if model.modulus_term.spec != current.model.modulus_term.spec or term_text == "load_cell":
+        # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
+        # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
+        first = fit_with(current, data, term_text, start)
+        return ml_fit(first.model, data, first.values, only=only, exact=False)
+    values = {**model.defaults(), **carried_values(current, model)}
+    values.update(_start_of(model, term_text, start))
+    return ml_fit(model, data, values, only=only, exact=False)
+
+
+def _renamed(result: Likelihood, term_text: str, data: DiagnosisData) -> tuple[Likelihood, str]:
+    """Name a fixture by its fitted frequency, and a channel delay by the channel that lags."""
+    model = result.model
+    term = next((t for t in model.effects if t.spec == term_text), None)
+    if term is None:
+        return result, term_text
+    names = model.local_names(term)
+    values = dict(result.values)
+    sign = 1.0
+    if isinstance(term, Fixture):
+        new: Fixture | Delay = Fixture(round(values[names["f_n"]], 2))
+    elif isinstance(term, Delay) and term.channel is not None and values[names[term.name]] < 0:
+        new = Delay(next(c for c in CHANNELS.values()
+                         if c.frf == term.channel.frf and c is not term.channel))
+        sign = -1.0
+    else:
+        return result, term_text
+    try:
+        new_model = parse_spec("+".join(t.spec if t is not term else new.spec
+                                        for t in model.terms))
+    except InputError:
+        return result, term_text
+    new_term = next(t for t in new_model.effects if t.spec == new.spec)
+    new_values = {**carried_values(result, new_model)}
+    old = model.local_values(term, values)
+    for (local, value), name in zip(old.items(), new_model.local_names(new_term).values(),
+                                    strict=True):
+        new_values[name] = sign * value if local == getattr(term, "name", None) else value
+    return evaluate(new_model, data, new_values), new.spec
+
+
+def _inside(result: Likelihood, term_text: str, data: DiagnosisData) -> bool:
+    """The local mode ``term_text`` of ``result`` has its half-power band within the data's
+    band, two frequency steps at least from either end (at the edge, a mode is a trend)."""
+    term = next((t for t in result.model.effects if t.spec == term_text), None)
+    if term is None:
+        return False
+    names = result.model.local_names(term)
+    f_n, zeta = result.values[names["f_n"]], result.values[names["zeta"]]
+    f = data.data.frequency_hz
+    steps = np.diff(np.unique(f))
+    margin = max(2 * zeta * f_n, 2 * (float(np.median(steps)) if steps.size else 0.0))
+    return bool(f.min() + margin < f_n < f.max() - margin)
+
+
+def confirm(
+    current: Likelihood, data: DiagnosisData, candidates: list[Candidate]
+) -> tuple[list[Finding], Likelihood]:
+    """Fit every candidate, rank them (lowest ΔBIC first, ``n`` the effective number of
+    independent observations of the noise model; among those the data cannot tell
+    apart, by :data:`PRIORITY`), test each next to the ones found significant before it, and
+    return them significant first, with the fit of the model holding every significant one."""
+    n = data.effective_points
     findings: list[Finding] = []
-    for signature in signatures:
-        terms = [signature.term]
-        if signature.effect == "frequency_dependent_modulus" and signature.term == "fractional":
-            terms.append("maxwell")  # both families; the better one is the finding
-        best: tuple[float, FitResult, str] | None = None
-        for term in terms:
+    for candidate in candidates:
+        best: tuple[float, Likelihood, str] | None = None
+        for term in (candidate.term, *candidate.alternatives):
             try:
-                result = fit_with(current, data, term, signature.start)
+                result = fit_term(current, data, term, candidate.start)
             except (InputError, ValueError, np.linalg.LinAlgError):
                 continue
-            bic = whitened_bic(polish(result, data), data)
-            if best is None or bic < best[0]:
+            bic = result.chi2 + len(result.free) * np.log(n)
+            # an alternative replaces the first term only when the data clearly prefer it
+            if best is None or bic < best[0] - candidate.threshold:
                 best = (bic, result, term)
         if best is None:
             continue
-        bic, result, term = best
+        _, result, term = best
         if term == "maxwell":
-            term = result.model.modulus_term.spec  # the order the fit chose
-        if signature.effect == "fixture_resonance":
-            result, term = _fixture_at_fitted_frequency(result, term)
-        delta = bic - base
-        findings.append(
-            Finding(
-                signature.effect,
-                result.spec,
-                result,
-                float(delta),
-                bool(delta < -SIGNIFICANT_DELTA_BIC)
-                and removes_enough(current.rms_error, result.rms_error, data.noise_floor),
-                signature.evidence,
-                term,
-                bic=float(bic),
-            )
-        )
+            term = result.model.modulus_term.spec
+        result, term = _renamed(result, term, data)
+        if candidate.effect == "fixture_resonance" and not _inside(result, term, data):
+            continue  # a mode fitted outside the band is a smooth trend there, not a local mode
+        delta, phi, passes = judge(current, result, candidate.threshold, data, term)
+        k = len(result.free) - len(current.free)
+        findings.append(Finding(
+            candidate.effect, result.spec, result, float(delta), float(-delta + k * np.log(n)),
+            candidate.threshold, False, candidate.evidence, term, dispersion=phi,
+            passes_alone=passes, identifiable=candidate.identifiable,
+        ))
     findings.sort(key=lambda finding: finding.delta_bic)
-    _mark_ambiguities(findings)
-    return findings
+    ties = _ties(findings)
+    findings[: len(ties)] = sorted(ties, key=_priority)
+    _after_modulus(findings)
+    best = _forward(current, data, findings)
+    for finding in findings:
+        if finding.significant:  # its ± from the exact whitening, not the fit's stand-in
+            finding.likelihood = evaluate(finding.likelihood.model, data,
+                                          finding.likelihood.values)
+    _mark_ambiguities(findings, ties)
+    findings.sort(key=lambda finding: not finding.significant)  # stable: ranks kept within
+    return findings, best
 
 
-def removes_enough(rms_before: float, rms_after: float, noise_floor: float) -> bool:
-    """The change removes at least :data:`MIN_EXCESS_FRACTION` of the error above the floor."""
-    excess = rms_before**2 - noise_floor**2
-    return excess > 0.0 and rms_before**2 - rms_after**2 >= MIN_EXCESS_FRACTION * excess
+def _after_modulus(findings: list[Finding]) -> None:
+    """Put a drift or an amplitude dependence that one sweep cannot tell from a
+    frequency-dependent modulus after the modulus: it is tested next to it, not before."""
+    modulus = next((i for i, f in enumerate(findings)
+                    if f.effect == "frequency_dependent_modulus" and f.passes_alone), None)
+    if modulus is None:
+        return
+    early = [f for f in findings[:modulus] if not f.identifiable]
+    if early:
+        rest = [f for f in findings if f not in early]
+        at = rest.index(findings[modulus]) + 1
+        findings[:] = rest[:at] + early + rest[at:]
 
 
-def _fixture_at_fitted_frequency(result: FitResult, term: str) -> tuple[FitResult, str]:
-    """Name the fixture in the spec by the frequency the fit found (its range moves with it)."""
-    model = result.model
-    fixture = next((t for t in model.effects if t.spec == term), None)
-    if fixture is None:
-        return result, term
-    f_n = result.values[model.local_names(fixture)["f_n"]]
-    new_term = Fixture(round(f_n, 2)).spec
-    specs = [t.spec if t is not fixture else new_term for t in model.terms]
-    try:
-        new_model = parse_spec("+".join(specs))
-    except InputError:
-        return result, term
-    return replace(result, model=new_model), new_term
+def _priority(finding: Finding) -> int:
+    return PRIORITY.index(finding.effect) if finding.effect in PRIORITY else len(PRIORITY)
 
 
-def _mark_ambiguities(findings: list[Finding]) -> None:
-    """Name, for the best finding, the confounded effects the data do not tell apart from it."""
-    for finding in findings[:1]:
-        if not finding.significant or finding.effect not in CONFOUNDED:
+def _ties(findings: list[Finding]) -> list[Finding]:
+    """The leading findings the data cannot tell apart from the best: each explains the best's
+    ``Δχ²`` to within its own threshold (counted in units of the misfit ``φ``)."""
+    if not findings or not findings[0].passes_alone:
+        return findings[:1]
+    best = findings[0]
+    tied = [best]
+    for other in findings[1:]:
+        if not other.passes_alone:
+            break
+        if (best.delta_chi2 - other.delta_chi2) / best.dispersion < other.threshold:
+            tied.append(other)
+        else:
+            break
+    return tied
+
+
+def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
+    """``result`` refitted on the exact whitening, every parameter free: a model the next
+    candidate is judged against must be at its own optimum, so that what the candidate's fit
+    gains is the candidate's and not a better convergence of the rest."""
+    return ml_fit(result.model, data, result.values)
+
+
+def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
+    """Mark significant the findings that pay for themselves next to those before them; the fit
+    of the model with all of them."""
+    base, accepted = current, []
+    lead = findings[0] if findings else None
+    if lead is None or lead.passes_alone or lead.delta_chi2 <= 0 or lead.effect == (
+            "fixture_resonance"):
+        lead = None
+    for finding in findings:
+        if not finding.passes_alone:
             continue
-        finding.alternatives = [
-            other.effect
-            for other in findings
-            if other is not finding
-            and other.significant
-            and other.effect in CONFOUNDED
-            and other.effect != finding.effect
-            and (
-                other.delta_bic - finding.delta_bic < AMBIGUOUS_DELTA_BIC
-                or other.rms_error < AMBIGUOUS_RMS_RATIO * finding.rms_error
+        if not accepted and lead is not None:
+            # The best-fitting candidate is not significant (the noise, or a drift it cannot
+            # be told from, could make it): the others must still pay next to it, or one of
+            # them takes the credit for what it explains better.
+            base, accepted = _exact(lead.likelihood, data), [lead]
+        if not accepted:
+            finding.significant = True
+            accepted.append(finding)
+            base = _exact(finding.likelihood, data)
+            continue
+        if finding is lead:
+            continue
+        try:
+            spec = candidate_spec(base.model, finding.term)
+            model = parse_spec(spec)
+        except InputError:
+            continue
+        start = {**model.defaults(), **carried_values(finding.likelihood, model),
+                 **carried_values(base, model)}
+        result = ml_fit(model, data, start, exact=False,
+                        only=_broad(model) | added_parameters(model, finding.term))
+        delta, phi, passes = judge(base, result, finding.threshold, data, finding.term)
+        if passes:
+            finding.significant = True
+            accepted.append(finding)
+            base = _exact(result, data)
+        else:
+            names = ", ".join(f.term for f in accepted)
+            finding.note = (
+                f"next to {names} it no longer pays for itself (Δχ² {delta / phi:.1f}, needs "
+                f"{finding.threshold:.1f})"
             )
-        ]
+    return base
+
+
+def term_threshold(term, scan_threshold: float) -> float:
+    """``Δχ²`` an effect term of a model must be worth: a local mode the scan's threshold (it
+    was found by looking everywhere), any other its parameters' chi-square quantile."""
+    if term.keyword == "fixture":
+        return scan_threshold
+    return threshold(max(len(term.parameters()), 1))
+
+
+def unpaid_term(
+    current: Likelihood, data: DiagnosisData, scan_threshold: float
+) -> tuple[str, Likelihood] | None:
+    """The effect term of ``current`` that pays least for itself, with the fit of the model
+    without it, when it no longer pays (its removal raises ``χ²`` by less than its threshold,
+    against the model's misfit ``φ``); ``None`` when every term pays.
+
+    A term added to a model far from the noise may only have soaked up misfit that a later term
+    explains: judged again in the final model, it goes (backward elimination).
+    """
+    phi = dispersion(current.chi2, data.residual_count, len(current.free))
+    worst: tuple[float, str, Likelihood] | None = None
+    for term in current.model.effects:
+        specs = [t.spec for t in current.model.terms if t is not term]
+        try:
+            reduced = parse_spec("+".join(specs))
+        except InputError:
+            continue
+        start = {**reduced.defaults(), **carried_values(current, reduced)}
+        result = ml_fit(reduced, data, start)
+        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold)
+        if ratio < 1.0 and (worst is None or ratio < worst[0]):
+            worst = (ratio, term.spec, result)
+    return None if worst is None else (worst[1], worst[2])
+
+
+def _mark_ambiguities(findings: list[Finding], ties: list[Finding]) -> None:
+    """Name, for the best finding, the effects the data do not tell apart from it: those tied
+    with it, and the confounded smooth changes of K* close to it."""
+    significant = [finding for finding in findings if finding.significant]
+    for finding in significant[:1]:
+        names = [other.effect for other in ties if other is not finding]
+        if finding.effect in CONFOUNDED:
+            names += [
+                other.effect
+                for other in findings
+                if other is not finding
+                and other.passes_alone
+                and other.effect in CONFOUNDED
+                and (
+                    not other.identifiable
+                    or other.delta_bic - finding.delta_bic < AMBIGUOUS_DELTA_BIC
+                    or other.rms_error < AMBIGUOUS_RMS_RATIO * finding.rms_error
+                )
+            ]
+        finding.alternatives = [name for name in dict.fromkeys(names) if name != finding.effect]

@@ -1,23 +1,32 @@
-"""Screening: the signature each missing effect leaves in the data and the current residual.
+"""Screening: which effects to try, where to start them, and what in the data points to them.
 
-Screening is cheap (no fit) and does two things for each effect of the vocabulary: it says
-what in the data points to it (the *evidence*, a sentence used in the explanation), and it
-gives the start values from which confirmation fits the candidate. Signatures:
+Screening makes no nonlinear fit. For each effect of the vocabulary it proposes a candidate
+term (the channel of a sensor effect, the frequency of a local mode), its start values, the
+*evidence* (a sentence for the explanation) and the ``Δχ²`` its test needs
+(:mod:`viscorig.diagnosis.significance`); confirmation (:mod:`.findings`) fits it. Signatures:
 
 =============================== ==================================================================
 effect                          signature
 =============================== ==================================================================
 load_cell_compliance            Eq. (4) and Eq. (5) estimates of K* disagree: ``1/(F_e/X_s − D_t)
                                 − X_v/F_v`` is the link's compliance ``1/K_c``, zero if rigid
-fixture_resonance               a narrow peak of the residual above a running median (per FRF)
-sensor_delay                    the phase error is linear in ω
+fixture_resonance               a peak of the matched-filter scan (:mod:`.scan`) above its
+                                look-elsewhere threshold
+frame_mode                      the residual follows what the inertial frame's mode on its
+                                isolators changes at the low end of the band
+sensor_delay                    one FRF's phase error grows linearly with ω (its sign names the
+                                channel that lags); both FRFs alike: both accelerometers lag
+sensor_highpass                 one FRF's phase error falls as 1/ω (a lead: the response
+                                channel's high-pass; a lag: the force channel's)
+sensor_gain                     one FRF's magnitude is off by a constant factor against the other
 amplitude_dependence            runs at two levels disagree in stiffness
 thermal_drift                   up and down sweeps disagree, or the residual follows ``time_s``
 frequency_dependent_modulus     the stiffness/damping error is a smooth trend in log frequency
 =============================== ==================================================================
 
-Each signature has a *score*, a z-like number (about 0-3 for noise), used only to order the
-evidence; whether an effect is there is decided by confirmation (:mod:`.findings`).
+The sensor signatures are linear estimates on the whitened residual with the current model's
+own directions projected out (:class:`~viscorig.diagnosis.scan.Residual`), so a sign and a size
+come with a standard error before any fit.
 """
 
 from __future__ import annotations
@@ -25,175 +34,255 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from viscorig.diagnosis.data import DiagnosisData
+from viscorig.diagnosis.scan import Residual, ScanResult
+from viscorig.diagnosis.significance import FAMILY_ALPHA, threshold
+from viscorig.diagnosis.weighted import Likelihood
+from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
-from viscorig.fitting import FitResult
-from viscorig.models.effects import Fixture, compliance_estimate, fixture_start, running_median
+from viscorig.models import Fixture, Frame, Model
+from viscorig.models.effects import compliance_estimate
+from viscorig.models.sensors import force_channel, response_channel
 
-#: Whitened height a residual peak needs to be tried as a fixture mode.
-PEAK_THRESHOLD = 3.5
-#: Most fixture frequencies tried per diagnosis.
+#: Most local modes tried per diagnosis step.
 MAX_FIXTURES = 3
+#: A scan peak is tried as a mode when its Δχ² reaches this share of the scan's threshold.
+SCAN_TRY_SHARE = 0.5
+#: A sensor candidate is fitted when its linear Δχ² reaches this share of its threshold.
+SENSOR_TRY_SHARE = 0.25
 
 
 @dataclass
-class Signature:
-    """What screening found for one candidate term."""
+class Candidate:
+    """What screening proposes for one effect.
+
+    Attributes
+    ----------
+    effect
+        Name from the vocabulary.
+    term
+        Spec text of the term to add, or of the K* term that replaces the current one.
+    evidence
+        What in the data points to it (a clause for the explanation).
+    threshold
+        ``Δχ²`` its test needs.
+    start
+        Start values of the new term's parameters (local names).
+    alternatives
+        Other terms for the same effect; one replaces :attr:`term` when it fits clearly better
+        (its ``χ²`` lower by more than :attr:`threshold`).
+    dof
+        Parameters the candidate adds.
+    identifiable
+        These data can tell the effect apart from the other smooth changes of K*.
+    """
 
     effect: str
     term: str
-    """Spec text of the term to add, or of the K* term that replaces the current one."""
-    score: float
     evidence: str
+    threshold: float
     start: dict[str, float] = field(default_factory=dict)
-    """Start values of the new term's parameters (local names)."""
+    alternatives: tuple[str, ...] = ()
+    dof: int = 1
+    identifiable: bool = True
 
 
-def _weighted_lstsq(columns, target, weight):
-    a = columns * weight[:, None]
-    b = target * weight
-    coefficients, *_ = np.linalg.lstsq(a, b, rcond=None)
-    residual = b - a @ coefficients
-    dof = max(b.size - a.shape[1], 1)
-    s2 = float(residual @ residual) / dof
-    try:
-        covariance = s2 * np.linalg.inv(a.T @ a)
-    except np.linalg.LinAlgError:
-        covariance = np.full((a.shape[1], a.shape[1]), np.inf)
-    return coefficients, np.sqrt(np.abs(np.diag(covariance))), float(b @ b - residual @ residual)
+def _has(model: Model, keyword: str, argument: str | None = None) -> bool:
+    return any(
+        term.keyword == keyword and (argument is None or term.spec == f"{keyword}({argument})")
+        for term in model.terms
+    )
 
 
-def _log_errors(fit: FitResult, data: DiagnosisData):
-    """``log(H_model/H_meas)`` per FRF over all points, and the per-point noise σ."""
-    out = {}
-    for frf in fit.frfs:
-        with np.errstate(all="ignore"):
-            e = np.log(1.0 + fit.residuals[frf])
-        out[frf] = (e, np.sqrt(data.noise_power[frf]))
-    return out
+def screen_modulus(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+    """A K* that changes with frequency in place of the current one."""
+    term = current.model.modulus_term
+    if term is None or term.keyword == "fractional":
+        return None
+    f = data.data.frequency_hz
+    evidence = (
+        f"the error changes smoothly with frequency over {f.min():g}-{f.max():g} Hz, as when "
+        "stiffness and damping depend on frequency"
+    )
+    if term.keyword == "voigt":
+        # Voigt is a limit of both families (α → 1, an arm's K → ∞): at that boundary one
+        # more parameter buys the freedom of two, so the test counts two.
+        return Candidate("frequency_dependent_modulus", "fractional", evidence,
+                         threshold(2, FAMILY_ALPHA / 2), alternatives=("maxwell(2)",), dof=2)
+    order = getattr(term, "order", None) or 1
+    return Candidate("frequency_dependent_modulus", f"maxwell({order + 1})", evidence,
+                     threshold(2), dof=2)
 
 
-def screen_load_cell(fit: FitResult, data: DiagnosisData) -> Signature | None:
-    """Eq. (4) vs Eq. (5)."""
-    if "load_cell" in fit.spec or set(data.frfs) != {"table", "support"} or data.table is None:
+def screen_load_cell(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+    """Eq. (4) against Eq. (5)."""
+    if _has(current.model, "load_cell") or set(data.frfs) != {"table", "support"}:
+        return None
+    if data.table is None:
         return None
     d = data.data
     measured = {"table": d.frf("table"), "support": d.frf("support")}
     estimate = compliance_estimate(d.context(), data.table, measured)
     if estimate is None:
         return None
-    compliance, stderr = estimate
-    m_v = fit.values.get("M_v", 0.0)
+    compliance = estimate[0]
+    m_v = current.values.get("M_v", 0.0)
     k4 = kstar_from_table(d.frequency_hz, measured["table"], data.table, m_v)
     k5 = kstar_from_support(d.frequency_hz, measured["support"], m_v)
     gap = float(np.median((k4.real - k5.real) / np.abs(k5))) * 100
-    score = compliance / stderr if stderr > 0 else 0.0
     start = {"K_c": 1.0 / compliance} if compliance > 0 else {}
     stiffness = f"K_c ≈ {1.0 / compliance:.3g} N/m" if compliance > 0 else "no finite K_c"
     evidence = (
         f"the table FRF (Eq. 4) sees a K* {abs(gap):.1f} % {'softer' if gap < 0 else 'stiffer'}"
         f" than the support FRF (Eq. 5) does ({stiffness})"
     )
-    return Signature("load_cell_compliance", "load_cell", float(score), evidence, start)
+    return Candidate("load_cell_compliance", "load_cell", evidence, threshold(1), start)
 
 
-def screen_fixtures(fit: FitResult, data: DiagnosisData) -> list[Signature]:
-    """Narrow residual peaks, per FRF and run, as fixture candidates (largest first)."""
-    found: list[tuple[float, float, str, dict[str, float]]] = []
-    d = data.data
-    for frf, (e, sigma) in _log_errors(fit, data).items():
-        for segment in data.segments:
-            f = d.frequency_hz[segment.index]
-            order = np.argsort(f)
-            f, r, s = f[order], e[segment.index][order], sigma[segment.index][order]
-            if f.size < 16:
-                continue
-            step = float(np.median(np.diff(f)))
-            half = max(round(4.0 / step), 3)
-            excess = np.abs(r - (running_median(r.real, half) + 1j * running_median(r.imag, half)))
-            z = excess / s
-            smooth = np.convolve(z, np.ones(3) / 3, mode="same")
-            peaks, _ = find_peaks(smooth, height=PEAK_THRESHOLD, distance=max(round(2.0 / step), 1))
-            for i in peaks:
-                measured = d.frf(frf)[segment.index][order]
-                ctx = d.select(segment.index).select(order).context()
-                start = fixture_start(float(f[i]), float(excess[i]), ctx, measured)
-                found.append((float(smooth[i]), float(f[i]), frf, start))
-    found.sort(reverse=True)
-    signatures: list[Signature] = []
-    existing = [v for k, v in fit.values.items() if k.startswith("f_n")]
-    for score, frequency, frf, start in found:
-        near = [s for s in signatures if abs(s.start["f_n"] - frequency) < 2.0]
-        if near or any(abs(f_n - frequency) < 1.0 for f_n in existing):
+def screen_fixtures(scan: ScanResult) -> list[Candidate]:
+    """The scan's strongest peaks as local modes."""
+    candidates = []
+    for peak in scan.peaks:
+        if peak.delta_chi2 < SCAN_TRY_SHARE * scan.threshold:
             continue
-        signatures.append(
-            Signature(
+        sigmas = np.sqrt(peak.delta_chi2)
+        candidates.append(
+            Candidate(
                 "fixture_resonance",
-                Fixture(round(frequency, 2)).spec,
-                score,
-                f"the {frf} FRF has a narrow peak at {frequency:.2f} Hz "
-                f"({score:.0f} times the noise)",
-                start,
+                Fixture(round(peak.frequency_hz, 2)).spec,
+                f"a scan for local modes peaks at {peak.frequency_hz:.2f} Hz, "
+                f"{sigmas:.1f} standard errors high (threshold "
+                f"{np.sqrt(scan.threshold):.1f} after looking everywhere)",
+                scan.threshold,
+                {"f_n": peak.frequency_hz, "zeta": peak.damping_ratio,
+                 "m": max(peak.mass_kg, 1e-8)},
+                dof=3,
             )
         )
-        if len(signatures) == MAX_FIXTURES:
+        if len(candidates) == MAX_FIXTURES:
             break
-    return signatures
+    return candidates
 
 
-def screen_delay(fit: FitResult, data: DiagnosisData) -> Signature | None:
-    """Phase error linear in ω."""
-    if "delay" in fit.spec:
-        return None
+def _pm(value: float, stderr: float) -> str:
+    """``value ± stderr`` to the stderr's first two digits."""
+    if not (np.isfinite(stderr) and stderr > 0):
+        return f"{value:+.3g}"
+    digits = max(0, 1 - int(np.floor(np.log10(stderr))))
+    return f"{value:+.{digits}f} ± {stderr:.{digits}f}"
+
+
+def _frf_words(frf: str) -> str:
+    return {"table": "table FRF (ẍ_s/F_e)", "support": "support FRF (ẍ_v/F_v)"}[frf]
+
+
+def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual) -> list[Candidate]:
+    """Delay, high-pass and gain of each FRF's channels, from linear estimates."""
     omega = 2 * np.pi * data.data.frequency_hz
-    target, weight, columns = [], [], []
-    for e, sigma in _log_errors(fit, data).values():
-        target.append(e.imag)
-        weight.append(1.0 / sigma)
-        columns.append(np.stack([np.ones_like(omega), omega], axis=1))
-    coefficients, stderr, _ = _weighted_lstsq(
-        np.concatenate(columns), np.concatenate(target), np.concatenate(weight)
-    )
-    tau = float(coefficients[1])  # model/measured phase = +ωτ when the data lag by τ
-    score = abs(tau) / stderr[1] if stderr[1] > 0 else 0.0
-    evidence = f"the phase error grows linearly with frequency ({tau * 1e6:+.1f} µs)"
-    return Signature("sensor_delay", "delay", float(score), evidence, {"tau_d": tau})
+    model = current.model
+    out: list[Candidate] = []
+    need = threshold(1)
+    if set(data.frfs) == {"table", "support"} and not _has(model, "delay"):
+        tau, stderr, gain = residual.estimate({frf: -1j * omega for frf in data.frfs})
+        if gain >= SENSOR_TRY_SHARE * need:
+            out.append(Candidate(
+                "sensor_delay", "delay",
+                f"both FRFs' phase errors grow linearly with frequency alike "
+                f"({_pm(tau * 1e6, stderr * 1e6)} µs)",
+                need, {"tau_d": tau}))
+    for frf in data.frfs:
+        response, force = response_channel(frf), force_channel(frf)
+        tau, stderr, gain = residual.estimate({frf: -1j * omega})
+        lagging = response if tau > 0 else force
+        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "delay", lagging.name):
+            out.append(Candidate(
+                "sensor_delay", f"delay({lagging.name})",
+                f"the {_frf_words(frf)} phase error grows linearly with frequency "
+                f"({_pm(tau * 1e6, stderr * 1e6)} µs)",
+                threshold(1, FAMILY_ALPHA / 2), {f"tau_{lagging.name}": abs(tau)},
+                alternatives=(f"lowpass({lagging.name})",)))
+        corner, stderr, gain = residual.estimate({frf: 2j * np.pi / omega})
+        filtered = response if corner > 0 else force
+        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "highpass", filtered.name):
+            out.append(Candidate(
+                "sensor_highpass", f"highpass({filtered.name})",
+                f"the {_frf_words(frf)} phase error falls as 1/f, a "
+                f"{'lead' if corner > 0 else 'lag'} of ({_pm(abs(corner), stderr)} Hz)/f",
+                need, {f"f_hp_{filtered.name}": float(np.clip(abs(corner), 1e-3, 50.0))}))
+        if len(data.frfs) < 2:
+            continue  # one FRF alone cannot tell a gain from K* and M_v
+        ratio, stderr, gain = residual.estimate({frf: np.ones_like(omega)})
+        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "gain", response.name):
+            out.append(Candidate(
+                "sensor_gain", f"gain({response.name})",
+                f"the {_frf_words(frf)} magnitude is off by a constant "
+                f"{_pm(ratio * 100, stderr * 100)} % against the other FRF",
+                need, {f"gain_{response.name}": float(np.clip(1.0 + ratio, 0.6, 1.6))}))
+    return out
 
 
-def screen_trend(fit: FitResult, data: DiagnosisData) -> Signature | None:
-    """Smooth trend of the stiffness/damping error in log frequency."""
-    if fit.model.modulus_term is None or fit.model.modulus_term.keyword == "fractional":
+#: The frame is tried once the model's whitened χ² is within this factor of the noise's: its
+#: signature (a few per cent of stiffness at the band's low end, fading as 1/f²) is subtle, and
+#: a grossly wrong model leaves misfit there that its three parameters would soak up.
+FRAME_NEAR_NOISE = 4.0
+#: Start of the frame's mode when a diagnosis tries it: a heavy frame on soft isolators.
+FRAME_START = {"M_f": 2000.0, "f_g": 3.0, "zeta_g": 0.1}
+
+
+def screen_frame(current: Likelihood, data: DiagnosisData, residual: Residual) -> Candidate | None:
+    """The inertial frame's rigid-body mode: what a frame of :data:`FRAME_START` would change,
+    compared with the residual (to first order)."""
+    model = current.model
+    if _has(model, "frame") or "table" not in data.frfs or data.table is None:
         return None
-    f = data.data.frequency_hz
-    u = np.log(f / np.sqrt(f.min() * f.max()))
-    explained, rows = 0.0, []
-    for e, sigma in _log_errors(fit, data).values():
-        columns = np.stack([np.ones_like(u), u, u**2], axis=1)
-        for part in (e.real, e.imag):
-            coefficients, stderr, gain = _weighted_lstsq(columns, part, 1.0 / sigma)
-            explained += gain
-            rows.append((coefficients, stderr))
-    slopes = [abs(c[1]) / s[1] if s[1] > 0 else 0.0 for c, s in rows]
-    score = float(max(slopes)) if slopes else 0.0
-    keyword = fit.model.modulus_term.keyword
-    if keyword == "voigt":
-        term = "fractional"
-    else:
-        order = getattr(fit.model.modulus_term, "order", None) or 1
-        term = f"maxwell({order + 1})"
-    lo, hi = f.min(), f.max()
+    if current.chi2 > FRAME_NEAR_NOISE * data.residual_count:
+        return None  # far from the noise, a frame would only soak up what else is missing
+    try:
+        framed = Model((*model.terms, Frame()))
+    except InputError:
+        return None  # a coupling term that cannot sit on a frame
+    ctx = data.data.context()
+    frame = next(term for term in framed.effects if term.keyword == "frame")
+    names = framed.local_names(frame)
+    base = model.predict(ctx, current.values)
+    moved = framed.predict(ctx, {**current.values,
+                                 **{names[k]: v for k, v in FRAME_START.items()}})
+    with np.errstate(all="ignore"):
+        change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
+    size, stderr, gain = residual.estimate(change)
+    need = threshold(3)
+    if gain < SENSOR_TRY_SHARE * need:
+        return None
     evidence = (
-        f"the error changes smoothly with frequency over {lo:g}-{hi:g} Hz, as when stiffness "
-        "and damping depend on frequency"
+        "the error changes at the low end of the band as when the inertial frame under the "
+        f"table moves on its isolators (a {FRAME_START['M_f']:.0f} kg frame at "
+        f"{FRAME_START['f_g']:g} Hz would explain {_pm(size, stderr)} of it)"
     )
-    return Signature("frequency_dependent_modulus", term, score, evidence)
+    return Candidate("frame_mode", "frame", evidence, need, dict(FRAME_START), dof=3)
 
 
-def screen_levels(fit: FitResult, data: DiagnosisData) -> Signature | None:
+def _log_errors(current: Likelihood, data: DiagnosisData, frf: str):
+    """``log(H_model/H_meas)`` of one FRF and its per-point noise σ."""
+    with np.errstate(all="ignore"):
+        e = np.log(1.0 + current.residuals[frf])
+    return e, np.sqrt(data.noise_power[frf])
+
+
+def _weighted_lstsq(columns, target, weight):
+    a = columns * weight[:, None]
+    b = target * weight
+    coefficients, *_ = np.linalg.lstsq(a, b, rcond=None)
+    try:
+        covariance = np.linalg.inv(a.T @ a)
+    except np.linalg.LinAlgError:
+        covariance = np.full((a.shape[1], a.shape[1]), np.inf)
+    return coefficients, np.sqrt(np.abs(np.diag(covariance)))
+
+
+def screen_levels(current: Likelihood, data: DiagnosisData) -> Candidate | None:
     """Runs at two levels disagree."""
-    if "amplitude" in fit.spec or data.data.reference_amplitude is None:
+    if _has(current.model, "amplitude") or data.data.reference_amplitude is None:
         return None
     levels = data.levels
     if len(levels) < 2:
@@ -201,54 +290,61 @@ def screen_levels(fit: FitResult, data: DiagnosisData) -> Signature | None:
             f"one level only ({levels[0]:.3g} m/s²): along a constant-acceleration sweep the "
             "displacement falls as 1/f², so amplitude dependence looks like frequency dependence"
         )
-        return Signature("amplitude_dependence", "amplitude", 0.0, evidence)
-    e, sigma = _log_errors(fit, data)[data.frfs[0]]
+        return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1),
+                         identifiable=False)
+    e, sigma = _log_errors(current, data, data.frfs[0])
     means = []
     for segment in data.segments:
         w = 1.0 / sigma[segment.index] ** 2
         mean = float(np.sum(w * e.real[segment.index]) / np.sum(w))
-        means.append((segment.level_m_per_s2, mean, float(1.0 / np.sqrt(np.sum(w)))))
+        means.append((segment.level_m_per_s2, mean))
     low, high = min(means), max(means)
-    gap = (high[1] - low[1]) * 100
-    score = abs(high[1] - low[1]) / np.hypot(low[2], high[2])
     evidence = (
-        f"runs at {low[0]:.3g} and {high[0]:.3g} m/s² disagree by {abs(gap):.2f} % in magnitude"
+        f"runs at {low[0]:.3g} and {high[0]:.3g} m/s² disagree by "
+        f"{abs(high[1] - low[1]) * 100:.2f} % in magnitude"
     )
-    return Signature("amplitude_dependence", "amplitude", float(score), evidence)
+    return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1))
 
 
-def screen_drift(fit: FitResult, data: DiagnosisData) -> Signature | None:
+def screen_drift(current: Likelihood, data: DiagnosisData) -> Candidate | None:
     """Residual against time, beyond what frequency explains."""
     d = data.data
-    if "drift" in fit.spec or d.time_s is None:
+    if _has(current.model, "drift") or d.time_s is None:
         return None
     if len(data.segments) == 1 or (len(data.directions) == 1 and len(data.levels) == 1):
         evidence = (
             f"one {data.directions[0]} sweep: time and frequency advance together, so a drift "
             "looks like frequency dependence"
         )
-        return Signature("thermal_drift", "drift", 0.0, evidence)
+        return Candidate("thermal_drift", "drift", evidence, threshold(1), identifiable=False)
     f = d.frequency_hz
     u = np.log(f / np.sqrt(f.min() * f.max()))
-    t = d.time_s / max(np.ptp(d.time_s), 1.0)
-    e, sigma = _log_errors(fit, data)[data.frfs[0]]
+    span = max(float(np.ptp(d.time_s)), 1.0)
+    t = d.time_s / span
+    e, sigma = _log_errors(current, data, data.frfs[0])
     columns = np.stack([np.ones_like(u), u, u**2, t], axis=1)
-    coefficients, stderr, _ = _weighted_lstsq(columns, e.real, 1.0 / sigma)
-    score = abs(coefficients[3]) / stderr[3] if stderr[3] > 0 else 0.0
-    per_hour = -coefficients[3] / max(np.ptp(d.time_s), 1.0) * 3600 * 100
+    coefficients, _ = _weighted_lstsq(columns, e.real, 1.0 / sigma)
+    # a softening K* raises the measured accelerance: log(H_model/H_measured) falls with it
+    per_hour = coefficients[3] / span * 3600 * 100
     evidence = (
         f"the {'/'.join(data.directions)} sweeps disagree as the test time goes on "
         f"(about {per_hour:+.2f} % per hour)"
     )
-    return Signature("thermal_drift", "drift", float(score), evidence)
+    return Candidate("thermal_drift", "drift", evidence, threshold(1))
 
 
-def screen(fit: FitResult, data: DiagnosisData) -> list[Signature]:
-    """Every signature that applies to this fit and these data, highest score first."""
-    signatures: list[Signature] = []
-    for method in (screen_load_cell, screen_delay, screen_trend, screen_levels, screen_drift):
-        signature = method(fit, data)
-        if signature is not None:
-            signatures.append(signature)
-    signatures += screen_fixtures(fit, data)
-    return sorted(signatures, key=lambda s: -s.score)
+def screen(
+    current: Likelihood, data: DiagnosisData, residual: Residual, scan: ScanResult
+) -> list[Candidate]:
+    """Every candidate that applies to this model and these data."""
+    candidates: list[Candidate] = []
+    for method in (screen_modulus, screen_load_cell, screen_levels, screen_drift):
+        candidate = method(current, data)
+        if candidate is not None:
+            candidates.append(candidate)
+    candidates += screen_sensors(current, data, residual)
+    frame = screen_frame(current, data, residual)
+    if frame is not None:
+        candidates.append(frame)
+    candidates += screen_fixtures(scan)
+    return candidates

@@ -1,70 +1,277 @@
-"""Maximum-likelihood polish of a fit: least squares on the residual whitened by the noise.
+"""Maximum-likelihood fits on the residual whitened by the noise model.
 
-The fitter minimises the design's error measure, the plain mean of ``|H_model/H_measured − 1|²``,
-in which the noisiest points (high frequency, where the force is small) weigh most. Comparing
-models by a noise-whitened χ² is only calibrated when each model minimises that χ²: fitted
-otherwise, one more parameter can move the curve at the quiet points by more than noise allows
-and fake an improvement. So every fit diagnosis compares is polished here, from the fitter's
-solution, on ``(H_model/H_measured − 1)/σ_i``; ``rms_error`` stays the design's measure.
+The fitter of ``identify`` minimises the design's error measure, the plain mean of
+``|H_model/H_measured − 1|²``, in which the noisiest points (high frequency, where the force is
+small) weigh most. Comparing models by a likelihood is only calibrated when each model maximises
+that likelihood: fitted otherwise, one more parameter can move the curve at the quiet points by
+more than noise allows and fake an improvement. So every model diagnosis compares is fitted
+here, on the residual whitened by the noise model (:meth:`DiagnosisData.whiten`), with a Huber
+loss (quadratic within :data:`HUBER_SCALE` standard deviations, linear beyond) so that an
+outlier point, which heavy-tailed noise makes, neither drives a fit nor fakes a finding.
+
+The statistic is ``χ² = Σ ρ(e_i)`` over the whitened residual ``e`` (``ρ(e) = e²`` inside the
+Huber scale): a chi-square with as many degrees of freedom as real residuals, less the
+parameters, when the model is right. ``rms_error`` stays the design's measure.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.fitting import FitResult
+from viscorig.models import Model
+
+#: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
+HUBER_SCALE = 3.0
+#: Relative step of the forward differences of the Jacobian (√ of the double precision).
+_STEP = 1.49e-8
 
 
-def polish(result: FitResult, data: DiagnosisData) -> FitResult:
-    """``result`` refitted to minimise ``Σ |r_i|²/σ_i²`` (its free parameters, same model)."""
-    model, free, frfs = result.model, result.free, result.frfs
-    if not free:
-        return result
-    ctx = data.data.context()
-    measured = [data.data.frf(name) for name in frfs]
-    weight = np.concatenate([1.0 / np.sqrt(data.noise_power[name]) for name in frfs])
+def huber(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``ρ(e)``: ``e²`` within :data:`HUBER_SCALE`, ``2c|e| − c²`` beyond."""
+    a = np.abs(e)
+    c = HUBER_SCALE
+    return np.where(a <= c, e * e, 2 * c * a - c * c)
+
+
+def winsorized(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``e`` clipped at ±:data:`HUBER_SCALE` (the Huber loss's ``ψ``): what a linear test sees."""
+    return np.clip(e, -HUBER_SCALE, HUBER_SCALE)
+
+
+@dataclass
+class Likelihood:
+    """A model fitted by maximum likelihood to the whitened residual.
+
+    Attributes
+    ----------
+    model
+        The fitted (concrete) model.
+    values
+        Every parameter's value by global name (the table's held fixed).
+    free
+        Names of the model's free parameters (every one but the table's).
+    chi2
+        ``Σ ρ(e_i)`` at the optimum.
+    whitened
+        The whitened residual ``e`` at the optimum.
+    jacobian
+        ``∂e/∂x`` at the optimum, ``x`` the fitted coordinates (logarithms of positive
+        parameters, the values of the others), one column per name of ``fitted``.
+    residuals
+        ``H_model/H_measured − 1`` per FRF.
+    """
+
+    model: Model
+    values: dict[str, float]
+    free: tuple[str, ...]
+    chi2: float
+    whitened: NDArray[np.float64] = field(repr=False)
+    jacobian: NDArray[np.float64] = field(repr=False)
+    residuals: dict[str, NDArray[np.complex128]] = field(repr=False)
+    fitted: tuple[str, ...] = ()
+    """Names of the parameters the fit moved (``free`` unless it held some at their start)."""
+
+    def __post_init__(self) -> None:
+        if not self.fitted:
+            self.fitted = self.free
+
+    @property
+    def spec(self) -> str:
+        """Canonical spec of the fitted model."""
+        return self.model.spec
+
+    @property
+    def rms_error(self) -> float:
+        """The design's error measure at these values."""
+        return float(np.sqrt(np.mean(np.concatenate(
+            [np.abs(r) ** 2 for r in self.residuals.values()]))))
+
+    def stderr(self) -> dict[str, float]:
+        """Standard error of every fitted parameter (SI), from the whitened Jacobian."""
+        if not self.fitted:
+            return {}
+        jac = self.jacobian
+        try:
+            inverse = np.linalg.pinv(jac.T @ jac)
+        except np.linalg.LinAlgError:
+            return dict.fromkeys(self.fitted, float("nan"))
+        spread = np.sqrt(np.abs(np.diag(inverse)))
+        out = {}
+        for name, s in zip(self.fitted, spread, strict=True):
+            value = self.values[name]
+            out[name] = float(s * abs(value)) if self.model.by_name[name].log else float(s)
+        return out
+
+
+#: Damping ratios of a local mode a diagnosis fits: from the one whose half-power band spans a
+#: frequency step (narrower, it would fit a single noisy point) to the broadest the scan tries
+#: (broader, it is a smooth trend, not a local mode).
+MODE_DAMPING_MAX = 0.1
+
+
+def resolvable_bounds(
+    model: Model, data: DiagnosisData, values: Mapping[str, float]
+) -> dict[str, tuple[float, float]]:
+    """Bounds of the local modes' damping ratios that these data resolve (see
+    :data:`MODE_DAMPING_MAX`)."""
+    steps = np.diff(np.unique(data.data.frequency_hz))
+    step = float(np.median(steps)) if steps.size else 0.0
+    bounds = {}
+    for term in model.effects:
+        if term.keyword != "fixture":
+            continue
+        names = model.local_names(term)
+        f_n = float(values.get(names["f_n"], term.argument or 100.0))
+        bounds[names["zeta"]] = (max(1e-4, step / (2 * f_n)), MODE_DAMPING_MAX)
+    return bounds
+
+
+def _coordinates(
+    model: Model,
+    free: tuple[str, ...],
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+):
     parameters = [model.by_name[name] for name in free]
-    log = np.array([p.log for p in parameters])
-    lower = np.array([np.log(p.lower) if p.log else p.lower for p in parameters])
-    upper = np.array([np.log(p.upper) if p.log else p.upper for p in parameters])
-    values = dict(result.values)
+    log = np.array([p.log for p in parameters], dtype=bool)
+    limits = [(max(p.lower, (bounds or {}).get(p.name, (p.lower, p.upper))[0]),
+               min(p.upper, (bounds or {}).get(p.name, (p.lower, p.upper))[1]))
+              for p in parameters]
+    lower = np.array([np.log(lo) if p.log else lo for p, (lo, _) in zip(parameters, limits,
+                                                                          strict=True)])
+    upper = np.array([np.log(hi) if p.log else hi for p, (_, hi) in zip(parameters, limits,
+                                                                          strict=True)])
+    return log, lower, np.maximum(upper, lower + 1e-12)
 
-    def to_values(x: np.ndarray) -> np.ndarray:
+
+def ml_fit(
+    model: Model,
+    data: DiagnosisData,
+    start: Mapping[str, float],
+    *,
+    only: Collection[str] | None = None,
+    max_steps: int = 200,
+    exact: bool = True,
+) -> Likelihood:
+    """Fit ``model``'s free parameters (every one but the table's, or those of them in
+    ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
+    whitened residual; ``start`` holds a value for every parameter. Local modes keep a damping
+    ratio the data resolve (:func:`resolvable_bounds`).
+
+    ``exact=False`` fits on the residual divided by each point's ``σ`` (the drift's correlation
+    left out, a product fewer per evaluation); ``χ²`` and the whitened residual returned are
+    still the exact ones, at the values found, so a drop of ``χ²`` read from them is a lower
+    bound of the exact fit's."""
+    fixed = dict(data.table or {})
+    every = tuple(name for name in model.names if name not in fixed)
+    free = every if only is None else tuple(name for name in every if name in only)
+    values = {**model.defaults(), **dict(start), **fixed}
+    ctx = data.data.context()
+    measured = {name: data.data.frf(name) for name in data.frfs}
+    log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
+
+    def to_values(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(log, np.exp(np.clip(x, -700, 700)), x)
 
-    def ratio(x: np.ndarray) -> np.ndarray:
-        values.update(zip(free, to_values(x), strict=True))
-        predicted = model.predict(ctx, values)
-        return np.concatenate([predicted[n] / h for n, h in zip(frfs, measured, strict=True)]) - 1
+    def ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        current = dict(values)
+        current.update(zip(free, to_values(x), strict=True))
+        with np.errstate(all="ignore"):
+            predicted = model.predict(ctx, current)
+            return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        r = ratio(x) * weight
-        return np.concatenate([r.real, r.imag])
+    last: dict[str, object] = {}
 
-    start = np.array([result.values[name] for name in free])
-    x0 = np.where(log, np.log(np.abs(start) + 1e-300), start)
+    def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        if last.get("x") is None or not np.array_equal(last["x"], x):
+            last["x"], last["ratio"] = x.copy(), ratio(x)
+        return last["ratio"]  # type: ignore[return-value]
+
+    def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        e = data.whiten(cached_ratio(x), exact)
+        return np.where(np.isfinite(e), e, 1e6)
+
+    def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Forward differences of the raw residual, whitened once for all columns.
+        base = cached_ratio(x)
+        columns = {frf: np.empty((base[frf].size, x.size), dtype=complex) for frf in base}
+        for j in range(x.size):
+            step = _STEP * max(1.0, abs(x[j]))
+            if x[j] + step > upper[j]:
+                step = -step
+            moved = x.copy()
+            moved[j] += step
+            shifted = ratio(moved)
+            for frf in base:
+                columns[frf][:, j] = (shifted[frf] - base[frf]) / step
+        matrix = data.whiten(columns, exact)
+        return np.where(np.isfinite(matrix), matrix, 0.0)
+
+    start_values = np.array([values[name] for name in free], dtype=float)
+    x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
     span = upper - lower
     x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
-    with np.errstate(all="ignore"):
-        solution = least_squares(
-            residual, x0, bounds=(lower, upper), x_scale="jac", method="trf",
-            ftol=1e-6, xtol=1e-8, gtol=1e-8, max_nfev=10 + 2 * len(free),
-        )
-    if not solution.cost * 2 <= float(np.sum(residual(x0) ** 2)):
-        values.update(zip(free, start, strict=True))
-        return result
-    fitted = to_values(solution.x)
-    values.update(zip(free, fitted, strict=True))
-    r = ratio(solution.x)
-    points = data.data.frequency_hz.size
-    return replace(
-        result,
-        values={name: float(v) for name, v in values.items()},
-        rms_error=float(np.sqrt(np.mean(np.abs(r) ** 2))),
-        residuals={name: r[i * points : (i + 1) * points] for i, name in enumerate(frfs)},
-        nfev=result.nfev + int(solution.nfev),
+    if free:
+        with np.errstate(all="ignore"):
+            solution = least_squares(
+                residual, x0, jac=jacobian_of, bounds=(lower, upper), x_scale="jac", method="trf",
+                loss="huber", f_scale=HUBER_SCALE, ftol=1e-6, xtol=1e-8, gtol=1e-8,
+                max_nfev=max_steps,
+            )
+        x = solution.x
+        jacobian = np.asarray(solution.jac, dtype=float)
+    else:
+        x = x0
+        jacobian = np.zeros((residual(x0).size, 0))
+    fitted = dict(values)
+    fitted.update(zip(free, (float(v) for v in to_values(x)), strict=True))
+    residuals = ratio(x)
+    whitened = data.whiten(residuals)
+    return Likelihood(
+        model, fitted, every, float(np.sum(huber(whitened))), whitened, jacobian, residuals, free
     )
+
+
+def ml_refit(result: FitResult | Likelihood, data: DiagnosisData) -> Likelihood:
+    """The maximum-likelihood fit of a fitted model, started from its values."""
+    return ml_fit(result.model, data, result.values)
+
+
+def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> Likelihood:
+    """The likelihood of ``model`` at ``values`` (no fit), with a finite-difference Jacobian
+    weighted as the Huber loss weighs each residual."""
+    fixed = dict(data.table or {})
+    free = tuple(name for name in model.names if name not in fixed)
+    values = {**dict(values), **fixed}
+    ctx = data.data.context()
+    measured = {name: data.data.frf(name) for name in data.frfs}
+    log, _, _ = _coordinates(model, free)
+
+    def ratio(current: Mapping[str, float]) -> dict[str, NDArray[np.complex128]]:
+        with np.errstate(all="ignore"):
+            predicted = model.predict(ctx, current)
+            return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
+
+    residuals = ratio(values)
+    whitened = data.whiten(residuals)
+    columns = {frf: np.empty((r.size, len(free)), dtype=complex) for frf, r in residuals.items()}
+    for j, (name, is_log) in enumerate(zip(free, log, strict=True)):
+        value = values[name]
+        step = 1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
+        moved = dict(values)
+        moved[name] = value * np.exp(step) if is_log else value + step
+        shifted = ratio(moved)
+        for frf in residuals:
+            columns[frf][:, j] = (shifted[frf] - residuals[frf]) / step
+    jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
+    jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
+    weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
+    return Likelihood(model, dict(values), free, float(np.sum(huber(whitened))), whitened,
+                      jacobian * weight[:, None], residuals)
+

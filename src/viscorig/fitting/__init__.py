@@ -1,17 +1,20 @@
 """Fitting: linear starts, bounded nonlinear least squares, uncertainties, order selection.
 
-``fit(model_or_spec, FrfData(...), frfs=..., band_hz=..., fixed=..., known=...) -> FitResult``;
-no user guess is ever needed. The noise model shared by the whole core (noise floor, standard
-errors, significance tests) is in :mod:`viscorig.fitting.noise` (estimated from the data by
-:mod:`viscorig.fitting.noise_estimation`); how it and the inherited parameters enter the
-standard errors is in :mod:`viscorig.fitting.uncertainty`.
+``fit(model_or_spec, FrfData(...), frfs=..., band_hz=..., fixed=..., known=...) -> FitResult``; no
+user guess is ever needed. The project's estimate weights each point by its noise under the noise
+model (``weighting="noise"``: maximum likelihood under white noise; what ``identify``, ``summary``
+and the adaptive plans use); the paper's uniform weighting (``"uniform"``) is kept to reproduce its
+Table 1 and as the error measure diagnosis compares models by. The noise model shared by the whole
+core (noise floor, standard errors, significance tests) is in :mod:`viscorig.fitting.noise`
+(estimated from the data by :mod:`viscorig.fitting.noise_estimation`); how it and the inherited
+parameters enter the standard errors is in :mod:`viscorig.fitting.uncertainty`.
 """
 
 from viscorig.fitting.baseline import nelder_mead_fit
 from viscorig.fitting.data import MIN_POINTS, FrfData
 from viscorig.fitting.noise import FrfNoise, NoiseModel, local_noise_power, noise_floor
 from viscorig.fitting.noise_estimation import estimate_frf_noise, estimate_noise
-from viscorig.fitting.nonlinear import CORRELATION_WARNING, fit
+from viscorig.fitting.nonlinear import CORRELATION_WARNING, WEIGHTINGS, fit
 from viscorig.fitting.result import Estimate, FitResult
 from viscorig.fitting.starts import disc_stiffness_samples, linear_start, table_linear_fit
 from viscorig.fitting.uncertainty import MISFIT_RATIO, Known
@@ -20,6 +23,7 @@ __all__ = [
     "CORRELATION_WARNING",
     "MIN_POINTS",
     "MISFIT_RATIO",
+    "WEIGHTINGS",
     "Estimate",
     "FitResult",
     "FrfData",

@@ -130,14 +130,14 @@ class FrfNoise:
     """
 
     frf: str
-    white_power: NDArray[np.float64]
+    white_power: NDArray[np.float64] = field(repr=False)
     correlated_power: tuple[float, float] = (0.0, 0.0)
     correlation_length: float = 1.0
-    axis: NDArray[np.float64] | None = None
+    axis: NDArray[np.float64] | None = field(default=None, repr=False)
     axis_unit: str = "point"
     resolution: float = math.inf
     source: str = "differences"
-    outliers: NDArray[np.bool_] | None = None
+    outliers: NDArray[np.bool_] | None = field(default=None, repr=False)
     _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -362,6 +362,15 @@ class NoiseModel:
             rows = slice(offset, offset + block.size)
             out[rows] = getattr(block, operation)(part, values[rows])
         return out
+
+    def stacked_variance(self, frfs: Sequence[str]) -> NDArray[np.float64]:
+        """``diag Σ`` in the stacked layout of ``frfs``: each real component's own variance
+        (white part plus the correlated part's variance)."""
+        out = []
+        for part, _, block in self._segments(frfs):
+            white, sigma2 = block.part_variance(part)
+            out.append(white + sigma2)
+        return np.concatenate(out)
 
     def whiten_stacked(self, values: NDArray[np.float64], frfs: Sequence[str]) -> NDArray:
         """``Σ^{-1/2} values`` for a real vector or matrix in the stacked layout of ``frfs``."""

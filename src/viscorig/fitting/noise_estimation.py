@@ -48,6 +48,15 @@ index (the grid is uniform or smoothly graded), and keeps of the noise
    skips the whole analysis when the longest shows no excess over the shortest (two standard
    errors): most runs have no drift, and the look costs a fraction of the analysis.
 
+Irregular grids. Where the file has the analyser's variance, the differences are trusted to scale
+it only on a linear sweep's grid (:func:`regular_grid`): a plan's points (a sparse look, clusters
+where the information is, repeats at one frequency) leave the FRF's own shape in every difference.
+There, the analyser's normalized variance is each point's white noise power as measured, taken at
+face value (source ``"analyser variance"``, no correlated part: none can be read from such a grid);
+a scatter beyond it still shows in a fit's χ², which scales the fit's covariance. Without the
+variance the differences are all there is (source ``"differences (irregular grid)"``): on a dense
+graded grid (a logarithmic sweep) they still read the noise.
+
 What the data cannot tell. A drift slower than the longest lag looks like a smooth change of
 the FRF: only its rate ``σ²/τ`` shows. Its correlation length is then set at the resolution
 limit (:attr:`FrfNoise.resolution`, about twice the longest lag's time span), which keeps the
@@ -101,6 +110,18 @@ _STEP_BIN = 0.05
 _TAU_GRID = np.geomspace(0.3, 30.0, 13)
 #: Fewest points for an estimate of the correlated part.
 MIN_CORRELATION_POINTS = 40
+#: The analyser sets frequencies in steps of this (Hz): a linear sweep's steps differ by up to one.
+FREQUENCY_STEP_HZ = 0.015625
+
+
+def regular_grid(frequency_hz: NDArray[np.float64]) -> bool:
+    """Are the points a linear sweep's grid (distinct frequencies, every step the same within
+    the analyser's frequency step and 1 %), where differences of neighbours read the noise?"""
+    steps = np.diff(np.sort(np.asarray(frequency_hz, dtype=float)))
+    if steps.size == 0 or np.any(steps <= 0):
+        return False
+    typical = float(np.median(steps))
+    return bool(np.all(np.abs(steps - typical) <= FREQUENCY_STEP_HZ + 0.01 * typical))
 
 
 def _binomial(order: int) -> NDArray[np.float64]:
@@ -414,6 +435,15 @@ def estimate_frf_noise(
         if not np.all(np.isfinite(var) & (var > 0)):
             var = None
     known = frequency_hz is not None
+    irregular = known and not regular_grid(frequency_hz)
+    if irregular and var is not None:
+        white = np.empty_like(var)
+        white[order] = var
+        axis, unit = np.arange(frf.size, dtype=float), "point"
+        if time_s is not None and np.all(np.isfinite(time_s)):
+            axis, unit = np.asarray(time_s, dtype=float), "s"
+        return FrfNoise(name, white, axis=axis, axis_unit=unit, source="analyser variance",
+                        outliers=np.zeros(frf.size, dtype=bool))
     white_sorted, source = white_power(z, var, window, None, known)
     skip = outlier_points(z, white_sorted)
     if np.any(skip):
@@ -435,6 +465,8 @@ def estimate_frf_noise(
         # An outlier carries its own error: the floor a perfect model reaches includes it.
         _, own = _outlier_statistic(z, white_sorted)
         white_sorted = np.where(skip, np.maximum(white_sorted, own), white_sorted)
+    if irregular:
+        source += " (irregular grid)"
     white = np.empty_like(white_sorted)
     white[order] = white_sorted
     outliers = np.empty_like(skip)
@@ -461,4 +493,30 @@ def estimate_noise(data, frfs: Sequence[str] | None = None, *, correlated: bool 
                 correlated=correlated,
             )
         )
-    return NoiseModel.of(*noises)
+    return NoiseModel.of(*shared_drift(noises))
+
+
+def shared_drift(noises: Sequence[FrfNoise]) -> list[FrfNoise]:
+    """The FRFs of one run with the drift found on any of them given to those where none was
+    found (the strongest, on the same axis).
+
+    The transducers of a run share the room and the conditioning: a slow drift of their
+    sensitivity affects every FRF. It shows where an FRF's white noise is low all along the
+    band (the table FRF), and hides in an FRF whose white noise varies by orders of magnitude
+    (the support FRF, whose force falls with frequency): its few quiet points carry the drift,
+    the many noisy ones dilute the statistic. Left out, the drift would make an FRF look far
+    more precise than it is at exactly the points a noise-weighted fit leans on.
+    """
+    found = [n for n in noises if n.correlated and n.axis_unit == "s"]
+    if not found:
+        return list(noises)
+    strongest = max(found, key=lambda n: sum(n.correlated_power))
+    out = []
+    for noise in noises:
+        if noise.correlated or noise.axis_unit != strongest.axis_unit:
+            out.append(noise)
+            continue
+        out.append(FrfNoise(noise.frf, noise.white_power, strongest.correlated_power,
+                            strongest.correlation_length, noise.axis, noise.axis_unit,
+                            noise.resolution, noise.source, noise.outliers))
+    return out

@@ -2,14 +2,23 @@
 
 Residual: ``H_model/H_measured − 1`` (complex, split into real and imaginary parts) at every
 point of every FRF fitted. Positive parameters are fitted as ``log(value)``, the others scaled
-to their bounds, and ``scipy.optimize.least_squares`` (trust-region reflective) scales the steps
-by the Jacobian, so stiffnesses of 10⁵ N/m and masses of 0.2 kg need no hand tuning.
+to their bounds, and ``scipy.optimize.least_squares`` scales the steps by the Jacobian, so
+stiffnesses of 10⁵ N/m and masses of 0.2 kg need no hand tuning.
 
-Standard errors (:mod:`viscorig.fitting.uncertainty`): the sandwich of the least-squares
-estimate under the data's noise model (:mod:`viscorig.fitting.noise`: noise changing along the
-band by orders of magnitude, and a drift correlated along the sweep), scaled up by the misfit
-when the model does not reach the noise floor, plus the covariance of parameters held fixed at
-values identified elsewhere (the table's), propagated through the fit's sensitivities.
+Weighting (:data:`WEIGHTINGS`). The project's estimate, ``"noise"``, weights
+each point's residual by the inverse of its noise standard deviation from the data's noise
+model (:mod:`viscorig.fitting.noise`: noise changing along the band by orders of magnitude):
+every point counts for the information it holds, and under white noise it is the
+maximum-likelihood estimate (:mod:`viscorig.fitting.uncertainty` says why a drift's
+correlation enters its covariance but not its weights): from the same linear start, it solves
+the weighted problem directly. ``"uniform"`` (the default of :func:`fit`) is the paper's
+method, every point weighing the same, which reproduces the paper's Table 1 and minimises the
+error measure ``rms_error`` that diagnosis compares candidate models by.
+
+Standard errors (:mod:`viscorig.fitting.uncertainty`): the covariance of the estimate under
+the noise model, scaled up by the misfit when the model does not reach the noise floor, plus
+the covariance of parameters held fixed at values identified elsewhere (the table's),
+propagated through the fit's sensitivities.
 """
 
 from __future__ import annotations
@@ -37,7 +46,11 @@ from viscorig.fitting.starts import linear_start
 from viscorig.fitting.uncertainty import CORRELATION_WARNING, Known, fit_covariance, si_jacobian
 from viscorig.models import Maxwell, Model, parse_spec
 
-__all__ = ["CORRELATION_WARNING", "fit", "resolve_frfs"]
+__all__ = ["CORRELATION_WARNING", "WEIGHTINGS", "fit", "resolve_frfs"]
+
+#: How the points of a fit are weighted: by their noise (the project's estimate, generalised
+#: least squares under the noise model) or uniformly (the paper's method).
+WEIGHTINGS = ("noise", "uniform")
 
 
 class _Coordinates:
@@ -93,6 +106,7 @@ def fit(
     start: Mapping[str, float] | None = None,
     known: Known | None = None,
     noise: NoiseModel | None = None,
+    weighting: str = "uniform",
 ) -> FitResult:
     """Fit a model to measured FRFs; no start needs to be given.
 
@@ -120,12 +134,19 @@ def fit(
         The noise model of the data in the band (default: estimated from them,
         :func:`viscorig.fitting.noise_estimation.estimate_noise`); pass it to fit several
         models to the same data at the cost of one estimate.
+    weighting
+        ``"noise"`` (each point weighted by its noise: the project's estimate, which
+        ``identify``, ``summary`` and the plans use) or ``"uniform"`` (every point the same:
+        the paper's method, and the error measure diagnosis compares models by); see the
+        module text.
 
     Raises
     ------
     InputError
         Missing FRF, too few points in the band, NaN in the data, missing table parameters.
     """
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting must be one of {WEIGHTINGS}, not {weighting!r}")
     model = parse_spec(model) if isinstance(model, str) else model
     for needed in model.requires:
         if getattr(data, needed) is None:
@@ -143,8 +164,9 @@ def fit(
     elif any(noise.points(name) != band.frequency_hz.size for name in chosen):
         raise ValueError("the noise model given does not describe the points fitted")
     if not model.is_open:
-        return _fit_concrete(model, band, chosen, fixed, start, noise, known=known)
-    return _select_order(model, band, chosen, fixed, start, noise, known)
+        return _fit_concrete(model, band, chosen, fixed, start, noise, known=known,
+                             weighting=weighting)
+    return _select_order(model, band, chosen, fixed, start, noise, known, weighting)
 
 
 def _select_order(
@@ -155,6 +177,7 @@ def _select_order(
     start: Mapping[str, float] | None,
     noise: NoiseModel,
     known: Known | None = None,
+    weighting: str = "uniform",
 ) -> FitResult:
     """Fit the candidates of an open model and return the refined one of lowest BIC.
 
@@ -163,6 +186,7 @@ def _select_order(
     order with a dead arm (:mod:`viscorig.fitting.arms`) is the order below in disguise: it is
     never chosen, and the order below is refitted from its surviving arms when that start is
     better than the order's own fit, so that orders are compared between fits that converged.
+    Orders are compared by uniform fits; the chosen one is refined with ``weighting``.
     """
     projected = _maxwell_order_search(model, fixed, start)
     by_spec = {candidate.spec: candidate for candidate in model.candidates()}
@@ -229,12 +253,13 @@ def _select_order(
     # The comparison needs only coarse convergence; the chosen variant is then refined, and
     # reduced while the refined fit leaves an arm dead.
     best = _fit_concrete(chosen_one.model, data, frfs, fixed, chosen_one.values, noise,
-                         known=known)
+                         known=known, weighting=weighting)
     while (dead := dead_arms(best)) and (maxwell_order(best.model) or 0) > len(dead):
         degenerate[best.spec] = "; ".join(dead.values())
         lower = by_order[(maxwell_order(best.model) or 0) - len(dead)]
         start_values = reduced_start(best, list(dead), lower)
-        best = _fit_concrete(lower, data, frfs, fixed, start_values, noise, known=known)
+        best = _fit_concrete(lower, data, frfs, fixed, start_values, noise, known=known,
+                             weighting=weighting)
         if lower.spec not in results or best.bic < results[lower.spec].bic:
             results[lower.spec] = best
     ordered = [results[spec] for spec in by_spec if spec in results]
@@ -317,6 +342,7 @@ def _fit_concrete(
     max_evaluations: int | None = None,
     bounded_fallback: bool = True,
     known: Known | None = None,
+    weighting: str = "uniform",
 ) -> FitResult:
     free = tuple(name for name in model.names if name not in fixed)
     if start and all(name in start for name in free):  # a complete start: no linear start
@@ -365,15 +391,27 @@ def _fit_concrete(
     x0 = coordinates.to_x(np.array([values[name] for name in free]))
     lower, upper = coordinates.bounds()
     x0 = np.clip(x0, lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
-    solution = _least_squares(
-        residual,
-        jacobian if analytic else None,
-        x0,
-        (lower, upper),
-        tolerance,
-        max_evaluations or 50 + 20 * len(free),
-        bounded_fallback,
-    )
+    weighted = weighting == "noise" and bool(free)
+    weights = None
+    if weighted:  # each point by its noise, from the same start
+        weights = 1.0 / np.sqrt(noise.stacked_variance(frfs))
+
+        def weighted_residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            return residual(x) * weights
+
+        def weighted_jacobian(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
+            return jacobian(x) * weights[:, None]
+
+        solution = _least_squares(
+            weighted_residual, weighted_jacobian if analytic else None, x0, (lower, upper),
+            tolerance, max_evaluations or 50 + 20 * len(free), bounded_fallback,
+        )  # fmt: skip
+        solution.jac = solution.jac / weights[:, None]  # back to ∂r/∂x
+    else:
+        solution = _least_squares(
+            residual, jacobian if analytic else None, x0, (lower, upper), tolerance,
+            max_evaluations or 50 + 20 * len(free), bounded_fallback,
+        )  # fmt: skip
     fitted = coordinates.to_values(solution.x)
     values.update(zip(free, fitted, strict=True))
     r = residual(solution.x)
@@ -392,7 +430,7 @@ def _fit_concrete(
                       known.source)
     uncertainty = fit_covariance(
         solution.jac, coordinates.derivative(fitted), free, noise, frfs, rms_error, r,
-        inherited_jac, known,
+        inherited_jac, known, weights,
     )  # fmt: skip
     warnings = list(uncertainty.warnings)
     stderr = dict.fromkeys(model.names, 0.0)
@@ -428,6 +466,7 @@ def _fit_concrete(
         fits_noise=uncertainty.fits_noise,
         influence=uncertainty.influence,
         inherited_from=known.source if known is not None and inherited else "",
+        weighting="noise" if weighted else "uniform",
     )
 
 

@@ -71,6 +71,10 @@ class FitResult:
         measurement uncertainties. Otherwise they are those of the model's band-average.
     inherited_from
         Where the inherited parameters came from (``"run 'table'"``), or ``""``.
+    weighting
+        How the points were weighted: ``"noise"`` (the project's estimate, generalised least
+        squares under :attr:`noise`) or ``"uniform"`` (the paper's method)
+        (:mod:`viscorig.fitting.nonlinear`).
     influence
         First-order response of the fitted parameters (SI) to the stacked relative residual
         ``[Re; Im]`` of the points (``free × 2N``, FRFs in the order of ``frfs``, points in the
@@ -101,6 +105,7 @@ class FitResult:
     misfit_scale: float = 1.0
     fits_noise: bool = True
     inherited_from: str = ""
+    weighting: str = "uniform"
     influence: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -194,6 +199,7 @@ class FitResult:
                 }
                 for name, e in self.parameters.items()
             },
+            "weighting": self.weighting,
             "uncertainty": {
                 "basis": "noise" if self.fits_noise else "band-average (misfit)",
                 "misfit_scale": float(self.misfit_scale),

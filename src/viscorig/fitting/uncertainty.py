@@ -2,38 +2,56 @@
 
 Three sources enter the covariance of the fitted parameters ``p``.
 
-Noise. The fitter minimises the design's error measure, ``‖r(p)‖²`` with ``r`` the stacked
-real and imaginary parts of ``H_model/H_measured − 1``. Near the solution
-``δp = −A⁻¹ Jᵀ ε`` with ``J = ∂r/∂p`` and ``A = JᵀJ``, so under noise of covariance ``Σ``
-(:class:`~viscorig.fitting.noise.NoiseModel`: white along the band, plus a drift correlated in
-test time) ``cov p = A⁻¹ Jᵀ Σ J A⁻¹``. This holds whatever weights the fit used, and counts
-correlated points for what they are worth instead of as independent.
+Noise. ``r`` is the stacked real and imaginary parts of ``H_model/H_measured − 1``, ``J =
+∂r/∂p``, and ``Σ`` the noise covariance of ``r`` (:class:`~viscorig.fitting.noise.NoiseModel`:
+white along the band, plus a drift correlated in test time). An estimate minimising ``‖V r‖²``
+(``V`` diagonal) has, near the solution, ``δp = −A⁻¹ Jᵀ V² ε`` with ``A = Jᵀ V² J``, so
+``cov p = A⁻¹ Jᵀ V² Σ V² J A⁻¹`` (the sandwich), whatever the weights.
 
-Misfit. What the model leaves beyond the noise is model error, which no noise model describes.
-Two guards, the larger standard error of the two wins (the noise model's correlation structure
-is kept): the noise sandwich multiplied by the Birge ratio ``(rms_error / noise_floor)²``
-(never by less than 1), which spreads a misfit over the band as if it were noise; and the
-residuals' own sandwich (White's misspecification-robust covariance, with the Newey-West
-Bartlett weights over :data:`HAC_LAGS` neighbouring points so that a misfit spanning several
-points counts as one), which puts a local misfit (a start transient, a sharp unmodelled
-feature) on the parameters it moves. With a model at the noise floor both stay close to the
-noise sandwich. A result whose ``rms_error`` exceeds :data:`MISFIT_RATIO` times the floor (the
+- The project's estimate (``weighting="noise"``) weights each real component by the inverse of
+  its noise standard deviation, ``V = diag(Σ)^{-1/2}``: points that differ in noise by orders
+  of magnitude (a plan's long and short integrations, the force dip at a resonance) count for
+  what each is worth. Under white noise this is generalised least squares, the
+  maximum-likelihood estimate, and the sandwich is ``(J_wᵀ J_w)⁻¹``: the inverse of the Fisher
+  information the points hold. A drift correlated along the sweep enters the covariance
+  through the sandwich but not the weights: the estimate then stays exactly as good as the
+  weights, and its ± honest, however well or badly the drift's correlation was estimated
+  (weighting by an estimated correlation structure would let an error in it bias the ±).
+- The paper's estimate (``weighting="uniform"``, ``V = 1``) minimises the design's error
+  measure ``‖r‖²``, every point weighing the same. It is kept to reproduce the paper's Table
+  1 (the simulated rigs were calibrated so that it does); on the paper's own sweep its
+  standard errors are several times those of the noise-weighted estimate.
+
+Both count correlated points for what they are worth instead of as independent.
+
+Misfit. What the model leaves beyond the noise is model error, which no noise model describes. Two
+guards, the larger standard error of the two wins (the noise model's correlation structure is
+kept): the noise covariance multiplied by the misfit ratio (never by less than 1), which spreads a
+misfit over the band as if it were noise: ``‖V r‖²/ν`` for the noise-weighted estimate (where it
+exceeds 1 by more than three of its standard deviations, ``3√(2/ν)``: below that it is the scatter
+of the noise itself), the Birge ratio ``(rms_error / noise_floor)²`` for the uniform one; and, for
+the uniform estimate always and for the noise-weighted one when its misfit is significant, the
+residuals' own sandwich (White's misspecification-robust covariance, with the Newey-West Bartlett
+weights over :data:`HAC_LAGS` neighbouring points so that a misfit spanning several points counts
+as one, on the weighted residual), which puts a local misfit (a start transient, a sharp unmodelled
+feature) on the parameters it moves. With a model at the noise floor both stay close to the noise
+covariance. A result whose ``rms_error`` exceeds :data:`MISFIT_RATIO` times the floor (the
 threshold diagnosis also uses for "at the noise floor") says that the model does not fit to the
-noise: its ± are those of the model's band-average, not a measurement uncertainty of the
-specimen.
+noise: its ± are those of the model's band-average, not a measurement uncertainty of the specimen.
 
 Inherited parameters (GUM, first order). A specimen fit holds the table's ``q = (M_s, K_s,
 C_s)`` at values identified elsewhere (the bare-table run, or a station's or ``/rig``'s values
-with a user-given uncertainty). The fitted ``p̂(q)`` follows them with the sensitivity
-``G = ∂p̂/∂q = −A⁻¹ Jᵀ J_q`` (the implicit-function theorem on ``Jᵀ r = 0``, Gauss-Newton
-term), so ``cov p += G C_q Gᵀ`` and ``cov(p, q) = G C_q``. The table run's noise is
-independent of the specimen run's, so the two add. A joint fit of both runs would give the same
-to first order and cost a refit of the table with every specimen; propagation reuses the
+with a user-given uncertainty). The fitted ``p̂(q)`` follows them with the sensitivity ``G = ∂p̂/∂q
+= −A⁻¹ Jᵀ J_q`` (the implicit-function theorem on ``Jᵀ r = 0``, Gauss-Newton term; ``A⁻¹ Jᵀ V²
+J_q`` for a weighted estimate), so ``cov p += G C_q Gᵀ`` and ``cov(p, q) = G C_q``. The table run's
+noise is independent of the specimen run's, so the two add. A joint fit of both runs would give the
+same to first order and cost a refit of the table with every specimen; propagation reuses the
 table's covariance as it is stored.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -227,6 +245,7 @@ def fit_covariance(
     residual: NDArray[np.float64],
     inherited_jac: NDArray[np.float64] | None = None,
     known: Known | None = None,
+    weights: NDArray[np.float64] | None = None,
 ) -> Uncertainty:
     """The covariance of a least-squares fit (see the module text).
 
@@ -250,12 +269,26 @@ def fit_covariance(
         ``∂r/∂q`` in SI for the inherited parameters ``known.names``.
     known
         The inherited values and their covariance.
+    weights
+        ``diag V`` of a weighted fit (``‖V r‖²`` minimised), in the stacked layout; ``None``
+        for the uniform fit.
     """
     warnings: list[str] = []
     k = len(free)
     floor = noise.floor_of(frfs)
-    ratio2 = (rms_error / floor) ** 2 if floor > 0 else np.inf
     fits_noise = bool(rms_error <= MISFIT_RATIO * floor)
+    if weights is not None:
+        jac = jac * weights[:, None]
+        residual = residual * weights
+        if inherited_jac is not None:
+            inherited_jac = inherited_jac * weights[:, None]
+        dof = max(residual.size - k, 1)
+        ratio2 = float(residual @ residual) / dof
+        significant = ratio2 > 1.0 + 3.0 * math.sqrt(2.0 / dof)
+        ratio2 = ratio2 if significant else 1.0
+    else:
+        significant = True
+        ratio2 = (rms_error / floor) ** 2 if floor > 0 else np.inf
     misfit_scale = float(max(1.0, ratio2)) if np.isfinite(ratio2) else 1.0
     inherited = tuple(known.names) if known is not None else ()
     names = free + inherited
@@ -265,13 +298,20 @@ def fit_covariance(
     inverse, full_rank = _inverse(jac)
     if not full_rank:
         warnings.append("the parameters are not all identifiable from these data (rank deficient)")
-    meat = jac.T @ noise.apply_covariance(jac, frfs)
+    if weights is not None:
+        meat = jac.T @ (weights[:, None] * noise.apply_covariance(weights[:, None] * jac, frfs))
+    else:
+        meat = jac.T @ noise.apply_covariance(jac, frfs)
     noise_cov = (inverse @ meat @ inverse) * np.outer(scale, scale)
     blocks = [block.size for _ in range(2) for frf in frfs for block in noise.blocks[frf]]
-    robust = inverse @ residual_meat(jac, residual, blocks) @ inverse * np.outer(scale, scale)
-    influence = (inverse @ jac.T) * scale[:, None]
+    influence = (inverse @ jac.T) * scale[:, None]  # of the (weighted) residual
+    if weights is not None:
+        influence = influence * weights[None, :]  # of the residual itself
     noise_sigma = np.sqrt(np.abs(np.diag(noise_cov)))
-    sigma = np.maximum(noise_sigma * np.sqrt(misfit_scale), np.sqrt(np.abs(np.diag(robust))))
+    sigma = noise_sigma * np.sqrt(misfit_scale)
+    if significant:
+        robust = inverse @ residual_meat(jac, residual, blocks) @ inverse * np.outer(scale, scale)
+        sigma = np.maximum(sigma, np.sqrt(np.abs(np.diag(robust))))
     with np.errstate(invalid="ignore", divide="ignore"):
         stretch = np.where(noise_sigma > 0, sigma / noise_sigma, 1.0)
     covariance = np.zeros((len(names), len(names)))

@@ -22,10 +22,12 @@ from viscorig.models.base import (
     register_term,
     stage_methods,
 )
-from viscorig.models.effects import EFFECTS, Amplitude, Delay, Drift, Fixture, Frame, LoadCell
+from viscorig.models.effects import EFFECTS, Amplitude, Drift, Fixture, Frame, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
+from viscorig.models.sensors import CHANNELS, Delay, Gain, Highpass, Lowpass
 
 __all__ = [
+    "CHANNELS",
     "DISC_MASS",
     "EFFECTS",
     "FRF_NAMES",
@@ -39,7 +41,10 @@ __all__ = [
     "Fixture",
     "Fractional",
     "Frame",
+    "Gain",
+    "Highpass",
     "LoadCell",
+    "Lowpass",
     "Maxwell",
     "Model",
     "ModulusTerm",

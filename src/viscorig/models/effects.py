@@ -12,8 +12,10 @@ drift      modify_modulus      ``K* · (1 + κ t)``, ``t`` the test time ``time_
 fixture    disc_stiffness      a local mode (mass ``m`` on a spring-damper) attached to the disc
 load_cell  couple              the two-DOF coupling of physics.md with a finite ``K_c``
 frame      frame               the inertial frame under the table, a mass on its isolators
-delay      measure             ``H · e^{−iωτ_d}``, a time delay between response and force channel
 ========== =================== ==================================================================
+
+The measuring chain's effects (``delay``, ``gain``, ``highpass``, ``lowpass`` on one channel) are
+in :mod:`viscorig.models.sensors`.
 
 Terms whose start cannot come from defaults (a fixture's frequency, the load cell's stiffness)
 also give a start from the measured FRFs (:meth:`start_from_data`), so that
@@ -266,29 +268,6 @@ class Frame(Term):
 
 
 @register_term
-class Delay(Term):
-    """A time delay ``τ_d`` of the response channel behind the force channel of each FRF.
-
-    Measured ``H · e^{−iωτ_d}`` on every FRF fitted (one conditioning delay shared by both
-    accelerometers, as when they use the same amplifier type). Negative ``τ_d``: the force
-    channel lags.
-    """
-
-    keyword = "delay"
-
-    def parameters(self) -> tuple[Parameter, ...]:
-        return (
-            Parameter(
-                "tau_d", "s", -2e-3, 2e-3, 0.0, log=False, description="channel time delay"
-            ),
-        )
-
-    def measure(self, ctx, p, frfs):
-        shift = np.exp(-1j * ctx.omega * p["tau_d"])
-        return {name: h * shift for name, h in frfs.items()}
-
-
-@register_term
 class Amplitude(Term):
     """Stiffness against vibration amplitude: ``K* · (x / x_ref)^(−β)``.
 
@@ -354,7 +333,9 @@ EFFECTS: dict[str, tuple[str, str]] = {
         "frame",
         "the inertial frame under the table moves on its isolators (its rigid-body mode)",
     ),
-    "sensor_delay": ("delay", "a time delay between the two channels of an FRF"),
+    "sensor_delay": ("delay", "a time delay or low-pass lag on one channel"),
+    "sensor_highpass": ("highpass", "a high-pass filter (charge amplifier) on one channel"),
+    "sensor_gain": ("gain", "a channel's sensitivity differs from the one its data assume"),
     "amplitude_dependence": ("amplitude", "stiffness depends on vibration amplitude"),
     "thermal_drift": ("drift", "the modulus drifts during the run"),
 }

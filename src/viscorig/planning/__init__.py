@@ -23,7 +23,6 @@ from viscorig.planning.adaptive import (
 from viscorig.planning.bound import DesignBound, design_bound
 from viscorig.planning.coverage import coverage_grid, coverage_ratio, log_grid
 from viscorig.planning.design import Design, minimum_time_design
-from viscorig.planning.estimator import weighted_fit
 from viscorig.planning.information import InformationModel, log_sensitivities
 from viscorig.planning.instrument import ANALYSER, AnalyserLimits, PointTiming
 from viscorig.planning.noise import (
@@ -82,6 +81,5 @@ __all__ = [
     "shared_noise",
     "step_mismatch",
     "sweep_segments",
-    "weighted_fit",
     "weighted_fit_function",
 ]

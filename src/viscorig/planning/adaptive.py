@@ -16,22 +16,22 @@ States::
 - LOOK: a sparse logarithmic look over the band, on the coverage grid
   (:func:`~viscorig.planning.coverage.log_grid`), settled for a prior damping (the mode is not
   known yet).
-- FIT: every point so far is fitted by the noise-weighted estimate a plan is judged by
-  (:mod:`~viscorig.planning.estimator`, under the core's noise model of the points); the
+- FIT: every point so far is fitted by the project's estimator (:func:`viscorig.fitting.fit`,
+  noise-weighted under the core's noise model of the points, as ``identify`` fits the run); the
   planning noise model is fitted to the points' noise (:mod:`~viscorig.planning.noise`), the
   modes are read off the fitted model, the instrument's time per point is calibrated from
   repeats, the information the points hold is computed from their measured noise (and compared
   with the fit's own covariance), and a visit's first long point is checked against its repeats
   for a transient the settle left.
-- DECIDE: stop when every target's relative standard error (the fit's own) is met, when the
-  model does not fit to the noise (its targets would be the precision of a biased value), or at
-  the dwell limit; otherwise solve the minimum-time design given what is known
-  (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the first
-  batch a fraction, to refit on better estimates before committing the rest), with the band's
+- DECIDE: stop when every target's relative standard error (the fit's own) is met, when the model
+  does not fit to the noise (its targets would be the precision of a biased value), or at the dwell
+  limit (within :data:`DWELL_MARGIN` of it); otherwise solve the minimum-time design given what is
+  known (:func:`~viscorig.planning.design.minimum_time_design`) and measure a batch of it (the
+  first batch a fraction, to refit on better estimates before committing the rest), with the band's
   coverage points (:func:`~viscorig.planning.coverage.coverage_grid`) the first time, each
   frequency's integration adjusted for where the auto level will land
-  (:func:`~viscorig.planning.batch.landing_db`), settled by the transient model, in one
-  direction, with short lead-in points taking the controller's passes.
+  (:func:`~viscorig.planning.batch.landing_db`), settled by the transient model, in one direction,
+  with short lead-in points taking the controller's passes.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult
+from viscorig.fitting import FitResult, fit
 from viscorig.models import parse_spec
 from viscorig.planning.batch import (
     allocation_points,
@@ -58,7 +58,6 @@ from viscorig.planning.batch import (
 )
 from viscorig.planning.coverage import coverage_grid, coverage_ratio, log_grid
 from viscorig.planning.design import minimum_time_design
-from viscorig.planning.estimator import weighted_fit
 from viscorig.planning.information import InformationModel
 from viscorig.planning.instrument import (
     ANALYSER,
@@ -80,6 +79,11 @@ __all__ = [
     "expected_time_s",
     "weighted_fit_function",
 ]
+
+
+#: A plan stops at its dwell limit once less than this fraction of it is left: a batch that
+#: small would be mostly settling (and each one costs a refit).
+DWELL_MARGIN = 0.1
 
 
 class State(StrEnum):
@@ -276,11 +280,12 @@ FitFunction = Callable[[MeasuredPoints], FitResult]
 
 
 def weighted_fit_function(spec: str, fixed: Mapping[str, float]) -> FitFunction:
-    """The noise-weighted fit of ``spec`` (:mod:`~viscorig.planning.estimator`) under the core's
-    noise model of the points (:func:`~viscorig.planning.noise.shared_noise`)."""
+    """The project's fit of ``spec`` (:func:`viscorig.fitting.fit`, weighted by the noise) under
+    the core's noise model of the points (:func:`~viscorig.planning.noise.shared_noise`)."""
 
     def run(points: MeasuredPoints) -> FitResult:
-        return weighted_fit(spec, points.frf_data(), shared_noise(points), fixed=fixed)
+        return fit(spec, points.frf_data(), fixed=dict(fixed), noise=shared_noise(points),
+                   weighting="noise")
 
     return run
 
@@ -553,7 +558,7 @@ class AdaptivePlan:
             self._finish("model misfit")
             return None
         used = self.points.test_time_s
-        if s.dwell_limit_s is not None and used >= s.dwell_limit_s:
+        if s.dwell_limit_s is not None and used >= (1.0 - DWELL_MARGIN) * s.dwell_limit_s:
             self._finish("dwell limit")
             return None
         if self._batches >= s.max_batches:

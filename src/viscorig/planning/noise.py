@@ -37,7 +37,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
-from viscorig.fitting import FrfNoise as SharedFrfNoise
 from viscorig.fitting import NoiseModel as SharedNoiseModel
 from viscorig.fitting import estimate_noise as estimate_shared_noise
 from viscorig.models import Context, Model
@@ -242,25 +241,16 @@ def _force_scale(force_e: NDArray[np.float64], limit: float | None) -> NDArray[n
 
 def shared_noise(points: MeasuredPoints) -> NoiseModel:
     """The core's noise model (:class:`viscorig.fitting.NoiseModel`) of measured points, in
-    the order of :meth:`MeasuredPoints.frf_data` (frequency order).
+    the order of :meth:`MeasuredPoints.frf_data` (frequency order), as ``identify`` estimates
+    it for a run (:func:`viscorig.fitting.estimate_noise`).
 
-    Where every point carries the analyser's normalized variance, that is each point's white
-    noise power as measured, taken at face value: a plan's points are not a dense, even grid,
-    and the core's estimate from differences of neighbouring points (which scales the variance)
-    would read the FRF's shape between sparse points as noise. A scatter beyond the variance
-    still shows in a fit's χ² (:mod:`viscorig.planning.estimator` scales its covariance by a
-    significant misfit). Without a variance: the core's estimate from the data
-    (:func:`viscorig.fitting.estimate_noise`).
+    A plan's points are not a dense, even grid: there the core takes the analyser's normalized
+    variance of each point at face value (the differences of neighbouring points would read
+    the FRF's shape between sparse points as noise), and a scatter beyond it still shows in a
+    fit's χ² (:func:`viscorig.fitting.fit` scales its covariance by the misfit).
     """
     data = points.frf_data()
-    frfs = data.available
-    if all(data.variance(name) is not None for name in frfs):
-        return SharedNoiseModel.of(*(
-            SharedFrfNoise(name, data.variance(name), axis=data.time_s, axis_unit="s",
-                           source="analyser variance")
-            for name in frfs
-        ))  # fmt: skip
-    return estimate_shared_noise(data, frfs)
+    return estimate_shared_noise(data, data.available)
 
 
 def point_noise_power(

@@ -170,13 +170,21 @@ class Candidate:
 
 @dataclass(frozen=True)
 class Rung:
-    """One rung of the diagnosis ladder: the model, its error, and the finding that led to it
-    (``None`` on the first rung)."""
+    """One rung of the diagnosis ladder: the model, its error, and how it differs from the rung
+    before: the findings whose terms it added, or the terms it took out again because they no
+    longer paid for themselves (both empty on the first rung)."""
 
     model: str
     rms_error: float
     noise_floor: float
-    added: Candidate | None = None
+    added: tuple[Candidate, ...] = ()
+    removed: tuple[str, ...] = ()
+
+
+def term_change(before: str, after: str) -> tuple[list[str], list[str]]:
+    """The terms of spec ``after`` that ``before`` lacks, and those of ``before`` it lacks."""
+    old, new = before.split("+"), after.split("+")
+    return [t for t in new if t not in old], [t for t in old if t not in new]
 
 
 @dataclass
@@ -355,9 +363,11 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
     (one element when the ladder was not climbed)."""
     rungs = [Rung(steps[0].model, float(steps[0].rms_error), float(steps[0].noise_floor))]
     for before, after in itertools.pairwise(steps):
-        added = next((f for f in before.findings if f.model == after.model), None)
+        new_terms, removed = term_change(before.model, after.model)
+        added = [f for f in before.findings if f.term in new_terms or f.model == after.model]
         rungs.append(Rung(after.model, float(after.rms_error), float(after.noise_floor),
-                          Candidate.of(added) if added is not None else None))
+                          tuple(Candidate.of(f) for f in added),
+                          () if added else tuple(removed)))
     first, last = steps[0], steps[-1]
     source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
     final = ModelCurve.from_fit(last.fit, f"{source}, both FRFs")
@@ -403,7 +413,7 @@ def analyse_campaign(
     started = time.perf_counter()
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
-    runs = [campaign.run(name) for name in campaign.run_names]
+    runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
     for run in runs:
         if 0 < run.points < 10:
             notes.append(f"run {run.name}: {run.points} points, too few to fit; shown as measured")

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from viscorig.compare import Pair, loss_factor_of, storage_stiffness_of
-from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, storage_and_loss
+from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, storage_and_loss, term_change
 from viscorig.storage import INPUT_OVERLOAD, Run
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
@@ -153,13 +153,13 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
     figure.subplots_adjust(left=0.1, right=0.98, top=0.9, bottom=0.26)
     if len(steps) > 1:
         labels = [steps[0].model] + [
-            "+ " + _added(steps[i - 1].model, steps[i].model) for i in range(1, len(steps))]
+            _added(steps[i - 1].model, steps[i].model) for i in range(1, len(steps))]
         errors = [s.rms_error for s in steps]
         colours = [MODEL] * len(steps)
         title = f"run {analysis.name}: error as effects are added (ladder)"
     else:
         found = sorted(analysis.candidates, key=lambda f: f.rms_error)[:8]
-        labels = [steps[0].model] + ["+ " + _added(steps[0].model, f.model) for f in found]
+        labels = [steps[0].model] + [_added(steps[0].model, f.model) for f in found]
         errors = [steps[0].rms_error] + [f.rms_error for f in found]
         colours = [MODEL] + [MODEL if f.significant else "#aaaaaa" for f in found]
         title = (f"run {analysis.name}: error of {steps[0].model} and with each candidate "
@@ -183,9 +183,8 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
 
 
 def _added(before: str, after: str) -> str:
-    old = before.split("+")
-    new = [term for term in after.split("+") if term not in old]
-    return "+".join(new) or after
+    new, removed = term_change(before, after)
+    return " ".join([*(f"+ {t}" for t in new), *(f"− {t}" for t in removed)]) or after
 
 
 def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None) -> Figure:

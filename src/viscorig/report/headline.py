@@ -130,7 +130,9 @@ def finding(run: RunAnalysis) -> str:
             return f"Not diagnosed: {run.diagnosis_error}."
         return "Not diagnosed."
     climb = run.climb
-    effects = [(rung.added.effect, rung.added.term) for rung in climb.rungs[1:] if rung.added]
+    removed = {term for rung in climb.rungs for term in rung.removed}
+    effects = [(added.effect, added.term) for rung in climb.rungs[1:] for added in rung.added
+               if added.term not in removed]
     missing = (climb.missing[0].effect, climb.missing[0].term) if climb.missing else None
     return finding_sentence(climb.rungs[0].model, effects, climb.final.values,
                             climb.final.rms_error, climb.final.noise_floor, missing,

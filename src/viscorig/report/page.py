@@ -368,6 +368,17 @@ def _candidate_rows(candidates: list[Candidate]) -> tuple[list[list[str]], list[
     return words, numbers
 
 
+def _rung_change(rung, index: int) -> tuple[str, str]:
+    """What a rung of the ladder changed, and the evidence for it, in words."""
+    if index == 0:
+        return "start", ""
+    if rung.removed:
+        terms = ", ".join(f"<code>{_e(t)}</code>" for t in rung.removed)
+        return f"took out {terms}", "no longer worth its parameters in this model"
+    return ("<br>".join(_e(a.effect.replace("_", " ")) for a in rung.added),
+            "<br>".join(_e(evidence_words(a.delta_bic, a.significant)) for a in rung.added))
+
+
 def diagnosis_section(run: RunAnalysis, figures: dict[str, SavedFigure]) -> str:
     """The ladder climbed, the candidates of the first rung, what still fails."""
     if run.diagnosis_error:
@@ -378,17 +389,15 @@ def diagnosis_section(run: RunAnalysis, figures: dict[str, SavedFigure]) -> str:
     parts = ["<h3>How the model was reached</h3>"]
     rows, numbers = [], []
     for index, rung in enumerate(climb.rungs):
-        added = rung.added
+        change, evidence = _rung_change(rung, index)
         rows.append([str(index), _spec(rung.model),
-                     _verdict(rung.rms_error, rung.noise_floor),
-                     _e(added.effect.replace("_", " ")) if added else "start",
-                     _e(evidence_words(added.delta_bic, added.significant)) if added else ""])
+                     _verdict(rung.rms_error, rung.noise_floor), change, evidence])
         numbers.append([str(index), f"<code>{_e(rung.model)}</code>",
                         _num(rung.rms_error, ".4g"), _num(rung.noise_floor, ".4g"),
                         _num(rung.rms_error / rung.noise_floor, ".3g"),
-                        _num(added.delta_bic, ".4g") if added else "–"])
-    parts.append(_table(["rung", "model", "error", "effect added", "evidence"], rows,
-                        text_columns=5))
+                        "<br>".join(_num(a.delta_bic, ".4g") for a in rung.added) or "–"])
+    parts.append(_table(["rung", "model", "error", "effect added or taken out", "evidence"],
+                        rows, text_columns=5))
     parts.append("<details><summary>numbers</summary>" + _table(
         ["rung", "model", "rms_error", "noise floor", "ratio", "ΔBIC (whitened)"], numbers,
         text_columns=2) + "<p>ΔBIC: whitened Bayesian information criterion of the model with "

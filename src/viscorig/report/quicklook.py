@@ -32,7 +32,7 @@ def plot_run(campaign_path: Path, run_name: str, out: Path) -> Path:
         No such run, a run with no point yet, or ``out`` cannot be written.
     """
     campaign = Campaign.open(campaign_path)
-    run = campaign.run(run_name)
+    run = campaign.run(run_name).merged()  # one point per frequency, as analysis reads a run
     if not run.points:
         raise InputError("has no measured point yet", f"run '{run_name}'")
     analysis = RunAnalysis(run, is_bare_table(run), (0.0, 0.0))

@@ -43,8 +43,8 @@ my-test.toml:18: steps[1].band_hz: [120, 20] Hz is written high to low; write ba
 ```
 
 In this folder: `paper.toml` (the paper's campaign), `separate-effects.toml` (the runs that tell
-amplitude dependence and drift from frequency dependence), `station-example.toml` (a commented
-station file to copy).
+amplitude dependence and drift from frequency dependence), `adaptive.toml` (a run measured by an
+adaptive plan), `station-example.toml` (a commented station file to copy).
 
 ## A small sequence
 
@@ -88,6 +88,34 @@ specimen = "soft"
 hardness_shore_a = 25.0
 ```
 
+"""
+
+_ADAPTIVE = """\
+## Adaptive plans
+
+A sweep step with `plan = "adaptive"` does not measure a fixed grid: it looks at the band (ten
+points), fits its `model`, and then measures the frequencies, settle and integration that teach
+the parameters named in `target_uncertainty` most per second of rig time, refitting after each
+batch, until every target is met, the model turns out not to fit (the band is then covered for
+`viscorig diagnose`), or `dwell_limit_s` is reached. `resolution_hz` is the spacing of the
+frequencies it may choose, `settle_cycles` and `integrate_cycles` the most any point may use.
+A specimen plan needs the table (an `identify_table` step after the bare-table sweep, or a
+`[table]` in the station) and, on a station, the shaker's `gain_n_per_v`: each point starts
+the analyser's level controller at the source level it needs.
+
+```toml
+[[steps]]
+type = "sweep"
+run = "soft-0"
+specimen = "soft"
+plan = "adaptive"
+model = "voigt"
+target_uncertainty = { K_v = 1e-3, C_v = 2e-3 }   # relative standard uncertainty
+dwell_limit_s = 1800
+```
+
+`viscorig plan SEQUENCE.toml` prints each step's predicted test time (an adaptive plan's as a
+range, with the floor of the rig beside it) before anything is measured.
 """
 
 _LEVELS = f"""\
@@ -139,7 +167,7 @@ def reference_markdown() -> str:
     for schema in STEP_TYPES.values():
         parts.append(f"\n### `type = \"{schema.name}\"`\n\n{schema.doc}\n\n")
         parts.append(_table(schema, type_row=True))
-    parts += ["\n", _LEVELS, "\n", _SIMULATED,
+    parts += ["\n", _ADAPTIVE, "\n", _LEVELS, "\n", _SIMULATED,
               "\n## Station file\n\nWhat is attached to the analyser in your lab "
               "(`viscorig run SEQUENCE --station FILE`; `station-example.toml` is a template). "
               "Top level:\n\n", _table(STATION_TOP)]

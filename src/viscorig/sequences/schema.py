@@ -69,7 +69,9 @@ class Field:
         The key in the file.
     kind
         ``text``, ``choice``, ``name`` (text matching ``pattern``), ``number``, ``integer``,
-        ``boolean``, ``band`` (``[low, high]`` in Hz) or ``level`` (acceleration with its unit).
+        ``boolean``, ``band`` (``[low, high]`` in Hz), ``level`` (acceleration with its unit)
+        or ``targets`` (a table of parameter names and relative uncertainties, each in
+        ``(low, high]``).
     doc
         What it means, for the reference.
     default
@@ -86,6 +88,9 @@ class Field:
         The value as TOML text, for the reference and hints.
     in_defaults
         May be given in a sequence's ``[defaults]``.
+    default_note
+        The default as the reference shows it, when the rule is more than a value (a field
+        required by one kind of step only).
     """
 
     name: str
@@ -101,6 +106,7 @@ class Field:
     rule: str = ""
     example: str = ""
     in_defaults: bool = False
+    default_note: str = ""
 
     @property
     def required(self) -> bool:
@@ -190,6 +196,24 @@ class Field:
                              "a band needs two different frequencies")
         return lo, hi
 
+    def _targets(self, value: object) -> dict[str, float]:
+        if not isinstance(value, Mapping) or not value:
+            raise FieldError(f"expected a table of parameter names and relative uncertainties, "
+                             f"got {kind_name(value)} {value!r}", f"e.g. {self.name} = "
+                             f"{self.example}")
+        targets: dict[str, float] = {}
+        for name, number in value.items():
+            if isinstance(number, bool) or not isinstance(number, int | float):
+                raise FieldError(f"{name}: expected a number, got {kind_name(number)} {number!r}",
+                                 f"e.g. {self.name} = {self.example}")
+            number = float(number)
+            if not (math.isfinite(number) and (self.low or 0.0) < number <= (self.high or 1.0)):
+                raise FieldError(f"{name}: {number!r} is outside "
+                                 f"{_interval(self.low, self.high, True, '')}",
+                                 "a relative standard uncertainty: 1e-3 is 0.1 %")
+            targets[str(name)] = number
+        return targets
+
     def _level(self, value: object) -> tuple[float, str]:
         try:
             level = parse_level(value)  # type: ignore[arg-type]
@@ -207,6 +231,7 @@ class Field:
         return {
             "text": "text", "name": "text", "boolean": "true/false", "integer": "whole number",
             "number": "number", "band": "[low, high]", "level": "text: number and unit",
+            "targets": "table: name = number",
             "choice": " | ".join(f'"{choice}"' for choice in self.choices),
         }[self.kind]
 
@@ -220,6 +245,8 @@ class Field:
 
     def default_text(self) -> str:
         """The default as the reference shows it."""
+        if self.default_note:
+            return self.default_note
         if self.required:
             return "required" + (" (or in `[defaults]`)" if self.in_defaults else "")
         if self.default is None:
@@ -236,6 +263,8 @@ class Field:
         """The range as the reference shows it."""
         if self.kind in ("number", "integer"):
             return _interval(self.low, self.high, self.low_open, "")
+        if self.kind == "targets":
+            return "each " + _interval(self.low, self.high, True, "")
         if self.kind == "band":
             return f"0 < low < high <= {MAX_FREQUENCY_HZ:g}"
         if self.kind == "level":
@@ -351,6 +380,11 @@ def read_table(
 
 # -- the sequence file ---------------------------------------------------------------------------
 
+#: How a sweep step measures its run.
+PLANS = ("full", "adaptive")
+FULL_ONLY = 'required (or in `[defaults]`); for plan = "adaptive" an optional bound'
+ADAPTIVE_ONLY = 'required for plan = "adaptive" (or in `[defaults]`)'
+
 def _sweep_fields() -> tuple[Field, ...]:
     number = "number"
     return (
@@ -371,12 +405,17 @@ def _sweep_fields() -> tuple[Field, ...]:
               "direction says which end comes first).", example="[20.0, 120.0]",
               in_defaults=True),
         Field("resolution_hz", number, "Frequency step; the band must be a whole number of "
-              "steps.", unit="Hz", low=MIN_RESOLUTION_HZ, high=1000.0, example="0.25",
-              in_defaults=True),
+              "steps. For an adaptive plan, the spacing of the frequencies it may choose.",
+              default=None, default_note=FULL_ONLY, unit="Hz", low=MIN_RESOLUTION_HZ,
+              high=1000.0, example="0.25", in_defaults=True),
         Field("settle_cycles", "integer", "Periods the analyser waits at each frequency before "
-              "measuring.", low=0, high=100_000, example="100", in_defaults=True),
+              "measuring. For an adaptive plan, the most any point may wait (the plan settles "
+              "each point for the damping it identifies).", default=None,
+              default_note=FULL_ONLY, low=0, high=100_000, example="100", in_defaults=True),
         Field("integrate_cycles", "integer", "Periods the analyser integrates over at each "
-              "frequency.", low=1, high=100_000, example="100", in_defaults=True),
+              "frequency. For an adaptive plan, the most any point may integrate.",
+              default=None, default_note=FULL_ONLY, low=1, high=100_000, example="100",
+              in_defaults=True),
         Field("level", "level", "Reference acceleration held at every point: the disc's on a "
               "specimen run, the table's on a bare-table run. Always written with its unit.",
               example='"1.4 m/s^2"', in_defaults=True),
@@ -391,6 +430,21 @@ def _sweep_fields() -> tuple[Field, ...]:
         Field("segment_points", "integer", "Most points per commit (one analyser sweep holds "
               "at most 801).", default=segments.ANALYSER_MAX_POINTS, low=1,
               high=segments.ANALYSER_MAX_POINTS, example="401", in_defaults=True),
+        Field("plan", "choice", '"full": every frequency of the band at the resolution, the '
+              'same settle and integration at each. "adaptive": a first look, then the '
+              "frequencies, settle and integration that teach the model's parameters most per "
+              "second of rig time, until every target_uncertainty is met (or dwell_limit_s).",
+              default="full", choices=PLANS, example='"adaptive"', in_defaults=True),
+        Field("model", "text", "Model spec the adaptive plan fits and chooses points for "
+              '(`voigt`, `maxwell(2)`, `fractional+load_cell`; `table` on the bare table).',
+              default=None, default_note=ADAPTIVE_ONLY, example='"voigt"', in_defaults=True),
+        Field("target_uncertainty", "targets", "Relative standard uncertainty wanted for each "
+              "named parameter of the model; the plan stops when every one is met.",
+              default=None, default_note=ADAPTIVE_ONLY, low=0.0, high=1.0,
+              example="{ K_v = 1e-3, C_v = 2e-3 }", in_defaults=True),
+        Field("dwell_limit_s", number, "Rig time an adaptive plan may use at most, first look "
+              "included.", default=None, unit="s", low=0.0, low_open=True, high=86_400.0,
+              example="1800", in_defaults=True),
         Field("over_limit", "choice", "A run whose predicted shaker force exceeds the limit: "
               '"refuse" it, or "reduce" its level to 90 % of what the limit allows '
               "(`viscorig run --over-limit` overrides it).", default="refuse",

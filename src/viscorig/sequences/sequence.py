@@ -200,7 +200,12 @@ def _parse_step(problems: Problems, index: int, raw: object, defaults: Mapping[s
 
 def _sweep(problems: Problems, path: tuple, fields: ReadTable) -> SweepStep | None:
     values = fields.values
-    if "band_hz" in values and "resolution_hz" in values:
+    if values.get("plan") == "adaptive":
+        _adaptive(problems, path, fields)
+    else:
+        _full(problems, path, fields)
+    if "band_hz" in values and values.get("resolution_hz") is not None and values.get(
+            "plan") != "adaptive":
         try:
             points = segments.point_count(values["band_hz"], values["resolution_hz"])
         except ValueError as error:
@@ -233,7 +238,79 @@ def _sweep(problems: Problems, path: tuple, fields: ReadTable) -> SweepStep | No
         hardness_shore_a=values["hardness_shore_a"], preload_strain=values["preload_strain"],
         temperature_c=values["temperature_c"], segment_s=values["segment_s"],
         segment_points=values["segment_points"], over_limit=values["over_limit"],
+        plan=values["plan"], model=values["model"],
+        target_uncertainty=tuple((values["target_uncertainty"] or {}).items()),
+        dwell_limit_s=values["dwell_limit_s"],
     )
+
+
+#: Fields only an adaptive plan reads.
+ADAPTIVE_FIELDS = ("model", "target_uncertainty", "dwell_limit_s")
+#: Fields a full plan needs (an adaptive plan takes them as bounds).
+GRID_FIELDS = {"resolution_hz": "0.25", "settle_cycles": "100", "integrate_cycles": "100"}
+
+
+def _full(problems: Problems, path: tuple, fields: ReadTable) -> None:
+    """A full plan: the grid and timing are required; the adaptive plan's fields are not its."""
+    for name, example in GRID_FIELDS.items():
+        if fields.values.get(name) is None and name not in fields.failed:
+            problems.add((*path, name), "missing",
+                         f'e.g. {name} = {example}, or plan = "adaptive" to let a plan choose')
+            fields.failed.add(name)
+    for name in ADAPTIVE_FIELDS:
+        if name in fields.origin and fields.origin[name][0] != "defaults":
+            problems.add(fields.origin[name], 'only for plan = "adaptive"',
+                         f'add plan = "adaptive", or remove {name}')
+            fields.failed.add(name)
+
+
+def _adaptive(problems: Problems, path: tuple, fields: ReadTable) -> None:
+    """An adaptive plan: a model that parses, targets that are parameters it fits."""
+    from viscorig.errors import InputError
+    from viscorig.models import parse_spec
+
+    values = fields.values
+    for name, example in (("model", '"voigt"'),
+                          ("target_uncertainty", "{ K_v = 1e-3, C_v = 2e-3 }")):
+        if values.get(name) is None and name not in fields.failed:
+            problems.add((*path, name), 'missing for plan = "adaptive"', f"e.g. {name} = "
+                         f"{example}")
+            fields.failed.add(name)
+    spec = values.get("model")
+    if spec is None or "model" in fields.failed:
+        return
+    try:
+        model = parse_spec(spec)
+    except InputError as error:
+        problems.add(fields.origin["model"], error.detail)
+        fields.failed.add("model")
+        return
+    bare = values.get("specimen") == "none"
+    has_disc = model.modulus_term is not None and model.modulus_term.has_disc
+    if bare and has_disc:
+        problems.add(fields.origin["model"], f"'{model.spec}' is a model of a specimen; the "
+                     "bare table (specimen \"none\") needs 'table'", "model = \"table\"")
+        fields.failed.add("model")
+        return
+    if not bare and not has_disc:
+        problems.add(fields.origin["model"], f"'{model.spec}' is a model of the bare table; a "
+                     "specimen run needs a specimen model", "e.g. model = \"voigt\"")
+        fields.failed.add("model")
+        return
+    targets = values.get("target_uncertainty")
+    if not targets or "target_uncertainty" in fields.failed:
+        return
+    candidates = model.candidates() if model.is_open else [model]
+    names = {name for candidate in candidates for name in candidate.names}
+    if not bare:
+        names -= {"M_s", "K_s", "C_s"}  # the table's, inherited from the bare-table run
+    for name in targets:
+        if name not in names:
+            hint = did_you_mean(name, sorted(names)) or (
+                f"'{model.spec}' fits: {', '.join(sorted(names))}")
+            problems.add(fields.origin["target_uncertainty"], f"{name!r} is not a parameter "
+                         f"'{model.spec}' fits", hint)
+            fields.failed.add("target_uncertainty")
 
 
 def _identify_table(problems: Problems, path: tuple, fields: ReadTable,

@@ -42,16 +42,20 @@ class WaitStep:
 class SweepStep:
     """Measure one run: a stepped-sine sweep at constant reference acceleration.
 
-    Frequencies in Hz, level in m/s² peak; ``level`` keeps the text as written.
+    Frequencies in Hz, level in m/s² peak; ``level`` keeps the text as written. A ``"full"``
+    plan measures every frequency of the band at ``resolution_hz`` with the same settle and
+    integration; an ``"adaptive"`` plan chooses its points (``model``, ``targets``,
+    ``dwell_limit_s``), and ``resolution_hz``, ``settle_cycles``, ``integrate_cycles`` are then
+    bounds (``None``: the analyser's own).
     """
 
     run: str
     specimen: str
     """Free text; ``"none"`` for the bare table."""
     band_hz: tuple[float, float]
-    resolution_hz: float
-    settle_cycles: int
-    integrate_cycles: int
+    resolution_hz: float | None
+    settle_cycles: int | None
+    integrate_cycles: int | None
     level_m_per_s2: float
     level: str
     tolerance_db: float
@@ -67,6 +71,14 @@ class SweepStep:
     over_limit: str = "refuse"
     """A predicted force above the shaker limit: "refuse" the run or "reduce" its level
     (``viscorig run --over-limit`` overrides it)."""
+    plan: str = "full"
+    """``"full"`` or ``"adaptive"``."""
+    model: str | None = None
+    """Model spec an adaptive plan fits."""
+    target_uncertainty: tuple[tuple[str, float], ...] = ()
+    """Relative standard uncertainty wanted per parameter (adaptive plan), in file order."""
+    dwell_limit_s: float | None = None
+    """Rig time an adaptive plan may use at most."""
 
     @property
     def bare_table(self) -> bool:
@@ -74,26 +86,45 @@ class SweepStep:
         return self.specimen == "none"
 
     @property
+    def adaptive(self) -> bool:
+        """The plan chooses the points (``plan = "adaptive"``)."""
+        return self.plan == "adaptive"
+
+    @property
+    def targets(self) -> dict[str, float]:
+        """``target_uncertainty`` as a dict."""
+        return dict(self.target_uncertainty)
+
+    def _full(self) -> tuple[float, int, int]:
+        if self.adaptive or self.resolution_hz is None or self.settle_cycles is None \
+                or self.integrate_cycles is None:
+            raise ValueError(f"run {self.run!r}: an adaptive plan has no fixed grid")
+        return self.resolution_hz, self.settle_cycles, self.integrate_cycles
+
+    @property
     def points(self) -> int:
-        """Number of frequency points of the whole run."""
-        return segments.point_count(self.band_hz, self.resolution_hz)
+        """Number of frequency points of the whole run (a full plan)."""
+        return segments.point_count(self.band_hz, self._full()[0])
 
     def frequencies_hz(self) -> NDArray[np.float64]:
-        """Frequencies in measurement order."""
-        return segments.sweep_frequencies(self.band_hz, self.resolution_hz, self.direction)
+        """Frequencies in measurement order (a full plan)."""
+        return segments.sweep_frequencies(self.band_hz, self._full()[0], self.direction)
 
     def segments(self, overhead_s_per_point: float = 0.0) -> list[slice]:
-        """The run's segments as slices of :meth:`frequencies_hz`."""
+        """The run's segments as slices of :meth:`frequencies_hz` (a full plan)."""
+        _, settle, integrate = self._full()
         return segments.plan_segments(
-            self.frequencies_hz(), self.settle_cycles, self.integrate_cycles,
+            self.frequencies_hz(), settle, integrate,
             max_segment_s=self.segment_s, max_points=self.segment_points,
             overhead_s_per_point=overhead_s_per_point,
         )
 
     def duration_s(self, overhead_s_per_point: float = 0.0) -> float:
-        """Test time of the whole run, s."""
-        return segments.time_left_s(self.frequencies_hz(), 0, self.settle_cycles,
-                                    self.integrate_cycles, overhead_s_per_point)
+        """Test time of the whole run, s (a full plan: an adaptive plan's is a forecast,
+        :mod:`viscorig.acquisition.forecast`)."""
+        _, settle, integrate = self._full()
+        return segments.time_left_s(self.frequencies_hz(), 0, settle, integrate,
+                                    overhead_s_per_point)
 
 
 @dataclass(frozen=True)
@@ -135,6 +166,8 @@ class Sequence:
         raise KeyError(run)
 
     def duration_s(self, overhead_s_per_point: float = 0.0) -> float:
-        """Test time of every sweep and wait (prompts excluded), s."""
+        """Test time of every full sweep and wait (prompts and adaptive plans excluded: their
+        time is a forecast, :mod:`viscorig.acquisition.forecast`), s."""
         waits = sum(step.seconds for step in self.steps if isinstance(step, WaitStep))
-        return waits + sum(step.duration_s(overhead_s_per_point) for step in self.sweeps)
+        return waits + sum(step.duration_s(overhead_s_per_point) for step in self.sweeps
+                           if not step.adaptive)

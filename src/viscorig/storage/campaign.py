@@ -19,6 +19,20 @@ Additions to the contract, both readable by any HDF5 tool:
   h5netcdf), Panoply and MATLAB's ``ncread`` then see frequency as the coordinate of each run.
   They are attributes only: format_version stays 1, a reader that ignores them reads the file
   as before, and a file written without them gains them at its next write to that run.
+- Rig time and plans. Every run written by ``viscorig run`` has the attribute ``test_time_s``:
+  the time the run occupied the rig (settle, integration and the instrument's own time per
+  point as measured; on a simulated rig its simulated test time), updated in the commit of
+  each segment. A run measured by an adaptive plan (a sequence's ``plan = "adaptive"``) stores
+  every point it measured in measurement order, its first look and its repeats of one
+  frequency included, with per-point int64 datasets ``settle_cycles`` and
+  ``integrate_cycles`` (units "1"; the run attributes of the same names then hold the bounds
+  the step allowed), ``time_s`` being the running sum of each point's rig time; attributes
+  ``plan`` ("adaptive"), ``plan_model``, ``plan_targets`` (``K_v=0.001 C_v=0.002``),
+  ``plan_reason`` (why it stopped: "targets met", "dwell limit", ...), ``plan_state`` and
+  ``plan_relative_stderr``. Analysis reads such a run merged (:meth:`Run.merged`: frequency
+  order, one point per frequency).
+- A fit may carry the attribute ``weighting``: ``"noise"`` (generalised least squares under
+  the run's noise model, the project's estimate) or ``"uniform"`` (the paper's method).
 - Next to the file, while a writer has it: ``.NAME.lock``, the writer lock and a JSON record of
   who holds it (:mod:`viscorig.storage.writelock`); during a commit, ``.NAME.commit``, the new
   file before it replaces the old one (:mod:`viscorig.storage.atomic`).
@@ -263,6 +277,13 @@ class Campaign:
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}/{name}"):
             return reading.read_run(h5, name, self.path)
 
+    def run_attributes(self, name: str) -> dict[str, object]:
+        """Every attribute of run ``name``: its settings and lifecycle, and the annotations a
+        writer added (``test_time_s``, the limits it ran under, an adaptive plan's outcome)."""
+        where = f"/{layout.RUNS_GROUP}/{name}"
+        with self._reading() as h5, reading.guarded(self.path, where):
+            return reading.attributes(reading.run_group(h5, name, self.path), self.path)
+
     def runs(self) -> Iterator[Run]:
         """Every run, in the order they were started."""
         for name in self.run_names:
@@ -375,8 +396,14 @@ class Campaign:
                 group.attrs["finished"] = utc_now()
             return points
 
-    def append_segment(self, run_name: str, segment: Segment) -> int:
+    def append_segment(
+        self, run_name: str, segment: Segment,
+        attributes: Mapping[str, str | float | int | bool] | None = None,
+    ) -> int:
         """Append a segment's points to a running run in one atomic commit.
+
+        ``attributes`` are run attributes set in the same commit (what the run knows after this
+        segment: its ``test_time_s``), checked as :meth:`annotate` checks them.
 
         Returns
         -------
@@ -391,13 +418,16 @@ class Campaign:
             No such run, or the run is not "running".
         """
         columns = segment.columns()
+        checked = self._annotation(attributes or {}, dataset=None)
         with self._commit() as h5:
             group = reading.run_group(h5, run_name, self.path)
             status = reading.read_choice(group, "status", self.path, layout.RUN_STATUSES)
             if status != "running":
                 raise InputError(f"run is {status}; only a running run takes points",
                                  f"{self.path}: {group.name}")
-            return _append_columns(group, columns, self.path)
+            points = _append_columns(group, columns, self.path)
+            group.attrs.update(checked)
+            return points
 
     def finish_run(self, run_name: str, status: str = "complete") -> None:
         """Mark a run "complete" or "aborted" and stamp ``finished``."""
@@ -432,6 +462,18 @@ class Campaign:
             No such run or dataset, a reserved or invalid name, or a value that is not text,
             a number or a boolean.
         """
+        checked = self._annotation(attributes, dataset)
+        with self._commit() as h5:
+            group = reading.run_group(h5, run_name, self.path)
+            target = group if dataset is None else group.get(dataset)
+            if not isinstance(target, h5py.Group | h5py.Dataset):
+                raise InputError("no such dataset", f"{self.path}: {group.name}/{dataset}")
+            target.attrs.update(checked)
+
+    def _annotation(
+        self, attributes: Mapping[str, str | float | int | bool], dataset: str | None
+    ) -> dict[str, object]:
+        """Annotation attributes checked: valid names, not the layout's own, plain values."""
         reserved = {"units"} if dataset else {"status", "started", "finished",
                                               *RunSettings.__dataclass_fields__}
         checked: dict[str, object] = {}
@@ -447,12 +489,7 @@ class Campaign:
             else:
                 raise InputError(f"{type(value).__name__} is not text, a number or a boolean",
                                  f"{self.path}: attribute {key!r}")
-        with self._commit() as h5:
-            group = reading.run_group(h5, run_name, self.path)
-            target = group if dataset is None else group.get(dataset)
-            if not isinstance(target, h5py.Group | h5py.Dataset):
-                raise InputError("no such dataset", f"{self.path}: {group.name}/{dataset}")
-            target.attrs.update(checked)
+        return checked
 
     def set_rig(self, **attributes: float | int) -> None:
         """Set ``/rig`` attributes (e.g. table parameters identified from the bare-table run)."""
@@ -472,6 +509,7 @@ class Campaign:
         noise_floor: float,
         parameters: Mapping[str, tuple[float, float, str]],
         correlation: tuple[Sequence[str], ArrayLike] | None = None,
+        weighting: str | None = None,
     ) -> str:
         """Store an identification result under ``/runs/<run>/fits/<id>``.
 
@@ -491,6 +529,9 @@ class Campaign:
             (names, matrix): the correlation matrix of the named parameters, stored as the
             2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order,
             separated by spaces).
+        weighting
+            How the fit weighted the points (``"noise"``, ``"uniform"``), stored as the fit's
+            attribute ``weighting``.
 
         Returns
         -------
@@ -524,6 +565,8 @@ class Campaign:
             fit.attrs["rms_error"] = float(rms_error)
             fit.attrs["noise_floor"] = float(noise_floor)
             fit.attrs["created"] = utc_now()
+            if weighting:
+                fit.attrs["weighting"] = str(weighting)
             for key, (value, stderr, unit) in checked.items():
                 dataset = fit.create_dataset(key, data=np.float64(value))
                 dataset.attrs["stderr"] = stderr

@@ -82,7 +82,7 @@ class DatasetSpec:
     name
         Dataset name under ``/runs/<name>``.
     kind
-        ``"float"``, ``"complex"`` or ``"flags"``.
+        ``"float"``, ``"complex"``, ``"flags"`` or ``"count"`` (whole numbers, int64).
     units
         The ``units`` attribute written, and the spelling expected on reading.
     """
@@ -105,6 +105,10 @@ REQUIRED_DATASETS: tuple[DatasetSpec, ...] = (
 OPTIONAL_DATASETS: tuple[DatasetSpec, ...] = (
     DatasetSpec("variance_table", "float", "1"),
     DatasetSpec("variance_support", "float", "1"),
+    # where settle or integration vary from point to point (an adaptive plan's runs); a run
+    # without them has the run attributes settle_cycles, integrate_cycles at every point
+    DatasetSpec("settle_cycles", "count", "1"),
+    DatasetSpec("integrate_cycles", "count", "1"),
 )
 KNOWN_DATASETS = {spec.name: spec for spec in (*REQUIRED_DATASETS, *OPTIONAL_DATASETS)}
 

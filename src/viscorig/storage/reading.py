@@ -283,6 +283,13 @@ def read_column(group: h5py.Group, spec: layout.DatasetSpec, path: Path) -> NDAr
         if kind != "complex":
             raise InputError(f"dtype {dtype} is not complex (compound r, i)", where)
         return _values(dataset)
+    if spec.kind == "count":
+        if kind != "integer":
+            raise InputError(f"dtype {dtype} is not a whole number", where)
+        values = dataset[()]
+        if values.size and values.min() < 0:
+            raise InputError("negative counts", where)
+        return values.astype(np.int64)
     if spec.kind == "flags":
         if kind != "integer":
             raise InputError(f"dtype {dtype} is not an integer bit mask", where)
@@ -353,6 +360,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                 if parameter is not None:
                     parameters[key] = parameter
             correlation = _read_correlation(fit, path)
+            weighting = attribute(fit, "weighting", path)
             result.append(
                 Fit(
                     id=fit_id,
@@ -364,6 +372,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
                     created=read_text(fit, "created", path),
                     parameters=parameters,
                     correlation=correlation,
+                    weighting=weighting if isinstance(weighting, str) else "",
                 )
             )
     return result

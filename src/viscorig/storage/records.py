@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -72,7 +72,8 @@ class Segment:
     """Points measured in one go, appended to a run in one commit.
 
     All arrays have one value per point, in SI units (see data-format.md). ``variance_table``,
-    ``variance_support`` and ``extra`` (name -> (values, units)) are optional; a run keeps the
+    ``variance_support``, ``settle_cycles``, ``integrate_cycles`` (per point, where they vary
+    from point to point) and ``extra`` (name -> (values, units)) are optional; a run keeps the
     set of datasets its first segment had.
 
     Raises
@@ -91,6 +92,8 @@ class Segment:
     flags: ArrayLike
     variance_table: ArrayLike | None = None
     variance_support: ArrayLike | None = None
+    settle_cycles: ArrayLike | None = None
+    integrate_cycles: ArrayLike | None = None
     extra: Mapping[str, tuple[ArrayLike, str]] = field(default_factory=dict)
 
     def columns(self) -> dict[str, tuple[NDArray, str | None]]:
@@ -106,6 +109,8 @@ class Segment:
             "flags": np.int64,
             "variance_table": np.float64,
             "variance_support": np.float64,
+            "settle_cycles": np.int64,
+            "integrate_cycles": np.int64,
         }
         result: dict[str, tuple[NDArray, str | None]] = {}
         for name, dtype in kinds.items():
@@ -156,6 +161,8 @@ class Fit:
     parameters: dict[str, FitParameter]
     correlation: tuple[tuple[str, ...], NDArray[np.float64]] | None = None
     """Names and correlation matrix of the parameters with a standard error, if stored."""
+    weighting: str = ""
+    """How the fit weighted the points (``"noise"``, ``"uniform"``), if stored."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,6 +188,10 @@ class Run:
     flags: NDArray[np.uint16] = field(repr=False)
     variance_table: NDArray[np.float64] | None = field(default=None, repr=False)
     variance_support: NDArray[np.float64] | None = field(default=None, repr=False)
+    settle_cycles: NDArray[np.int64] | None = field(default=None, repr=False)
+    """Settle cycles of each point, where they vary (else the run attribute holds)."""
+    integrate_cycles: NDArray[np.int64] | None = field(default=None, repr=False)
+    """Integration cycles of each point, where they vary (else the run attribute holds)."""
     extra: dict[str, tuple[NDArray, str]] = field(default_factory=dict, repr=False)
     """Other per-point datasets an instrument added: name -> (values, units)."""
 
@@ -188,6 +199,92 @@ class Run:
     def points(self) -> int:
         """Number of points measured so far."""
         return int(self.frequency_hz.size)
+
+    @property
+    def cycles(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Settle and integration cycles of every point (per point, or the run's)."""
+        size = self.frequency_hz.size
+        settle = (self.settle_cycles if self.settle_cycles is not None
+                  else np.full(size, self.metadata.settle_cycles, dtype=np.int64))
+        integrate = (self.integrate_cycles if self.integrate_cycles is not None
+                     else np.full(size, self.metadata.integrate_cycles, dtype=np.int64))
+        return settle, integrate
+
+    def select(self, keep: ArrayLike) -> Run:
+        """The run at some of its points (a boolean mask or indices), in the order given."""
+        index = np.asarray(keep)
+        columns = {
+            item.name: None if getattr(self, item.name) is None else getattr(self, item.name)[index]
+            for item in fields(self) if item.name not in ("name", "metadata", "extra")
+        }
+        extra = {key: (values[index], units) for key, (values, units) in self.extra.items()}
+        return replace(self, extra=extra, **columns)
+
+    def merged(self) -> Run:
+        """The run as analysis reads it: points in frequency order, repeats of one frequency
+        merged into one point.
+
+        A run stores every point in measurement order, repeats included (an adaptive plan comes
+        back to the frequencies that teach most). Merged, a frequency measured ``k`` times is
+        one point integrated over all its cycles: each accelerance the mean weighted by the
+        inverse of its normalized variance (by integration time where the run has no variance),
+        its variance ``1/Σ(1/v)``; the amplitudes and the time the plain means, the flags
+        joined, the settle of the first and the integration summed. A sweep (distinct
+        frequencies in order, up or down) is returned as it is.
+        """
+        f = self.frequency_hz
+        steps = np.diff(f)
+        if f.size < 2 or np.all(steps > 0) or np.all(steps < 0):
+            return self
+        unique, inverse = np.unique(f, return_inverse=True)
+        count = unique.size
+        settle, integrate = self.cycles
+        integrate_s = np.where(f > 0, integrate / np.where(f > 0, f, 1.0), 1.0)
+
+        def total(values: NDArray) -> NDArray:
+            return np.bincount(inverse, weights=values, minlength=count)
+
+        def mean(values: NDArray, weights: NDArray) -> NDArray:
+            if np.iscomplexobj(values):
+                return (total(values.real * weights) + 1j * total(values.imag * weights)) / total(
+                    weights)
+            return total(values * weights) / total(weights)
+
+        def usable(variance: NDArray | None) -> bool:
+            return variance is not None and bool(np.all(np.isfinite(variance) & (variance > 0)))
+
+        def frf(values: NDArray, variance: NDArray | None) -> tuple[NDArray, NDArray | None]:
+            if usable(variance):
+                assert variance is not None
+                return mean(values, 1.0 / variance), 1.0 / total(1.0 / variance)
+            joined = mean(values, integrate_s)
+            return joined, None if variance is None else mean(variance, np.ones(f.size))
+
+        ones = np.ones(f.size)
+        table, variance_table = frf(self.accelerance_table, self.variance_table)
+        support, variance_support = frf(self.accelerance_support, self.variance_support)
+        first = np.zeros(count, dtype=int)
+        first[inverse[::-1]] = np.arange(f.size)[::-1]
+        flags = np.zeros(count, dtype=np.uint16)
+        np.bitwise_or.at(flags, inverse, self.flags)
+        varying = self.settle_cycles is not None or self.integrate_cycles is not None
+        return replace(
+            self,
+            frequency_hz=unique,
+            time_s=mean(self.time_s, ones),
+            accelerance_table=table,
+            accelerance_support=support,
+            reference_amplitude=mean(self.reference_amplitude, ones),
+            source_amplitude=mean(self.source_amplitude, ones),
+            force_amplitude=mean(self.force_amplitude, ones),
+            flags=flags,
+            variance_table=variance_table,
+            variance_support=variance_support,
+            settle_cycles=settle[first] if varying else None,
+            integrate_cycles=total(integrate.astype(float)).astype(np.int64) if varying else None,
+            extra={key: (mean(values, ones), units) for key, (values, units) in self.extra.items()
+                   if np.issubdtype(np.asarray(values).dtype, np.number)},
+        )
 
     def receptance_table(self) -> NDArray[np.complex128]:
         """X_s / F_e in m/N."""

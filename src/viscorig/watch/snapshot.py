@@ -83,12 +83,14 @@ def _limits(path: Path, names: Iterable[str]) -> dict[str, dict[str, float]]:
 def _run_state(run: Run, step: SweepStep | None, limits: dict[str, float],
                station_limit_n: float | None) -> dict[str, Any]:
     metadata = run.metadata
+    if step is not None and step.adaptive:  # its points in any order: drawn by frequency
+        run = run.select(np.argsort(run.frequency_hz, kind="stable"))
     table = run.accelerance_table
     support = run.accelerance_support
-    planned = step.points if step is not None else run.points
+    grid = step is not None and not step.adaptive  # an adaptive plan chooses its points
+    planned = step.points if grid else run.points
     left = (time_left_s(step.frequencies_hz(), run.points, step.settle_cycles,
-                        step.integrate_cycles) if step is not None and run.points <= planned
-            else 0.0)
+                        step.integrate_cycles) if grid and run.points <= planned else 0.0)
     force_limit = limits.get("shaker_force_limit_n", station_limit_n or math.nan)
     requested = limits.get("requested_level_m_per_s2",
                            step.level_m_per_s2 if step is not None else math.nan)
@@ -164,7 +166,8 @@ def read_snapshot(path: Path) -> dict[str, Any]:
                if step.run not in by_name]
     waits = [step for step in (sequence.steps if sequence is not None else ())
              if isinstance(step, WaitStep)]
-    left = sum(run["left_s"] for run in runs) + sum(step.duration_s() for step in to_come)
+    left = sum(run["left_s"] for run in runs) + sum(step.duration_s() for step in to_come
+                                                    if not step.adaptive)
     if to_come and sequence is not None:
         first_to_come = sequence.steps.index(to_come[0])
         left += sum(step.seconds for step in waits if sequence.steps.index(step) > first_to_come)
@@ -184,7 +187,8 @@ def read_snapshot(path: Path) -> dict[str, Any]:
         "stall_after_s": (STALL_SEGMENTS * max(current["segment_s"], 20.0)
                           if current is not None and not simulated else None),
         "runs": runs,
-        "to_come": [{"name": step.run, "specimen": step.specimen, "planned": step.points,
+        "to_come": [{"name": step.run, "specimen": step.specimen,
+                     "planned": None if step.adaptive else step.points,
                      "band_hz": list(step.band_hz)} for step in to_come],
     }
 

@@ -1,0 +1,430 @@
+"""The adaptive sweep: a sequence step whose points an adaptive plan chooses (``plan =
+"adaptive"``), measured and stored like any sweep.
+
+The planning core (:class:`viscorig.planning.AdaptivePlan`) looks at the band, fits, and asks
+for the frequencies, settle and integration that teach the targets most per second of rig time
+until every target uncertainty is met (or the dwell limit). This plan step carries its requests
+to the analyser and its results to the file:
+
+- each request is split into analyser sweeps (:func:`viscorig.planning.sweep_segments`): short
+  linear sub-sweeps with their own resolution, settle and integration, and points in manual
+  sweep mode (``measure_points``), each group with one settle and one integration;
+- every point measured is stored, in measurement order, the first look and repeats of one
+  frequency included, with its ``settle_cycles`` and ``integrate_cycles``; ``time_s`` is the
+  running sum of each point's rig time and ``test_time_s`` their total; segments are committed
+  at least every ``segment_s`` of rig time;
+- the plan's progress is said as it goes, and its outcome kept in the run's attributes
+  (``plan_reason``, ``plan_relative_stderr``, ``plan_history``);
+- a run stopped mid-plan (Ctrl-C, a fault, a crash) continues from the file: the points it
+  holds are handed to a new plan in the same requests, which then asks for the rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from viscorig.acquisition import stubs
+from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, RunRefused
+from viscorig.acquisition.session import RunState, Session, StepRecord
+from viscorig.acquisition.sweep import SegmentDone, check_axis, point_times_s, segment_of
+from viscorig.planning import (
+    ANALYSER,
+    AdaptivePlan,
+    AdaptiveSettings,
+    MeasuredPoints,
+    PlannedPoint,
+    PointTiming,
+    SweepSegment,
+    sweep_segments,
+)
+from viscorig.sequences import SweepStep
+from viscorig.storage import Campaign, Run, RunSettings, Segment
+
+__all__ = ["DEFAULT_RESOLUTION_HZ", "adaptive_run_settings", "adaptive_settings",
+           "adaptive_sweep", "check_adaptive", "stored_points"]
+
+#: Spacing of the frequencies an adaptive plan may choose when the step gives none, Hz.
+DEFAULT_RESOLUTION_HZ = 0.25
+#: The run attribute ``plan_history`` keeps at most this many characters.
+HISTORY_CHARACTERS = 16_000
+
+
+def adaptive_settings(step: SweepStep, level: float, fixed: dict[str, float] | None,
+                      force_limit_n: float | None) -> AdaptiveSettings:
+    """What the planning core is asked, from the sequence step."""
+    return AdaptiveSettings(
+        spec=str(step.model), targets=step.targets, band_hz=step.band_hz,
+        level_m_per_s2=level, fixed=dict(fixed or {}), dwell_limit_s=step.dwell_limit_s,
+        resolution_hz=step.resolution_hz or DEFAULT_RESOLUTION_HZ,
+        max_settle_cycles=step.settle_cycles, max_integrate_cycles=step.integrate_cycles,
+        force_limit_n=force_limit_n, timing=PointTiming(tolerance_db=step.tolerance_db),
+    )  # fmt: skip
+
+
+def adaptive_run_settings(settings: RunSettings, step: SweepStep) -> RunSettings:
+    """An adaptive run's attributes: its settle, integration and resolution are the bounds the
+    step allowed (its points carry their own)."""
+    return replace(
+        settings,
+        settle_cycles=step.settle_cycles if step.settle_cycles is not None
+        else ANALYSER.max_settle_cycles,
+        integrate_cycles=step.integrate_cycles if step.integrate_cycles is not None
+        else ANALYSER.max_integrate_cycles,
+        resolution_hz=step.resolution_hz or DEFAULT_RESOLUTION_HZ,
+    )
+
+
+def _fixed(session: Session, step: SweepStep) -> dict[str, float] | None:
+    if step.bare_table or session.table is None:
+        return None
+    table = session.table
+    return {"M_s": table.table_mass_kg, "K_s": table.table_stiffness_n_per_m,
+            "C_s": table.table_damping_ns_per_m}
+
+
+def check_adaptive(session: Session, step: SweepStep) -> Plan:
+    """Before an adaptive run opens: the analyser measures chosen points, and a specimen plan
+    knows the table.
+
+    Raises
+    ------
+    RunRefused
+        With what is missing and how to provide it.
+    """
+    if not (yield Msg("supports", ("measure_points",), step="adaptive")):
+        raise RunRefused(f"run '{step.run}': plan = \"adaptive\" needs an analyser that "
+                         "measures chosen frequencies (manual sweep mode); this driver has no "
+                         "measure_points. Nothing was measured")
+    if session.station.shaker_gain_n_per_v is None:
+        raise RunRefused(f"run '{step.run}': an adaptive plan starts each point's auto-level "
+                         "controller at the source level the point needs (the force it needs "
+                         "over the shaker's gain), so that the rig is steady when it comes back "
+                         "to a frequency: give [shaker] gain_n_per_v in the station file. "
+                         "Nothing was measured")
+    if not step.bare_table and session.table is None:
+        raise RunRefused(f"run '{step.run}': an adaptive plan fits the specimen with the table's "
+                         "M_s, K_s, C_s fixed, and they are unknown: add an identify_table step "
+                         "after a bare-table sweep, or a [table] in the station file. Nothing "
+                         "was measured")
+
+
+def _targets_text(step: SweepStep) -> str:
+    return " ".join(f"{name}={value:g}" for name, value in step.targets.items())
+
+
+def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level: float) -> Plan:
+    """Measure (or continue) an adaptive run (module text)."""
+    settings = adaptive_settings(step, level, _fixed(session, step),
+                                 session.station.shaker_force_limit_n)
+    plan = AdaptivePlan(settings)
+    sweep = session.sweep_settings(step, level)
+    run = yield from stubs.read_run(step.run, "adaptive")
+    attributes = yield Msg("compute", (_attributes, step.run), step="adaptive")
+    test_time_s = float(attributes.get("test_time_s", 0.0))
+    said = 0
+    partial = None
+    if run.points:
+        stored = stored_points(run)
+        partial, _ = _replay(plan, stored)
+        said = len(plan.history)
+        yield from stubs.say(
+            f"continuing run '{step.run}': its {run.points} points handed to the plan again, "
+            "which asks for the rest", "adaptive")
+    else:
+        yield from stubs.annotate(step.run, {"plan_model": str(step.model),
+                                             "plan_targets": _targets_text(step)},
+                                  step="adaptive")
+    yield Msg("progress", ("start_run", step.run, run.points,
+                           run.points + _pending(plan, partial), int((run.flags != 0).sum())),
+              step="adaptive")
+    yield from stubs.say(
+        f"run '{step.run}': adaptive plan for {settings.spec}, targets "
+        + ", ".join(f"{name} {100 * value:g} %" for name, value in settings.targets.items())
+        + f", {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz, level {level:.4g} m/s^2"
+        + (f", dwell limit {step.dwell_limit_s:g} s" if step.dwell_limit_s else ""), "adaptive")
+    record.move(RunState.CONFIGURING)
+    yield from stubs.configure(sweep, "adaptive", band_hz=step.band_hz,
+                               resolution_hz=settings.resolution_hz,
+                               settle_cycles=step.settle_cycles or 0,
+                               integrate_cycles=step.integrate_cycles or 1)
+    record.move(RunState.MEASURING)
+    points_done, commits = run.points, 0
+    while plan.request is not None:
+        for entry in plan.history[said:]:
+            yield from stubs.say(f"  {entry.state.value}: {entry.note}", "adaptive")
+        said = len(plan.history)
+        request = plan.request
+        skip = 0 if partial is None else len(partial)
+        left = float(request.predicted_s)
+        measured: list[MeasuredPoints] = [] if partial is None else [partial]
+        partial = None
+        pending: list[Segment] = []
+        pending_s = 0.0
+        groups = analyser_groups(request.points[skip:])
+        for index, group in enumerate(groups):
+            f = np.array([p.frequency_hz for p in group.points])
+            settle = np.array([p.settle_cycles for p in group.points], dtype=np.int64)
+            integrate = np.array([p.integrate_cycles for p in group.points], dtype=np.int64)
+            base_s = (settle + integrate) / f
+            left = max(left - float(base_s.sum()), 0.0)
+            so_far = _joined([*([] if plan.points is None else [plan.points]), *measured])
+            levels = start_levels(f, plan, so_far, settings, session)
+            call = MeasureRequest(step.run, session.resource, f, base_s, left,
+                                  _call(group, levels))
+            segment_measured, remeasured = yield from stubs.measure_segment(
+                call, lambda m, f=f: check_axis(m, f, session.resource), "adaptive")
+            rig_s = point_times_s(segment_measured, base_s, sweep.time_base)
+            time_s = test_time_s + np.cumsum(rig_s)
+            test_time_s = float(time_s[-1])
+            segment = segment_of(segment_measured, session.wiring, sweep, time_s,
+                                 (settle, integrate))
+            measured.append(_points(segment, rig_s, step.bare_table))
+            pending.append(segment)
+            pending_s += float(rig_s.sum())
+            if pending_s >= step.segment_s or index == len(groups) - 1:
+                joined = join_segments(pending)
+                total = yield from stubs.commit(step.run, joined, {
+                    "test_time_s": test_time_s, "plan_state": plan.state.value,
+                }, "adaptive")
+                commits += 1
+                points_done = total
+                remaining = sum(len(later.points) for later in groups[index + 1:])
+                yield Msg("progress", ("segment", SegmentDone(
+                    run=step.run, number=commits, count=commits, points_done=total,
+                    points_total=total + remaining,
+                    frequency_hz=np.asarray(joined.frequency_hz),
+                    reference_amplitude=np.asarray(joined.reference_amplitude),
+                    force_amplitude=np.asarray(joined.force_amplitude),
+                    flags=np.asarray(joined.flags, dtype=np.uint16), remeasured=remeasured,
+                    seconds_left=left)), step="adaptive")
+                pending, pending_s = [], 0.0
+        delivered = _joined(measured)
+        assert delivered is not None
+        plan.deliver(delivered)
+    for entry in plan.history[said:]:
+        yield from stubs.say(f"  {entry.state.value}: {entry.note}", "adaptive")
+    outcome = plan.outcome
+    assert outcome is not None
+    stderr_text = " ".join(f"{name}={value:.4g}" for name, value in
+                           outcome.relative_stderr.items())
+    history = "; ".join(f"{entry.state.value}: {entry.note}" for entry in outcome.history)
+    yield from stubs.annotate(step.run, {
+        "plan_reason": outcome.reason, "plan_state": "done",
+        "plan_relative_stderr": stderr_text, "test_time_s": test_time_s,
+        "plan_history": history[-HISTORY_CHARACTERS:],
+    }, step="adaptive")
+    frequencies = np.unique(outcome.points.frequency_hz).size
+    yield from stubs.say(
+        f"run '{step.run}' complete (adaptive plan: {outcome.reason}): {points_done} points at "
+        f"{frequencies} frequencies, {relative_text(outcome.relative_stderr)}; rig time "
+        f"{_clock(test_time_s)}", "adaptive")
+
+
+def _clock(seconds: float) -> str:
+    from viscorig.acquisition.console import format_duration
+
+    return format_duration(seconds)
+
+
+def _pending(plan: AdaptivePlan, partial: MeasuredPoints | None) -> int:
+    """Points of the plan's current request still to measure."""
+    if plan.request is None:
+        return 0
+    return len(plan.request.points) - (0 if partial is None else len(partial))
+
+
+def _replay(plan: AdaptivePlan, stored: MeasuredPoints) -> tuple[MeasuredPoints | None, int]:
+    """Hand the stored points to the plan, request by request; return what is left of a request
+    the run stopped in (``None``: none), and the points handed over whole."""
+    offset = 0
+    while plan.request is not None and offset < len(stored):
+        want = len(plan.request.points)
+        if offset + want > len(stored):
+            return _slice(stored, offset, len(stored)), offset
+        plan.deliver(_slice(stored, offset, offset + want))
+        offset += want
+    return None, offset
+
+
+def _slice(points: MeasuredPoints, start: int, stop: int) -> MeasuredPoints:
+    """Points ``start:stop``."""
+    pick = slice(start, stop)
+
+    def cut(values):
+        return None if values is None else values[pick]
+
+    return MeasuredPoints(
+        frequency_hz=points.frequency_hz[pick],
+        accelerance_table=points.accelerance_table[pick],
+        accelerance_support=cut(points.accelerance_support),
+        reference_amplitude=points.reference_amplitude[pick],
+        force_amplitude=points.force_amplitude[pick],
+        settle_cycles=points.settle_cycles[pick],
+        integrate_cycles=points.integrate_cycles[pick],
+        duration_s=points.duration_s[pick],
+        variance_table=cut(points.variance_table),
+        variance_support=cut(points.variance_support),
+        flags=cut(points.flags),
+    )
+
+
+def _usable(values: np.ndarray | None) -> np.ndarray | None:
+    """A variance the plan can use (every value finite and positive), else ``None``."""
+    if values is None:
+        return None
+    values = np.asarray(values, dtype=float)
+    return values if np.all(np.isfinite(values) & (values > 0)) else None
+
+
+def _as_points(source: Segment | Run, settle, integrate, durations_s, bare: bool
+               ) -> MeasuredPoints:
+    """A stored segment or run as the plan's measured points."""
+    return MeasuredPoints(
+        frequency_hz=np.asarray(source.frequency_hz, dtype=float),
+        accelerance_table=np.asarray(source.accelerance_table, dtype=complex),
+        accelerance_support=None if bare else np.asarray(source.accelerance_support, complex),
+        reference_amplitude=np.asarray(source.reference_amplitude, dtype=float),
+        force_amplitude=np.asarray(source.force_amplitude, dtype=float),
+        settle_cycles=np.asarray(settle, dtype=np.int64),
+        integrate_cycles=np.asarray(integrate, dtype=np.int64),
+        duration_s=np.asarray(durations_s, dtype=float),
+        variance_table=_usable(source.variance_table),
+        variance_support=None if bare else _usable(source.variance_support),
+        flags=np.asarray(source.flags, dtype=np.uint16),
+    )
+
+
+def _points(segment: Segment, rig_s: np.ndarray, bare: bool) -> MeasuredPoints:
+    """A segment just measured as the plan's measured points."""
+    return _as_points(segment, segment.settle_cycles, segment.integrate_cycles, rig_s, bare)
+
+
+def stored_points(run: Run) -> MeasuredPoints:
+    """An adaptive run's points as stored, in measurement order, as the plan was given them
+    (each point's rig time from the running sum ``time_s``)."""
+    bare = str(run.metadata.specimen).strip().lower() in ("none", "")
+    durations = np.diff(np.concatenate([[0.0], np.asarray(run.time_s, dtype=float)]))
+    return _as_points(run, *run.cycles, durations, bare)
+
+
+def analyser_groups(points: tuple[PlannedPoint, ...] | list[PlannedPoint]) -> list[SweepSegment]:
+    """The analyser sweeps of a request: its rising linear sub-sweeps, and its manual points in
+    runs of one settle and one integration (one ``measure_points`` call each)."""
+    groups: list[SweepSegment] = []
+    for segment in sweep_segments(list(points)):
+        rising = segment.kind == "linear" and segment.stop_hz > segment.start_hz
+        if rising:
+            groups.append(segment)
+            continue
+        run: list[PlannedPoint] = []
+        for point in segment.points:
+            if run and (point.settle_cycles, point.integrate_cycles) != (
+                    run[0].settle_cycles, run[0].integrate_cycles):
+                groups.append(SweepSegment("manual", tuple(run)))
+                run = []
+            run.append(point)
+        if run:
+            groups.append(SweepSegment("manual", tuple(run)))
+    return groups
+
+
+def _joined(pieces: list[MeasuredPoints]) -> MeasuredPoints | None:
+    """Points measured one after the other, as one (``None`` for none)."""
+    if not pieces:
+        return None
+    joined = pieces[0]
+    for more in pieces[1:]:
+        joined = joined.concatenate(more)
+    return joined
+
+
+#: Lowest start level an adaptive plan sets, V peak (a start of 0 V would pause the sweep).
+MIN_START_LEVEL_V = 1e-3
+
+
+def start_levels(frequency_hz: np.ndarray, plan: AdaptivePlan, measured: MeasuredPoints | None,
+                 settings: AdaptiveSettings, session: Session) -> np.ndarray | None:
+    """The source level each point's auto-level controller starts from: the force the point
+    needs over the shaker's gain, within the source limit.
+
+    The analyser starts every measurement at its source level; started where the controller
+    will land, a point finds the rig steady when the one before it was at the same frequency
+    and level (what the plan's lead-in points and repeats count on). The force needed is the
+    fitted model's under the controller's level (:func:`viscorig.planning.model_amplitudes`),
+    or, before the first fit, the nearest point measured, scaled to the level. ``None``: nothing
+    known yet (the analyser's own start).
+    """
+    from viscorig.planning import model_amplitudes
+
+    gain = session.station.shaker_gain_n_per_v
+    if gain is None:
+        return None
+    level = settings.level_m_per_s2
+    result = plan.result
+    if result is not None:
+        force = model_amplitudes(result.model, result.values, frequency_hz, level,
+                                 force_limit_n=settings.force_limit_n).excitation_force
+    elif measured is not None and len(measured):
+        reached = np.asarray(measured.reference_amplitude, dtype=float)
+        usable = np.isfinite(reached) & (reached > 0) & np.isfinite(measured.force_amplitude)
+        if not np.any(usable):
+            return None
+        known = measured.frequency_hz[usable]
+        scaled = measured.force_amplitude[usable] * level / reached[usable]
+        nearest = np.argmin(np.abs(np.log(frequency_hz[:, None] / known[None, :])), axis=1)
+        force = scaled[nearest]
+    else:
+        return None
+    return np.clip(np.asarray(force, dtype=float) / gain, MIN_START_LEVEL_V,
+                   session.source_limit_v())
+
+
+def _call(group: SweepSegment, levels: np.ndarray | None):
+    """The driver call that measures one group (each point started at its level)."""
+    first = group.points[0]
+    settle, integrate = first.settle_cycles, first.integrate_cycles
+    frequencies = [p.frequency_hz for p in group.points]
+    starts = None if levels is None else [float(v) for v in levels]
+
+    def call(analyser, progress, poll_interval_s):
+        if group.kind == "linear":
+            return analyser.measure(group.start_hz, group.stop_hz,
+                                    resolution_hz=group.resolution_hz, settle_cycles=settle,
+                                    integrate_cycles=integrate,
+                                    start_level_vpk=None if starts is None else starts[0],
+                                    progress=progress, poll_interval_s=poll_interval_s)
+        return analyser.measure_points(frequencies, settle_cycles=settle,
+                                       integrate_cycles=integrate, start_levels_vpk=starts,
+                                       progress=progress, poll_interval_s=poll_interval_s)
+
+    return call
+
+
+def join_segments(segments: list[Segment]) -> Segment:
+    """Segments measured one after the other, as one (one commit)."""
+    if len(segments) == 1:
+        return segments[0]
+
+    def joined(name: str):
+        values = [getattr(segment, name) for segment in segments]
+        if any(value is None for value in values):
+            return None
+        return np.concatenate([np.asarray(value) for value in values])
+
+    return Segment(**{name: joined(name) for name in (
+        "frequency_hz", "time_s", "accelerance_table", "accelerance_support",
+        "reference_amplitude", "source_amplitude", "force_amplitude", "flags",
+        "variance_table", "variance_support", "settle_cycles", "integrate_cycles")})
+
+
+def _attributes(campaign: Campaign, run: str) -> dict[str, object]:
+    return campaign.run_attributes(run)
+
+
+def relative_text(values: dict[str, float]) -> str:
+    """``K_v ± 0.1 %, C_v ± 0.2 %``."""
+    return ", ".join(f"{name} ± {100 * value:.3g} %" for name, value in values.items()
+                     if math.isfinite(value))

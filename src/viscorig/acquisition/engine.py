@@ -1,0 +1,398 @@
+"""The run engine: executes a plan of messages against the rig, the campaign file and the
+operator, with an explicit lifecycle.
+
+In the manner of Bluesky's ``RunEngine``: a *plan* is a generator that yields :class:`Msg`
+objects and is sent back what each one produced (a measured segment, the number of points a
+commit left in the run, a run read from the file). Plans decide; only the engine touches the
+analyser, the campaign file, the clock and the console. A plan can therefore be read, composed
+and tested without any of them, and everything that happens to the rig passes through one
+place that knows when to stop.
+
+Lifecycle (:class:`EngineState`)::
+
+    idle ──► running ──► done
+                │  ╰───► refused   (a step refused to measure: nothing of it was measured)
+                │  ╰───► faulted   (the analyser failed: every committed segment is kept)
+                ╰──► stopping ──► stopped   (Ctrl-C or SIGTERM)
+
+Stopping. The first Ctrl-C (or SIGTERM) while the analyser measures only asks it to stop: the
+next poll aborts the analyser and the segment in flight is dropped, so no partial segment is
+ever written; at a prompt or a wait it interrupts at once; a second Ctrl-C always does. A plan
+marks where stopping is safe with ``checkpoint`` messages (after each commit); the engine stops
+there when asked. On any ending other than ``done`` the engine throws the exception into the
+plan, whose cleanup (marking its run "aborted" in the file) yields messages like any other;
+then the plan ends. Resuming is reading the file again: plans continue from what it holds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import signal
+import threading
+import time
+from collections.abc import Callable, Generator, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from viscorig.acquisition.console import Console
+from viscorig.acquisition.probe import measure_probe
+from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
+from viscorig.acquisition.sweep import SweepInterrupted, SweepSettings, Wiring, configure
+from viscorig.errors import InstrumentError
+from viscorig.storage import Campaign
+
+__all__ = ["EngineState", "Msg", "Plan", "RunEngine", "RunRefused", "StopRequest"]
+
+
+class RunRefused(Exception):  # noqa: N818 (an outcome, not a fault)
+    """A step does not measure; the message says why and what to do."""
+
+
+@dataclass(frozen=True)
+class Msg:
+    """One instruction of a plan to the engine.
+
+    Attributes
+    ----------
+    command
+        What to do (the engine's vocabulary: :meth:`RunEngine.commands`).
+    args, kwargs
+        Its arguments.
+    step
+        The plan step that sent it (its metadata: kind, run, purpose), for logs and errors.
+    """
+
+    command: str
+    args: tuple[Any, ...] = ()
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    step: str = ""
+
+
+#: A plan: yields messages, is sent what each produced, returns its result.
+Plan = Generator[Msg, Any, Any]
+
+
+class EngineState(enum.Enum):
+    """Lifecycle of the engine (module text)."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    STOPPING = "stopping"
+    DONE = "done"
+    REFUSED = "refused"
+    FAULTED = "faulted"
+    STOPPED = "stopped"
+
+
+_ENGINE_TRANSITIONS = {
+    EngineState.IDLE: {EngineState.RUNNING},
+    EngineState.RUNNING: {EngineState.STOPPING, EngineState.DONE, EngineState.REFUSED,
+                          EngineState.FAULTED, EngineState.STOPPED},
+    EngineState.STOPPING: {EngineState.STOPPED, EngineState.FAULTED, EngineState.REFUSED},
+    EngineState.DONE: set(),
+    EngineState.REFUSED: set(),
+    EngineState.FAULTED: set(),
+    EngineState.STOPPED: set(),
+}
+
+
+class StopRequest:
+    """Ctrl-C (SIGINT) and SIGTERM while a plan runs (the module text says what each does)."""
+
+    def __init__(self, console: Console) -> None:
+        self.console = console
+        self.requested = threading.Event()
+        self.measuring = [False]
+
+    def asked(self) -> bool:
+        """Has a stop been asked for?"""
+        return self.requested.is_set()
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.requested.is_set() or not self.measuring[0]:
+            self.requested.set()
+            raise KeyboardInterrupt
+        self.requested.set()
+        self.console.say("Stopping: aborting the analyser; committed segments are kept ...")
+
+    @contextlib.contextmanager
+    def installed(self) -> Iterator[None]:
+        """Handle the signals while the block runs (main thread only)."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        previous = {sig: signal.signal(sig, self) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+
+@dataclass
+class Rig:
+    """What the engine drives: the analyser and its wiring, and how to stand in for the
+    technician on a simulated rig."""
+
+    analyser: Analyser
+    wiring: Wiring
+    mount: Callable[[str], None] | None = None
+    real_time_waits: bool = True
+    poll_interval_s: float = 0.2
+
+
+class RunEngine:
+    """Executes plans (module text).
+
+    Parameters
+    ----------
+    campaign
+        The campaign file (mode "a").
+    rig
+        The analyser, its wiring and the simulated rig's mount.
+    console
+        Messages, prompts and progress.
+    """
+
+    def __init__(self, campaign: Campaign, rig: Rig, console: Console) -> None:
+        self.campaign = campaign
+        self.rig = rig
+        self.console = console
+        self.stop = StopRequest(console)
+        self.state = EngineState.IDLE
+        self.history: list[tuple[EngineState, float]] = [(self.state, time.time())]
+        self._identity: str | None = None
+        self._handlers: dict[str, Callable[..., Any]] = {
+            name[len("_do_"):]: getattr(self, name) for name in dir(self)
+            if name.startswith("_do_")
+        }
+
+    @property
+    def commands(self) -> tuple[str, ...]:
+        """The messages the engine understands."""
+        return tuple(sorted(self._handlers))
+
+    def _move(self, state: EngineState) -> None:
+        if state not in _ENGINE_TRANSITIONS[self.state]:
+            raise RuntimeError(f"engine: {self.state.value} -> {state.value} is not allowed")
+        self.state = state
+        self.history.append((state, time.time()))
+
+    # -- running a plan ------------------------------------------------------------------------
+    def run(self, plan: Plan, *, signals: bool = True) -> Any:
+        """Run ``plan`` to its end (with the signal handlers installed unless ``signals`` is
+        false); return its result.
+
+        Raises
+        ------
+        KeyboardInterrupt, SweepInterrupted
+            Stopped (state "stopped"), after the plan's cleanup.
+        RunRefused
+            A step refused (state "refused").
+        Exception
+            An instrument fault or any other error (state "faulted"), after the cleanup.
+        """
+        self._move(EngineState.RUNNING)
+        with self.stop.installed() if signals else contextlib.nullcontext():
+            try:
+                result = self._drive(plan)
+            except (KeyboardInterrupt, SweepInterrupted):
+                self._move(EngineState.STOPPED)
+                raise
+            except RunRefused:
+                self._move(EngineState.REFUSED)
+                raise
+            except BaseException:
+                self._move(EngineState.FAULTED)
+                raise
+        self._move(EngineState.DONE)
+        return result
+
+    def _drive(self, plan: Plan) -> Any:
+        reply: Any = None
+        error: BaseException | None = None
+        while True:
+            try:
+                msg = plan.throw(error) if error is not None else plan.send(reply)
+            except StopIteration as end:
+                return end.value
+            error = None
+            handler = self._handlers.get(msg.command)
+            if handler is None:
+                raise RuntimeError(f"engine: unknown message {msg.command!r} from "
+                                   f"{msg.step or 'a plan'}")
+            try:
+                reply = handler(*msg.args, **msg.kwargs)
+            except BaseException as caught:  # into the plan: its cleanup runs, then it ends
+                if isinstance(caught, KeyboardInterrupt | SweepInterrupted):
+                    self.stop.requested.set()
+                    if self.state is EngineState.RUNNING:
+                        self._move(EngineState.STOPPING)
+                error = caught
+                reply = None
+
+    # -- the operator ---------------------------------------------------------------------------
+    def _do_say(self, text: str) -> None:
+        self.console.say(text)
+
+    def _do_warn(self, text: str) -> None:
+        self.console.warn(text)
+
+    def _do_prompt(self, message: str) -> None:
+        self.console.prompt(message)
+
+    def _do_sleep(self, seconds: float, message: str) -> bool:
+        """Wait (really on a real rig; a simulated rig's clock is test time). Returns whether
+        it waited."""
+        if not self.rig.real_time_waits:
+            self.console.say(f"{message}: {seconds:g} s (simulated rig: not waited)")
+            return False
+        self.console.say(f"{message}: {seconds:g} s ...")
+        time.sleep(seconds)
+        return True
+
+    def _do_mount(self, preset: str) -> None:
+        if self.rig.mount is not None:
+            self.rig.mount(preset)
+            self.console.say(f"(simulated rig: {preset} mounted)")
+
+    def _do_checkpoint(self) -> None:
+        """A safe place to stop: stop here when asked."""
+        if self.stop.asked():
+            raise KeyboardInterrupt
+
+    def _do_progress(self, what: str, *args: Any) -> None:
+        """Progress for the console: ``start_run``, ``segment``, ``campaign_left``."""
+        if what == "campaign_left":
+            self.console.campaign_left_s = float(args[0])
+        else:
+            getattr(self.console, what)(*args)
+
+    # -- the analyser ---------------------------------------------------------------------------
+    def _do_identify(self) -> str:
+        if self._identity is None:
+            self._identity = self.rig.analyser.identify()
+        return self._identity
+
+    def _do_supports(self, member: str) -> bool:
+        """Does the analyser offer ``member`` (``measure_points`` for an adaptive plan)?"""
+        return callable(getattr(self.rig.analyser, member, None))
+
+    def _do_configure(self, settings: SweepSettings, **grid: Any) -> None:
+        configure(self.rig.analyser, self.rig.wiring, settings, **grid)
+
+    def _do_probe(self, settings: SweepSettings) -> tuple:
+        hooks = _Hooks(self)
+        return measure_probe(self.rig.analyser, self.rig.wiring, settings, hooks)
+
+    def _do_measure(self, request: MeasureRequest) -> MeasuredSegment:
+        """Measure one analyser sweep: a linear band, or chosen points in manual sweep mode."""
+        analyser = self.rig.analyser
+        cumulative = np.cumsum(request.durations_s)
+
+        def progress(report: SweepProgressReport) -> None:
+            if self.stop.asked():
+                analyser.abort()
+                return
+            index = min(int(np.searchsorted(cumulative, report.elapsed_s)), cumulative.size - 1)
+            in_flight = max(float(cumulative[-1]) - float(report.elapsed_s), 0.0)
+            self.console.poll(float(request.frequency_hz[index]), request.left_after_s + in_flight)
+
+        poll = self.rig.poll_interval_s
+        self.stop.measuring[0] = True
+        try:
+            measured = request.call(analyser, progress, poll)
+        except Exception as error:
+            if self.stop.asked():
+                raise SweepInterrupted(request.run) from error
+            raise
+        finally:
+            self.stop.measuring[0] = False
+        if self.stop.asked():  # stopped as the segment ended: drop it all the same
+            raise SweepInterrupted(request.run)
+        return measured
+
+    # -- the campaign file ------------------------------------------------------------------
+    def _do_status(self, run: str) -> str | None:
+        if run not in self.campaign.run_names:
+            return None
+        return self.campaign.run(run).metadata.status
+
+    def _do_read_run(self, run: str):
+        return self.campaign.run(run)
+
+    def _do_fits(self, run: str) -> list:
+        return self.campaign.fits(run)
+
+    def _do_open_run(self, run: str, settings) -> None:
+        self.campaign.start_run(run, settings)
+
+    def _do_resume_run(self, run: str) -> int:
+        return self.campaign.resume_run(run)
+
+    def _do_annotate(self, run: str, attributes: dict, dataset: str | None = None) -> None:
+        self.campaign.annotate(run, attributes, dataset=dataset)
+
+    def _do_commit(self, run: str, segment, attributes: dict | None = None) -> int:
+        return self.campaign.append_segment(run, segment, attributes)
+
+    def _do_close_run(self, run: str, status: str) -> None:
+        self.campaign.finish_run(run, status)
+
+    def _do_store_fit(self, run: str, result) -> str:
+        from viscorig.identify import store_fit  # scipy: only when needed
+
+        return store_fit(self.campaign, run, result)
+
+    def _do_compute(self, function: Callable[..., Any], *args: Any) -> Any:
+        """Computation that reads the campaign file (a fit of a stored run)."""
+        return function(self.campaign, *args)
+
+
+@dataclass(frozen=True)
+class MeasureRequest:
+    """One analyser sweep a plan asks for.
+
+    Attributes
+    ----------
+    run
+        The run it belongs to.
+    resource
+        The analyser's resource (named in fault messages).
+    frequency_hz
+        The frequencies, in measurement order (for the check and the progress line).
+    durations_s
+        Test time of each point (progress).
+    left_after_s
+        Test time of the run after this sweep (progress).
+    call
+        ``call(analyser, progress, poll_interval_s) -> MeasuredSegment``: the driver call.
+    """
+
+    run: str
+    resource: str
+    frequency_hz: np.ndarray
+    durations_s: np.ndarray
+    left_after_s: float
+    call: Callable[[Analyser, Callable[[SweepProgressReport], None], float], MeasuredSegment]
+
+
+class _Hooks:
+    """The stop request as the probe's hooks see it."""
+
+    def __init__(self, engine: RunEngine) -> None:
+        self.engine = engine
+        self.measuring = engine.stop.measuring
+        self.on_poll = None
+        self.on_segment = None
+
+    def should_stop(self) -> bool:
+        return self.engine.stop.asked()
+
+
+def instrument_fault(error: BaseException, kinds: tuple[type[BaseException], ...]) -> bool:
+    """Does ``error`` mean an instrument fault (ours, or one of the driver's ``kinds``)?"""
+    return isinstance(error, InstrumentError) or (bool(kinds) and isinstance(error, kinds))

@@ -1,0 +1,188 @@
+"""Scan for local modes: a matched filter over frequency and width, with its look-elsewhere
+threshold.
+
+A small local mode (mass ``m`` on a spring-damper tuned to ``f_n`` with damping ratio ``ζ``,
+attached to the disc) adds ``m · u(ω)`` to the disc's dynamic stiffness ``D_v``, with
+``u = −ω² ω_n² (1 + 2iζω/ω_n) / (ω_n² − ω² + 2iζωω_n)``. To first order in ``m`` it changes the
+residual of every FRF by ``m · (1 + r) · g(ω) · u(ω)``, where ``g = ∂ log H/∂D_v`` is read off the
+current model itself (its prediction with ``D_v`` nudged), so the template holds whatever the
+model holds (a load cell, sensor terms). Whitened like the residual and with the directions the
+current model's own parameters can follow projected out, each template ``t`` gives the
+least-squares mass and the drop of ``χ²`` a mode there would bring: ``Δχ² = ⟨t, e⟩²/⟨t, t⟩``
+(only for ``m > 0``), ``e`` the whitened residual. Peaks are placed on ``e`` itself (a strong
+mode is many standard deviations high); their strength is then read on ``e`` clipped at the
+Huber scale, so that an outlier point, which is one point high, is no mode.
+
+The grid: ``ζ`` in :data:`DAMPING_RATIOS` (at least one frequency step within the half-power
+band), ``f_n`` inside the band with its half-power band (a mode whose peak lies outside the data
+is a smooth trend to them, not a local mode), in steps of ``ζ/2`` in log frequency, so
+neighbouring templates overlap by about 90 %. The threshold is
+:func:`viscorig.diagnosis.significance.scan_threshold` of the scan's length ``L``, the summed arc
+length of the normalised templates along frequency for each width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.diagnosis.data import DiagnosisData
+from viscorig.diagnosis.significance import scan_threshold
+from viscorig.diagnosis.weighted import Likelihood, winsorized
+from viscorig.models import Model, Term
+
+#: Damping ratios of the local modes scanned for.
+DAMPING_RATIOS = (0.005, 0.008, 0.0125, 0.02, 0.032, 0.05, 0.08)
+#: Peaks closer than this (Hz), or than two half-power bandwidths of the stronger, are one mode.
+SEPARATION_HZ = 2.0
+
+
+class _DiscProbe(Term):
+    """Adds a constant real stiffness to ``D_v`` (not a physical effect: a probe)."""
+
+    keyword = "probe"
+
+    def __init__(self, size: float) -> None:
+        self.argument = None
+        self.size = size
+
+    def disc_stiffness(self, ctx, p):
+        return np.full(ctx.omega.shape, self.size, dtype=complex)
+
+
+@dataclass(frozen=True)
+class Peak:
+    """A local maximum of the scan: where, how wide, how strong."""
+
+    frequency_hz: float
+    damping_ratio: float
+    mass_kg: float
+    delta_chi2: float
+    """Drop of ``χ²`` on the residual clipped at the Huber scale (what decides)."""
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """The scan's peaks (strongest first), its length and its threshold."""
+
+    peaks: tuple[Peak, ...]
+    length: float
+    threshold: float
+    templates: int
+
+
+def log_sensitivity(
+    model: Model, values: dict[str, float], data: DiagnosisData
+) -> dict[str, NDArray[np.complex128]]:
+    """``∂ log H/∂D_v`` per FRF at every point (1/(N/m)), from the model's own prediction."""
+    ctx = data.data.context()
+    base = model.predict(ctx, values)
+    scale = float(np.median(np.abs(model.disc_dynamic_stiffness(ctx, values))))
+    size = 1e-7 * max(scale, 1.0)
+    probed = Model((*model.terms, _DiscProbe(size))).predict(ctx, values)
+    return {frf: (probed[frf] / base[frf] - 1.0) / size for frf in data.frfs}
+
+
+def mode_stiffness(omega: NDArray[np.float64], f_n: NDArray[np.float64], zeta: float):
+    """``u(ω)`` of a mode of unit mass, for every ``f_n`` (rows) and point (columns)."""
+    w_n = 2 * np.pi * f_n[:, None]
+    w = omega[None, :]
+    spring = w_n**2 + 2j * zeta * w_n * w
+    return -(w**2) * spring / (spring - w**2)
+
+
+def _orthonormal(jacobian: NDArray[np.float64]) -> NDArray[np.float64]:
+    if jacobian.shape[1] == 0:
+        return jacobian
+    u, s, _ = np.linalg.svd(jacobian, full_matrices=False)
+    return u[:, s > s.max() * 1e-10] if s.size and s.max() > 0 else u[:, :0]
+
+
+class Residual:
+    """The whitened residual of a fit, with the directions its own parameters can follow
+    projected out: what an added effect must explain, and a linear estimate of any effect."""
+
+    def __init__(self, current: Likelihood, data: DiagnosisData) -> None:
+        self.current = current
+        self.data = data
+        self.basis = _orthonormal(current.jacobian)
+        self.e = self.project(current.whitened)
+        self.clipped = self.project(winsorized(current.whitened))
+
+    def project(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``t`` less its part the current model's parameters can follow."""
+        return t - self.basis @ (self.basis.T @ t)
+
+    def template(self, change: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
+        """Whitened, projected change of the residual for a change ``δ log H`` per FRF (an FRF
+        left out is unchanged); arrays of one column per effect are allowed."""
+        shape = np.shape(next(iter(change.values())))
+        columns = {}
+        for frf in self.data.frfs:
+            c = np.asarray(change.get(frf, np.zeros(shape)), dtype=complex)
+            factor = 1.0 + self.current.residuals[frf]
+            columns[frf] = factor[:, None] * c if c.ndim > 1 else factor * c
+        return self.project(self.data.whiten(columns))
+
+    def estimate(self, change: dict[str, NDArray[np.complex128]]) -> tuple[float, float, float]:
+        """Least-squares size of one effect whose unit changes ``log H`` by ``change``: its
+        value, standard error and the drop of ``χ²`` it brings, to first order."""
+        t = self.template(change)
+        norm2 = float(t @ t)
+        if not norm2 > 0:
+            return 0.0, float("inf"), 0.0
+        inner = float(self.e @ t)
+        return -inner / norm2, 1.0 / np.sqrt(norm2), inner**2 / norm2
+
+
+def scan(
+    current: Likelihood, data: DiagnosisData, existing_hz: tuple[float, ...] = ()
+) -> ScanResult:
+    """Scan the residual of ``current`` for local modes; peaks near ``existing_hz`` are left
+    out (modes the model already has)."""
+    d = data.data
+    omega = 2 * np.pi * d.frequency_hz
+    sensitivity = log_sensitivity(current.model, current.values, data)
+    residual = Residual(current, data)
+    e, clipped = residual.e, residual.clipped
+    f_lo, f_hi = float(d.frequency_hz.min()), float(d.frequency_hz.max())
+    steps = np.diff(np.unique(d.frequency_hz))
+    step = float(np.median(steps)) if steps.size else 1.0
+    length, count = 0.0, 0
+    best: list[tuple[float, float, float, float, float]] = []  # (Δχ², f_n, ζ, m, robust Δχ²)
+    for zeta in DAMPING_RATIOS:
+        # half-power band at least one step wide, and inside the data
+        f_min = max(f_lo * (1 + 2 * zeta), step / (2 * zeta))
+        f_max = f_hi * (1 - 2 * zeta)
+        if f_min >= f_max:
+            continue
+        f_n = np.exp(np.arange(np.log(f_min), np.log(f_max), zeta / 2))
+        u = mode_stiffness(omega, f_n, zeta)  # (templates, points)
+        t = residual.template({frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs})
+        norm = np.sqrt(np.einsum("ij,ij->j", t, t))
+        ok = norm > 0
+        unit = np.where(ok, t / np.where(ok, norm, 1.0), 0.0)
+        length += float(np.sum(np.linalg.norm(np.diff(unit[:, ok], axis=1), axis=0)))
+        count += int(np.count_nonzero(ok))
+        projection = e @ unit  # = ⟨t, e⟩/|t|
+        mass = np.where(ok, -projection / np.where(ok, norm, 1.0), 0.0)
+        gain = np.where(mass > 0, projection**2, 0.0)
+        robust = np.where(mass > 0, np.maximum(-(clipped @ unit), 0.0) ** 2, 0.0)
+        for i in range(f_n.size):
+            best.append((float(gain[i]), float(f_n[i]), zeta, float(mass[i]), float(robust[i])))
+    best.sort(reverse=True)
+    peaks: list[Peak] = []
+    for gain, f_n, zeta, mass, robust in best:
+        if gain <= 0:
+            break
+        if any(abs(p.frequency_hz - f_n) < max(SEPARATION_HZ, 4 * p.damping_ratio *
+                                                   p.frequency_hz) for p in peaks):
+            continue
+        if any(abs(f - f_n) < 1.0 for f in existing_hz):
+            continue
+        peaks.append(Peak(f_n, zeta, mass, robust))
+        if len(peaks) >= 8:
+            break
+    return ScanResult(tuple(peaks), length, scan_threshold(length), count)
