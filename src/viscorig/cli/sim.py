@@ -13,7 +13,7 @@ import sys
 from typing import Any
 
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import positive_number
+from viscorig.cli.arguments import port_number, positive_number
 from viscorig.errors import InputError
 
 
@@ -34,11 +34,11 @@ def register(subparsers: Any) -> None:
     rig.add_argument("--rig", metavar="RIG.toml", help="rig file to simulate")
     rig.add_argument("--preset", metavar="NAME",
                      help="shipped rig preset (table, soft-0, ...; default: table)")
-    serve.add_argument("--port", type=_port, default=0,
+    serve.add_argument("--port", type=port_number, default=0,
                        help="port of the raw SCPI socket (default: a free port)")
     serve.add_argument("--prologix", action="store_true",
                        help="also serve a Prologix GPIB-Ethernet endpoint (analyser at GPIB 11)")
-    serve.add_argument("--prologix-port", type=_port, default=0, metavar="N",
+    serve.add_argument("--prologix-port", type=port_number, default=0, metavar="N",
                        help="port of the Prologix endpoint (default: a free port)")
     serve.add_argument("--pty", action="store_true",
                        help="also serve a Prologix GPIB-USB adapter on a pseudo-terminal")
@@ -92,16 +92,6 @@ def _seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
     if not 0.0 <= value < 1e6:
         raise argparse.ArgumentTypeError(f"must be 0 or more seconds, got {text}")
-    return value
-
-
-def _port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"port must be an integer, got {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"port must be 0..65535, got {value}")
     return value
 
 
