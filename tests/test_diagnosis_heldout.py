@@ -87,3 +87,18 @@ def test_auto_with_three_planted_effects_ends_within_one_and_a_half_times_the_tr
 def test_a_paper_like_preset_diagnosed_from_its_own_model_has_nothing_missing() -> None:
     result = run_case(Case("clean", None, 0.0, "white", 0.003, 11, base="hard-10"))
     assert result["false"] == [] and result["at_noise_floor"], result
+
+
+def test_a_mode_placed_off_its_frequency_follows_the_data_out_of_its_window() -> None:
+    """A mode started 7 % below the fixture's 58 Hz (its ±5 % window stops short of it) ends at
+    58 Hz and at the noise floor, as a mode found on the misfit of a wrong model must."""
+    case = Case("fixture", None, 3e-4, "white", 0.01, 7, fixture_hz=58.0)
+    run = measure(case)[0]
+    data = FrfData(run.frequency_hz, run.table, run.support, run.time_s,
+                   run.reference_amplitude, name="run", variance_table=run.variance_table,
+                   variance_support=run.variance_support)
+    diagnosis = diagnose(data, "voigt+fixture(54)", table=TABLE)
+    f_n = next(v for k, v in diagnosis.fit.values.items() if k.startswith("f_n"))
+    assert f_n == pytest.approx(58.0, rel=0.005)
+    assert "fixture(54)" not in diagnosis.model
+    assert diagnosis.rms_error < 1.5 * run.true_noise

@@ -241,6 +241,47 @@ class Diagnosis:
         return document
 
 
+#: A mode's frequency this close to the edge of its window (relative) is held there by the
+#: window, not by the data.
+MODE_EDGE = 1e-3
+#: Times a mode's window is moved after it, at most.
+MODE_MOVES = 3
+
+
+def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
+    """``result``, or its model refitted with every local mode held at the edge of its window
+    (``fixture(F)`` keeps ``f_n`` within ±5 % of ``F``) given a window centred where it stopped.
+
+    A mode found on the misfit of a model still missing a broad effect can be placed a few
+    percent off its frequency; its window must follow the data, or the mode stays short of them
+    and the rest of the diagnosis works on its misfit.
+    """
+    for _ in range(MODE_MOVES):
+        model, moved = result.model, {}
+        for term in model.effects:
+            if term.keyword != "fixture" or term.argument is None:
+                continue
+            names = model.local_names(term)
+            f_n = result.values[names["f_n"]]
+            lo, hi = term.frequency_bounds()
+            if min(f_n - lo, hi - f_n) < MODE_EDGE * f_n:
+                moved[term.spec] = (type(term)(float(f"{f_n:.4g}")).spec, names)
+        if not moved:
+            return result
+        spec = "+".join([model.modulus_term.spec] + [
+            moved[term.spec][0] if term.spec in moved else term.spec for term in model.effects])
+        new = parse_spec(spec)
+        start = carried_values(result, new)
+        for text, old_names in moved.values():
+            term = next(t for t in new.effects if t.spec == text)
+            for local, name in new.local_names(term).items():
+                start[name] = result.values[old_names[local]]
+        fixed = dict(data.table or {})
+        result = fit(new, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
+                     start={k: v for k, v in start.items() if k not in fixed})
+    return result
+
+
 def analyse(
     data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None
 ) -> Diagnosis:
@@ -248,6 +289,9 @@ def analyse(
 
     ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
     """
+    recentred = recentred_modes(result, data)
+    if recentred is not result:
+        result, likelihood = recentred, None
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
