@@ -84,8 +84,13 @@ def test_auto_with_three_planted_effects_ends_within_one_and_a_half_times_the_tr
         assert {"load_cell", "delay(x_v)"} <= set(terms) and "fixture(5" in final.model
 
 
-def test_a_paper_like_preset_diagnosed_from_its_own_model_has_nothing_missing() -> None:
-    result = run_case(Case("clean", None, 0.0, "white", 0.003, 11, base="hard-10"))
+@pytest.mark.parametrize(("noise", "level", "seed"), [("white", 0.003, 11), ("heavy", 0.01, 1)])
+def test_a_paper_like_preset_diagnosed_from_its_own_model_has_nothing_missing(
+    noise: str, level: float, seed: int
+) -> None:
+    """The second case's fit puts the 38 Hz mode broad (ζ ≈ 0.2) at the edge of its window: a
+    window moved after it would let it wander off and leave a second mode to be found."""
+    result = run_case(Case("clean", None, 0.0, noise, level, seed, base="hard-10"))
     assert result["false"] == [] and result["at_noise_floor"], result
 
 

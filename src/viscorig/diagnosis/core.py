@@ -244,13 +244,17 @@ class Diagnosis:
 #: A mode's frequency this close to the edge of its window (relative) is held there by the
 #: window, not by the data.
 MODE_EDGE = 1e-3
+#: Damping ratio below which a mode is local; a broader one at its window's edge is soaking up
+#: a misfit, and its window is left where it is.
+MODE_NARROW = 0.05
 #: Times a mode's window is moved after it, at most.
 MODE_MOVES = 3
 
 
 def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
-    """``result``, or its model refitted with every local mode held at the edge of its window
-    (``fixture(F)`` keeps ``f_n`` within ±5 % of ``F``) given a window centred where it stopped.
+    """``result``, or its model refitted with every narrow local mode held at the edge of its
+    window (``fixture(F)`` keeps ``f_n`` within ±5 % of ``F``) given a window centred where it
+    stopped.
 
     A mode found on the misfit of a model still missing a broad effect can be placed a few
     percent off its frequency; its window must follow the data, or the mode stays short of them
@@ -264,7 +268,8 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
             names = model.local_names(term)
             f_n = result.values[names["f_n"]]
             lo, hi = term.frequency_bounds()
-            if min(f_n - lo, hi - f_n) < MODE_EDGE * f_n:
+            narrow = result.values[names["zeta"]] < MODE_NARROW
+            if narrow and min(f_n - lo, hi - f_n) < MODE_EDGE * f_n:
                 moved[term.spec] = (type(term)(float(f"{f_n:.4g}")).spec, names)
         if not moved:
             return result
