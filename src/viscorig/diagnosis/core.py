@@ -22,6 +22,7 @@ from viscorig.diagnosis.findings import (
     confirm,
     fit_with,
     identify_fit,
+    refit,
     unpaid_term,
 )
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
@@ -171,11 +172,7 @@ class Diagnosis:
         for finding in (found[0], *modes):
             start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
                           if k not in start})
-        fixed = dict(self.data.table or {})
-        result = fit(spec, self.data.data, frfs=self.data.frfs, fixed=fixed,
-                     noise=self.data.noise,
-                     start={k: v for k, v in start.items() if k not in fixed})
-        return analyse(self.data, result)
+        return analyse(self.data, refit(spec, self.data, start))
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
         """Add the significant effects and refit, until nothing significant is left.
@@ -281,9 +278,7 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
             term = next(t for t in new.effects if t.spec == text)
             for local, name in new.local_names(term).items():
                 start[name] = result.values[old_names[local]]
-        fixed = dict(data.table or {})
-        result = fit(new, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
-                     start={k: v for k, v in start.items() if k not in fixed})
+        result = refit(new, data, start)
     return result
 
 

@@ -208,17 +208,20 @@ def fit_with(
     model = parse_spec(candidate_spec(current.model, term_text))
     values = carried_values(current, model)
     values.update(_start_of(model, term_text, start or {}))
+    return refit(model, data, values)
+
+
+def refit(model: Model | str, data: DiagnosisData, start: dict[str, float]) -> FitResult:
+    """The fit ``identify --model`` makes of ``model`` on ``data`` (the table's values held),
+    started at ``start``."""
     fixed = dict(data.table or {})
-    result = fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
-                 start={k: v for k, v in values.items() if k not in fixed})
-    return result
+    return fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
+               start={k: v for k, v in start.items() if k not in fixed})
 
 
 def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
     """The fit ``identify --model`` makes of a model, started at its likelihood fit."""
-    fixed = dict(data.table or {})
-    return fit(likelihood.model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
-               start={k: v for k, v in likelihood.values.items() if k not in fixed})
+    return refit(likelihood.model, data, likelihood.values)
 
 
 def _broad(model: Model) -> set[str]:
