@@ -26,6 +26,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.sequences.segments import point_durations_s
+
 __all__ = [
     "ANALYSER",
     "SIMULATED_TIMING",
@@ -121,9 +123,8 @@ class PointTiming:
         passes: ArrayLike = 1.0,
     ) -> NDArray[np.float64]:
         """Rig time of each point, s."""
-        f = np.asarray(frequency_hz, dtype=float)
-        cycles = np.asarray(settle_cycles, dtype=float) + np.asarray(integrate_cycles, dtype=float)
-        return np.asarray(passes, dtype=float) * cycles / f + self.overhead_s
+        cycles_s = point_durations_s(frequency_hz, settle_cycles, integrate_cycles)
+        return np.asarray(passes, dtype=float) * cycles_s + self.overhead_s
 
     def calibrated(
         self,

@@ -49,13 +49,15 @@ def sweep_frequencies(
 
 def point_durations_s(
     frequency_hz: ArrayLike,
-    settle_cycles: int,
-    integrate_cycles: int,
+    settle_cycles: ArrayLike,
+    integrate_cycles: ArrayLike,
     overhead_s_per_point: float = 0.0,
 ) -> NDArray[np.float64]:
-    """Test time of each point: (settle + integrate cycles) / f + overhead, in s."""
+    """Test time of each point: (settle + integrate cycles) / f + overhead, in s (the cycles
+    one number for every point, or one per point)."""
     frequency = np.asarray(frequency_hz, dtype=float)
-    return (settle_cycles + integrate_cycles) / frequency + overhead_s_per_point
+    cycles = np.asarray(settle_cycles, dtype=float) + np.asarray(integrate_cycles, dtype=float)
+    return cycles / frequency + overhead_s_per_point
 
 
 def plan_segments(
