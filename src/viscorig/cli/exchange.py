@@ -72,6 +72,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     source.add_argument("--csv", metavar="PATH", help="CSV written by 'viscorig export'")
     source.add_argument("--sdf", metavar="PATH", action="append",
                         help="35670A SDF file (give twice: ẍ_s/F_e, then ẍ_v/F_v)")
+    source.add_argument("--dma", metavar="PATH",
+                        help="DMA temperature/frequency sweep (CSV), stored as a DMA run")
+    imports.add_argument("--modulus", choices=("E", "G"), default=None,
+                         help="with --dma: tensile (E) or shear (G) modulus (default: told "
+                         "from the column names)")
     imports.add_argument("--specimen", default="unknown",
                          help="specimen name; 'none' for a bare-table run (default: unknown)")
     imports.add_argument("--hardness", type=float, default=math.nan, help="Shore A hardness")
@@ -103,6 +108,17 @@ def export_handler(args: argparse.Namespace) -> int:
 
 def import_handler(args: argparse.Namespace) -> int:
     """Run ``import``."""
+    if args.dma:
+        from viscorig.materials.dmafile import read_dma_csv
+        from viscorig.materials.dmastore import import_dma
+
+        table = read_dma_csv(Path(args.dma), args.modulus)
+        points = import_dma(Path(args.file), args.run, table)
+        print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
+              f"{table.sets.size} temperatures, modulus {table.modulus}")
+        return 0
+    if args.modulus is not None:
+        raise InputError("only with --dma", "--modulus")
     if args.uff:
         frfs = read_uff(Path(args.uff))
     elif args.csv:

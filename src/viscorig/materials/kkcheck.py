@@ -1,0 +1,97 @@
+"""Kramers-Kronig consistency of a master curve: which points no linear viscoelastic material
+can produce.
+
+E' and E'' of a linear viscoelastic material are Kramers-Kronig transforms of each other. Any
+sum of Maxwell terms with non-negative moduli obeys that by construction, and a dense one (four
+relaxation times per decade, two decades beyond the data on each side) can follow any such
+material closely. So the test fits that dense series to E' and E'' together (non-negative least
+squares, each modulus weighted by its relative scatter) and names the points it cannot follow:
+a point whose ``ln(measured/fitted)`` exceeds :data:`THRESHOLD_SIGMAS` times its modulus's
+scatter (the data's own, about the smooth master curve; or, not given, a robust estimate about
+the dense series) and :data:`MIN_DEVIATION` at least is inconsistent with its
+neighbours in the way a linear material cannot be (an instrument resonance, a slipping clamp, a
+wrong shift).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import nnls
+
+THRESHOLD_SIGMAS = 5.0
+MIN_DEVIATION = 0.05
+PER_DECADE = 4
+
+
+@dataclass(frozen=True)
+class KramersKronigCheck:
+    """Result: the dense series' residuals and the points flagged.
+
+    Attributes
+    ----------
+    residual_storage, residual_loss
+        ``ln(measured/fitted)`` at every point.
+    threshold_storage, threshold_loss
+        The deviation above which a point is flagged.
+    flagged_storage, flagged_loss
+        Boolean mask of the flagged points.
+    """
+
+    residual_storage: NDArray[np.float64]
+    residual_loss: NDArray[np.float64]
+    threshold_storage: float
+    threshold_loss: float
+    flagged_storage: NDArray[np.bool_]
+    flagged_loss: NDArray[np.bool_]
+
+    @property
+    def consistent(self) -> bool:
+        """No point flagged."""
+        return not (self.flagged_storage.any() or self.flagged_loss.any())
+
+
+def _robust_sigma(values: NDArray[np.float64]) -> float:
+    return float(1.4826 * np.median(np.abs(values - np.median(values))))
+
+
+def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
+                         scatter: tuple[float, float] | None = None) -> KramersKronigCheck:
+    """Fit a dense non-negative Maxwell series to E' and E''; flag the points it cannot follow.
+
+    Parameters
+    ----------
+    omega
+        Reduced angular frequency of each point (rad/s).
+    storage_pa, loss_pa
+        Measured E' and E'' (Pa).
+    scatter
+        Rms ``ln`` scatter of E' and E'' about a smooth curve, if known.
+    """
+    omega, storage, loss = (np.asarray(v, dtype=float) for v in (omega, storage_pa, loss_pa))
+    lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
+    tau = np.geomspace(lo, hi, int(np.log10(hi / lo) * PER_DECADE) + 1)
+    wt = omega[:, None] * tau[None, :]
+    scatter = np.ones(2)
+    for _ in range(2):  # weights follow each modulus's scatter about the fit
+        a = np.vstack([
+            np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)]) / (storage[:, None]
+                                                                         * scatter[0]),
+            np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)]) / (loss[:, None]
+                                                                       * scatter[1]),
+        ])
+        b = np.concatenate([np.full(omega.size, 1 / scatter[0]),
+                            np.full(omega.size, 1 / scatter[1])])
+        x = nnls(a, b, maxiter=50 * a.shape[1])[0]
+        fitted_storage = x[0] + (wt**2 / (1 + wt**2)) @ x[1:]
+        fitted_loss = (wt / (1 + wt**2)) @ x[1:]
+        rs = np.log(storage / np.maximum(fitted_storage, 1e-300))
+        rl = np.log(loss / np.maximum(fitted_loss, 1e-300))
+        scatter = np.array([max(_robust_sigma(rs), 1e-4), max(_robust_sigma(rl), 1e-4)])
+    if scatter is not None:
+        scatter = np.maximum(np.asarray(scatter, dtype=float), 1e-4)
+    ts = max(THRESHOLD_SIGMAS * scatter[0], MIN_DEVIATION)
+    tl = max(THRESHOLD_SIGMAS * scatter[1], MIN_DEVIATION)
+    return KramersKronigCheck(rs, rl, ts, tl, np.abs(rs) > ts, np.abs(rl) > tl)

@@ -1,0 +1,224 @@
+"""The master curve of a material: shift factors, shift functions, Prony and fractional models,
+and the checks of superposition and Kramers-Kronig consistency, as one result.
+
+:func:`build_master` is what ``viscorig master`` and ``open_campaign(...).master(...)`` call;
+:meth:`MasterCurve.to_json` is the JSON contract of ``master --json`` (design.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.materials.kkcheck import KramersKronigCheck, check_kramers_kronig
+from viscorig.materials.prony import (
+    FractionalModel,
+    ModelFit,
+    PronySeries,
+    fit_fractional,
+    fit_prony,
+)
+from viscorig.materials.shift import ShiftFactors, estimate_shift_factors
+from viscorig.materials.shiftfunctions import (
+    ShiftFunction,
+    best_shift_function,
+    fit_shift_function,
+)
+from viscorig.materials.superposition import SuperpositionCheck, check_superposition
+from viscorig.materials.table import ModulusTable
+
+#: A set within this many kelvin of the reference temperature is the reference set itself.
+SAME_TEMPERATURE_K = 0.5
+
+
+@dataclass(frozen=True)
+class MasterCurve:
+    """Everything ``master`` finds; see :func:`build_master`.
+
+    Attributes
+    ----------
+    table
+        The data.
+    runs
+        Names of the runs it came from.
+    reference_temperature_c
+        Temperature of the master curve (``log10 aT = 0``).
+    temperature_c, log10_at, log10_at_stderr
+        Shift factor of each set (ascending temperature), relative to the reference.
+    shift_functions
+        Every shift function fitted (WLF, Arrhenius), relative to the reference.
+    shift_function
+        The better one (lowest AIC), or ``None``.
+    reduced_frequency_hz
+        ``f·aT`` of every point of the table.
+    prony, prony_fit, ladder
+        The Prony series, its errors, and the errors of every number of terms tried.
+    fractional, fractional_fit
+        The fractional model and its errors.
+    superposition, kramers_kronig, shifts
+        The checks, and the raw shift estimate (with the master curve's scatter).
+    """
+
+    table: ModulusTable
+    runs: tuple[str, ...]
+    reference_temperature_c: float
+    temperature_c: NDArray[np.float64]
+    log10_at: NDArray[np.float64]
+    log10_at_stderr: NDArray[np.float64]
+    shift_functions: tuple[ShiftFunction, ...]
+    shift_function: ShiftFunction | None
+    reduced_frequency_hz: NDArray[np.float64]
+    prony: PronySeries
+    prony_fit: ModelFit
+    ladder: list[dict]
+    fractional: FractionalModel
+    fractional_fit: ModelFit
+    superposition: SuperpositionCheck
+    kramers_kronig: KramersKronigCheck
+    shifts: ShiftFactors
+
+    def log10_at_of(self, temperature_c: float) -> float:
+        """``log10 aT`` at any temperature from the shift function (NaN without one)."""
+        if self.shift_function is None:
+            return math.nan
+        return float(self.shift_function(temperature_c))
+
+    def flagged_points(self) -> list[dict]:
+        """The points the Kramers-Kronig check names."""
+        kk = self.kramers_kronig
+        out = []
+        for name, mask, residual in (("storage", kk.flagged_storage, kk.residual_storage),
+                                     ("loss", kk.flagged_loss, kk.residual_loss)):
+            for i in np.flatnonzero(mask):
+                out.append({"point": int(i) + 1, "modulus": name,
+                            "temperature_c": float(self.table.temperature_c[i]),
+                            "frequency_hz": float(self.table.frequency_hz[i]),
+                            "log_deviation": float(residual[i])})
+        return sorted(out, key=lambda p: -abs(p["log_deviation"]))
+
+    def to_json(self) -> dict:
+        """The ``master --json`` object (design.md contract, then more keys)."""
+        best = self.shift_function
+        fractional_better = (self.fractional_fit.storage_rms_log_error
+                             <= self.prony_fit.storage_rms_log_error
+                             and self.fractional_fit.loss_rms_log_error
+                             <= self.prony_fit.loss_rms_log_error)
+        flagged = self.flagged_points()
+        return {
+            "run": list(self.runs),
+            "modulus": self.table.modulus,
+            "reference_temperature_c": self.reference_temperature_c,
+            "shift_factors": [
+                {"temperature_c": float(t), "log10_aT": float(a), "log10_aT_stderr": float(e)}
+                for t, a, e in zip(self.temperature_c, self.log10_at, self.log10_at_stderr,
+                                   strict=True)],
+            "shift_function": (best.to_json() if best is not None
+                               else {"kind": "none", "parameters": {}}),
+            "shift_functions": [f.to_json() for f in self.shift_functions],
+            "prony": self.prony.to_json(),
+            "fit": {
+                "storage_rms_log_error": self.prony_fit.storage_rms_log_error,
+                "loss_rms_log_error": self.prony_fit.loss_rms_log_error,
+                "terms": self.prony.terms,
+                "storage_scatter": self.shifts.storage_scatter,
+                "loss_scatter": self.shifts.loss_scatter,
+                "log": "natural",
+                "ladder": self.ladder,
+            },
+            "fractional": {
+                "parameters": self.fractional.to_json(),
+                "storage_rms_log_error": self.fractional_fit.storage_rms_log_error,
+                "loss_rms_log_error": self.fractional_fit.loss_rms_log_error,
+                "better_than_prony": bool(fractional_better),
+            },
+            "superposition": self.superposition.to_json(),
+            "kramers_kronig": {
+                "consistent": self.kramers_kronig.consistent,
+                "points_checked": self.table.points,
+                "threshold_storage": self.kramers_kronig.threshold_storage,
+                "threshold_loss": self.kramers_kronig.threshold_loss,
+                "flagged": flagged,
+            },
+            "points": self.table.points,
+            "source": self.table.source,
+        }
+
+
+def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int:
+    if reference_c is None:
+        middle = 0.5 * (temperatures[0] + temperatures[-1])
+        return int(np.argmin(np.abs(temperatures - middle)))
+    return int(np.argmin(np.abs(temperatures - reference_c)))
+
+
+def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
+                 reference_temperature_c: float | None = None) -> MasterCurve:
+    """Build the master curve of ``table`` (see the module text).
+
+    Parameters
+    ----------
+    table
+        Two or more isothermal sets.
+    runs
+        Names of the runs the table came from (for the result).
+    reference_temperature_c
+        Temperature of the master curve; default the measured temperature nearest the middle of
+        the range. A temperature between the measured ones is reached through the fitted shift
+        function (its error added to every shift's).
+
+    Raises
+    ------
+    InputError
+        Too few sets, or a reference temperature that needs a shift function none could be
+        fitted for.
+    """
+    table.check(table.source or "modulus table")
+    if not (reference_temperature_c is None or (math.isfinite(reference_temperature_c)
+                                                and reference_temperature_c > -273.15)):
+        raise InputError(f"{reference_temperature_c} is not a temperature in °C",
+                         "--reference-temperature")
+    temperatures = np.sort(table.set_temperatures_c())
+    sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
+    anchor = _anchor(temperatures, reference_temperature_c)
+    shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
+    anchor_c = float(shifts.temperature_c[shifts.reference])
+    functions = [fit_shift_function(kind, shifts.temperature_c, shifts.log10_at,
+                                    shifts.covariance, anchor_c)
+                 for kind in ("wlf", "arrhenius")]
+    fitted = [f for f in functions if f is not None]
+    log10_at, stderr = shifts.log10_at.copy(), shifts.log10_at_stderr.copy()
+    reference_c = anchor_c if reference_temperature_c is None else float(reference_temperature_c)
+    if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K:
+        best = best_shift_function(fitted)
+        if best is None:
+            raise InputError(f"{reference_c} °C is not a measured temperature and no shift "
+                             "function could be fitted to reach it; give one of "
+                             + ", ".join(f"{t:.1f}" for t in temperatures),
+                             "--reference-temperature")
+        offset, offset_error = float(best(reference_c)), best.stderr_at(reference_c)
+        log10_at -= offset
+        stderr = np.sqrt(stderr**2 + offset_error**2)
+        fitted = [f.rereferenced(reference_c) for f in fitted]
+    else:
+        reference_c = anchor_c
+    best = best_shift_function(fitted)
+    lookup = dict(zip(shifts.sets.tolist(), log10_at, strict=True))
+    point_shift = np.array([lookup[s] for s in table.set_index.tolist()]) + shifts.point_offset
+    reduced = table.frequency_hz * 10.0**point_shift
+    omega = 2 * np.pi * reduced
+    scatter = (shifts.storage_scatter, shifts.loss_scatter)
+    prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
+    fractional, fractional_fit = fit_fractional(omega, table.storage_pa, table.loss_pa, scatter)
+    return MasterCurve(
+        table=table, runs=tuple(runs), reference_temperature_c=reference_c,
+        temperature_c=shifts.temperature_c, log10_at=log10_at, log10_at_stderr=stderr,
+        shift_functions=tuple(fitted), shift_function=best, reduced_frequency_hz=reduced,
+        prony=prony, prony_fit=prony_fit, ladder=ladder, fractional=fractional,
+        fractional_fit=fractional_fit, superposition=check_superposition(table),
+        kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa, scatter),
+        shifts=shifts,
+    )
