@@ -200,6 +200,16 @@ def fit_prony(
     return polished, fit, ladder
 
 
+def fit_prony_terms(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
+                    scatter: tuple[float, float], terms: int) -> tuple[PronySeries, ModelFit]:
+    """The best Prony series of exactly ``terms`` terms (same weighting as :func:`fit_prony`)."""
+    omega, storage, loss = (np.asarray(v, dtype=float) for v in (omega, storage_pa, loss_pa))
+    scatter = (max(scatter[0], 1e-4), max(scatter[1], 1e-4))
+    series = _refine(omega, storage, loss, scatter,
+                     _start(omega, storage, loss, scatter, terms), evaluations=400)
+    return series, _errors(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
+
+
 @dataclass(frozen=True)
 class FractionalModel:
     """Fractional Zener ``E* = (E_0 + E_∞ (iωτ)^α) / (1 + (iωτ)^α)``."""
