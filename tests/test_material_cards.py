@@ -82,7 +82,7 @@ def _ansys(text: str):
 
 def _lsdyna(text: str):
     cards = [line for line in text.splitlines() if line and not line.startswith(("$", "*"))]
-    mid, ro, bulk, pcf, ef, tref, a, b = _numbers(cards[0])
+    tref, a, b = _numbers(cards[0])[5:8]
     terms = [_numbers(line) for line in cards[2:]]
 
     def shear(f, t):

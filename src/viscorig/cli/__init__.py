@@ -51,7 +51,8 @@ COMMANDS: dict[str, Command] = {
     ),
     "report": Command("report", "HTML report with figures (PNG, SVG) of a campaign file"),
     "export": Command(
-        "exchange", "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)"
+        "exchange",
+        "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)",
     ),
     "import": Command(
         "exchange", "add a run to a campaign from UFF 58, CSV, 35670A SDF or DMA files"

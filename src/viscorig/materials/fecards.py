@@ -17,8 +17,8 @@ Conventions written out, because each tool names them differently:
   (ANSYS's shift ``A = 1/aT``, so ``log10 A = C1 (T−T_ref)/(C2+T−T_ref)`` with the same
   positive ``C1``), or ``TB,SHIFT,,,2,TN`` with ``T_ref`` and ``E_a/R`` (Arrhenius).
 - LS-DYNA: ``*MAT_GENERAL_VISCOELASTIC`` (MAT_076): card 1 ``MID, RO, BULK, PCF, EF, TREF, A,
-  B``, card 2 zeros (no relaxation curve), comma-separated free format, then one card per term ``G_i, β_i, K_i, βk_i`` with decay
-  constants ``β = 1/τ``; the long-term moduli are a term of ``β = 0``; ``BULK`` is left 0 since
+  B``, card 2 zeros (no relaxation curve), then one card per term ``G_i, β_i, K_i, βk_i``
+  (comma-separated free format) with decay constants ``β = 1/τ``; the long-term moduli are a term of ``β = 0``; ``BULK`` is left 0 since
   the bulk series is given. The shift is WLF with ``A = C1 ln 10`` and ``B = C2`` (LS-DYNA writes
   WLF with the natural logarithm). At most :data:`LSDYNA_MAX_TERMS` terms fit on the cards: a
   longer series is refitted with that many terms, and the card says so with its error.
@@ -93,9 +93,9 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
         f"Prony series: {master.prony.terms} terms; fit over every point with the measured shift "
         f"factors: rms ln(model/measured) storage {fit.storage_rms_log_error:.4f}, loss "
         f"{fit.loss_rms_log_error:.4f}",
-        "this card (series {0} terms, shifted by the shift function) over every point: rms "
-        "ln(card/measured) storage {1:.4f}, loss {2:.4f}".format(series.terms,
-                                                                 *card_error(master, series)),
+        "this card (series {} terms, shifted by the shift function) over every point: rms "
+        "ln(card/measured) storage {:.4f}, loss {:.4f}".format(series.terms,
+                                                               *card_error(master, series)),
         f"Poisson's ratio {poisson} assumed constant (shear and bulk share the relative series)",
     ]
     if note:
@@ -186,9 +186,9 @@ def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
     """The LS-DYNA keyword deck of the material (*MAT_GENERAL_VISCOELASTIC)."""
     series, note = _lsdyna_series(master)
     shear, bulk = _split(master, poisson)
-    lines = ["*KEYWORD"] + _comment(master, series, poisson, "$", note) + [
-        f"$ material {name}; density {density_kg_per_m3} kg/m^3 (a placeholder to set)",
-        "*MAT_GENERAL_VISCOELASTIC"]
+    lines = ["*KEYWORD", *_comment(master, series, poisson, "$", note),
+             f"$ material {name}; density {density_kg_per_m3} kg/m^3 (a placeholder to set)",
+             "*MAT_GENERAL_VISCOELASTIC"]
     function = master.shift_function
     tref, a, b = 0.0, 0.0, 0.0
     if function is not None and function.kind == "wlf":
