@@ -18,10 +18,11 @@ Conventions written out, because each tool names them differently:
   positive ``C1``), or ``TB,SHIFT,,,2,TN`` with ``T_ref`` and ``E_a/R`` (Arrhenius).
 - LS-DYNA: ``*MAT_GENERAL_VISCOELASTIC`` (MAT_076): card 1 ``MID, RO, BULK, PCF, EF, TREF, A,
   B``, card 2 zeros (no relaxation curve), then one card per term ``G_i, β_i, K_i, βk_i``
-  (comma-separated free format) with decay constants ``β = 1/τ``; the long-term moduli are a term of ``β = 0``; ``BULK`` is left 0 since
-  the bulk series is given. The shift is WLF with ``A = C1 ln 10`` and ``B = C2`` (LS-DYNA writes
-  WLF with the natural logarithm). At most :data:`LSDYNA_MAX_TERMS` terms fit on the cards: a
-  longer series is refitted with that many terms, and the card says so with its error.
+  (comma-separated free format) with decay constants ``β = 1/τ``; the long-term moduli are a
+  term of ``β = 0``; ``BULK`` is left 0 since the bulk series is given. The shift is WLF with
+  ``A = C1 ln 10`` and ``B = C2`` (LS-DYNA writes WLF with the natural logarithm). At most
+  :data:`LSDYNA_MAX_TERMS` terms fit on the cards: a longer series is refitted with that many
+  terms, and the card says so with its error.
 """
 
 from __future__ import annotations
