@@ -194,3 +194,19 @@ def test_unknown_run_and_single_temperature_are_refused(tmp_path, capsys):
     assert "no such run" in capsys.readouterr().err
     assert main(["master", str(path), "--run", runs[0], "--disc-mass", "0.25"]) == 2
     assert "one temperature only" in capsys.readouterr().err
+
+
+def test_python_api_returns_what_the_command_prints(tmp_path, capsys):
+    import viscorig
+    from viscorig.materials.dmastore import import_dma
+
+    path = tmp_path / "dma.h5"
+    import_dma(path, "sweep", _table(seed=5))
+    master = viscorig.open_campaign(path).master("sweep", reference_temperature_c=20.0)
+    assert main(["master", str(path), "--run", "sweep", "--reference-temperature", "20",
+                 "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert json.loads(json.dumps(master.to_json())) == printed
+    assert main(["master", str(path), "--run", "sweep", "--reference-temperature", "20"]) == 0
+    assert capsys.readouterr().out.strip() == master.text()
+    assert "C1 = " in master.text() and "superposition holds" in master.text()

@@ -100,6 +100,63 @@ class MasterCurve:
                             "log_deviation": float(residual[i])})
         return sorted(out, key=lambda p: -abs(p["log_deviation"]))
 
+    def text(self) -> str:
+        """The master curve in a few lines for a person (what ``viscorig master`` prints)."""
+        master = self
+        m = master.table.modulus
+        lines = [f"{', '.join(master.runs)}: {master.table.points} points, "
+                 f"{master.temperature_c.size} temperatures, modulus {m}, reference "
+                 f"{master.reference_temperature_c:.2f} °C",
+                 "shift factors (reduced frequency f·aT):"]
+        for t, a, e in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
+                           strict=True):
+            lines.append(f"  {t:8.2f} °C   log10 aT = {a:+8.3f} ± {e:.3f}")
+        for function in master.shift_functions:
+            data = function.to_json()
+            values = ", ".join(
+                f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+                + ("" if v["unit"] == "1" else f" {v['unit']}")
+                for k, v in data["parameters"].items())
+            chi = function.reduced_chi2
+            fit = "" if math.isnan(chi) else f" (χ²/dof {chi:.2f}"
+            fit += ("" if not fit else ", describes the shifts)" if data["describes_shifts"]
+                    else ", does not describe the shifts within their errors)")
+            best = "  <- better" if function is master.shift_function else ""
+            lines.append(f"{function.kind}: {values}{fit}{best}")
+        lines.append(master.superposition.verdict)
+        flagged = master.flagged_points()
+        if flagged:
+            named = "; ".join(f"{p['modulus']} at {p['temperature_c']:.1f} °C, "
+                              f"{p['frequency_hz']:.4g} Hz ({p['log_deviation']:+.2f})"
+                              for p in flagged[:8])
+            more = f" and {len(flagged) - 8} more" if len(flagged) > 8 else ""
+            lines.append(f"Kramers-Kronig: {len(flagged)} point(s) no linear viscoelastic "
+                         f"material gives: {named}{more}")
+        else:
+            lines.append("Kramers-Kronig: every point is consistent with a linear viscoelastic "
+                         "material")
+        fit = master.prony_fit
+        lines.append(f"Prony series: {master.prony.terms} terms, {m}_inf = "
+                     f"{master.prony.long_term_modulus_pa:.4g} Pa, {m}_0 = "
+                     f"{master.prony.instantaneous_modulus_pa:.4g} Pa; rms log error "
+                     f"storage {fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f} "
+                     f"(data scatter {master.shifts.storage_scatter:.3f}, "
+                     f"{master.shifts.loss_scatter:.3f})")
+        frac = master.fractional_fit
+        lines.append(f"fractional model (4 parameters): rms log error storage "
+                     f"{frac.storage_rms_log_error:.3f}, loss {frac.loss_rms_log_error:.3f}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"<MasterCurve {', '.join(self.runs) or self.table.source}: "
+                f"{self.temperature_c.size} temperatures, reference "
+                f"{self.reference_temperature_c:.2f} °C, {self.prony.terms}-term Prony series>")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(self.text())}</pre>"
+
     def to_json(self) -> dict:
         """The ``master --json`` object (design.md contract, then more keys)."""
         best = self.shift_function
