@@ -242,3 +242,21 @@ def test_real_dma_sweep_master_curve():
     assert result.prony_fit.loss_rms_log_error <= 0.2
     # the shifts are monotonic in temperature: colder is slower
     assert np.all(np.diff(result.log10_at) < 0)
+
+
+@pytest.mark.slow
+def test_report_of_a_dma_campaign_shows_the_master_curve(tmp_path, capsys):
+    from viscorig.materials.dmastore import import_dma
+
+    path = tmp_path / "dma.h5"
+    data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=11)
+    data["loss_pa"][4 * FREQUENCIES.size + 9] *= 2.0
+    import_dma(path, "sweep", ModulusTable(**data, source="generated"))
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out)]) == 0
+    page = (out / "index.html").read_text()
+    assert "Materials over temperature and frequency" in page
+    assert "Kramers-Kronig: 1 point(s) named: loss at 10.0 °C, 100 Hz" in page
+    assert "superposition holds" in page.lower()
+    assert (out / "material-sweep-master.png").stat().st_size > 10_000
+    assert (out / "material-sweep-residuals.svg").exists()

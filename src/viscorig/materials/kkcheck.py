@@ -74,24 +74,29 @@ def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: Array
     lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
     tau = np.geomspace(lo, hi, int(np.log10(hi / lo) * PER_DECADE) + 1)
     wt = omega[:, None] * tau[None, :]
-    scatter = np.ones(2)
-    for _ in range(2):  # weights follow each modulus's scatter about the fit
-        a = np.vstack([
-            np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)]) / (storage[:, None]
-                                                                         * scatter[0]),
-            np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)]) / (loss[:, None]
-                                                                       * scatter[1]),
-        ])
-        b = np.concatenate([np.full(omega.size, 1 / scatter[0]),
-                            np.full(omega.size, 1 / scatter[1])])
+    columns_storage = np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)])
+    columns_loss = np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)])
+    weights = np.ones(2) if scatter is None else np.maximum(np.asarray(scatter, float), 1e-4)
+    keep_storage = np.ones(omega.size, dtype=bool)
+    keep_loss = np.ones(omega.size, dtype=bool)
+    for _ in range(4):
+        # a flagged point is left out of the next fit, so that it cannot drag the dense series
+        # towards itself and make its neighbours look wrong
+        a = np.vstack([columns_storage[keep_storage] / (storage[keep_storage, None] * weights[0]),
+                       columns_loss[keep_loss] / (loss[keep_loss, None] * weights[1])])
+        b = np.concatenate([np.full(int(keep_storage.sum()), 1 / weights[0]),
+                            np.full(int(keep_loss.sum()), 1 / weights[1])])
         x = nnls(a, b, maxiter=50 * a.shape[1])[0]
-        fitted_storage = x[0] + (wt**2 / (1 + wt**2)) @ x[1:]
-        fitted_loss = (wt / (1 + wt**2)) @ x[1:]
-        rs = np.log(storage / np.maximum(fitted_storage, 1e-300))
-        rl = np.log(loss / np.maximum(fitted_loss, 1e-300))
-        scatter = np.array([max(_robust_sigma(rs), 1e-4), max(_robust_sigma(rl), 1e-4)])
-    if scatter is not None:
-        scatter = np.maximum(np.asarray(scatter, dtype=float), 1e-4)
-    ts = max(THRESHOLD_SIGMAS * scatter[0], MIN_DEVIATION)
-    tl = max(THRESHOLD_SIGMAS * scatter[1], MIN_DEVIATION)
-    return KramersKronigCheck(rs, rl, ts, tl, np.abs(rs) > ts, np.abs(rl) > tl)
+        rs = np.log(storage / np.maximum(columns_storage @ x, 1e-300))
+        rl = np.log(loss / np.maximum(columns_loss @ x, 1e-300))
+        if scatter is None:
+            weights = np.array([max(_robust_sigma(rs[keep_storage]), 1e-4),
+                                max(_robust_sigma(rl[keep_loss]), 1e-4)])
+        ts = max(THRESHOLD_SIGMAS * weights[0], MIN_DEVIATION)
+        tl = max(THRESHOLD_SIGMAS * weights[1], MIN_DEVIATION)
+        flagged_storage, flagged_loss = np.abs(rs) > ts, np.abs(rl) > tl
+        if np.array_equal(~flagged_storage, keep_storage) and np.array_equal(~flagged_loss,
+                                                                            keep_loss):
+            break
+        keep_storage, keep_loss = ~flagged_storage, ~flagged_loss
+    return KramersKronigCheck(rs, rl, ts, tl, flagged_storage, flagged_loss)
