@@ -4,7 +4,8 @@ Each replicate: a DMA-like sweep of a Havriliak-Negami material shifted by a WLF
 (``tests/materialdata.py``, an independent generator sharing no code with the core), 11
 temperatures from -30 to 70 °C, 10 frequencies from 0.1 to 100 Hz, multiplicative noise of
 1 % on E' and 2 % on E'' with its own seed. The shift factors are estimated as ``viscorig master``
-does (reference 20 °C) and WLF is fitted to them. It prints, per temperature and over all, the
+does (``build_master``, reference 20 °C: spline master curve, then shifts refined together with
+the Prony series) and WLF is fitted to them. It prints, per temperature and over all, the
 fraction of replicates whose true log10 aT lies within 1 and 2 reported standard errors (68 %
 and 95 % if the errors mean what they say) and the rms of error/stderr; then the same for the
 WLF constants.
@@ -24,8 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import materialdata as gen
 
-from viscorig.materials.shift import estimate_shift_factors
-from viscorig.materials.shiftfunctions import fit_shift_function
+from viscorig.materials.master import build_master
 from viscorig.materials.table import ModulusTable
 
 TEMPERATURES = np.arange(-30.0, 71.0, 10.0)
@@ -38,16 +38,14 @@ def replicate(seed: int, noise_scale: float = 1.0) -> tuple[np.ndarray, np.ndarr
     data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, storage_noise=0.01 * noise_scale,
                          loss_noise=0.02 * noise_scale, seed=seed)
     table = ModulusTable(**data, source=f"replicate {seed}")
-    reference_set = int(np.flatnonzero(TEMPERATURES == REFERENCE)[0])
-    shifts = estimate_shift_factors(table, reference_set=reference_set)
-    truth = gen.true_log10_at(shifts.temperature_c, REFERENCE)
-    free = shifts.log10_at_stderr > 0
+    master = build_master(table, (), REFERENCE)
+    truth = gen.true_log10_at(master.temperature_c, REFERENCE)
+    free = master.log10_at_stderr > 0
     z = np.full(TEMPERATURES.size, np.nan)
-    z[free] = (shifts.log10_at[free] - truth[free]) / shifts.log10_at_stderr[free]
-    wlf = fit_shift_function("wlf", shifts.temperature_c, shifts.log10_at, shifts.covariance,
-                             REFERENCE)
+    z[free] = (master.log10_at[free] - truth[free]) / master.log10_at_stderr[free]
+    wlf = next(f for f in master.shift_functions if f.kind == "wlf")
     zc = ((wlf.values[0] - gen.C1) / wlf.stderr[0], (wlf.values[1] - gen.C2_K) / wlf.stderr[1])
-    return z, shifts.log10_at_stderr, zc
+    return z, master.log10_at_stderr, zc
 
 
 def main(replicates: int = 200, noise_scale: float = 1.0) -> None:

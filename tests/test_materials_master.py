@@ -207,8 +207,6 @@ def test_python_api_returns_what_the_command_prints(tmp_path, capsys):
                  "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert json.loads(json.dumps(master.to_json())) == printed
-    assert main(["master", str(path), "--run", "sweep", "--reference-temperature", "20"]) == 0
-    assert capsys.readouterr().out.strip() == master.text()
     assert "C1 = " in master.text() and "superposition holds" in master.text()
 
 
@@ -237,9 +235,9 @@ def test_real_dma_sweep_master_curve():
     table = read_dma_csv(Path(__file__).parent / "data" / "dma" / "pyvisco_freq_user_raw.csv")
     result = build_master(table, ("eca",), 25.0)
     assert result.prony.terms <= 24
-    # measured: 0.031 and 0.159 (pyvisco's own pipeline on this file: 0.032 and 0.538)
+    # the target (pyvisco's own pipeline on this file: 0.032 and 0.538, 19 terms)
     assert result.prony_fit.storage_rms_log_error <= 0.05
-    assert result.prony_fit.loss_rms_log_error <= 0.2
+    assert result.prony_fit.loss_rms_log_error <= 0.12
     # the shifts are monotonic in temperature: colder is slower
     assert np.all(np.diff(result.log10_at) < 0)
 

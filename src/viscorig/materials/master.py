@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
+from viscorig.materials.joint import refine_jointly
 from viscorig.materials.kkcheck import KramersKronigCheck, check_kramers_kronig
 from viscorig.materials.prony import (
     FractionalModel,
@@ -243,11 +244,22 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     anchor = _anchor(temperatures, reference_temperature_c)
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
     anchor_c = float(shifts.temperature_c[shifts.reference])
-    functions = [fit_shift_function(kind, shifts.temperature_c, shifts.log10_at,
-                                    shifts.covariance, anchor_c)
+    scatter = (shifts.storage_scatter, shifts.loss_scatter)
+    position = {s: i for i, s in enumerate(shifts.sets.tolist())}
+    member = np.array([position[s] for s in table.set_index.tolist()])
+    omega = 2 * np.pi * table.frequency_hz * 10.0 ** (shifts.log10_at[member]
+                                                      + shifts.point_offset)
+    prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
+    log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
+    joint = refine_jointly(table.frequency_hz, member, shifts.point_offset, table.storage_pa,
+                           table.loss_pa, scatter, prony, shifts.log10_at, shifts.reference)
+    if joint.fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)):
+        prony, prony_fit = joint.series, joint.fit
+        log10_at, covariance = joint.log10_at.copy(), joint.covariance
+    stderr = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    functions = [fit_shift_function(kind, shifts.temperature_c, log10_at, covariance, anchor_c)
                  for kind in ("wlf", "arrhenius")]
     fitted = [f for f in functions if f is not None]
-    log10_at, stderr = shifts.log10_at.copy(), shifts.log10_at_stderr.copy()
     reference_c = anchor_c if reference_temperature_c is None else float(reference_temperature_c)
     if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K:
         best = best_shift_function(fitted)
@@ -260,15 +272,14 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
         log10_at -= offset
         stderr = np.sqrt(stderr**2 + offset_error**2)
         fitted = [f.rereferenced(reference_c) for f in fitted]
+        # the reduced frequency falls by 10^offset: the series' times grow by it
+        prony = PronySeries(prony.long_term_modulus_pa, prony.moduli_pa,
+                            prony.tau_s * 10.0**offset)
     else:
         reference_c = anchor_c
     best = best_shift_function(fitted)
-    lookup = dict(zip(shifts.sets.tolist(), log10_at, strict=True))
-    point_shift = np.array([lookup[s] for s in table.set_index.tolist()]) + shifts.point_offset
-    reduced = table.frequency_hz * 10.0**point_shift
+    reduced = table.frequency_hz * 10.0 ** (log10_at[member] + shifts.point_offset)
     omega = 2 * np.pi * reduced
-    scatter = (shifts.storage_scatter, shifts.loss_scatter)
-    prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
     fractional, fractional_fit = fit_fractional(omega, table.storage_pa, table.loss_pa, scatter)
     return MasterCurve(
         table=table, runs=tuple(runs), reference_temperature_c=reference_c,

@@ -89,8 +89,9 @@ class ModelFit:
         return self.chi2 + self.parameters * math.log(points)
 
 
-def _errors(model: NDArray[np.complex128], storage: NDArray, loss: NDArray,
-            scatter: tuple[float, float], parameters: int) -> ModelFit:
+def model_fit(model: NDArray[np.complex128], storage: NDArray, loss: NDArray,
+              scatter: tuple[float, float], parameters: int) -> ModelFit:
+    """Errors of modelled moduli against measured ones (weights: the scatter of each)."""
     rs = np.log(np.maximum(model.real, 1e-300) / storage)
     rl = np.log(np.maximum(model.imag, 1e-300) / loss)
     chi2 = float(((rs / scatter[0]) ** 2).sum() + ((rl / scatter[1]) ** 2).sum())
@@ -177,7 +178,7 @@ def fit_prony(
     for terms in range(1, max_terms + 1):
         series = _refine(omega, storage, loss, scatter, _start(omega, storage, loss, scatter,
                                                               terms))
-        fit = _errors(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
+        fit = model_fit(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
         reached = (fit.storage_rms_log_error <= SCATTER_MARGIN * scatter[0]
                    and fit.loss_rms_log_error <= SCATTER_MARGIN * scatter[1])
         ladder.append({"terms": terms, "storage_rms_log_error": fit.storage_rms_log_error,
@@ -194,7 +195,7 @@ def fit_prony(
     start = np.concatenate([[np.log(series.long_term_modulus_pa)], np.log(series.moduli_pa),
                             np.log(series.tau_s)])
     polished = _refine(omega, storage, loss, scatter, start, evaluations=400)
-    fit = _errors(polished.complex_modulus(omega), storage, loss, scatter, 2 * series.terms + 1)
+    fit = model_fit(polished.complex_modulus(omega), storage, loss, scatter, 2 * series.terms + 1)
     if fit.chi2 > best[1].chi2:
         polished, fit = series, best[1]
     return polished, fit, ladder
@@ -207,7 +208,7 @@ def fit_prony_terms(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
     scatter = (max(scatter[0], 1e-4), max(scatter[1], 1e-4))
     series = _refine(omega, storage, loss, scatter,
                      _start(omega, storage, loss, scatter, terms), evaluations=400)
-    return series, _errors(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
+    return series, model_fit(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
 
 
 @dataclass(frozen=True)
@@ -261,4 +262,4 @@ def fit_fractional(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
         if best is None or solution.cost < best.cost:
             best = solution
     fitted = model(best.x)
-    return fitted, _errors(fitted.complex_modulus(omega), storage, loss, scatter, 4)
+    return fitted, model_fit(fitted.complex_modulus(omega), storage, loss, scatter, 4)
