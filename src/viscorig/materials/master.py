@@ -61,7 +61,11 @@ class MasterCurve:
     fractional, fractional_fit
         The fractional model and its errors.
     superposition, kramers_kronig, shifts
-        The checks, and the raw shift estimate (with the master curve's scatter).
+        The checks, and the first shift estimate (spline master curve, and the data's scatter
+        about it).
+    jointly_refined
+        Whether the shifts were then refined together with the Prony series (they are unless
+        that made the fit worse).
     """
 
     table: ModulusTable
@@ -81,6 +85,7 @@ class MasterCurve:
     superposition: SuperpositionCheck
     kramers_kronig: KramersKronigCheck
     shifts: ShiftFactors
+    jointly_refined: bool = False
 
     def log10_at_of(self, temperature_c: float) -> float:
         """``log10 aT`` at any temperature from the shift function (NaN without one)."""
@@ -170,6 +175,9 @@ class MasterCurve:
             "run": list(self.runs),
             "modulus": self.table.modulus,
             "reference_temperature_c": self.reference_temperature_c,
+            "shift_method": ("spline master curve of both moduli, then refined together with "
+                             "the Prony series" if self.jointly_refined
+                             else "spline master curve of both moduli"),
             "shift_factors": [
                 {"temperature_c": float(t), "log10_aT": float(a), "log10_aT_stderr": float(e)}
                 for t, a, e in zip(self.temperature_c, self.log10_at, self.log10_at_stderr,
@@ -234,6 +242,13 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
         Too few sets, or a reference temperature that needs a shift function none could be
         fitted for.
     """
+    # trial steps of the nonlinear fits overflow on the way; their results are checked
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        return _build(table, runs, reference_temperature_c)
+
+
+def _build(table: ModulusTable, runs: tuple[str, ...],
+           reference_temperature_c: float | None) -> MasterCurve:
     table.check(table.source or "modulus table")
     if not (reference_temperature_c is None or (math.isfinite(reference_temperature_c)
                                                 and reference_temperature_c > -273.15)):
@@ -253,7 +268,8 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
     joint = refine_jointly(table.frequency_hz, member, shifts.point_offset, table.storage_pa,
                            table.loss_pa, scatter, prony, shifts.log10_at, shifts.reference)
-    if joint.fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)):
+    refined = bool(joint.fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
+    if refined:
         prony, prony_fit = joint.series, joint.fit
         log10_at, covariance = joint.log10_at.copy(), joint.covariance
     stderr = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
@@ -288,5 +304,5 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
         prony=prony, prony_fit=prony_fit, ladder=ladder, fractional=fractional,
         fractional_fit=fractional_fit, superposition=check_superposition(table),
         kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa, scatter),
-        shifts=shifts,
+        shifts=shifts, jointly_refined=refined,
     )
