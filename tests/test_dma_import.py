@@ -74,7 +74,8 @@ def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys):
     assert np.array_equal(table.storage_pa, read_dma_csv(REAL).storage_pa)
     # the rest of the tool still reads the file; a second import never overwrites
     assert main(["show", str(path)]) == 0
-    capsys.readouterr()
+    listing = capsys.readouterr().out
+    assert "DMA run" in listing and "eca" in listing and "-50.0..100.0" in listing
     assert main(["import", str(path), "--run", "eca", "--dma", str(REAL)]) == 2
     assert "DMA run exists" in capsys.readouterr().err
 
