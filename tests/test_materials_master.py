@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from viscorig.cli import main
+from viscorig.errors import InputError
 from viscorig.materials.master import build_master
 from viscorig.materials.table import ModulusTable
 from viscorig.storage import Campaign, RunSettings, Segment
@@ -255,3 +256,22 @@ def test_report_of_a_dma_campaign_shows_the_master_curve(tmp_path, capsys):
     assert "superposition holds" in page.lower()
     assert (out / "material-sweep-master.png").stat().st_size > 10_000
     assert (out / "material-sweep-residuals.svg").exists()
+
+
+def test_rig_modulus_from_a_stored_fit_is_its_kstar_over_theta(tmp_path):
+    from viscorig.materials.rigdata import rig_modulus_table
+
+    path = tmp_path / "rig.h5"
+    runs = _rig_campaign(path)
+    with Campaign.open(path, "a") as campaign:
+        campaign.add_fit(runs[0], model="voigt", band_hz=(20.0, 120.0), rms_error=0.01,
+                         noise_floor=0.01, parameters={
+                             "K_v": (2.0e5, 1e3, "N/m"), "C_v": (150.0, 1.0, "N s/m"),
+                             "M_v": (DISC_MASS_KG, 0.001, "kg")})
+    campaign = Campaign.open(path)
+    table = rig_modulus_table(campaign, runs[0], kstar_source="fit")
+    omega = 2 * np.pi * table.frequency_hz
+    assert np.allclose(table.storage_pa, 2.0e5 / THETA_M)
+    assert np.allclose(table.loss_pa, omega * 150.0 / THETA_M)
+    with pytest.raises(InputError, match="no stored fit of a specimen model"):
+        rig_modulus_table(campaign, runs[1], kstar_source="fit")

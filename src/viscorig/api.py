@@ -113,7 +113,7 @@ class Campaign:
         return Fit(self[run], ModelCurve.from_fit(result, source), result)
 
     def master(self, *runs: str, reference_temperature_c: float | None = None,
-               disc_mass_kg: float | None = None):
+               disc_mass_kg: float | None = None, kstar: str = "support"):
         """The master curve of a DMA run, or of rig runs of one specimen at several temperatures
         (as ``viscorig master``): shift factors with ±, WLF and Arrhenius, checks, Prony series.
 
@@ -125,7 +125,7 @@ class Campaign:
 
         names = [name for group in runs for name in ([group] if isinstance(group, str)
                                                       else group)]
-        table = modulus_table(self.stored, names, disc_mass_kg)
+        table = modulus_table(self.stored, names, disc_mass_kg, kstar)
         with np.errstate(all="ignore"):
             return build_master(table, tuple(names), reference_temperature_c)
 

@@ -2,8 +2,9 @@
 
 Builds the master curve of a material by time-temperature superposition: from a DMA run
 (``import --dma``), or from rig runs of one specimen measured at several temperatures (their
-K* from the support FRF, Eq. 5, with the disc mass of a stored fit or ``--disc-mass``, and the
-shear modulus through the rig's geometry factor). Prints the shift factors with their standard
+K* from the support FRF, Eq. 5, with the disc mass of a stored fit or ``--disc-mass``, or with
+``--kstar fit`` from the newest stored fit's model; the shear modulus through the rig's geometry
+factor). Prints the shift factors with their standard
 errors, the WLF and Arrhenius shift functions with ±, whether superposition holds, the points
 that fail the Kramers-Kronig check, and the Prony series with the fewest terms that reaches the
 data's scatter, beside a four-parameter fractional model. ``--json`` prints one object (the
@@ -35,21 +36,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "temperature nearest the middle of the range)")
     parser.add_argument("--disc-mass", type=positive_number, default=None, metavar="KG",
                         help="disc mass M_v for rig runs without a fit that identified it")
+    parser.add_argument("--kstar", choices=("support", "fit"), default="support",
+                        help="rig runs: K* from the support FRF by Eq. 5 (default) or from "
+                        "the newest stored fit of a specimen model")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=handler)
 
 
 def master_of(path: str, runs: list[str], reference_c: float | None = None,
-              disc_mass_kg: float | None = None) -> MasterCurve:
+              disc_mass_kg: float | None = None, kstar_source: str = "support") -> MasterCurve:
     """The master curve of named runs of a campaign file."""
     campaign = Campaign.open(path)
-    table = modulus_table(campaign, runs, disc_mass_kg)
+    table = modulus_table(campaign, runs, disc_mass_kg, kstar_source)
     return build_master(table, tuple(runs), reference_c)
 
 
 def handler(args: argparse.Namespace) -> int:
     """Run ``master``."""
-    master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass)
+    master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
+                       args.kstar)
     if args.json:
         print(json.dumps(master.to_json(), allow_nan=False, default=_finite))
         return 0

@@ -10,8 +10,8 @@ from viscorig.materials.table import ModulusTable, concatenate
 from viscorig.storage import Campaign
 
 
-def modulus_table(campaign: Campaign, runs: list[str],
-                  disc_mass_kg: float | None = None) -> ModulusTable:
+def modulus_table(campaign: Campaign, runs: list[str], disc_mass_kg: float | None = None,
+                  kstar_source: str = "support") -> ModulusTable:
     """One table of the named runs (see the module text).
 
     Raises
@@ -30,7 +30,7 @@ def modulus_table(campaign: Campaign, runs: list[str],
         if name in dma:
             tables.append(read_dma(campaign, name))
         elif name in rig:
-            tables.append(rig_modulus_table(campaign, name, disc_mass_kg))
+            tables.append(rig_modulus_table(campaign, name, disc_mass_kg, kstar_source))
         else:
             known = ", ".join(sorted(dma | rig)) or "none"
             raise InputError(f"no such run (runs: {known})", f"{campaign.path}: {name}")
