@@ -71,6 +71,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "and Young's moduli (default 0.49)")
     export.add_argument("--disc-mass", type=float, default=None, metavar="KG",
                         help="with --material and rig runs: disc mass M_v")
+    export.add_argument("--kstar", choices=("support", "fit"), default="support",
+                        help="with --material and rig runs: K* from the support FRF (Eq. 5) "
+                        "or from the newest stored fit")
     export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
     export.add_argument("--uff-ascii", action="store_true",
                         help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "
@@ -132,7 +135,8 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
     from viscorig.cli.master import master_of
     from viscorig.materials.fecards import write_card
 
-    master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass)
+    master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
+                       args.kstar)
     name = "VISCORIG_" + "_".join(args.run).upper().replace("-", "_").replace(".", "_")
     write_card(master, args.material, out, name[:80], args.poisson_ratio)
     fit = master.prony_fit

@@ -32,7 +32,8 @@ from viscorig.materials.shiftfunctions import (
 from viscorig.materials.superposition import SuperpositionCheck, check_superposition
 from viscorig.materials.table import ModulusTable
 
-#: A set within this many kelvin of the reference temperature is the reference set itself.
+#: Without a shift function, a set within this many kelvin of the reference temperature asked
+#: for is taken as the reference itself (with one, the shifts are moved to it exactly).
 SAME_TEMPERATURE_K = 0.5
 
 
@@ -277,8 +278,9 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
                  for kind in ("wlf", "arrhenius")]
     fitted = [f for f in functions if f is not None]
     reference_c = anchor_c if reference_temperature_c is None else float(reference_temperature_c)
-    if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K:
-        best = best_shift_function(fitted)
+    best = best_shift_function(fitted)
+    if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K or (
+            abs(reference_c - anchor_c) > 1e-9 and best is not None):
         if best is None:
             raise InputError(f"{reference_c} °C is not a measured temperature and no shift "
                              "function could be fitted to reach it; give one of "
