@@ -476,3 +476,25 @@ def test_the_prologix_path_configures_the_adapter_and_carries_binary_blocks() ->
     ]
     assert "++addr 11" in server.adapter_commands
     assert "SOUR:VOLT:REF 2 EU" in server.received
+
+
+def test_every_dwell_and_settle_time_sent_carries_its_unit() -> None:
+    """A bare number on ``SWE:DWEL``/``SWE:STIM`` is read in a unit the guide does not name
+    (docs/virtual-analyser.md): the driver never sends one."""
+    with Analyser(esr=("+0", "+1")) as server, configured(
+            server, settle_cycles=3, integrate_cycles=4) as analyser:
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(
+            np.array([float(server.settings["FREQ:MAN"].split()[0])]))
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(
+            trace_for(server.last_feed())[:2 if "VAR" not in server.last_feed() else 1])
+        analyser.measure_points([30.0], settle_cycles=10, integrate_cycles=20,
+                                poll_interval_s=0.01)
+        analyser.sweep.settle_s = 0.5
+        analyser.sweep.integrate_s = 0.02
+        commands = server.commands()
+    timing = [c for c in commands if c.upper().startswith(("SWE:DWEL", "SWE:STIM"))
+              and not c.endswith("?") and "? " not in c]
+    assert len(timing) >= 5
+    for command in timing:
+        assert command.split()[-1] in ("CYCLE", "S"), command
+    assert "SWE:STIM 0.5 S" in timing and "SWE:DWEL 0.02 S" in timing
