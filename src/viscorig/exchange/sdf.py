@@ -43,6 +43,8 @@ Revision 1 (102-byte measurement headers) has another layout and is refused.
   values (real, imaginary pairs when complex).
 
 The channel headers are taken in the order of the analyser's inputs: the first is input 1.
+The names of application, measurement and data type codes are those of the guide's tables and
+of the enumerations in HP's SDF library header (``SDF_basi.h``, 1994).
 """
 
 from __future__ import annotations
@@ -66,16 +68,27 @@ RECORD_SIZES = {
 }
 FREQUENCY_DOMAIN = 0
 FREQUENCY_RESPONSE = 4
-SWEPT_MEASUREMENT, FFT_MEASUREMENT = 2, 3
+SWEPT_MEASUREMENT, FFT_MEASUREMENT, FFT_NETWORK_MEASUREMENT = 2, 3, 10
 #: SDF number type code -> big-endian numpy letter and size
 NUMBER_TYPES = {1: ("i2", 2), 2: ("i4", 4), 3: ("f4", 4), 4: ("f8", 8)}
 #: The largest SDF file read.
 MAX_SDF_BYTES = 16 * 1024 * 1024
-#: Application codes seen in files saved by instruments of the family.
-APPLICATIONS = {2: "HP 35665A", 10: "HP 35670A"}
-#: Measurement types named in the instruments' own ASCII exports.
-MEASUREMENTS = {FFT_MEASUREMENT: "FFT measurement", SWEPT_MEASUREMENT: "swept sine measurement"}
-#: dataType codes (guide, table B-4a)
+#: applic codes of the file header (HP's SDF library, enumeration Applic)
+APPLICATIONS = {
+    -1: "HP 35630", -2: "HP 35631", -3: "HP 35660A", -4: "HP 3562A/3563A", -5: "HP 3588A",
+    -6: "HP 3589A", 1: "HP 3566A/3567A", 2: "HP 35665A", 3: "HP 3560A",
+    4: "HP 89410A/89440A", 7: "HP 35635R", 8: "HP 35654A", 9: "HP 3569A", 10: "HP 35670A",
+    11: "HP 3587", 12: "HP E3200",
+}
+#: measType codes of the measurement header (HP's SDF library, enumeration Measure_type)
+MEASUREMENTS = {
+    0: "spectrum measurement", 1: "network measurement", SWEPT_MEASUREMENT: "swept sine",
+    FFT_MEASUREMENT: "FFT measurement", 4: "order measurement", 5: "octave measurement",
+    6: "time capture", 7: "correlation measurement", 8: "histogram measurement",
+    9: "swept network measurement", FFT_NETWORK_MEASUREMENT: "FFT network measurement",
+    11: "swept FFT measurement", 12: "analog demodulation", 13: "digital demodulation",
+}
+#: dataType codes (guide, table B-4a; 37-48 from the library's enumeration Data_type)
 DATA_TYPES = {
     0: "time record", 1: "linear spectrum", 2: "auto-power spectrum",
     3: "cross-power spectrum", 4: "frequency response", 5: "auto-correlation",
@@ -88,11 +101,15 @@ DATA_TYPES = {
     24: "sine rms power", 25: "sine variance", 26: "sine range", 27: "sine settle time",
     28: "sine integration time", 29: "sine source", 30: "sine overload", 31: "sine linear",
     32: "synthesis", 33: "curve fit weighting function", 34: "frequency corrections",
-    35: "all pass time data", 36: "norm reference data", 99: "unknown data",
+    35: "all pass time data", 36: "norm reference data", 37: "tachometer data",
+    38: "limit line", 39: "twelfth octave", 40: "S11 data", 41: "S21 data", 42: "S12 data",
+    43: "S22 data", 44: "power spectral density", 45: "decimated time record",
+    46: "overload data", 47: "compressed time record", 48: "external trigger data",
+    -99: "unknown data",
 }
 #: domain codes (guide, table B-4a)
 DOMAINS = {0: "frequency", 1: "time", 2: "amplitude", 3: "RPM", 4: "order", 5: "channel",
-           6: "octave", 99: "unknown"}
+           6: "octave", -99: "unknown"}
 
 
 @dataclass(frozen=True)
@@ -245,7 +262,8 @@ def read_sdf_file(path: str | Path) -> SdfFile:
     channels = _channels(b, channel_at, n_channel, sizes[CHANNEL_HDR])
     vectors = _vectors(b, vector_at, n_vector)
     if ydata_at < 0:
-        raise InputError("has no Y data record", where)
+        raise InputError("has no Y data record" if ydata_at == -1 else
+                         f"Y data record offset {ydata_at} is not in the file", where)
     y_end = ydata_at + b.record(ydata_at, YDATA, "Y data record")
     y_cursor = ydata_at + 6
     x_cursor = x_end = None
@@ -289,7 +307,8 @@ def read_sdf_file(path: str | Path) -> SdfFile:
             raise InputError(f"{what}: the X axis has {axis.size} points, the data header "
                              f"{h.points}", where)
         valid = np.arange(h.points) <= h.last_valid
-        if measurement == FFT_MEASUREMENT and 0 <= start_index <= stop_index:
+        if (measurement in (FFT_MEASUREMENT, FFT_NETWORK_MEASUREMENT)
+                and 0 <= start_index <= stop_index):
             valid &= (np.arange(h.points) >= start_index) & (np.arange(h.points) <= stop_index)
         for vector in range(h.rows * h.cols):
             number = h.first_vector + vector
