@@ -42,6 +42,13 @@ Revision 1 (102-byte measurement headers) has another layout and is refused.
   Y data holds, for each data header in turn, rows × cols traces of num_of_points × yPerPoint
   values (real, imaginary pairs when complex).
 
+Why a reader of our own: the ``sdfascii`` package (MIT) reads the headers well, but its data
+path is written for 35670A spectra: for a 35670A file it returns ``sqrt(y / 2)`` (a power
+spectrum's Vpk² to Vrms) whatever the data type, so a frequency response comes out mangled; it
+reads the first data header only and stops the program (``sys.exit``) on what it does not know.
+It serves the tests as an independent check where it reads as this module does (the 35665A
+response in ``tests/data/sdf``).
+
 The channel headers are taken in the order of the analyser's inputs: the first is input 1.
 The names of application, measurement and data type codes are those of the guide's tables and
 of the enumerations in HP's SDF library header (``SDF_basi.h``, 1994).
