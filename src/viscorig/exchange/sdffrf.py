@@ -64,6 +64,8 @@ class SdfFrf:
     """Analyser input of the response channel (1-4), None when the file names no channel."""
     reference_input: int | None = None
     where: str = ""
+    origin: str = ""
+    """The saving instrument and measurement (``"HP 35665A swept sine"``)."""
 
     def in_volts(self) -> bool:
         """True when either channel is in volts (no engineering unit set on the analyser)."""
@@ -142,7 +144,7 @@ def describe(file: SdfFile) -> str:
     return f"holds {held} from an {file.instrument} {file.measurement_name}"
 
 
-def _frf(trace: SdfTrace, where: str) -> SdfFrf:
+def _frf(trace: SdfTrace, where: str, origin: str) -> SdfFrf:
     if not np.iscomplexobj(trace.values):
         raise InputError("a frequency response must be complex; this one is real", where)
     scale = units.factor(trace.x_unit or "Hz", units.FREQUENCY_UNITS, "frequency",
@@ -157,13 +159,14 @@ def _frf(trace: SdfTrace, where: str) -> SdfFrf:
             raise InputError("names no channel and no Y unit of the form EU/EU", where)
         numerator, denominator = trace.y_unit.split("/", 1)
         return SdfFrf(trace.x[keep] * scale, values, numerator, denominator, trace.title,
-                      where=where)
+                      where=where, origin=origin)
     if response is None or reference is None or trace.powers != (48, -48):
         raise InputError(f"channel powers {trace.powers[0]}/48, {trace.powers[1]}/48 are not "
                          "those of a frequency response (+1 over -1)", where)
     return SdfFrf(
         trace.x[keep] * scale, values * (reference.int2engr / response.int2engr),
         response.unit, reference.unit, trace.title, response.number, reference.number, where,
+        origin,
     )
 
 
@@ -181,7 +184,8 @@ def read_sdf(path: str | Path) -> list[SdfFrf]:
     for trace in file.traces:
         if trace.domain == FREQUENCY_DOMAIN and trace.data_type == FREQUENCY_RESPONSE:
             number = len(found) + 1
-            found.append(_frf(trace, f"{file.path} (frequency response {number})"))
+            found.append(_frf(trace, f"{file.path} (frequency response {number})",
+                              f"{file.instrument} {file.measurement_name}"))
     if not found:
         raise InputError(f"{describe(file)}; a run takes frequency responses only",
                          file.path)
@@ -197,8 +201,10 @@ def read_sdf_frfs(paths: list[Path], station: Station | None = None) -> FrfSet:
         A file is bad or holds no FRF, volts without a station, more than two FRFs, an FRF
         whose inputs the station does not pair, no ẍ_s/F_e, axes that differ.
     """
-    frfs = [frf for path in paths for frf in read_sdf(Path(path))]
-    source = "SDF " + ", ".join(Path(p).name for p in paths)
+    per_file = [read_sdf(Path(path)) for path in paths]
+    frfs = [frf for found in per_file for frf in found]
+    source = "SDF " + ", ".join(f"{Path(path).name} ({found[0].origin})"
+                                for path, found in zip(paths, per_file, strict=True))
     if len(frfs) > 2:
         raise InputError(f"{len(frfs)} frequency responses; a run has two "
                          f"({TABLE_PAIR}, then {SUPPORT_PAIR})", source)
