@@ -128,3 +128,17 @@ def test_what_is_not_a_frequency_response_is_refused_saying_what_it_is(
     with pytest.raises(InputError, match=message) as error:
         read_sdf_frfs([path])
     assert "\n" not in str(error.value)
+
+
+def test_an_absurd_revision_3_point_count_is_refused_before_anything_is_allocated(
+        tmp_path: Path):
+    f = np.linspace(10.0, 500.0, 50)
+    raw = bytearray(sdf_bytes(SdfLayout(f, FOUR_CHANNELS, [Trace(1, 0, _table(f))],
+                                        revision=3)))
+    data_at = 2 + 80 + 156
+    assert raw[data_at:data_at + 2] == b"\x00\x0c"
+    raw[data_at + 134:data_at + 138] = (2**31 - 1).to_bytes(4, "big")
+    path = tmp_path / "huge.DAT"
+    path.write_bytes(bytes(raw))
+    with pytest.raises(InputError, match="2147483647 points need 34359738352 bytes"):
+        read_sdf(path)
