@@ -142,3 +142,29 @@ def test_an_absurd_revision_3_point_count_is_refused_before_anything_is_allocate
     path.write_bytes(bytes(raw))
     with pytest.raises(InputError, match="2147483647 points need 34359738352 bytes"):
         read_sdf(path)
+
+
+def test_the_analysers_channel_labels_name_the_inputs_not_the_header_order(tmp_path: Path):
+    """A file of the 3/4 pair may hold only the two channel headers of that trace."""
+    f = F_FFT
+    table_v = _volts(_table(f), S.table_acceleration_v_per_m_s2, S.excitation_force_v_per_n)
+    support_v = _volts(_support(f), S.device_acceleration_v_per_m_s2, S.device_force_v_per_n)
+    pair_34 = [Channel("Chan  3", "V", 1.0), Channel("Chan  4", "V", 1.0)]
+    support = tmp_path / "SUPPORT.DAT"
+    support.write_bytes(sdf_bytes(SdfLayout(f, pair_34, [Trace(1, 0, support_v)],
+                                            x_resolution=0, measurement=3,
+                                            alias_protected=(0, 800))))
+    table = _fft_file(tmp_path / "TABLE.DAT", [Trace(1, 0, table_v)])
+    frfs = read_sdf_frfs([support, table], STATION_ROLES)  # any order
+    g = f[1:801]
+    assert np.allclose(frfs.accelerance_table, _table(g), rtol=2e-7, atol=0)  # float32 file
+    assert np.allclose(frfs.accelerance_support, _support(g), rtol=1e-12, atol=0)
+
+
+def test_a_response_over_its_own_input_is_refused(tmp_path: Path):
+    twice = [Channel("Chan  1", "V", 1.0), Channel("Chan  1", "V", 1.0)]
+    path = tmp_path / "same.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(F_FFT, twice, [Trace(1, 0, _table(F_FFT))],
+                                         x_resolution=0, measurement=3)))
+    with pytest.raises(InputError, match="response and reference are both input 1"):
+        read_sdf(path)

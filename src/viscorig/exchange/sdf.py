@@ -49,13 +49,17 @@ reads the first data header only and stops the program (``sys.exit``) on what it
 It serves the tests as an independent check where it reads as this module does (the 35665A
 response in ``tests/data/sdf``).
 
-The channel headers are taken in the order of the analyser's inputs: the first is input 1.
+The analyser input of a channel header is read from the label the analyser gives it ("Chan  2"
+is input 2); a channel the user relabelled is taken by its place (the first is input 1). A
+35670A writes two channel headers even for a one-channel trace (both "Chan  1"), so the place
+alone would not do.
 The names of application, measurement and data type codes are those of the guide's tables and
 of the enumerations in HP's SDF library header (``SDF_basi.h``, 1994).
 """
 
 from __future__ import annotations
 
+import re
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,6 +82,8 @@ FREQUENCY_RESPONSE = 4
 SWEPT_MEASUREMENT, FFT_MEASUREMENT, FFT_NETWORK_MEASUREMENT = 2, 3, 10
 #: SDF number type code -> big-endian numpy letter and size
 NUMBER_TYPES = {1: ("i2", 2), 2: ("i4", 4), 3: ("f4", 4), 4: ("f8", 8)}
+#: An analyser's own channel label ("Chan  2"), which names the input.
+CHANNEL_LABEL = re.compile(r"^\s*(?:chan(?:nel)?|ch)\s*(\d{1,2})\s*$", re.IGNORECASE)
 #: The largest SDF file read.
 MAX_SDF_BYTES = 16 * 1024 * 1024
 #: applic codes of the file header (HP's SDF library, enumeration Applic)
@@ -124,7 +130,8 @@ class SdfChannel:
     """One analyser input as its channel header describes it."""
 
     number: int
-    """Analyser input, from 1 (the channel header's place in the file)."""
+    """Analyser input, from 1: N of an analyser's own label "Chan  N", else the channel
+    header's place in the file."""
     label: str
     unit: str
     """Engineering unit label (``"V"`` when none was set on the analyser)."""
@@ -404,7 +411,9 @@ def _channels(b: _Bytes, at: int, count: int, size: int) -> list[SdfChannel]:
         (narrow_band,) = b.unpack("f", at + 84, what)
         if not np.isfinite(factor) or factor == 0:
             raise InputError(f"{what}: EU correction factor {factor} is not usable", b.where)
-        channels.append(SdfChannel(index + 1, b.text(at + 10, 30, what),
+        label = b.text(at + 10, 30, what)
+        named = CHANNEL_LABEL.match(label)
+        channels.append(SdfChannel(int(named.group(1)) if named else index + 1, label,
                                    b.text(at + 116, 10, what) or b.text(at + 106, 10, what),
                                    float(factor), float(narrow_band)))
         at += size

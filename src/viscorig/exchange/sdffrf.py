@@ -163,6 +163,9 @@ def _frf(trace: SdfTrace, where: str, origin: str) -> SdfFrf:
     if response is None or reference is None or trace.powers != (48, -48):
         raise InputError(f"channel powers {trace.powers[0]}/48, {trace.powers[1]}/48 are not "
                          "those of a frequency response (+1 over -1)", where)
+    if response.number == reference.number:
+        raise InputError(f"response and reference are both input {response.number} "
+                         f"('{response.label}', '{reference.label}')", where)
     return SdfFrf(
         trace.x[keep] * scale, values * (reference.int2engr / response.int2engr),
         response.unit, reference.unit, trace.title, response.number, reference.number, where,
