@@ -202,7 +202,8 @@ def _sdf(tmp_path: Path, **changes) -> Path:
     ("changes", "message"),
     [
         ({"revision": 1}, "SDF revision 1"),
-        ({"data_type": 2, "powers": (96, 0)}, "holds an auto-power spectrum .* HP 35670A"),
+        ({"data_type": 2, "powers": (96, 0)},
+         r"holds an auto-power spectrum .* \(HP 35670A, swept sine\)"),
         ({"x_unit": "s"}, "not a unit of frequency"),
         ({"channels": [Channel("F", "N", 0.01), Channel("a", "N", 1.0)]},
          "not a unit of acceleration"),

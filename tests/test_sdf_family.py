@@ -82,12 +82,14 @@ def test_the_same_frf_twice_is_refused(tmp_path: Path):
         read_sdf_frfs([first, second], STATION_ROLES)
 
 
-@pytest.mark.parametrize("revision", [2, 3])
-def test_revisions_2_and_3_read_the_same_response(tmp_path: Path, revision: int):
+@pytest.mark.parametrize(("revision", "sizes"), [(2, None), (3, None),
+                                               (2, (80, 156, 148, 18, 212))])
+def test_revisions_2_and_3_read_the_same_response(tmp_path: Path, revision: int, sizes):
+    """Revision 2 and 3 layouts, and revision 3 records in a file marked revision 2."""
     f = np.geomspace(5.0, 2000.0, 300)
     path = tmp_path / f"rev{revision}.DAT"
     path.write_bytes(sdf_bytes(SdfLayout(f, FOUR_CHANNELS, [Trace(1, 0, _table(f))],
-                                         revision=revision)))
+                                         revision=revision, sizes=sizes)))
     (frf,) = read_sdf(path)
     assert np.array_equal(frf.frequency_hz, f)
     assert np.allclose(frf.accelerance("t"), _table(f), rtol=1e-12, atol=0)
@@ -106,15 +108,18 @@ def test_a_sweep_stopped_early_keeps_the_points_measured(tmp_path: Path):
     ("changes", "message"),
     [
         ({"data_type": 0, "domain": 1, "powers": (48, 0)},
-         "holds a time record \\(time domain\\) 'Freq Resp' from an HP 35670A swept sine"),
+         "holds a time record \\(time domain\\) 'Freq Resp' \\(HP 35670A, swept sine\\)"),
         ({"data_type": 8, "powers": (0, 0), "application": 2},
-         "holds an ordinary coherence 'Freq Resp' from an HP 35665A swept sine"),
+         "holds an ordinary coherence 'Freq Resp' \\(HP 35665A, swept sine\\)"),
         ({"data_type": 1, "powers": (48, 0), "application": 4, "measurement": 3},
-         "holds a linear spectrum .* from an HP 89410A/89440A FFT measurement"),
+         "holds a linear spectrum .* \\(HP 89410A/89440A, FFT measurement\\)"),
         ({"scans": 12}, "holds a waterfall of 12 scans"),
         ({"revision": 1}, "SDF revision 1; this reader knows revisions 2 and 3"),
-        ({"revision": 3, "sizes": (64, 140, 134, 18, 192)},
-         "file header at byte 2 has size 64; this revision's is 80"),
+        ({"sizes": (64, 140, 150, 18, 192)},
+         "data header 1 at byte 206 has size 150; SDF revisions 2 and 3 give 134 or 148"),
+        ({"application": -99, "measurement": -99, "data_type": 2, "powers": (96, 0)},
+         "holds an auto-power spectrum 'Freq Resp' \\(unknown instrument \\(application "
+         "code -99\\), unknown measurement \\(type -99\\)\\)"),
     ],
 )
 def test_what_is_not_a_frequency_response_is_refused_saying_what_it_is(

@@ -114,7 +114,7 @@ def test_a_real_power_spectrum_is_refused_in_one_line_saying_what_it_is(
                  "--sdf", str(SPECTRUM_35670A)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
-    assert "holds an auto-power spectrum 'Pwr Spec' from an HP 35670A FFT measurement" in err
+    assert "holds an auto-power spectrum 'Pwr Spec' (HP 35670A, FFT measurement)" in err
 
 
 def test_a_real_35670a_trace_matches_the_analysers_own_ascii_export():
@@ -145,7 +145,7 @@ HOSTILE = {
     "truncated in the data header": RAW[:250],
     "truncated in the Y data": RAW[:2000],
     "one byte short": RAW[:-1],
-    "data header record size 148": _patched(RAW, DATA_AT + 2, "l", 148),
+    "data header record size 150": _patched(RAW, DATA_AT + 2, "l", 150),
     "channel record size 1e9": _patched(RAW, CHANNEL_AT + 2, "l", 10**9),
     "32767 points": _patched(RAW, DATA_AT + 30, "h", 32767),
     "-5 points": _patched(RAW, DATA_AT + 30, "h", -5),

@@ -8,7 +8,9 @@ each record, counted from 0 (the guide counts from 1); record offsets in the fil
 from the start of the file, which begins with the two bytes ``B\\0``.
 
 Every record starts with ``recordType`` (short) and ``recordSize`` (long). The guide fixes the
-size of each header record per SDF revision (table B-1), so a size that differs is refused:
+size of each header record per SDF revision (table B-1); a header of another size is refused,
+and the size, not the file's revision number, says which layout a header has (89410A files
+exist with revision 2 in the file header and revision 3 records):
 
 ============  ====  =====  =====  ======  =======
 revision      FILE  MEAS   DATA   VECTOR  CHANNEL
@@ -25,7 +27,7 @@ Revision 1 (102-byte measurement headers) has another layout and is refused.
 - MEAS_HDR (type 11), right after the file header: startFreqIndex @24 and stopFreqIndex @26
   (shorts: the alias-protected points of an FFT measurement), measType @126.
 - DATA_HDR (type 12): dataTitle @10 (char[16]), domain @26, dataType @28, num_of_points @30
-  (short; from revision 3 a long @134), last_valid_index @32 (short; revision 3: long @138),
+  (short; in a 148-byte header a long @134), last_valid_index @32 (short; long @138),
   xResolution_type @42 (0 linear, 1 logarithmic, 2 arbitrary one per file, 3 arbitrary one
   per data type), xdata_type @44 and ydata_type @48 (1 short, 2 long, 3 float, 4 double),
   xPerPoint @46, yPerPoint @50, yIsComplex @52, first_VECTOR_recordNum @60 (long),
@@ -101,7 +103,7 @@ MEASUREMENTS = {
     9: "swept network measurement", FFT_NETWORK_MEASUREMENT: "FFT network measurement",
     11: "swept FFT measurement", 12: "analog demodulation", 13: "digital demodulation",
 }
-#: dataType codes (guide, table B-4a; 37-48 from the library's enumeration Data_type)
+#: dataType codes (guide, table B-4a; 37-76 from the library's enumeration Data_type)
 DATA_TYPES = {
     0: "time record", 1: "linear spectrum", 2: "auto-power spectrum",
     3: "cross-power spectrum", 4: "frequency response", 5: "auto-correlation",
@@ -118,7 +120,14 @@ DATA_TYPES = {
     38: "limit line", 39: "twelfth octave", 40: "S11 data", 41: "S21 data", 42: "S12 data",
     43: "S22 data", 44: "power spectral density", 45: "decimated time record",
     46: "overload data", 47: "compressed time record", 48: "external trigger data",
-    -99: "unknown data",
+    49: "pressure", 50: "intensity", 51: "pressure-intensity index", 52: "particle velocity",
+    53: "pressure-velocity index", 54: "sound power", 55: "field indicator",
+    56: "partial power", 57: "L_N 1 %", 58: "L_N 10 %", 59: "L_N 50 %", 60: "L_N 90 %",
+    61: "L_N 99 %", 62: "L_N user", 63: "T20", 64: "T30", 65: "RT60", 66: "average count",
+    67: "sigma", 68: "measured I/Q time record", 69: "measured I/Q spectrum",
+    70: "reference I/Q time record", 71: "reference I/Q spectrum", 72: "I/Q error magnitude",
+    73: "I/Q error phase", 74: "error vector time record", 75: "error vector spectrum",
+    76: "symbol table", -99: "unknown data",
 }
 #: domain codes (guide, table B-4a)
 DOMAINS = {0: "frequency", 1: "time", 2: "amplitude", 3: "RPM", 4: "order", 5: "channel",
@@ -181,12 +190,14 @@ class SdfFile:
     @property
     def instrument(self) -> str:
         """The saving instrument's name, or its application code."""
-        return APPLICATIONS.get(self.application, f"application code {self.application}")
+        return APPLICATIONS.get(self.application,
+                                f"unknown instrument (application code {self.application})")
 
     @property
     def measurement_name(self) -> str:
         """The measurement type in words."""
-        return MEASUREMENTS.get(self.measurement, f"measurement type {self.measurement}")
+        return MEASUREMENTS.get(self.measurement,
+                                f"unknown measurement (type {self.measurement})")
 
 
 class _Bytes:
@@ -202,15 +213,16 @@ class _Bytes:
             raise InputError(f"file ends inside the {what} (byte {offset})", self.where)
         return struct.unpack_from(">" + layout, self.data, offset)
 
-    def record(self, offset: int, kind: int, what: str, size: int | None = None) -> int:
-        """Check a record head at ``offset`` (and its fixed size); return the record size."""
+    def record(self, offset: int, kind: int, what: str) -> int:
+        """Check a record head at ``offset`` (and a header's fixed size); return its size."""
         record_type, found = self.unpack("hl", offset, what)
         if record_type != kind:
             raise InputError(f"expected the {what} (record type {kind}) at byte {offset}, "
                              f"found type {record_type}", self.where)
-        if size is not None and found != size:
-            raise InputError(f"{what} at byte {offset} has size {found}; this revision's is "
-                             f"{size}", self.where)
+        sizes = sorted({table[kind] for table in RECORD_SIZES.values() if kind in table})
+        if sizes and found not in sizes:
+            raise InputError(f"{what} at byte {offset} has size {found}; SDF revisions 2 and 3 "
+                             f"give {' or '.join(map(str, sizes))}", self.where)
         if found < 6 or offset + found > len(self.data):
             raise InputError(f"{what} at byte {offset} has size {found} (file has "
                              f"{len(self.data)} bytes)", self.where)
@@ -257,13 +269,12 @@ def read_sdf_file(path: str | Path) -> SdfFile:
     (revision, application) = b.unpack("hh", head + 6, "file header")
     if revision not in RECORD_SIZES:
         raise InputError(f"SDF revision {revision}; this reader knows revisions 2 and 3", where)
-    sizes = RECORD_SIZES[revision]
-    b.record(head, FILE_HDR, "file header", sizes[FILE_HDR])
+    file_size = b.record(head, FILE_HDR, "file header")
     n_data, n_vector, n_channel, _, n_scan, n_xdata = b.unpack("6h", head + 24, "file header")
     data_at, vector_at, channel_at, _, scan_at, xdata_at, ydata_at = b.unpack(
         "7l", head + 36, "file header")
-    meas_at = head + sizes[FILE_HDR]
-    b.record(meas_at, MEAS_HDR, "measurement header", sizes[MEAS_HDR])
+    meas_at = head + file_size
+    b.record(meas_at, MEAS_HDR, "measurement header")
     start_index, stop_index = b.unpack("hh", meas_at + 24, "measurement header")
     (measurement,) = b.unpack("h", meas_at + 126, "measurement header")
     scans = 1
@@ -273,7 +284,7 @@ def read_sdf_file(path: str | Path) -> SdfFile:
         if scans > 1:
             raise InputError(f"holds a waterfall of {scans} scans; this reader takes one "
                              "trace per data header (save a single trace)", where)
-    channels = _channels(b, channel_at, n_channel, sizes[CHANNEL_HDR])
+    channels = _channels(b, channel_at, n_channel)
     vectors = _vectors(b, vector_at, n_vector)
     if ydata_at < 0:
         raise InputError("has no Y data record" if ydata_at == -1 else
@@ -289,9 +300,9 @@ def read_sdf_file(path: str | Path) -> SdfFile:
     cursor = data_at
     for index in range(n_data):
         what = f"data header {index + 1}"
-        b.record(cursor, DATA_HDR, what, sizes[DATA_HDR])
-        h = _DataHeader.read(b, cursor, what, revision)
-        cursor += sizes[DATA_HDR]
+        size = b.record(cursor, DATA_HDR, what)
+        h = _DataHeader.read(b, cursor, what, long_counts=size >= RECORD_SIZES[3][DATA_HDR])
+        cursor += size
         per_trace = h.points * max(h.y_per_point, 1) * (2 if h.complex else 1)
         needed = per_trace * NUMBER_TYPES[h.y_type][1] * h.rows * h.cols
         if needed > y_end - y_cursor:
@@ -373,9 +384,9 @@ class _DataHeader:
     delta_x: float
 
     @classmethod
-    def read(cls, b: _Bytes, at: int, what: str, revision: int) -> _DataHeader:
+    def read(cls, b: _Bytes, at: int, what: str, long_counts: bool) -> _DataHeader:
         domain, data_type, points, last_valid = b.unpack("hhhh", at + 26, what)
-        if revision >= 3:
+        if long_counts:
             points, last_valid = b.unpack("ll", at + 134, what)
         x_resolution, x_type, x_per_point, y_type, y_per_point, is_complex = b.unpack(
             "6h", at + 42, what)
@@ -402,11 +413,11 @@ class _DataHeader:
         )
 
 
-def _channels(b: _Bytes, at: int, count: int, size: int) -> list[SdfChannel]:
+def _channels(b: _Bytes, at: int, count: int) -> list[SdfChannel]:
     channels = []
     for index in range(count):
         what = f"channel header {index + 1}"
-        b.record(at, CHANNEL_HDR, what, size)
+        size = b.record(at, CHANNEL_HDR, what)
         (factor,) = b.unpack("f", at + 138, what)
         (narrow_band,) = b.unpack("f", at + 84, what)
         if not np.isfinite(factor) or factor == 0:
@@ -425,9 +436,9 @@ def _vectors(b: _Bytes, at: int, count: int) -> list[tuple[int, int, int, int]]:
     vectors = []
     for index in range(count):
         what = f"vector header {index + 1}"
-        b.record(at, VECTOR_HDR, what, RECORD_SIZES[2][VECTOR_HDR])
+        size = b.record(at, VECTOR_HDR, what)
         vectors.append(b.unpack("4h", at + 10, what))
-        at += RECORD_SIZES[2][VECTOR_HDR]
+        at += size
     return vectors
 
 

@@ -141,7 +141,7 @@ def describe(file: SdfFile) -> str:
         if kind not in kinds:
             kinds.append(kind)
     held = " and ".join(_article(k) for k in kinds) if kinds else "no trace"
-    return f"holds {held} from an {file.instrument} {file.measurement_name}"
+    return f"holds {held} ({file.instrument}, {file.measurement_name})"
 
 
 def _frf(trace: SdfTrace, where: str, origin: str) -> SdfFrf:
