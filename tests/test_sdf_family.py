@@ -173,3 +173,11 @@ def test_a_response_over_its_own_input_is_refused(tmp_path: Path):
                                          x_resolution=0, measurement=3)))
     with pytest.raises(InputError, match="response and reference are both input 1"):
         read_sdf(path)
+
+
+def test_a_station_with_another_format_is_refused(tmp_path: Path, capsys):
+    station = tmp_path / "station.toml"
+    station.write_text(STATION)
+    assert main(["import", str(tmp_path / "c.h5"), "--run", "r", "--csv", "x.csv",
+                 "--station", str(station)]) == 2
+    assert "--station: a station converts SDF files only" in capsys.readouterr().err
