@@ -1,8 +1,10 @@
-"""Write SDF revision 2 files in the layout a 35670A saves swept-sine frequency responses.
+"""Write SDF revision 2 or 3 files as the 35665A/35670A family saves traces to disk.
 
 Written from the record layout of HP's "Standard Data Format Utilities User's Guide"
-(big-endian: 'B\\0', file header, measurement header, data headers, vector headers, channel
-headers, X data, Y data), for tests of the reader in ``viscorig.exchange.sdf``.
+(big-endian: 'B\\0', file header, measurement header, scan structure, data header, vector
+headers, channel headers, X data, Y data; record sizes of table B-1), for tests of the reader
+in ``viscorig.exchange.sdf``, with which it shares no code. One data header holds every trace
+(its rows); swept sine by default, FFT with ``measurement=3``.
 """
 
 from __future__ import annotations
