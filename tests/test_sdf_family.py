@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sdfstation import STATION
 from sdfwrite import FOUR_CHANNELS, Channel, SdfLayout, Trace, sdf_bytes
-from test_sdf_real import STATION
 
 from viscorig.cli import main
 from viscorig.errors import InputError

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sdfstation import SENSITIVITY_A_V_PER_M_S2, SENSITIVITY_F_V_PER_N, STATION
 
 from viscorig.cli import main
 from viscorig.errors import InputError
@@ -29,26 +30,7 @@ if not all((DATA / name).is_file() for name in ("HP35665A.DAT", "HP35670A.DAT", 
                                                  "ASCII3KH.X")):
     pytest.skip(f"the real SDF files of tests/data/sdf/README.md are not in {DATA}",
                 allow_module_level=True)
-#: Station of the tests: force transducer on input 1, table accelerometer on input 2.
-SENSITIVITY_F_V_PER_N = 0.01124
-SENSITIVITY_A_V_PER_M_S2 = 0.0102
-STATION = f"""
-resource = "GPIB0::11::INSTR"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = {SENSITIVITY_F_V_PER_N}
-table_acceleration_v_per_m_s2 = {SENSITIVITY_A_V_PER_M_S2}
-device_force_v_per_n = 0.02
-device_acceleration_v_per_m_s2 = 0.005
-[shaker]
-force_limit_n = 100.0
-[source]
-limit_v = 2.0
-"""
+
 
 
 @pytest.fixture
