@@ -24,13 +24,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from planning_rig import VOIGT_RIG  # noqa: E402
-from reliability_campaign import station_text  # noqa: E402
-from rigsim.rigfile import parse_rig  # noqa: E402
-from rigsim.server import SimulatedAnalyserServer  # noqa: E402
+from planning_rig import VOIGT_RIG
+from reliability_campaign import station_text
+from rigsim.rigfile import parse_rig
+from rigsim.server import SimulatedAnalyserServer
 
-from viscorig.cli import main  # noqa: E402
-from viscorig.storage import Campaign  # noqa: E402
+from viscorig.cli import main
+from viscorig.storage import Campaign
 
 PAPER_S = 1643.1
 TARGETS = {"K_v": 2.09e-6, "C_v": 9.77e-6}
