@@ -164,3 +164,36 @@ def test_a_uff_from_high_to_low_frequency_is_stored_rising(tmp_path: Path,
     np.testing.assert_allclose(stored.frequency_hz, original.frequency_hz, rtol=1e-5)
     np.testing.assert_allclose(stored.accelerance_support, original.accelerance_support,
                                rtol=1e-10)
+
+
+def _sdf(tmp_path: Path, frequency_hz: np.ndarray, table: np.ndarray) -> Path:
+    from sdfwrite import FOUR_CHANNELS, SdfLayout, Trace, sdf_bytes
+
+    path = tmp_path / "FRF.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(frequency_hz, FOUR_CHANNELS, [Trace(1, 0, table)])))
+    return path
+
+
+def _table(frequency_hz: np.ndarray) -> np.ndarray:
+    rows = _voigt_rows(frequency_hz)
+    return np.array([complex(float(r[2]), float(r[3])) for r in rows])
+
+
+def test_an_sdf_response_with_a_nan_point_is_refused_naming_the_point(tmp_path: Path) -> None:
+    table = _table(F)
+    table[12] = complex(np.nan, 0.0)
+    status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, F, table))
+    line = one_clear_line(err)
+    assert status == 2
+    assert f"values of ẍ_s/F_e are not finite, the first at point 13 of 401 ({F[12]:g} Hz)" \
+        in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> None:
+    falling = F[::-1].copy()
+    status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))
+    assert status == 0, err
+    run = Campaign.open(tmp_path / "c.h5").run("x")
+    np.testing.assert_allclose(run.frequency_hz, F, rtol=1e-12)
+    np.testing.assert_allclose(run.accelerance_table, _table(F), rtol=1e-12)
