@@ -298,3 +298,21 @@ def test_a_message_begun_and_never_ended_closes_its_connection() -> None:
         assert b"35670A" in ask(other, b"*IDN?")
         other.close()
     assert closed and 0.4 < elapsed < 2.0, elapsed
+
+
+def test_a_crowd_behind_the_prologix_adapter_does_not_lock_out_a_new_client() -> None:
+    """The Prologix endpoint shares the slots: 12 adapters each left with half a message, and a
+    new one's ``*IDN?`` is answered."""
+    with SimulatedAnalyserServer("table", prologix=True) as server:
+        host, port = server.prologix_resource.split("::")[1:3]
+        crowd = [connect(host, int(port)) for _ in range(12)]
+        for sock in crowd:
+            sock.sendall(b"++addr 11\n*ID")
+        time.sleep(0.1)
+        newcomer = connect(host, int(port))
+        answer = ask(newcomer, b"++addr 11\n*IDN?\n++read eoi")
+        served = len(server._connections)
+        for sock in (*crowd, newcomer):
+            sock.close()
+    assert b"35670A" in answer
+    assert served <= server.limits.max_connections
