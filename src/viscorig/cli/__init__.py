@@ -55,7 +55,7 @@ COMMANDS: dict[str, Command] = {
         "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)",
     ),
     "import": Command(
-        "exchange", "add a run to a campaign from UFF 58, CSV, 35670A SDF or DMA files"
+        "exchange", "add a run to a campaign from UFF 58, CSV, SDF (35670A family) or DMA files"
     ),
     "master": Command(
         "master", "master curve, shift factors and Prony series of a material over temperature"
