@@ -88,3 +88,19 @@ def test_import_refuses_a_bad_file_in_one_line_and_creates_nothing(tmp_path, cap
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "row 4" in err and "Traceback" not in err
     assert not path.exists()
+
+
+@pytest.mark.parametrize("content", [
+    b"\x00\x01\x02binary\xff\xfe" * 100,
+    b"f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1," + b"9" * 200_000 + b"\n",
+    b"f;E';E'';T\r\nHz;MPa;MPa;C\r\n1;10;1;20\r\n2;11;1\r\n",
+    b"",
+])
+def test_hostile_dma_files_are_refused_in_one_line(tmp_path, capsys, content):
+    bad = tmp_path / "hostile.csv"
+    bad.write_bytes(content)
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "x", "--dma", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "hostile.csv" in err and "Traceback" not in err
+    assert not path.exists()

@@ -149,9 +149,15 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
     except OSError as error:
         raise InputError(f"cannot be read ({error.strerror})", where) from None
     delimiter, decimal_comma = _dialect(text, where)
-    rows = [(number, row) for number, row in enumerate(
-        csv.reader(io.StringIO(text), delimiter=delimiter), start=1)
-        if row and any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")]
+    if "\x00" in text:
+        raise InputError("not a text table (holds NUL bytes)", where)
+    try:
+        rows = [(number, row) for number, row in enumerate(
+            csv.reader(io.StringIO(text), delimiter=delimiter), start=1)
+            if row and any(cell.strip() for cell in row)
+            and not row[0].lstrip().startswith("#")]
+    except csv.Error as error:
+        raise InputError(f"not a readable table ({error})", where) from None
     if not rows:
         raise InputError("no table in the file", where)
     header_row, header = rows[0]
