@@ -3,12 +3,12 @@
 Builds the master curve of a material by time-temperature superposition: from a DMA run
 (``import --dma``), or from rig runs of one specimen measured at several temperatures (their
 K* from the support FRF, Eq. 5, with the disc mass of a stored fit or ``--disc-mass``, or with
-``--kstar fit`` from the newest stored fit's model; the shear modulus through the rig's geometry
-factor). Prints the shift factors with their standard
-errors, the WLF and Arrhenius shift functions with ±, whether superposition holds, the points
-that fail the Kramers-Kronig check, and the Prony series with the fewest terms that reaches the
-data's scatter, beside a four-parameter fractional model. ``--json`` prints one object (the
-contract of design.md). The campaign file is only read.
+``--kstar fit`` from the newest stored fit's model; the shear modulus through the rig's
+geometry factor). Prints the shift factors with their standard errors, the WLF and Arrhenius
+shift functions with ±, whether superposition holds, the points that fail the Kramers-Kronig
+check, and the Prony series with the fewest terms that reaches the data's scatter, beside a
+four-parameter fractional model. ``--json`` prints one object (the contract of design.md). The
+campaign file is only read.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from viscorig.storage import Campaign
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``master`` command."""
     parser = subparsers.add_parser(
-        "master", help=summary_of("master"), description=__doc__.split("\n\n")[1],
+        "master", help=summary_of("master"), description=__doc__.split("\n\n")[1].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", help="campaign file (.h5)")
     parser.add_argument("--run", action="append", required=True,
