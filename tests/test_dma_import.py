@@ -104,3 +104,32 @@ def test_hostile_dma_files_are_refused_in_one_line(tmp_path, capsys, content):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "hostile.csv" in err and "Traceback" not in err
     assert not path.exists()
+
+
+def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys):
+    openpyxl = pytest.importorskip("openpyxl")
+    csv_table = read_dma_csv(REAL)
+    book = openpyxl.Workbook()
+    book.active.title = "Data header"
+    book.active.append(["Measurement type:", "Temp. Freq. Sweep"])
+    sheet = book.create_sheet("Exported Data")
+    sheet.append(["Nr", "F stat.", "Time", "f", "T", "E'", "E''", "|E*|", "tan delta", "T2"])
+    sheet.append([None, "N", "s", "Hz", "°C", "MPa", "MPa", "MPa", None, "°C"])
+    for i in range(csv_table.points):
+        sheet.append([i + 1, -1.0, 10.0 * i, csv_table.frequency_hz[i],
+                      csv_table.temperature_c[i], csv_table.storage_pa[i] / 1e6,
+                      csv_table.loss_pa[i] / 1e6, 0.0, 0.0, 0.0])
+    path = tmp_path / "eplexor.xlsx"
+    book.save(path)
+    path_h5 = tmp_path / "c.h5"
+    assert main(["import", str(path_h5), "--run", "epl", "--dma", str(path)]) == 0
+    table = read_dma(Campaign.open(path_h5), "epl")
+    assert table.sets.size == 21  # no set column: grouped by temperature
+    assert np.allclose(table.storage_pa, csv_table.storage_pa, rtol=1e-12)
+    assert np.allclose(table.loss_pa, csv_table.loss_pa, rtol=1e-12)
+    capsys.readouterr()
+    sheet.cell(row=7, column=6, value="n/a")
+    book.save(path)
+    assert main(["import", str(tmp_path / "d.h5"), "--run", "x", "--dma", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "sheet 'Exported Data'" in err and "row 7" in err and "column \"E'\"" in err

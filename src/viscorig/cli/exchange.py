@@ -99,7 +99,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="SDF file of a 35665A/35670A-family analyser (give twice: "
                         "ẍ_s/F_e, then ẍ_v/F_v)")
     source.add_argument("--dma", metavar="PATH",
-                        help="DMA temperature/frequency sweep (CSV), stored as a DMA run")
+                        help="DMA temperature/frequency sweep (CSV, text, or an Excel workbook "
+                        "such as Eplexor's export), stored as a DMA run")
     imports.add_argument("--modulus", choices=("E", "G"), default=None,
                          help="with --dma: tensile (E) or shear (G) modulus (default: told "
                          "from the column names)")
@@ -159,10 +160,10 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
 def import_handler(args: argparse.Namespace) -> int:
     """Run ``import``."""
     if args.dma:
-        from viscorig.materials.dmafile import read_dma_csv
+        from viscorig.materials.dmafile import read_dma_file
         from viscorig.materials.dmastore import import_dma
 
-        table = read_dma_csv(Path(args.dma), args.modulus)
+        table = read_dma_file(Path(args.dma), args.modulus)
         points = import_dma(Path(args.file), args.run, table)
         print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
               f"{table.sets.size} temperatures, modulus {table.modulus}")

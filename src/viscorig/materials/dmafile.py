@@ -16,6 +16,10 @@ by temperature (within 1 K of each other, in file order). Units: Pa, kPa, MPa, G
 Hz, kHz, rad/s; °C or K. A column without a unit is refused where a unit matters (moduli,
 frequency in rad/s vs Hz is told by the name), except temperature (°C) and frequency (Hz).
 
+Excel workbooks (``.xls`` through xlrd, ``.xlsx`` through openpyxl, the optional extra
+``excel``) are read the same way from their "Exported Data" sheet (Eplexor's export) or their
+first sheet: :func:`read_dma_file` chooses by the suffix.
+
 Every problem is one :class:`InputError` naming the file, the row and the column.
 """
 
@@ -158,6 +162,83 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
             and not row[0].lstrip().startswith("#")]
     except csv.Error as error:
         raise InputError(f"not a readable table ({error})", where) from None
+    return _from_rows(rows, decimal_comma, modulus, where)
+
+
+#: Workbook suffixes read by :func:`read_dma_workbook`.
+WORKBOOK_SUFFIXES = (".xls", ".xlsx", ".xlsm")
+#: The sheet DMA software exports its measurement to (Eplexor), preferred when present.
+EXPORT_SHEETS = ("Exported Data",)
+
+
+def read_dma_file(path: Path, modulus: str | None = None) -> ModulusTable:
+    """A DMA table from a CSV/text file or an Excel workbook (by the file's suffix)."""
+    if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
+        return read_dma_workbook(Path(path), modulus)
+    return read_dma_csv(Path(path), modulus)
+
+
+def _cell_text(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
+    """Read a DMA table from an Excel workbook (``.xls`` with xlrd, ``.xlsx`` with openpyxl).
+
+    The sheet read is "Exported Data" (Eplexor's export) when there is one, else the first
+    sheet; its rows are read as a CSV table is (column names, optionally a units row, then one
+    row per point).
+
+    Raises
+    ------
+    InputError
+        The reader package is missing, the workbook cannot be read, or the table is bad (row and
+        column named as for a CSV file; rows are numbered as the spreadsheet shows them).
+    """
+    where = str(path)
+    if not path.is_file():
+        raise InputError("no such file", where)
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise InputError(f"{path.stat().st_size} bytes; a DMA table holds at most "
+                         f"{MAX_FILE_BYTES}", where)
+    suffix = path.suffix.lower()
+    package = "xlrd" if suffix == ".xls" else "openpyxl"
+    try:
+        reader = __import__(package)
+    except ImportError:
+        raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
+                         "'viscorig[excel]')", where) from None
+    try:
+        if suffix == ".xls":
+            book = reader.open_workbook(str(path), on_demand=True)
+            names = book.sheet_names()
+            chosen = next((n for n in EXPORT_SHEETS if n in names), names[0])
+            sheet = book.sheet_by_name(chosen)
+            grid = [sheet.row_values(r) for r in range(min(sheet.nrows, MAX_POINTS + 10))]
+        else:
+            book = reader.load_workbook(str(path), read_only=True, data_only=True)
+            names = book.sheetnames
+            chosen = next((n for n in EXPORT_SHEETS if n in names), names[0])
+            sheet = book[chosen]
+            grid = [list(row) for row in sheet.iter_rows(max_row=MAX_POINTS + 10,
+                                                         values_only=True)]
+    except InputError:
+        raise
+    except Exception as error:  # any failure of the reader is a bad file
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"not a readable workbook ({reason})", where) from None
+    rows = [(number, [_cell_text(v) for v in row]) for number, row in enumerate(grid, start=1)
+            if any(_cell_text(v).strip() for v in row)]
+    return _from_rows(rows, False, modulus, f"{where} (sheet {chosen!r})")
+
+
+def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: str | None,
+               where: str) -> ModulusTable:
+    """The table of parsed rows: names, optionally units, then one row per point."""
     if not rows:
         raise InputError("no table in the file", where)
     header_row, header = rows[0]
