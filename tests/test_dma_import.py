@@ -133,3 +133,12 @@ def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys):
     assert main(["import", str(tmp_path / "d.h5"), "--run", "x", "--dma", str(path)]) == 2
     err = capsys.readouterr().err
     assert "sheet 'Exported Data'" in err and "row 7" in err and "column \"E'\"" in err
+
+
+def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys):
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "g", "--dma", str(REAL), "--modulus", "G"]) == 0
+    assert "modulus G" in capsys.readouterr().out
+    assert read_dma(Campaign.open(path), "g").modulus == "G"
+    assert main(["import", str(path), "--run", "h", "--uff", str(REAL), "--modulus", "E"]) == 2
+    assert "--modulus: only with --dma" in capsys.readouterr().err

@@ -159,6 +159,11 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
 
 def import_handler(args: argparse.Namespace) -> int:
     """Run ``import``."""
+    if args.modulus is not None and not args.dma:
+        raise InputError("only with --dma", "--modulus")
+    if args.station and not args.sdf:
+        raise InputError("a station converts SDF files only; the other formats carry "
+                         "their units", "--station")
     if args.dma:
         from viscorig.materials.dmafile import read_dma_file
         from viscorig.materials.dmastore import import_dma
@@ -168,11 +173,6 @@ def import_handler(args: argparse.Namespace) -> int:
         print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
               f"{table.sets.size} temperatures, modulus {table.modulus}")
         return 0
-    if args.modulus is not None:
-        raise InputError("only with --dma", "--modulus")
-    if args.station and not args.sdf:
-        raise InputError("a station converts SDF files only; the other formats carry "
-                         "their units", "--station")
     if args.uff:
         frfs = read_uff(Path(args.uff))
     elif args.csv:
