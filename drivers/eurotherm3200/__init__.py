@@ -16,8 +16,15 @@ Engineering Handbook). The driver knows nothing of viscorig.
 """
 
 from eurotherm3200.controller import Eurotherm3200, parse_address
-from eurotherm3200.errors import BadReply, ChamberError, NoReply, SensorBreak, SetPointRefused
+from eurotherm3200.errors import (
+           BadReplyError,
+           ChamberError,
+           NoReplyError,
+           SensorBreakError,
+           SetPointRefusedError,
+)
 from eurotherm3200.registers import PARAMETERS, SENSOR_BREAK_BIT, Parameter
 
-__all__ = ["PARAMETERS", "SENSOR_BREAK_BIT", "BadReply", "ChamberError", "Eurotherm3200",
-           "NoReply", "Parameter", "SensorBreak", "SetPointRefused", "parse_address"]
+__all__ = ["PARAMETERS", "SENSOR_BREAK_BIT", "BadReplyError", "ChamberError", "Eurotherm3200",
+           "NoReplyError", "Parameter", "SensorBreakError", "SetPointRefusedError",
+           "parse_address"]

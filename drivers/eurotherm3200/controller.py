@@ -13,7 +13,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from eurotherm3200.errors import BadReply, ChamberError, NoReply, SensorBreak, SetPointRefused
+from eurotherm3200.errors import (
+    BadReplyError,
+    ChamberError,
+    NoReplyError,
+    SensorBreakError,
+    SetPointRefusedError,
+)
 from eurotherm3200.registers import PARAMETERS, SENSOR_BREAK_BIT
 
 __all__ = ["Eurotherm3200", "Link", "parse_address"]
@@ -122,7 +128,7 @@ class Eurotherm3200:
                                         retries=retries, reconnect_delay=0.0)
         if not client.connect():
             client.close()
-            raise NoReply(f"temperature controller {link}: cannot connect")
+            raise NoReplyError(f"temperature controller {link}: cannot connect")
         controller = cls(client, link, unit=unit, specimen_unit=specimen_unit,
                          limits_c=(float(low), float(high)), decimals=decimals)
         try:
@@ -164,23 +170,23 @@ class Eurotherm3200:
     def _check(self, reply: Any, mnemonic: str, unit: int) -> list[int]:
         where = self._where(mnemonic, unit)
         if reply is None:
-            raise NoReply(f"{where}: no reply")
+            raise NoReplyError(f"{where}: no reply")
         if reply.isError():
             code = getattr(reply, "exception_code", None)
             what = _EXCEPTIONS.get(code, f"exception {code}") if code else str(reply)
-            raise BadReply(f"{where}: the controller refused the request ({what})")
+            raise BadReplyError(f"{where}: the controller refused the request ({what})")
         registers = list(getattr(reply, "registers", []) or [])
         if len(registers) != 1 or not 0 <= registers[0] <= 0xFFFF:
-            raise BadReply(f"{where}: expected one 16-bit register, got {registers!r}")
+            raise BadReplyError(f"{where}: expected one 16-bit register, got {registers!r}")
         return registers
 
     def _link_error(self, mnemonic: str, unit: int, error: Exception) -> ChamberError:
         text = " ".join(str(error).split())
         where = self._where(mnemonic, unit)
         if "No response" in text or "cannot connect" in text.lower() or "Connection" in text:
-            return NoReply(f"{where}: no valid reply (is the controller on, at this address and "
-                           f"baud rate?)")
-        return BadReply(f"{where}: bad reply ({text})")
+            return NoReplyError(f"{where}: no valid reply (is the controller on, at this "
+                                f"address and baud rate?)")
+        return BadReplyError(f"{where}: bad reply ({text})")
 
     def read(self, mnemonic: str, unit: int | None = None) -> float:
         """A parameter's value in engineering units (scaled ones divided by 10^decimals)."""
@@ -199,9 +205,9 @@ class Eurotherm3200:
         parameter = PARAMETERS[mnemonic]
         if not parameter.writable:
             raise ValueError(f"{mnemonic} is read-only")
-        word = int(round(value * 10.0**self.decimals))
+        word = round(value * 10.0**self.decimals)
         if not -0x8000 <= word <= 0x7FFF:
-            raise SetPointRefused(f"{self._where(mnemonic, self.unit)}: {value:g} does not "
+            raise SetPointRefusedError(f"{self._where(mnemonic, self.unit)}: {value:g} does not "
                                   f"fit a 16-bit register at {self.decimals} decimal(s)")
         try:
             reply = self._client.write_register(parameter.address, word & 0xFFFF,
@@ -210,10 +216,10 @@ class Eurotherm3200:
             raise self._link_error(mnemonic, self.unit, error) from None
         where = self._where(mnemonic, self.unit)
         if reply is None:
-            raise NoReply(f"{where}: no reply")
+            raise NoReplyError(f"{where}: no reply")
         if reply.isError():
             code = getattr(reply, "exception_code", None)
-            raise SetPointRefused(f"{where}: the controller refused {value:g} "
+            raise SetPointRefusedError(f"{where}: the controller refused {value:g} "
                                   f"({_EXCEPTIONS.get(code, f'exception {code}')})")
 
     # ------------------------------------------------------------------ the chamber
@@ -224,7 +230,7 @@ class Eurotherm3200:
 
     def _temperature(self, unit: int, which: str) -> float:
         if self.status(unit) & (1 << SENSOR_BREAK_BIT):
-            raise SensorBreak(f"temperature controller {self.link} unit {unit}: sensor break "
+            raise SensorBreakError(f"temperature controller {self.link} unit {unit}: sensor break "
                               f"on the {which} thermocouple")
         return self.read("PV.IN", unit)
 
@@ -233,7 +239,7 @@ class Eurotherm3200:
 
         Raises
         ------
-        SensorBreak
+        SensorBreakError
             The thermocouple is broken.
         """
         return self._temperature(self.unit, "chamber")
@@ -265,12 +271,12 @@ class Eurotherm3200:
 
         Raises
         ------
-        SetPointRefused
+        SetPointRefusedError
             Outside ``limits_c`` (nothing is written) or refused by the controller.
         """
         low, high = self.limits_c
         if not (math.isfinite(temperature_c) and low <= temperature_c <= high):
-            raise SetPointRefused(f"temperature controller {self.link}: set point "
+            raise SetPointRefusedError(f"temperature controller {self.link}: set point "
                                   f"{temperature_c:g} °C is outside the limits "
                                   f"[{low:g}, {high:g}] °C; nothing written")
         self.write("TG.SP", temperature_c)
@@ -278,6 +284,6 @@ class Eurotherm3200:
     def set_rate_limit(self, rate_c_per_min: float) -> None:
         """Write the set-point rate limit, °C/min (0: none)."""
         if not (math.isfinite(rate_c_per_min) and rate_c_per_min >= 0.0):
-            raise SetPointRefused(f"temperature controller {self.link}: rate limit "
+            raise SetPointRefusedError(f"temperature controller {self.link}: rate limit "
                                   f"{rate_c_per_min:g} °C/min must be >= 0")
         self.write("SP.RAT", rate_c_per_min)

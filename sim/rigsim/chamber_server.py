@@ -53,7 +53,7 @@ def quiet_library_log() -> None:
 
 def _word(value_c: float) -> int:
     """A temperature as the instrument's 16-bit word (tenths, two's complement)."""
-    return int(round(value_c * 10.0)) & 0xFFFF
+    return round(value_c * 10.0) & 0xFFFF
 
 
 def _value(word: int) -> float:
@@ -146,7 +146,7 @@ class ChamberServer:
     def _run(self) -> None:
         try:
             asyncio.run(self._serve())
-        except BaseException as error:  # noqa: BLE001 (reported by start)
+        except BaseException as error:  # reported by start()
             self._error = error
             self._ready.set()
 
