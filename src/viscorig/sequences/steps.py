@@ -135,7 +135,37 @@ class IdentifyTableStep:
     band_hz: tuple[float, float] | None = None
 
 
-Step = PromptStep | WaitStep | SweepStep | IdentifyTableStep
+@dataclass(frozen=True)
+class TemperatureStep:
+    """Bring the specimens to ``set_point_c``: write the set point and its ramp, then wait until
+    the specimen thermocouple has stayed within ``± soak_band_k`` for ``soak_minutes``
+    (a chamber fault after ``time_limit_minutes``)."""
+
+    set_point_c: float
+    ramp_c_per_min: float = 0.0
+    soak_band_k: float = 1.0
+    soak_minutes: float = 10.0
+    time_limit_minutes: float = 240.0
+
+    @property
+    def soak_s(self) -> float:
+        return 60.0 * self.soak_minutes
+
+    @property
+    def time_limit_s(self) -> float:
+        return 60.0 * self.time_limit_minutes
+
+    def duration_s(self, from_c: float, specimen_time_constant_s: float) -> float:
+        """Predicted time of the step from a specimen at ``from_c``, s: the ramp, the
+        specimens' lag until they are within the band, then the soak."""
+        gap = abs(self.set_point_c - from_c)
+        ramp = gap / self.ramp_c_per_min * 60.0 if self.ramp_c_per_min > 0.0 else 0.0
+        lag = (specimen_time_constant_s * math.log(gap / self.soak_band_k)
+               if gap > self.soak_band_k else 0.0)
+        return ramp + lag + self.soak_s
+
+
+Step = PromptStep | WaitStep | SweepStep | IdentifyTableStep | TemperatureStep
 
 
 @dataclass(frozen=True)
@@ -152,6 +182,11 @@ class Sequence:
     def sweeps(self) -> tuple[SweepStep, ...]:
         """The sweep steps, in order."""
         return tuple(step for step in self.steps if isinstance(step, SweepStep))
+
+    @property
+    def soaks(self) -> tuple[TemperatureStep, ...]:
+        """The temperature steps, in order."""
+        return tuple(step for step in self.steps if isinstance(step, TemperatureStep))
 
     @property
     def run_names(self) -> tuple[str, ...]:
