@@ -210,6 +210,7 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
         poll_interval_s=0.2,
         mount=opened.mount,
         instrument_errors=opened.instrument_errors,
+        chamber=opened.chamber,
     )
     console = Console(yes=args.yes)
     floors = _forecast(campaign, sequence, opened)

@@ -79,7 +79,8 @@ def _unroll(problems: Problems, path: Path, raw: Mapping[str, Any]) -> list[tupl
     entries: list[tuple[Path, Any]] = []
     for temperature in temperatures if temperatures is not None else (None,):
         if temperature is not None:
-            entries.append((path, {"type": "temperature", "set_point_c": temperature, **soak}))
+            entries.append(((*path, "temperatures_c"),
+                            {"type": "temperature", "set_point_c": temperature, **soak}))
         for number, level in enumerate(levels if levels is not None else (None,), start=1):
             for step_number, step in enumerate(inner):
                 entries.append(((*path, "steps", step_number),

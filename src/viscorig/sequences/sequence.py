@@ -197,7 +197,7 @@ def _parse_step(problems: Problems, path: tuple, raw: object, defaults: Mapping[
     if kind == "prompt":
         return PromptStep(message=fields["message"], simulated_rig=fields["simulated_rig"])
     if kind == "temperature":
-        return TemperatureStep(**fields.values)
+        return TemperatureStep(**fields.values, origin=path)
     return WaitStep(seconds=fields["seconds"], message=fields["message"])
 
 

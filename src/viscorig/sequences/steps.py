@@ -7,7 +7,7 @@ plans: each step does one thing. The runner interprets them; these classes only 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -146,6 +146,8 @@ class TemperatureStep:
     soak_band_k: float = 1.0
     soak_minutes: float = 10.0
     time_limit_minutes: float = 240.0
+    origin: tuple = field(default=(), compare=False, repr=False)
+    """Where the step is written in its file (a repeat's table for the steps it unrolls)."""
 
     @property
     def soak_s(self) -> float:
