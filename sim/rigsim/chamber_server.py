@@ -31,6 +31,7 @@ import logging
 import os
 import select
 import threading
+import time
 import tty
 from functools import partial
 
@@ -72,11 +73,15 @@ class ChamberServer:
     transport
         ``"tcp"`` (``host``, ``port``; 0 a free port) or ``"rtu"`` (a pseudo-terminal pair; the
         client opens :attr:`serial_port`).
+    pace
+        Let the chamber's time follow the wall clock, ``pace`` simulated seconds per second
+        (None: something else advances it, the rig simulator's test time).
     """
 
     def __init__(self, chamber: Chamber, *, controller_unit: int = 1,
                  specimen_unit: int | None = 2, transport: str = "tcp",
-                 host: str = "127.0.0.1", port: int = 0, baudrate: int = 19200) -> None:
+                 host: str = "127.0.0.1", port: int = 0, baudrate: int = 19200,
+                 pace: float | None = None) -> None:
         if transport not in ("tcp", "rtu"):
             raise ValueError(f"transport must be 'tcp' or 'rtu', not {transport!r}")
         self.chamber = chamber
@@ -95,6 +100,9 @@ class ChamberServer:
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self._bridge: _PtyBridge | None = None
+        self.pace = pace
+        self._stop_clock = threading.Event()
+        self._clock: threading.Thread | None = None
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -116,10 +124,24 @@ class ChamberServer:
             raise RuntimeError("the simulated chamber controller did not start")
         if self._error is not None:
             raise RuntimeError(f"the simulated chamber controller cannot serve: {self._error}")
+        if self.pace is not None:
+            self._clock = threading.Thread(target=self._tick, name="chamber-clock", daemon=True)
+            self._clock.start()
         return self
+
+    def _tick(self) -> None:
+        """The chamber's time follows the wall clock at ``pace`` (``sim serve``)."""
+        last = time.monotonic()
+        while not self._stop_clock.wait(0.1):
+            now = time.monotonic()
+            self.chamber.advance((now - last) * float(self.pace or 0.0))
+            last = now
 
     def close(self) -> None:
         """Stop serving and release the port or pseudo-terminals."""
+        self._stop_clock.set()
+        if self._clock is not None:
+            self._clock.join(2.0)
         loop, server = self._loop, self._server
         if loop is not None and server is not None and loop.is_running():
             with contextlib.suppress(Exception):
