@@ -59,14 +59,25 @@ class ChamberMonitor:
         The station's ``[chamber]``: limits and safe set point.
     pass_time
         How time passes on a simulated rig (``pass_time(seconds)``); None: really sleep.
+    errors
+        The driver's exception types that mean a chamber fault: raised again as
+        :class:`~viscorig.errors.InstrumentError` with the driver's one-line message.
     """
 
     def __init__(self, controller: Any, station: ChamberStation,
-                 pass_time: Callable[[float], None] | None = None) -> None:
+                 pass_time: Callable[[float], None] | None = None,
+                 errors: tuple[type[BaseException], ...] = ()) -> None:
         self.controller = controller
         self.station = station
         self.pass_time = pass_time
+        self.errors = errors
         self.soak: Soak | None = None
+
+    def _call(self, method: str, *args: Any) -> Any:
+        try:
+            return getattr(self.controller, method)(*args)
+        except self.errors as error:
+            raise InstrumentError(" ".join(str(error).split())) from None
 
     def go_to(self, step: TemperatureStep) -> None:
         """Write the ramp and the set point of a temperature step (within the limits)."""
@@ -75,21 +86,21 @@ class ChamberMonitor:
                 f"chamber: set point {step.set_point_c:g} °C is outside the station's limits "
                 f"[{self.station.low_limit_c:g}, {self.station.high_limit_c:g}] °C; nothing "
                 "written")
-        self.controller.set_rate_limit(step.ramp_c_per_min)
-        self.controller.set_target(step.set_point_c)
+        self._call("set_rate_limit", step.ramp_c_per_min)
+        self._call("set_target", step.set_point_c)
         self.soak = Soak(step.set_point_c, step.soak_band_k)
 
     def specimen_c(self) -> float:
-        return float(self.controller.specimen_c())
+        return float(self._call("specimen_c"))
 
     def air_c(self) -> float:
-        return float(self.controller.air_c())
+        return float(self._call("air_c"))
 
     def to_safe(self) -> float:
         """Set the station's safe set point (rate limit off); returns it."""
         safe = self.station.safe_set_point_c
-        self.controller.set_rate_limit(0.0)
-        self.controller.set_target(safe)
+        self._call("set_rate_limit", 0.0)
+        self._call("set_target", safe)
         self.soak = None
         return safe
 

@@ -116,7 +116,7 @@ def open_chamber(chamber: ChamberStation, address: str | None = None,
             limits_c=(chamber.low_limit_c, chamber.high_limit_c), baudrate=chamber.baudrate)
     except (ChamberError, ValueError) as error:
         raise InstrumentError(f"cannot reach the chamber: {single_line(str(error))}") from None
-    return ChamberMonitor(controller, chamber, pass_time)
+    return ChamberMonitor(controller, chamber, pass_time, (ChamberError,))
 
 
 def _first_preset(sequence: Sequence) -> str:
