@@ -70,8 +70,8 @@ def test_soak_then_every_point_has_its_temperature(tmp_path: Path, capsys) -> No
 type = "temperature"
 set_point_c = 30.0
 ramp_c_per_min = 5.0
-soak_band_k = 0.5
-soak_minutes = 2
+soak_band_k = 1.0
+soak_minutes = 1
 
 [[steps]]
 type = "sweep"
@@ -86,7 +86,7 @@ temperature_c = 30.0
     run = Campaign.open(out).run("hot")
     values, units = run.extra["specimen_temperature_c"]
     assert units == "degC" and values.size == run.points == 6
-    assert np.all(np.abs(values - 30.0) <= 0.5)
+    assert np.all(np.abs(values - 30.0) <= 1.0)
     assert not np.any(run.flags & 16)
     assert run.metadata.temperature_c == 30.0
 
