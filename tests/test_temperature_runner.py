@@ -84,7 +84,7 @@ temperature_c = 30.0
     assert "chamber set to 30 °C, ramp 5 °C/min" in printed and "soaked: specimen" in printed
     assert target == 25.0 and "chamber left at the safe set point 25 °C" in printed
     run = Campaign.open(out).run("hot")
-    values, units = run.extra["specimen_temperature_c"]
+    values, units = run.extra["temperature_c"]
     assert units == "degC" and values.size == run.points == 6
     assert np.all(np.abs(values - 30.0) <= 1.0)
     assert not np.any(run.flags & 16)
@@ -121,7 +121,7 @@ temperature_c = 20.0
     result, out, _ = _run(tmp_path, text, prepare=disturb_at_the_first_segment)
     assert result.outcome is Outcome.COMPLETE, result.message
     run = Campaign.open(out).run("drifting")
-    values, _ = run.extra["specimen_temperature_c"]
+    values, _ = run.extra["temperature_c"]
     outside = np.abs(values - 20.0) > 0.5
     assert values[-1] > values[0] + 1.0  # warming through the run
     assert outside.any() and np.array_equal((run.flags & 16) != 0, outside)

@@ -8,7 +8,8 @@ the chamber left at the station's safe set point however the sequence ends.
   point, then poll the specimen thermocouple until it has stayed within the band for the soak
   time; past the time limit it is a chamber fault.
 - :class:`ChamberedAnalyser` wraps the analyser: it reads the specimen thermocouple before and
-  after each segment and gives each point its temperature (interpolated between the two
+  after each segment and gives each point its temperature (the run's per-point
+  ``temperature_c`` dataset, °C) (interpolated between the two
   readings in proportion to the points' durations, ∝ 1/f at fixed cycles) and whether it lies
   outside the soak band (flag 16 in the file).
 - :class:`ChamberEngine` is the run engine with the chamber's messages (``chamber``,

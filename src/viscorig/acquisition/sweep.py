@@ -256,7 +256,7 @@ def segment_of(
     extra = {}
     temperatures = getattr(measured, "specimen_temperature_c", None)
     if temperatures is not None:  # a segment measured in a temperature chamber
-        extra["specimen_temperature_c"] = (np.asarray(temperatures, dtype=float), "degC")
+        extra["temperature_c"] = (np.asarray(temperatures, dtype=float), "degC")
         outside = np.asarray(measured.outside_soak_band, dtype=bool)
         flags = np.where(outside, flags | np.uint16(OUTSIDE_SOAK_BAND), flags)
     return Segment(

@@ -25,6 +25,7 @@ from viscorig.sequences import (
     PromptStep,
     Sensitivities,
     Sequence,
+    SpecimenGeometry,
     Station,
     SweepStep,
 )
@@ -117,6 +118,19 @@ def open_chamber(chamber: ChamberStation, address: str | None = None,
     except (ChamberError, ValueError) as error:
         raise InstrumentError(f"cannot reach the chamber: {single_line(str(error))}") from None
     return ChamberMonitor(controller, chamber, pass_time, (ChamberError,))
+
+
+def _specimen_geometry(sequence: Sequence) -> SpecimenGeometry | None:
+    """The specimens' geometry of the first preset the sequence mounts that gives it all."""
+    from rigsim.rigfile import load_preset, preset_names
+
+    names = set(preset_names())
+    for step in sequence.steps:
+        if isinstance(step, PromptStep) and step.simulated_rig in names:
+            specimen = load_preset(step.simulated_rig).specimen
+            if None not in (specimen.diameter_m, specimen.height_m, specimen.count):
+                return SpecimenGeometry(specimen.diameter_m, specimen.height_m, specimen.count)
+    return None
 
 
 def _first_preset(sequence: Sequence) -> str:
@@ -298,6 +312,7 @@ def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator
             shaker_force_limit_n=rig.shaker.force_limit_n,
             shaker_gain_n_per_v=rig.shaker.force_n_per_v,
             source_limit_v=SIMULATED_SOURCE_LIMIT_V,
+            specimen=_specimen_geometry(sequence),
             source="embedded simulated rig",
         )
         with contextlib.ExitStack() as stack:
