@@ -344,12 +344,15 @@ def _embedded_chamber(sequence: Sequence, server: Any, pace: float | None) -> It
     chamber = Chamber(_chamber_parameters(sequence))
     analyser = server.analyser
     analyser.simulator.attach_chamber(chamber, advance=True)
+    paced_until = [0.0]  # the wall-clock instant the paced simulated time has reached
 
     def pass_time(seconds: float) -> None:
         with analyser.lock:
             analyser.simulator.idle(seconds)
-        if pace is not None:
-            time.sleep(seconds / pace)
+        if pace is not None:  # against a deadline, so that the polling's own work is absorbed
+            now = time.monotonic()
+            paced_until[0] = max(paced_until[0], now) + seconds / pace
+            time.sleep(max(paced_until[0] - now, 0.0))
 
     with ChamberServer(chamber, controller_unit=1, specimen_unit=2) as chamber_server:
         monitor = open_chamber(embedded_chamber_station(sequence), chamber_server.address,
