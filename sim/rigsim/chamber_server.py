@@ -11,10 +11,11 @@ specimen's own thermocouple:
 - the *indicator* (default unit 2): ``PV.IN`` the specimen temperature, ``StAt`` its sensor
   break.
 
-Values are 16-bit two's-complement integers in tenths (one decimal place, the instrument's
-default). A target outside the range is refused with exception 3 (illegal data value), a write
-to a read-only parameter with exception 2. Every register is refreshed from the
-:class:`~rigsim.chamber.Chamber` when it is read.
+Values are 16-bit two's-complement integers scaled by the decimal places the instrument is
+configured for (``decimals``: one, the instrument's default, is tenths). A target outside the
+range is refused with exception 3 (illegal data value), a write to a read-only parameter with
+exception 2. Every register is refreshed from the :class:`~rigsim.chamber.Chamber` when it is
+read.
 
 Faults (:meth:`ChamberServer.inject`): ``"silent"`` (no reply at all, the controller stops
 answering), ``"garble"`` (replies with a corrupted byte), ``"none"``.
@@ -52,13 +53,14 @@ def quiet_library_log() -> None:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 
-def _word(value_c: float) -> int:
-    """A temperature as the instrument's 16-bit word (tenths, two's complement)."""
-    return round(value_c * 10.0) & 0xFFFF
+def _word(value_c: float, decimals: int = 1) -> int:
+    """A temperature as the instrument's 16-bit word (scaled by its decimal places, two's
+    complement)."""
+    return round(value_c * 10.0**decimals) & 0xFFFF
 
 
-def _value(word: int) -> float:
-    return (word - 0x10000 if word & 0x8000 else word) / 10.0
+def _value(word: int, decimals: int = 1) -> float:
+    return (word - 0x10000 if word & 0x8000 else word) / 10.0**decimals
 
 
 class ChamberServer:
@@ -81,7 +83,7 @@ class ChamberServer:
     def __init__(self, chamber: Chamber, *, controller_unit: int = 1,
                  specimen_unit: int | None = 2, transport: str = "tcp",
                  host: str = "127.0.0.1", port: int = 0, baudrate: int = 19200,
-                 pace: float | None = None) -> None:
+                 pace: float | None = None, decimals: int = 1) -> None:
         if transport not in ("tcp", "rtu"):
             raise ValueError(f"transport must be 'tcp' or 'rtu', not {transport!r}")
         self.chamber = chamber
@@ -101,6 +103,7 @@ class ChamberServer:
         self._error: BaseException | None = None
         self._bridge: _PtyBridge | None = None
         self.pace = pace
+        self.decimals = decimals
         self._stop_clock = threading.Event()
         self._clock: threading.Thread | None = None
 
@@ -225,7 +228,7 @@ class ChamberServer:
                 where = address + offset
                 if sensor != "air" or where not in WRITABLE:
                     return ExcCodes.ILLEGAL_ADDRESS
-                value = _value(word)
+                value = _value(word, self.decimals)
                 if where == TARGET:
                     p = chamber.parameters
                     if not p.low_limit_c <= value <= p.high_limit_c:
@@ -239,14 +242,17 @@ class ChamberServer:
         broken = chamber.broken(sensor)
         reading = chamber.air_c if sensor == "air" else chamber.specimen_c
         p = chamber.parameters
+        d = self.decimals
         fresh = {
-            PV: _word(p.high_limit_c if broken else reading),
-            RANGE_LO: _word(p.low_limit_c), RANGE_HI: _word(p.high_limit_c),
+            PV: _word(p.high_limit_c if broken else reading, d),
+            RANGE_LO: _word(p.low_limit_c, d), RANGE_HI: _word(p.high_limit_c, d),
             STATUS: SENSOR_BREAK if broken else 0,
         }
         if sensor == "air":
-            fresh |= {TARGET: _word(chamber.target_c), OUTPUT: _word(chamber.output_percent),
-                      WORKING: _word(chamber.working_c), RATE: _word(chamber.rate_k_per_min)}
+            fresh |= {TARGET: _word(chamber.target_c, d),
+                      OUTPUT: _word(chamber.output_percent, d),
+                      WORKING: _word(chamber.working_c, d),
+                      RATE: _word(chamber.rate_k_per_min, d)}
         for where, word in fresh.items():
             registers[where - start_address] = word
         return None

@@ -65,6 +65,9 @@ def instrument_errors() -> tuple[type[BaseException], ...]:
 #: The embedded rig's chamber limits and safe set point, °C.
 EMBEDDED_CHAMBER_LIMITS_C = (-40.0, 100.0)
 EMBEDDED_SAFE_SET_POINT_C = 25.0
+#: The embedded rig's controllers show hundredths of a kelvin: at -20 °C the medium rubber
+#: shifts by 0.1 decade per kelvin, so tenths would cost up to 0.005 decade of shift factor.
+EMBEDDED_DECIMALS = 2
 
 
 def _chamber_parameters(sequence: Sequence):
@@ -88,6 +91,7 @@ def embedded_chamber_station(sequence: Sequence) -> ChamberStation:
     low, high = EMBEDDED_CHAMBER_LIMITS_C
     return ChamberStation(address="tcp://127.0.0.1:502", low_limit_c=low, high_limit_c=high,
                           safe_set_point_c=EMBEDDED_SAFE_SET_POINT_C, unit=1, specimen_unit=2,
+                          decimals=EMBEDDED_DECIMALS,
                           specimen_time_constant_s=parameters.specimen_time_constant_s)
 
 
@@ -114,7 +118,8 @@ def open_chamber(chamber: ChamberStation, address: str | None = None,
     try:
         controller = Eurotherm3200.open(
             address or chamber.address, unit=chamber.unit, specimen_unit=chamber.specimen_unit,
-            limits_c=(chamber.low_limit_c, chamber.high_limit_c), baudrate=chamber.baudrate)
+            limits_c=(chamber.low_limit_c, chamber.high_limit_c), baudrate=chamber.baudrate,
+            decimals=chamber.decimals)
     except (ChamberError, ValueError) as error:
         raise InstrumentError(f"cannot reach the chamber: {single_line(str(error))}") from None
     return ChamberMonitor(controller, chamber, pass_time, (ChamberError,))
@@ -354,7 +359,8 @@ def _embedded_chamber(sequence: Sequence, server: Any, pace: float | None) -> It
             paced_until[0] = max(paced_until[0], now) + seconds / pace
             time.sleep(max(paced_until[0] - now, 0.0))
 
-    with ChamberServer(chamber, controller_unit=1, specimen_unit=2) as chamber_server:
+    with ChamberServer(chamber, controller_unit=1, specimen_unit=2,
+                       decimals=EMBEDDED_DECIMALS) as chamber_server:
         monitor = open_chamber(embedded_chamber_station(sequence), chamber_server.address,
                                pass_time)
         try:

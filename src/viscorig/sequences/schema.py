@@ -636,6 +636,9 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
               default=None, low=1, high=247, example="2"),
         Field("baudrate", "integer", "RTU line speed (8 data bits, no parity, 1 stop bit).",
               default=19200, low=1200, high=115200, example="19200"),
+        Field("decimals", "integer", "Decimal places the controllers are configured for (their "
+              "values are integers scaled by them): 1 is 0.1 °C, 2 is 0.01 °C.", default=1,
+              low=0, high=2, example="2"),
         Field("low_limit_c", "number", "No set point below this is ever written.",
               unit="°C", low=MIN_SET_POINT_C, high=MAX_SET_POINT_C, example="-40.0"),
         Field("high_limit_c", "number", "No set point above this is ever written.",

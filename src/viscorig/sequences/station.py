@@ -111,6 +111,7 @@ class ChamberStation:
     unit: int = 1
     specimen_unit: int | None = None
     baudrate: int = 19200
+    decimals: int = 1
     specimen_time_constant_s: float = 600.0
 
     def allows(self, temperature_c: float) -> bool:
