@@ -125,6 +125,10 @@ temperature_c = 20.0
     outside = np.abs(values - 20.0) > 0.5
     assert values[-1] > values[0] + 1.0  # warming through the run
     assert outside.any() and np.array_equal((run.flags & 16) != 0, outside)
+    # diagnosis sees what was recorded, to explain a drift by it before inferring one
+    from viscorig.diagnosis.data import recorded_temperature_range
+
+    assert recorded_temperature_range(run) == (values.min(), values.max())
 
 
 def test_broken_thermocouple_during_a_run(tmp_path: Path) -> None:
