@@ -163,9 +163,13 @@ def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     floors = simulated_floors(sequence) if opened.simulated else {}
     station = opened.station
+    chamber = station.chamber
+    thermal = {} if chamber is None else {
+        "chamber_start_c": chamber.safe_set_point_c,
+        "specimen_time_constant_s": chamber.specimen_time_constant_s}
     forecasts = forecast_sequence(
         sequence, table_known=station.table is not None, floors=floors,
-        force_limit_n=station.shaker_force_limit_n, status=statuses.get,
+        force_limit_n=station.shaker_force_limit_n, status=statuses.get, **thermal,
     )  # fmt: skip
     left = [item for item in forecasts
             if not (item.kind.endswith("sweep") and statuses.get(item.name) == "complete")]
