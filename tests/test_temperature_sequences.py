@@ -188,3 +188,10 @@ def test_example_sequence_checks_and_plans(capsys) -> None:
     assert document["soaks"] == 14
     temperatures = [step["name"] for step in document["steps"] if step["kind"] == "soak"]
     assert temperatures[0] == "-20 °C" and temperatures[12] == "80 °C"
+
+
+def test_several_runs_are_fitted_together_only_for_the_payne_effect(tmp_path: Path,
+                                                                    capsys) -> None:
+    assert main(["identify", str(tmp_path / "c.h5"), "--run", "a", "--run", "b"]) == 2
+    assert "add --model kraus" in capsys.readouterr().err
+

@@ -66,6 +66,14 @@ def test_payne_parameters_within_three_standard_errors(campaign: Path) -> None:
     for name, (value, stderr, _) in fit.parameters.items():
         assert stderr > 0 and abs(value - expected[name]) <= 3 * stderr, (name, value, stderr)
     assert 0.5 < fit.reduced_chi_square < 2.0
+    done = subprocess.run([sys.executable, "-m", "viscorig", "identify", str(campaign),
+                           "--run", "medium_25C_strain1", "--run", "medium_25C_strain2",
+                           "--run", "medium_25C_strain3", "--model", "kraus", "--json"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    assert document["model"] == "kraus" and document["points"] == fit.points
+    assert document["parameters"]["x_c"]["value"] == pytest.approx(fit.parameters["x_c"][0])
 
 
 def _master_available() -> bool:
