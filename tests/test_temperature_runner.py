@@ -218,3 +218,68 @@ time_limit_minutes = {limit}
     assert result.outcome is Outcome.FAULT
     assert "not soaked within ±0.2 K of -30 °C" in result.message
     assert f"time limit {limit} min" in result.message and target == 25.0
+
+
+def test_a_lab_station_with_a_chamber(tmp_path: Path) -> None:
+    """``run --station`` with a [chamber]: the analyser and the chamber's controller at the
+    addresses the station names (here the simulated ones, on loopback), a soak already done at
+    the start (no real waiting), every point's temperature recorded."""
+    from rigsim.chamber import Chamber, ChamberParameters
+    from rigsim.chamber_server import ChamberServer
+    from rigsim.rigfile import load_preset
+    from rigsim.server import SimulatedAnalyserServer
+
+    from viscorig.cli import main
+
+    rig = load_preset("medium-chamber")
+    analyser = SimulatedAnalyserServer(rig).start()
+    chamber = Chamber(ChamberParameters(start_temperature_c=23.0))
+    analyser.analyser.simulator.attach_chamber(chamber)
+    try:
+        with ChamberServer(chamber) as controller:
+            station = tmp_path / "lab.toml"
+            station.write_text(f"""\
+resource = "{analyser.socket_resource}"
+[channels]
+excitation_force = 1
+table_acceleration = 2
+device_force = 3
+device_acceleration = 4
+[sensitivity]
+excitation_force_v_per_n = {rig.sensors.force_v_per_n}
+table_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
+device_force_v_per_n = {rig.sensors.force_v_per_n}
+device_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
+[shaker]
+force_limit_n = 100.0
+gain_n_per_v = {rig.shaker.force_n_per_v}
+[source]
+limit_v = 2.0
+[chamber]
+address = "{controller.address}"
+specimen_unit = 2
+low_limit_c = -30.0
+high_limit_c = 60.0
+safe_set_point_c = 20.0
+""")
+            sequence = tmp_path / "lab-seq.toml"
+            sequence.write_text(HEAD + """
+[[steps]]
+type = "temperature"
+set_point_c = 23.0
+soak_minutes = 0
+
+[[steps]]
+type = "sweep"
+run = "lab"
+temperature_c = 23.0
+""")
+            out = tmp_path / "lab.h5"
+            assert main(["run", str(sequence), "--station", str(station), "--yes", "--out",
+                         str(out)]) == 0
+            assert chamber.target_c == 20.0  # the station's safe set point, at the end
+    finally:
+        analyser.close()
+    run = Campaign.open(out).run("lab")
+    values, _ = run.extra["temperature_c"]
+    assert values.size == run.points == 6 and np.all(np.abs(values - 23.0) < 0.1)
