@@ -4,6 +4,7 @@ check and plan say about them."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -173,9 +174,9 @@ def test_plan_counts_the_soaks(tmp_path: Path, capsys) -> None:
     document = json.loads(capsys.readouterr().out)
     assert document["soaks"] == 4
     soaks = [step for step in document["steps"] if step["kind"] == "soak"]
-    # from the safe set point 25 °C to 50 °C, no ramp: the specimen's lag (420 s of the
-    # medium-chamber preset) into the 1 K band, then the 10 min soak
-    assert soaks[0]["low_s"] == pytest.approx(420.0 * __import__("math").log(25.0) + 600.0)
+    # from the safe set point 25 °C to 50 °C, no ramp: the air heats at 5 K/min (300 s), the
+    # specimens trail it (420 s of the medium-chamber preset) into the 1 K band, a 10 min soak
+    assert soaks[0]["low_s"] == pytest.approx(300.0 + 420.0 * math.log(25.0) + 600.0)
     assert main(["plan", str(sequence)]) == 0
     assert "4 soaks:" in capsys.readouterr().out
 

@@ -124,6 +124,8 @@ def forecast_sequence(
     status: Callable[[str], str | None] = lambda run: None,
     chamber_start_c: float = 25.0,
     specimen_time_constant_s: float = 600.0,
+    heating_rate_k_per_min: float | None = None,
+    cooling_rate_k_per_min: float | None = None,
 ) -> list[StepForecast]:
     """The predicted test time of every step (prompts and table fits take none).
 
@@ -139,16 +141,18 @@ def forecast_sequence(
         The shaker's limit (an adaptive plan keeps its forces below it).
     status
         A run's status in the campaign file (a run already measured is not probed again).
-    chamber_start_c, specimen_time_constant_s
-        The specimens' temperature before the first temperature step, and how slowly they
-        follow the chamber (a soak is its ramp, the lag into the band, and the soak time).
+    chamber_start_c, specimen_time_constant_s, heating_rate_k_per_min, cooling_rate_k_per_min
+        The specimens' temperature before the first temperature step, how slowly they follow
+        the chamber, and how fast its air heats and cools (a soak is its ramp, the lag into the
+        band, and the soak time: :meth:`~viscorig.sequences.TemperatureStep.duration_s`).
     """
     floors = floors or {}
     out = []
     temperature_c = chamber_start_c
     for index, step in enumerate(sequence.steps):
         if isinstance(step, TemperatureStep):
-            seconds = step.duration_s(temperature_c, specimen_time_constant_s)
+            seconds = step.duration_s(temperature_c, specimen_time_constant_s,
+                                      heating_rate_k_per_min, cooling_rate_k_per_min)
             out.append(StepForecast(index, "soak", f"{step.set_point_c:g} °C", seconds, seconds,
                                     note=f"from {temperature_c:g} °C"))
             temperature_c = step.set_point_c

@@ -81,9 +81,7 @@ def sequence_forecast(sequence: Sequence, station, status=lambda run: None):
         from viscorig.cli.stations import embedded_chamber_station
 
         chamber = embedded_chamber_station(sequence)
-    thermal = {} if chamber is None else {
-        "chamber_start_c": chamber.safe_set_point_c,
-        "specimen_time_constant_s": chamber.specimen_time_constant_s}
+    thermal = {} if chamber is None else chamber.soak_forecast()
     return forecast_sequence(sequence, table_known=table_known, floors=floors,
                              force_limit_n=force_limit, status=status, **thermal)
 

@@ -164,9 +164,7 @@ def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
     floors = simulated_floors(sequence) if opened.simulated else {}
     station = opened.station
     chamber = station.chamber
-    thermal = {} if chamber is None else {
-        "chamber_start_c": chamber.safe_set_point_c,
-        "specimen_time_constant_s": chamber.specimen_time_constant_s}
+    thermal = {} if chamber is None else chamber.soak_forecast()
     forecasts = forecast_sequence(
         sequence, table_known=station.table is not None, floors=floors,
         force_limit_n=station.shaker_force_limit_n, status=statuses.get, **thermal,

@@ -92,7 +92,9 @@ def embedded_chamber_station(sequence: Sequence) -> ChamberStation:
     return ChamberStation(address="tcp://127.0.0.1:502", low_limit_c=low, high_limit_c=high,
                           safe_set_point_c=EMBEDDED_SAFE_SET_POINT_C, unit=1, specimen_unit=2,
                           decimals=EMBEDDED_DECIMALS,
-                          specimen_time_constant_s=parameters.specimen_time_constant_s)
+                          specimen_time_constant_s=parameters.specimen_time_constant_s,
+                          heating_rate_k_per_min=parameters.heating_rate_k_per_min,
+                          cooling_rate_k_per_min=parameters.cooling_rate_k_per_min)
 
 
 def chamber_errors() -> tuple[type[BaseException], ...]:

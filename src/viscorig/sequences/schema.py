@@ -649,6 +649,12 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
         Field("specimen_time_constant_s", "number", "How slowly the specimens follow the air "
               "(first-order lag), for `viscorig plan`'s soak times.", default=600.0, unit="s",
               low=0.0, high=86_400.0, example="600"),
+        Field("heating_rate_k_per_min", "number", "How fast the chamber's air can heat, for "
+              "`viscorig plan`'s soak times (not set: as fast as the ramp asks).", default=None,
+              unit="K/min", low=0.0, low_open=True, high=1000.0, example="5.0"),
+        Field("cooling_rate_k_per_min", "number", "How fast the chamber's air can cool (as "
+              "heating_rate_k_per_min).", default=None, unit="K/min", low=0.0, low_open=True,
+              high=1000.0, example="3.0"),
     ), required=False),
     TableSchema("specimen", "Optional: specimen geometry, for E' = Re(K*)/θ in reports.", (
         Field("diameter_m", "number", "Cylinder diameter.", unit="m", low=0.0, high=1.0,

@@ -113,6 +113,16 @@ class ChamberStation:
     baudrate: int = 19200
     decimals: int = 1
     specimen_time_constant_s: float = 600.0
+    heating_rate_k_per_min: float | None = None
+    cooling_rate_k_per_min: float | None = None
+
+    def soak_forecast(self) -> dict[str, float | None]:
+        """What a soak's forecast needs to know of the chamber
+        (:func:`viscorig.acquisition.forecast_sequence`'s keywords)."""
+        return {"chamber_start_c": self.safe_set_point_c,
+                "specimen_time_constant_s": self.specimen_time_constant_s,
+                "heating_rate_k_per_min": self.heating_rate_k_per_min,
+                "cooling_rate_k_per_min": self.cooling_rate_k_per_min}
 
     def allows(self, temperature_c: float) -> bool:
         """Is a set point within the station's limits?"""

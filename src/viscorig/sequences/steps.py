@@ -157,13 +157,26 @@ class TemperatureStep:
     def time_limit_s(self) -> float:
         return 60.0 * self.time_limit_minutes
 
-    def duration_s(self, from_c: float, specimen_time_constant_s: float) -> float:
-        """Predicted time of the step from a specimen at ``from_c``, s: the ramp, the
-        specimens' lag until they are within the band, then the soak."""
+    def duration_s(self, from_c: float, specimen_time_constant_s: float,
+                   heating_rate_k_per_min: float | None = None,
+                   cooling_rate_k_per_min: float | None = None) -> float:
+        """Predicted time of the step from a specimen at ``from_c``, s.
+
+        The air moves at the slower of the ramp and the chamber's heating or cooling rate
+        (``None``: as fast as asked); the specimens follow it with their time constant ``τ``,
+        trailing a moving air by ``rate τ``, so after the air arrives they still need
+        ``τ ln(min(gap, rate τ) / band)`` to come within the band; then the soak.
+        """
         gap = abs(self.set_point_c - from_c)
-        ramp = gap / self.ramp_c_per_min * 60.0 if self.ramp_c_per_min > 0.0 else 0.0
-        lag = (specimen_time_constant_s * math.log(gap / self.soak_band_k)
-               if gap > self.soak_band_k else 0.0)
+        rates = [rate for rate in (self.ramp_c_per_min,
+                                   heating_rate_k_per_min if self.set_point_c > from_c
+                                   else cooling_rate_k_per_min)
+                 if rate is not None and rate > 0.0]
+        rate_k_per_s = min(rates) / 60.0 if rates else math.inf
+        ramp = gap / rate_k_per_s if math.isfinite(rate_k_per_s) else 0.0
+        trailing = min(gap, rate_k_per_s * specimen_time_constant_s)
+        lag = (specimen_time_constant_s * math.log(trailing / self.soak_band_k)
+               if trailing > self.soak_band_k else 0.0)
         return ramp + lag + self.soak_s
 
 
