@@ -196,3 +196,21 @@ def test_several_runs_are_fitted_together_only_for_the_payne_effect(tmp_path: Pa
     assert main(["identify", str(tmp_path / "c.h5"), "--run", "a", "--run", "b"]) == 2
     assert "add --model kraus" in capsys.readouterr().err
 
+
+
+@pytest.mark.parametrize(("recorded", "says"), [
+    ({"r": (21.3, 24.6)}, "recorded temperature moved from 21.3 to 24.6 °C"),
+    ({"r": (25.0, 25.05)}, "so it is not the rubber's temperature"),
+    ({}, "record the temperature"),
+])
+def test_a_drift_is_explained_by_the_recorded_temperature_first(recorded, says) -> None:
+    from types import SimpleNamespace
+
+    from viscorig.diagnosis.explain import explain
+
+    finding = SimpleNamespace(
+        effect="thermal_drift", evidence="K* falls along the run", significant=True,
+        parameters=lambda: {"kappa": {"value": -5.6e-6, "stderr": 1e-7}})
+    data = SimpleNamespace(run="r", temperature_range_c=recorded)
+    text = explain(finding, data)
+    assert text.startswith("The modulus drifts by") and says in text
