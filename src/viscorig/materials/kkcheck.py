@@ -35,7 +35,8 @@ class KramersKronigCheck:
     residual_storage, residual_loss
         ``ln(measured/fitted)`` at every point.
     threshold_storage, threshold_loss
-        The deviation above which a point is flagged.
+        The deviation above which a point is flagged (the median over the points, where each
+        point has its own).
     flagged_storage, flagged_loss
         Boolean mask of the flagged points.
     """
@@ -68,7 +69,8 @@ def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: Array
     storage_pa, loss_pa
         Measured E' and E'' (Pa).
     scatter
-        Rms ``ln`` scatter of E' and E'' about a smooth curve, if known.
+        Rms ``ln`` scatter of E' and E'' about a smooth curve, if known: two numbers, or two
+        arrays of one value per point (the scatter of each point's sweep).
     """
     omega, storage, loss = (np.asarray(v, dtype=float) for v in (omega, storage_pa, loss_pa))
     lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
@@ -76,27 +78,33 @@ def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: Array
     wt = omega[:, None] * tau[None, :]
     columns_storage = np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)])
     columns_loss = np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)])
-    weights = np.ones(2) if scatter is None else np.maximum(np.asarray(scatter, float), 1e-4)
-    keep_storage = np.ones(omega.size, dtype=bool)
-    keep_loss = np.ones(omega.size, dtype=bool)
+    n = omega.size
+    if scatter is None:
+        ws, wl = np.ones(n), np.ones(n)
+    else:
+        ws = np.broadcast_to(np.maximum(np.asarray(scatter[0], float), 1e-4), (n,)).copy()
+        wl = np.broadcast_to(np.maximum(np.asarray(scatter[1], float), 1e-4), (n,)).copy()
+    keep_storage = np.ones(n, dtype=bool)
+    keep_loss = np.ones(n, dtype=bool)
     for _ in range(4):
         # a flagged point is left out of the next fit, so that it cannot drag the dense series
         # towards itself and make its neighbours look wrong
-        a = np.vstack([columns_storage[keep_storage] / (storage[keep_storage, None] * weights[0]),
-                       columns_loss[keep_loss] / (loss[keep_loss, None] * weights[1])])
-        b = np.concatenate([np.full(int(keep_storage.sum()), 1 / weights[0]),
-                            np.full(int(keep_loss.sum()), 1 / weights[1])])
+        a = np.vstack([columns_storage[keep_storage]
+                       / (storage[keep_storage] * ws[keep_storage])[:, None],
+                       columns_loss[keep_loss] / (loss[keep_loss] * wl[keep_loss])[:, None]])
+        b = np.concatenate([1 / ws[keep_storage], 1 / wl[keep_loss]])
         x = nnls(a, b, maxiter=50 * a.shape[1])[0]
         rs = np.log(storage / np.maximum(columns_storage @ x, 1e-300))
         rl = np.log(loss / np.maximum(columns_loss @ x, 1e-300))
         if scatter is None:
-            weights = np.array([max(_robust_sigma(rs[keep_storage]), 1e-4),
-                                max(_robust_sigma(rl[keep_loss]), 1e-4)])
-        ts = max(THRESHOLD_SIGMAS * weights[0], MIN_DEVIATION)
-        tl = max(THRESHOLD_SIGMAS * weights[1], MIN_DEVIATION)
+            ws = np.full(n, max(_robust_sigma(rs[keep_storage]), 1e-4))
+            wl = np.full(n, max(_robust_sigma(rl[keep_loss]), 1e-4))
+        ts = np.maximum(THRESHOLD_SIGMAS * ws, MIN_DEVIATION)
+        tl = np.maximum(THRESHOLD_SIGMAS * wl, MIN_DEVIATION)
         flagged_storage, flagged_loss = np.abs(rs) > ts, np.abs(rl) > tl
         if np.array_equal(~flagged_storage, keep_storage) and np.array_equal(~flagged_loss,
                                                                             keep_loss):
             break
         keep_storage, keep_loss = ~flagged_storage, ~flagged_loss
-    return KramersKronigCheck(rs, rl, ts, tl, flagged_storage, flagged_loss)
+    return KramersKronigCheck(rs, rl, float(np.median(ts)), float(np.median(tl)),
+                              flagged_storage, flagged_loss)

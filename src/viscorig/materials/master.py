@@ -215,6 +215,22 @@ class MasterCurve:
         }
 
 
+def _sweep_scatter(shifts: ShiftFactors, member: NDArray[np.int64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each point's scatter: the overall scatter about the spline master curve, or its sweep's
+    robust scatter (1.4826 × median |residual|, so one bad point does not hide itself) where
+    that is larger: a noisier sweep (a soft rubber's small loss, hot) is judged by its own
+    noise."""
+    out = []
+    for residual, overall in ((shifts.residual_storage, shifts.storage_scatter),
+                              (shifts.residual_loss, shifts.loss_scatter)):
+        per_sweep = np.array([1.4826 * np.median(np.abs(residual[member == k]))
+                              if np.any(member == k) else overall
+                              for k in range(int(member.max()) + 1)])
+        out.append(np.maximum(per_sweep, overall)[member])
+    return out[0], out[1]
+
+
 def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int:
     if reference_c is None:
         middle = 0.5 * (temperatures[0] + temperatures[-1])
@@ -305,6 +321,7 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
         shift_functions=tuple(fitted), shift_function=best, reduced_frequency_hz=reduced,
         prony=prony, prony_fit=prony_fit, ladder=ladder, fractional=fractional,
         fractional_fit=fractional_fit, superposition=check_superposition(table),
-        kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa, scatter),
+        kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
+                                            _sweep_scatter(shifts, member)),
         shifts=shifts, jointly_refined=refined,
     )
