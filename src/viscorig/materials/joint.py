@@ -36,7 +36,7 @@ class JointFit:
 def refine_jointly(
     frequency_hz: NDArray[np.float64], member: NDArray[np.int64],
     point_offset: NDArray[np.float64], storage: NDArray[np.float64],
-    loss: NDArray[np.float64], scatter: tuple[float, float], series: PronySeries,
+    loss: NDArray[np.float64], scatter: tuple, series: PronySeries,
     log10_at: NDArray[np.float64], reference: int, evaluations: int = 60,
 ) -> JointFit:
     """Refine a Prony series and the shift factors of every set but ``reference`` together.
@@ -48,11 +48,14 @@ def refine_jointly(
     storage, loss
         Measured moduli (Pa).
     scatter
-        The weights: rms ``ln`` scatter of E' and E''.
+        The weights: rms ``ln`` scatter of E' and E'', two numbers or two arrays of one value
+        per point (each sweep's own noise).
     series, log10_at
         The start: a Prony series and every set's shift (0 at ``reference``).
     """
-    scatter = (max(scatter[0], 1e-4), max(scatter[1], 1e-4))
+    size = frequency_hz.size
+    ws = np.broadcast_to(np.maximum(np.asarray(scatter[0], float), 1e-4), (size,))
+    wl = np.broadcast_to(np.maximum(np.asarray(scatter[1], float), 1e-4), (size,))
     sets = log10_at.size
     free = np.array([i for i in range(sets) if i != reference], dtype=int)
     n = series.terms
@@ -71,7 +74,7 @@ def refine_jointly(
         e_inf, e, wt, _ = unpack(p)
         es = e_inf + (wt**2 / (1 + wt**2)) @ e
         el = (wt / (1 + wt**2)) @ e
-        return np.concatenate([(np.log(es) - ls) / scatter[0], (np.log(el) - ll) / scatter[1]])
+        return np.concatenate([(np.log(es) - ls) / ws, (np.log(el) - ll) / wl])
 
     def jacobian(p: NDArray) -> NDArray:
         e_inf, e, wt, _ = unpack(p)
@@ -83,7 +86,7 @@ def refine_jointly(
                          LN10 * dx.sum(axis=1)[:, None] * indicator]) / es[:, None]
         bottom = np.hstack([np.zeros((wt.shape[0], 1)), y * e, dy,
                             LN10 * dy.sum(axis=1)[:, None] * indicator]) / el[:, None]
-        return np.vstack([top / scatter[0], bottom / scatter[1]])
+        return np.vstack([top / ws[:, None], bottom / wl[:, None]])
 
     start = np.concatenate([[np.log(series.long_term_modulus_pa)], np.log(series.moduli_pa),
                             np.log(series.tau_s), log10_at[free]])
@@ -100,5 +103,6 @@ def refine_jointly(
     covariance = np.zeros((sets, sets))
     covariance[np.ix_(free, free)] = covariance_all[2 * n + 1:, 2 * n + 1:]
     omega = 2 * np.pi * frequency_hz * 10.0 ** (shifts[member] + point_offset)
-    fit = model_fit(refined.complex_modulus(omega), storage, loss, scatter, 2 * n + 1)
+    fit = model_fit(refined.complex_modulus(omega), storage, loss,
+                    (float(np.sqrt(np.mean(ws**2))), float(np.sqrt(np.mean(wl**2)))), 2 * n + 1)
     return JointFit(refined, fit, shifts, covariance)

@@ -22,6 +22,7 @@ from viscorig.materials.prony import (
     PronySeries,
     fit_fractional,
     fit_prony,
+    model_fit,
 )
 from viscorig.materials.shift import ShiftFactors, estimate_shift_factors
 from viscorig.materials.shiftfunctions import (
@@ -283,11 +284,16 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
                                                       + shifts.point_offset)
     prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
     log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
+    sweep_scatter = _sweep_scatter(shifts, member)
     joint = refine_jointly(table.frequency_hz, member, shifts.point_offset, table.storage_pa,
-                           table.loss_pa, scatter, prony, shifts.log10_at, shifts.reference)
-    refined = bool(joint.fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
+                           table.loss_pa, sweep_scatter, prony, shifts.log10_at,
+                           shifts.reference)
+    joint_fit = model_fit(joint.series.complex_modulus(2 * np.pi * table.frequency_hz * 10.0 ** (
+        joint.log10_at[member] + shifts.point_offset)), table.storage_pa, table.loss_pa, scatter,
+        2 * prony.terms + 1)
+    refined = bool(joint_fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
     if refined:
-        prony, prony_fit = joint.series, joint.fit
+        prony, prony_fit = joint.series, joint_fit
         log10_at, covariance = joint.log10_at.copy(), joint.covariance
     stderr = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     functions = [fit_shift_function(kind, shifts.temperature_c, log10_at, covariance, anchor_c)
@@ -322,6 +328,6 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
         prony=prony, prony_fit=prony_fit, ladder=ladder, fractional=fractional,
         fractional_fit=fractional_fit, superposition=check_superposition(table),
         kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
-                                            _sweep_scatter(shifts, member)),
+                                            sweep_scatter),
         shifts=shifts, jointly_refined=refined,
     )
