@@ -48,6 +48,8 @@ class OpenStation:
     simulated: bool
     mount: Any = None
     instrument_errors: tuple[type[BaseException], ...] = ()
+    server: Any = None
+    """The embedded simulated analyser's server (its ``faults``), None for a lab station."""
 
 
 def instrument_errors() -> tuple[type[BaseException], ...]:
@@ -240,7 +242,7 @@ def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator
             source="embedded simulated rig",
         )
         try:
-            yield OpenStation(station, analyser, True, server.analyser.mount, errors)
+            yield OpenStation(station, analyser, True, server.analyser.mount, errors, server)
         finally:
             with contextlib.suppress(Exception):
                 analyser.close()
