@@ -209,6 +209,8 @@ class RunEngine:
         """Why the run is held (None when it is not)."""
         self.current_run = ""
         """The run being measured ("" between runs)."""
+        self.committed: tuple[str, int] = ("", 0)
+        """The run of the last commit and the points it held after it."""
         self._control = threading.Condition()
         self._pause_wanted = False
         self._resume_wanted = False
@@ -260,12 +262,15 @@ class RunEngine:
             self._control.notify_all()
             return True
 
-    def request_stop(self) -> None:
+    def request_stop(self, reason: str = "") -> None:
         """Stop as Ctrl-C does: the analyser is aborted at its next poll (the segment in flight
-        is dropped), a pause, hold or prompt ends at once; committed points are kept."""
+        is dropped), a pause, hold or prompt ends at once; committed points are kept. A
+        ``reason`` is written to the journal."""
         with self._control:
             self.stop.requested.set()
             self._control.notify_all()
+        if reason:
+            self._log("abort", reason)
 
     def _log(self, kind: str, text: str) -> None:
         """Write a journal entry (a failure to write it is said, never fatal)."""
@@ -531,6 +536,7 @@ class RunEngine:
 
     def _do_commit(self, run: str, segment, attributes: dict | None = None) -> int:
         total = self.campaign.append_segment(run, segment, attributes)
+        self.committed = (run, total)
         for condition in self.holds:
             reason = condition.observe(segment)
             if reason is not None and self._pending_hold is None:
