@@ -294,6 +294,19 @@ class BenchService:
         return {Outcome.COMPLETE: "complete", Outcome.INTERRUPTED: "stopped"}.get(
             result.outcome, "failed")
 
+    def shutdown(self, timeout_s: float = 30.0) -> None:
+        """The server stops: abort a run in progress (its data kept) and wait for it."""
+        runner, thread = self.runner, self._thread
+        with self._lock:
+            self.queue.clear()
+        if thread is None or not thread.is_alive():
+            return
+        if runner is not None:
+            runner.engine.request_stop("the bench server stopped")
+        if self.console is not None:
+            self.console.wake()
+        thread.join(timeout_s)
+
     # -- requests while running -----------------------------------------------------------
     def _engine(self):
         runner = self.runner
