@@ -214,7 +214,7 @@ class RunEngine:
         self._control = threading.Condition()
         self._pause_wanted = False
         self._resume_wanted = False
-        self._pending_hold: tuple[Any, str] | None = None
+        self._pending_hold: list[tuple[Any, str]] = []
         self._relevel = False
         self._last_configure: tuple[tuple, dict] | None = None
         self.state = EngineState.IDLE
@@ -312,7 +312,11 @@ class RunEngine:
         self._wait(lambda: self._resume_wanted)
         self._go_on("resume", "resumed by the technician")
 
-    def _hold(self, condition: Any, reason: str, fault: bool) -> None:
+    def _hold(self, claims: list[tuple[Any, str]], fault: bool) -> None:
+        """Hold for every (condition, reason) of ``claims`` until all have cleared (or the
+        technician resumes; a fault's condition must have cleared even then)."""
+        conditions = [condition for condition, _ in claims]
+        reason = "; ".join(text for _, text in claims)
         self._source_off()
         with self._control:
             self._resume_wanted = False
@@ -324,10 +328,10 @@ class RunEngine:
         def may_go_on() -> bool:
             if self._resume_wanted:
                 self._resume_wanted = False
-                if not fault or condition.cleared():
+                if not fault or all(c.cleared() for c in conditions):
                     return True
                 self.held_because = f"{reason}; still not cleared"
-            return self.hold_resume == "auto" and condition.cleared()
+            return self.hold_resume == "auto" and all(c.cleared() for c in conditions)
 
         self._wait(may_go_on)
         self.held_because = None
@@ -432,10 +436,9 @@ class RunEngine:
         """A safe place to stop, pause or hold: do it here when asked."""
         if self.stop.asked():
             raise KeyboardInterrupt
-        if self._pending_hold is not None:
-            condition, reason = self._pending_hold
-            self._pending_hold = None
-            self._hold(condition, reason, fault=False)
+        if self._pending_hold:
+            claims, self._pending_hold = self._pending_hold, []
+            self._hold(claims, fault=False)
         if self._pause_wanted:
             self._pause()
 
@@ -483,7 +486,7 @@ class RunEngine:
                 claimed = [(c, r) for c in self.holds if (r := c.fault(error)) is not None]
                 if not claimed:
                     raise
-                self._hold(*claimed[0], fault=True)
+                self._hold(claimed, fault=True)
 
     def _measure_once(self, request: MeasureRequest) -> MeasuredSegment:
         analyser = self.rig.analyser
@@ -539,13 +542,13 @@ class RunEngine:
         self.committed = (run, total)
         for condition in self.holds:
             reason = condition.observe(segment)
-            if reason is not None and self._pending_hold is None:
-                self._pending_hold = (condition, reason)  # held at the checkpoint that follows
+            if reason is not None:  # held at the checkpoint that follows
+                self._pending_hold.append((condition, reason))
         return total
 
     def _do_close_run(self, run: str, status: str) -> None:
         self.campaign.finish_run(run, status)
-        self._pending_hold = None
+        self._pending_hold = []
         self.current_run = ""
 
     def _do_store_fit(self, run: str, result) -> str:

@@ -235,10 +235,11 @@ def create_app(service: BenchService, token: str, port: int,
 
     def command(action):
         async def endpoint(request: Request) -> Response:
-            if not control.take(client_of(request)):
-                return error(409, "read-only: another client controls the bench")
             try:
-                result = action(request, await body(request))
+                data = await body(request)
+                if not control.take(client_of(request)):
+                    return error(409, "read-only: another client controls the bench")
+                result = action(request, data)
             except BenchError as refused:
                 return error(refused.status, str(refused))
             return JSONResponse(result or {"ok": True}, headers={"Cache-Control": "no-store"})
@@ -329,3 +330,83 @@ def create_app(service: BenchService, token: str, port: int,
     app = Starlette(routes=routes, exception_handlers={
         404: not_found, 405: not_allowed, BenchError: refused, Exception: failed})
     return Guard(app, token, hosts, cookie)
+
+
+class BenchServer:
+    """The bench's web server on ``address:port`` (0: any free port), with a fresh token.
+
+    :meth:`run` serves in the calling thread until Ctrl-C; :meth:`start` serves from a
+    background thread until :meth:`close` (tests, embedding).
+
+    Raises
+    ------
+    OSError
+        The address or port cannot be bound.
+    """
+
+    def __init__(self, service: BenchService, port: int = 0,
+                 address: str = "127.0.0.1") -> None:
+        import socket
+
+        import uvicorn
+
+        self.service = service
+        self.address = address
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self.socket.bind((address, port))
+        except OSError:
+            self.socket.close()
+            raise
+        self.socket.listen(64)
+        self.port = int(self.socket.getsockname()[1])
+        self.token = secrets.token_urlsafe(24)
+        config = uvicorn.Config(create_app(service, self.token, self.port, address),
+                                log_level="warning", access_log=False, server_header=False,
+                                limit_concurrency=64, timeout_keep_alive=5)
+        self.server = uvicorn.Server(config)
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        """The address with its token (what ``bench serve`` prints first)."""
+        return f"http://{self.address}:{self.port}/?token={self.token}"
+
+    @property
+    def base(self) -> str:
+        """The address without the token."""
+        return f"http://{self.address}:{self.port}"
+
+    def run(self) -> None:
+        """Serve until Ctrl-C; then abort a run in progress (its data kept)."""
+        try:
+            self.server.run(sockets=[self.socket])
+        finally:
+            self.service.shutdown()
+            self.socket.close()
+
+    def start(self) -> BenchServer:
+        """Serve from a background thread."""
+        self._thread = threading.Thread(target=self.server.run,
+                                        kwargs={"sockets": [self.socket]},
+                                        name="viscorig-bench-server", daemon=True)
+        self._thread.start()
+        deadline = time.monotonic() + 10
+        while not self.server.started and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return self
+
+    def close(self) -> None:
+        """Stop serving, abort a run in progress, release the port."""
+        self.server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        self.service.shutdown()
+        self.socket.close()
+
+    def __enter__(self) -> BenchServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -248,6 +248,7 @@ class BenchService:
         from viscorig.acquisition.holds import standard_conditions
         from viscorig.cli.check import check_files
         from viscorig.cli.run import open_station, runner_options
+        from viscorig.cli.stations import not_answering_errors
         from viscorig.storage import Campaign
 
         checked = check_files(item.sequence, self.station_path)
@@ -269,7 +270,7 @@ class BenchService:
                 rig=station.rig_attributes())
             console = PageConsole()
             holds = standard_conditions(bench, station.shaker_force_limit_n,
-                                        opened.analyser.identify, opened.instrument_errors)
+                                        opened.analyser.identify, not_answering_errors())
             floors = {}
             if opened.simulated:
                 from viscorig.cli.plan import simulated_floors

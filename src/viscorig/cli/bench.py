@@ -132,13 +132,8 @@ def check_command(args: argparse.Namespace) -> int:
 
 def serve_command(args: argparse.Namespace) -> int:
     """``viscorig bench serve``: print the address with its token first, serve until Ctrl-C."""
-    import secrets
-    import socket
-
-    import uvicorn
-
     from viscorig.bench import BenchService
-    from viscorig.bench.app import create_app
+    from viscorig.bench.app import BenchServer
     from viscorig.cli.watch import open_in_browser
     from viscorig.sequences import load_station
 
@@ -148,34 +143,20 @@ def serve_command(args: argparse.Namespace) -> int:
             raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
         address = load_station(args.station).bench.address
     service = BenchService(args.station, sim_pace=args.sim_pace)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
-        sock.bind((address, args.port))
+        server = BenchServer(service, args.port, address)
     except OSError as error:
-        sock.close()
         raise InputError(f"cannot serve on {address}:{args.port} ({error.strerror or error}); "
                          "choose another --port, or --port 0 for any free one",
                          "--port") from None
-    sock.listen(64)
-    port = sock.getsockname()[1]
-    token = secrets.token_urlsafe(24)
-    url = f"http://{address}:{port}/?token={token}"
-    print(url, flush=True)
+    print(server.url, flush=True)
     if address != "127.0.0.1":
         print(f"WARNING: served on {address} as the station's [bench] address allows: other "
               "machines reach it (with the token)", flush=True)
-    app = create_app(service, token, port, address)
-    config = uvicorn.Config(app, log_level="warning", access_log=False, server_header=False,
-                            limit_concurrency=64, timeout_keep_alive=5)
-    server = uvicorn.Server(config)
-    if not args.no_browser and not open_in_browser(url):
+    if not args.no_browser and not open_in_browser(server.url):
         print("no browser could be opened here: open the address above in one", flush=True)
-    try:
-        server.run(sockets=[sock])
-    finally:
-        service.shutdown()
-        sock.close()
+    with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C is how the server is stopped
+        server.run()
     print("bench page stopped" + (f"; {service.message}" if service.message else ""),
           flush=True)
     return 0

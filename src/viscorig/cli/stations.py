@@ -60,6 +60,14 @@ def instrument_errors() -> tuple[type[BaseException], ...]:
     return (DriverError, SettingOutOfRange)
 
 
+def not_answering_errors() -> tuple[type[BaseException], ...]:
+    """The driver's exception types that mean the analyser stopped answering (a timeout, a
+    connection lost): an automatic hold waits for it to answer again."""
+    from agilent35670a.errors import ConnectionLost, InstrumentTimeout
+
+    return (InstrumentTimeout, ConnectionLost)
+
+
 def _first_preset(sequence: Sequence) -> str:
     for step in sequence.steps:
         if isinstance(step, PromptStep) and step.simulated_rig:
