@@ -41,7 +41,8 @@ def small_sequence(folder: Path) -> Path:
     return path
 
 
-def wait_until(condition: Callable[[], Any], timeout_s: float = 30.0, what: str = "") -> Any:
+def wait_until(condition: Callable[[], Any], timeout_s: float = 30.0, what: str = "",
+               poll_s: float = 0.05) -> Any:
     """Poll ``condition`` until it is truthy; return its value."""
     deadline = time.monotonic() + timeout_s
     while True:
@@ -50,7 +51,7 @@ def wait_until(condition: Callable[[], Any], timeout_s: float = 30.0, what: str 
             return value
         if time.monotonic() > deadline:
             raise AssertionError(f"not within {timeout_s:g} s: {what}")
-        time.sleep(0.02)
+        time.sleep(poll_s)
 
 
 class Client:
