@@ -72,10 +72,8 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
                 if page.is_visible("#prompt"):
                     answered.append(page.inner_text("#prompt-text"))
                     page.click("#prompt-done")
-                    page.wait_for_function(
-                        f"document.getElementById('prompt').hidden || "
-                        f"document.getElementById('prompt-text').textContent !== "
-                        f"{answered[-1]!r}")
+                    wait_until(lambda: not page.is_visible("#prompt") or page.inner_text(
+                        "#prompt-text") != answered[-1], 30, "the prompt answered", 0.1)
                 assert time.monotonic() < deadline, what
                 time.sleep(0.1)
 
@@ -121,8 +119,8 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
         page.wait_for_selector("#state:not([data-state='idle'])")
 
         answer_prompts_until(lambda: at("medium-0", 100), "medium-0 measuring")
-        page.wait_for_function("document.getElementById('live').contentDocument"
-                               ".querySelectorAll('svg path').length > 0", timeout=20_000)
+        page.frame_locator("#live").locator("#points:not([data-points='0'])").wait_for(
+            timeout=20_000)
         if os.environ.get("VISCORIG_SCREENSHOT"):
             page.screenshot(path=str(SCREENSHOT), full_page=True)
 
