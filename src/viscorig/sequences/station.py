@@ -97,7 +97,7 @@ class BenchSettings:
     hold_resume: str = "technician"
     hold_level_points: int = 5
     hold_overload_points: int = 3
-    hold_force_fraction: float = 0.95
+    hold_force_fraction: float = 0.97
     hold_retry_s: float = 60.0
 
 
