@@ -10,10 +10,10 @@ import sys
 import time
 
 import pytest
-from benchrig import Client, bench_server, small_sequence, wait_until
+from benchrig import SMALL_SEQUENCE, Client, bench_server, small_sequence, wait_until
 from rigsim.faults import parse_fault_spec
 
-from viscorig.bench import API_STATES, BenchService
+from viscorig.bench import API_STATES, BenchError, BenchService
 from viscorig.sequences.station import BenchSettings
 from viscorig.storage import Campaign
 
@@ -128,3 +128,33 @@ def test_bench_serve_prints_its_address_with_the_token_first(tmp_path) -> None:
         _, err = process.communicate(timeout=20)
     assert process.returncode == 0, err
     assert "Traceback" not in err
+
+
+def test_aborting_at_a_prompt_stops_before_anything_is_measured(tmp_path) -> None:
+    small_sequence(tmp_path)
+    service = BenchService(root=tmp_path)
+    service.add("small.toml", "first.h5")
+    service.add("small.toml", "second.h5")
+    service.start()
+    prompt = wait_until(lambda: service.state()["prompt"], what="a prompt")
+    service.answer(prompt["id"], "abort")
+    wait_until(lambda: not service.busy, what="the end")
+    state = service.state()
+    assert state["state"] == "stopped" and state["prompt"] is None
+    assert [item["out"][-9:] for item in state["queue"]] == ["second.h5"]  # the queue waits
+    with Campaign.open(tmp_path / "first.h5") as campaign:
+        assert campaign.run_names == []
+    # the stopped campaign is continued from the page, as 'viscorig resume' would
+    (tmp_path / "other.toml").write_text(SMALL_SEQUENCE.replace('"small"', '"other"'))
+    with pytest.raises(BenchError, match="holds another sequence"):
+        service.add("other.toml", "first.h5")
+    again = service.add("small.toml", "first.h5")
+    service.move(again.id, 0)
+    service.remove(state["queue"][0]["id"])
+    service.start()
+    prompt = wait_until(lambda: service.state()["prompt"], what="the prompt again")
+    service.answer(prompt["id"], "done")
+    wait_until(lambda: not service.busy, what="the end")
+    assert service.state()["state"] == "complete", service.state()["message"]
+    with Campaign.open(tmp_path / "first.h5") as campaign:
+        assert campaign.run("soft-0").points == 81

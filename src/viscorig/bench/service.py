@@ -123,8 +123,7 @@ class BenchService:
         if not out_path.parent.is_dir():
             raise BenchError(f"out {out_path}: folder does not exist", 400)
         if out_path.exists():
-            raise BenchError(f"out {out_path}: exists; a campaign file is never overwritten "
-                             f"(continue it with 'viscorig resume {out_path}')", 409)
+            self._continuable(sequence_path, out_path)
         with self._lock:
             taken = [item.out for item in self.queue]
             if self.current is not None:
@@ -138,6 +137,32 @@ class BenchService:
         with self._lock:
             self.queue.append(item)
         return item
+
+    def _continuable(self, sequence_path: Path, out_path: Path) -> None:
+        """An existing campaign file is continued (as ``viscorig resume`` does) when it holds
+        this very sequence and was measured on this kind of station.
+
+        Raises
+        ------
+        BenchError
+            It cannot be read, holds another sequence, or was measured elsewhere.
+        """
+        from viscorig.sequences.sequence import read_text
+        from viscorig.storage import Campaign
+
+        try:
+            with Campaign.open(out_path) as campaign:
+                stored, station = campaign.sequence_text, campaign.station_text
+            given = read_text(sequence_path)
+        except InputError as error:
+            raise BenchError(single_line(str(error)), 400) from None
+        if stored != given:
+            raise BenchError(f"out {out_path}: exists and holds another sequence than "
+                             f"{sequence_path}; a campaign file is never overwritten", 409)
+        if (station is None) != (self.station_path is None):
+            where = "the embedded simulated rig" if station is None else "a station file"
+            raise BenchError(f"out {out_path}: was measured on {where}; continue it with "
+                             f"'viscorig resume {out_path}'", 409)
 
     def _check(self, sequence_path: Path) -> tuple[list[str], float | None, str]:
         """``check``'s problems and ``plan``'s time of a sequence (nothing touches the rig)."""
@@ -231,6 +256,8 @@ class BenchService:
                 self.problems = []
             try:
                 ended = self._run(item)
+            except BenchError as error:
+                ended, self.message = "failed", str(error)
             except Exception as error:  # never a traceback on the page: one line
                 ended = "failed"
                 self.message = single_line(f"{type(error).__name__}: {error}"
@@ -259,15 +286,17 @@ class BenchService:
         sequence = checked.sequence
         out = Path(item.out)
         if out.exists():
-            self.message = f"{out}: exists; a campaign file is never overwritten"
-            return "failed"
+            self._continuable(Path(item.sequence), out)  # continued from its first missing point
         with open_station(sequence, checked.station, self.sim_pace) as opened:
             station = opened.station
             bench = self.bench_override or station.bench
-            campaign = Campaign.create(
-                out, sequence_text=checked.sequence_text, sequence_file=item.sequence,
-                station_text=checked.station_text, station_file=self.station_path or "",
-                rig=station.rig_attributes())
+            if out.exists():
+                campaign = Campaign.open(out, "a")
+            else:
+                campaign = Campaign.create(
+                    out, sequence_text=checked.sequence_text, sequence_file=item.sequence,
+                    station_text=checked.station_text, station_file=self.station_path or "",
+                    rig=station.rig_attributes())
             console = PageConsole()
             holds = standard_conditions(bench, station.shaker_force_limit_n,
                                         opened.analyser.identify, not_answering_errors())
