@@ -124,7 +124,10 @@ class Guard:
         self.rate = RateLimit(RATE_PER_S)
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
-        if scope["type"] != "http":
+        if scope["type"] == "websocket":  # none is served: refused before anything
+            await send({"type": "websocket.close", "code": 1008})
+            return
+        if scope["type"] != "http":  # the server's lifespan events
             await self.app(scope, receive, send)
             return
         refusal = self._refusal(scope)
