@@ -149,14 +149,19 @@ def serve_command(args: argparse.Namespace) -> int:
         raise InputError(f"cannot serve on {address}:{args.port} ({error.strerror or error}); "
                          "choose another --port, or --port 0 for any free one",
                          "--port") from None
-    print(server.url, flush=True)
-    if address != "127.0.0.1":
-        print(f"WARNING: served on {address} as the station's [bench] address allows: other "
-              "machines reach it (with the token)", flush=True)
-    if not args.no_browser and not open_in_browser(server.url):
-        print("no browser could be opened here: open the address above in one", flush=True)
-    with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C is how the server is stopped
+    try:  # Ctrl-C is how the server is stopped, whenever it comes
+        print(server.url, flush=True)
+        if address != "127.0.0.1":
+            print(f"WARNING: served on {address} as the station's [bench] address allows: "
+                  "other machines reach it (with the token)", flush=True)
+        if not args.no_browser and not open_in_browser(server.url):
+            print("no browser could be opened here: open the address above in one", flush=True)
         server.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        service.shutdown()
+        server.socket.close()
     print("bench page stopped" + (f"; {service.message}" if service.message else ""),
           flush=True)
     return 0
