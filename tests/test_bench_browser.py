@@ -101,7 +101,8 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
 
         # the analyser stops answering during soft-0: the run is held, then goes on
         answer_prompts_until(lambda: at("soft-0", 10), "soft-0 measuring")
-        server.service.opened.server.faults.add(parse_fault_spec("no_reply"))
+        # a reply lost where the driver cannot ask again (reading the error queue clears it)
+        server.service.opened.server.faults.add(parse_fault_spec("no_reply@SYST:ERR?"))
         page.wait_for_selector("#held:not([hidden])", timeout=30_000)
         assert "analyser not answering" in page.inner_text("#held-text")
         assert page.get_attribute("#state", "data-state") == "held"
