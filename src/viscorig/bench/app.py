@@ -7,8 +7,9 @@ Built on Starlette and served by uvicorn on 127.0.0.1 (another address only when
   rebinding), and a request that carries an ``Origin`` must come from this server's own;
 - it must carry the token: ``Authorization: Bearer TOKEN``, or the cookie the page sets when it
   is opened with ``/?token=TOKEN``;
-- at most :data:`RATE_PER_S` requests a second are served (429 beyond), and no body may exceed
-  :data:`MAX_BODY_BYTES` (413).
+- at most :data:`RATE_PER_S` requests a second are served (429 beyond; requests without the
+  token are counted apart, so that a flood of them never slows the page), and no body may
+  exceed :data:`MAX_BODY_BYTES` (413).
 
 One client controls the bench at a time (the first to send a command; a client is its browser's
 cookie, or a script's ``X-Bench-Client`` header): a second one is read-only (409, and its page
@@ -122,6 +123,8 @@ class Guard:
         self.hosts = hosts
         self.cookie = cookie
         self.rate = RateLimit(RATE_PER_S)
+        self.strangers = RateLimit(RATE_PER_S)
+        """Requests without the token count apart: a flood of them never slows the page."""
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
         if scope["type"] == "websocket":  # none is served: refused before anything
@@ -139,7 +142,8 @@ class Guard:
     def _refusal(self, scope: dict) -> Response | None:
         headers = {k.decode("latin-1").lower(): v.decode("latin-1")
                    for k, v in scope.get("headers", [])}
-        if not self.rate.take():
+        authorised = self._authorised(scope, headers)
+        if not (self.rate if authorised else self.strangers).take():
             return error(429, f"too many requests: at most {RATE_PER_S} a second")
         host = headers.get("host", "").strip().lower()
         if host not in self.hosts:
@@ -153,7 +157,7 @@ class Guard:
         length = headers.get("content-length")
         if length is not None and (not length.isdigit() or int(length) > MAX_BODY_BYTES):
             return error(413, f"request body over {MAX_BODY_BYTES} bytes")
-        if not self._authorised(scope, headers):
+        if not authorised:
             return error(401, "missing or wrong token: open the address 'viscorig bench serve' "
                          "printed, or send 'Authorization: Bearer TOKEN'")
         return None
