@@ -46,6 +46,9 @@ def test_points_in_a_row_are_counted_across_segments_and_only_in_a_row() -> None
     assert not level.cleared()
     clock.now = 10.0
     assert level.cleared()
+    assert level.observe(segment([1, 1, 1])) is None
+    level.reset()  # a new run: the three carried are forgotten
+    assert level.observe(segment([1])) is None
     overload = InputOverloading(points=2, retry_s=0.0)
     assert overload.observe(segment([1, 1, 1])) is None  # level bits are not overloads
     assert overload.observe(segment([2, 3])).startswith("input overloading for 2 points")

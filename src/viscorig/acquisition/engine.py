@@ -549,6 +549,10 @@ class RunEngine:
     def _do_close_run(self, run: str, status: str) -> None:
         self.campaign.finish_run(run, status)
         self._pending_hold = []
+        for condition in self.holds:  # a new run starts counting afresh
+            reset = getattr(condition, "reset", None)
+            if callable(reset):
+                reset()
         self.current_run = ""
 
     def _do_store_fit(self, run: str, result) -> str:

@@ -8,8 +8,9 @@ point. While held, the engine asks the condition that held it whether it has cle
 (:meth:`HoldCondition.cleared`), and, as the station says (``[bench] hold_resume``), resumes
 by itself when it has, or waits for the technician.
 
-A condition is any object with these three members, so others plug in without touching the
-engine (a specimen out of its temperature band is one more class that observes a reading).
+A condition is any object with these three members (and optionally ``reset()``, called when
+a run ends), so others plug in without touching the engine (a specimen out of its temperature
+band is one more class that observes a reading).
 """
 
 from __future__ import annotations
@@ -78,6 +79,10 @@ class _FlaggedInARow(RetryAfter):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(retry_s, clock)
         self.points = int(points)
+        self._carried = 0
+
+    def reset(self) -> None:
+        """A new run: nothing carried over."""
         self._carried = 0
 
     def observe(self, segment: Segment) -> str | None:
