@@ -302,11 +302,13 @@ class RunEngine:
                 self._control.wait(WAIT_POLL_S)
 
     def _pause(self) -> None:
-        self._source_off()
         with self._control:
+            if not self._pause_wanted:  # resumed before the pause took hold
+                return
             self._pause_wanted = False
             self._resume_wanted = False
             self._move(EngineState.PAUSED)
+        self._source_off()
         self.console.say("paused: the segment in flight was committed, the source is off")
         self._log("pause", "paused by the technician; the source is off")
         self._wait(lambda: self._resume_wanted)
