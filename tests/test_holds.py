@@ -101,3 +101,53 @@ def test_the_journal_takes_known_kinds_and_bounded_texts(tmp_path) -> None:
             campaign.add_journal_entry("note", "x" * 2001)
     entries = Campaign.open(path).journal
     assert [(e.kind, e.run, e.text) for e in entries] == [("note", "soft-0", "humid today")]
+
+
+class Source:
+    """What the engine needs of an analyser to pause: its abort (the source off)."""
+
+    def __init__(self) -> None:
+        self.aborts = 0
+
+    def abort(self) -> None:
+        self.aborts += 1
+
+
+def test_the_engine_pauses_at_a_checkpoint_and_goes_on_where_it_was(tmp_path) -> None:
+    import io
+    import threading
+    import time
+
+    from viscorig.acquisition.console import Console
+    from viscorig.acquisition.engine import EngineState, Msg, Rig, RunEngine
+
+    steps: list[int] = []
+
+    def plan():
+        for step in range(60):
+            steps.append(step)
+            yield Msg("checkpoint")
+            time.sleep(0.002)
+        return "done"
+
+    source = Source()
+    campaign = Campaign.create(tmp_path / "pause.h5", sequence_text="")
+    engine = RunEngine(campaign, Rig(source, None), Console(out=io.StringIO()))
+    result = []
+    worker = threading.Thread(target=lambda: result.append(engine.run(plan(), signals=False)))
+    worker.start()
+    while len(steps) < 5:
+        time.sleep(0.001)
+    assert engine.request_pause()
+    while engine.state is not EngineState.PAUSED:
+        time.sleep(0.001)
+    held_at = len(steps)
+    time.sleep(0.1)
+    assert len(steps) == held_at and source.aborts == 1  # nothing runs; the source is off
+    assert not engine.request_pause()
+    assert engine.request_resume()
+    worker.join(10)
+    assert result == ["done"] and steps == list(range(60))
+    assert [state.value for state, _ in engine.history] == [
+        "idle", "running", "pausing", "paused", "running", "done"]
+    assert [entry.kind for entry in campaign.journal] == ["pause", "resume"]
