@@ -151,3 +151,47 @@ def test_the_engine_pauses_at_a_checkpoint_and_goes_on_where_it_was(tmp_path) ->
     assert [state.value for state, _ in engine.history] == [
         "idle", "running", "pausing", "paused", "running", "done"]
     assert [entry.kind for entry in campaign.journal] == ["pause", "resume"]
+
+
+def test_a_silent_analyser_holds_the_measurement_which_is_measured_again_when_it_answers(
+        tmp_path) -> None:
+    import io
+
+    from viscorig.acquisition.console import Console
+    from viscorig.acquisition.engine import MeasureRequest, Msg, Rig, RunEngine
+
+    calls = {"measure": 0, "identify": 0}
+
+    def measure(analyser, progress, poll_interval_s):
+        calls["measure"] += 1
+        if calls["measure"] == 1:
+            raise SilentError("no reply to 'SYST:ERR?'")
+        return "the segment"
+
+    def identify() -> str:
+        calls["identify"] += 1
+        if calls["identify"] < 3:
+            raise SilentError("no reply to '*IDN?'")
+        return "HEWLETT-PACKARD,35670A"
+
+    request = MeasureRequest("soft-0", "GPIB0::11::INSTR", np.array([20.0]), np.array([1.0]),
+                             0.0, measure)
+
+    def plan():
+        return (yield Msg("measure", (request,)))
+
+    campaign = Campaign.create(tmp_path / "silent.h5", sequence_text="")
+    holds = [AnalyserNotAnswering(identify, (SilentError,), every_s=0.0)]
+    engine = RunEngine(campaign, Rig(Source(), None), Console(out=io.StringIO()), holds=holds,
+                       hold_resume="auto")
+    assert engine.run(plan(), signals=False) == "the segment"
+    assert calls == {"measure": 2, "identify": 3}
+    assert "held" in [state.value for state, _ in engine.history]
+    journal = campaign.journal
+    assert [entry.kind for entry in journal] == ["hold", "hold_cleared"]
+    assert journal[0].text == "analyser not answering (no reply to 'SYST:ERR?')"
+
+    calls["measure"] = 0  # an error no condition claims ends the run as before
+    engine = RunEngine(campaign, Rig(Source(), None), Console(out=io.StringIO()), holds=[])
+    with pytest.raises(SilentError):
+        engine.run(plan(), signals=False)
