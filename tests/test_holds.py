@@ -195,3 +195,27 @@ def test_a_silent_analyser_holds_the_measurement_which_is_measured_again_when_it
     engine = RunEngine(campaign, Rig(Source(), None), Console(out=io.StringIO()), holds=[])
     with pytest.raises(SilentError):
         engine.run(plan(), signals=False)
+
+
+def test_a_specimen_out_of_its_band_holds_until_its_thermocouple_is_back_in_it() -> None:
+    from viscorig.acquisition.chamber import Soak
+    from viscorig.acquisition.holds import SpecimenOutOfBand
+
+    class Chamber:
+        soak = Soak(set_point_c=-10.0, band_k=0.5)
+        reading = -8.0
+
+        def specimen_c(self) -> float:
+            return self.reading
+
+    clock = Clock()
+    chamber = Chamber()
+    condition = SpecimenOutOfBand(points=3, chamber=chamber, every_s=10.0, clock=clock)
+    assert condition.observe(segment([16, 16, 0, 16, 16])) is None
+    assert condition.observe(segment([16, 1])).startswith(
+        "specimen out of its temperature band for 3 points in a row")
+    assert not condition.cleared()          # -8 °C: still 2 K out
+    chamber.reading = -10.3
+    assert not condition.cleared()          # not read again before every_s
+    clock.now = 10.0
+    assert condition.cleared()

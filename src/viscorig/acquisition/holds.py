@@ -22,9 +22,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from viscorig.storage import FORCE_ABOVE_SHAKER_LIMIT, INPUT_OVERLOAD, LEVEL_NOT_REACHED, Segment
+from viscorig.storage.flags import PointFlag
 
 __all__ = ["AnalyserNotAnswering", "ForceNearLimit", "HoldCondition", "InputOverloading",
-           "LevelNotHeld", "RetryAfter", "standard_conditions"]
+           "LevelNotHeld", "RetryAfter", "SpecimenOutOfBand", "standard_conditions"]
 
 
 @runtime_checkable
@@ -110,6 +111,43 @@ class InputOverloading(_FlaggedInARow):
     what = "input overloading"
 
 
+class SpecimenOutOfBand(_FlaggedInARow):
+    """The specimen's thermocouple left the soak band on ``points`` points in a row (flag 16 of
+    the chamber's runs); cleared when it reads within the band again (asked at most once every
+    ``every_s``).
+
+    Parameters
+    ----------
+    chamber
+        The :class:`~viscorig.acquisition.chamber.ChamberMonitor` (its ``soak`` and
+        ``specimen_c()``).
+    """
+
+    flag = int(PointFlag.OUTSIDE_SOAK_BAND)
+    what = "specimen out of its temperature band"
+
+    def __init__(self, points: int, chamber: object, every_s: float = 10.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(points, 0.0, clock)
+        self.chamber = chamber
+        self.every_s = float(every_s)
+        self._asked = -float("inf")
+
+    def cleared(self) -> bool:
+        """Read the specimen thermocouple (at most once every ``every_s``): back in the band?"""
+        soak = getattr(self.chamber, "soak", None)
+        if soak is None:
+            return True
+        if self.clock() - self._asked < self.every_s:
+            return False
+        self._asked = self.clock()
+        try:
+            temperature = float(self.chamber.specimen_c())
+        except Exception:
+            return False
+        return not bool(soak.outside(np.array([temperature]))[0])
+
+
 class ForceNearLimit(RetryAfter):
     """The force reached ``fraction`` of the shaker's limit (or the point was flagged over it)."""
 
@@ -174,11 +212,16 @@ class AnalyserNotAnswering:
 
 
 def standard_conditions(bench, force_limit_n: float, answers: Callable[[], object],
-                        kinds: tuple[type[BaseException], ...]) -> list[HoldCondition]:
-    """The four holds of a station's ``[bench]`` settings (:class:`BenchSettings`)."""
-    return [
+                        kinds: tuple[type[BaseException], ...],
+                        chamber: object | None = None) -> list[HoldCondition]:
+    """The holds of a station's ``[bench]`` settings (:class:`BenchSettings`): four, and the
+    temperature band's with a chamber."""
+    conditions: list[HoldCondition] = [
         LevelNotHeld(bench.hold_level_points, bench.hold_retry_s),
         InputOverloading(bench.hold_overload_points, bench.hold_retry_s),
         ForceNearLimit(force_limit_n, bench.hold_force_fraction, bench.hold_retry_s),
         AnalyserNotAnswering(answers, kinds),
     ]
+    if chamber is not None:
+        conditions.append(SpecimenOutOfBand(bench.hold_temperature_points, chamber))
+    return conditions

@@ -299,7 +299,8 @@ class BenchService:
                     rig=station.rig_attributes())
             console = PageConsole()
             holds = standard_conditions(bench, station.shaker_force_limit_n,
-                                        opened.analyser.identify, not_answering_errors())
+                                        opened.analyser.identify, not_answering_errors(),
+                                        opened.chamber)
             floors = {}
             if opened.simulated:
                 from viscorig.cli.plan import simulated_floors

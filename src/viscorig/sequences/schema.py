@@ -682,6 +682,9 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
         Field("hold_force_fraction", "number", "Hold when the force reaches this fraction of "
               "the shaker's limit.", default=0.97, low=0.0, high=1.0, low_open=True,
               example="0.97"),
+        Field("hold_temperature_points", "integer", "With a chamber: hold when the specimen "
+              "is outside its soak band on this many points in a row.", default=3, low=1,
+              high=10000, example="3"),
         Field("hold_retry_s", "number", "With hold_resume = \"auto\": wait this long before "
               "trying again after a level, overload or force hold.", default=60.0, unit="s",
               low=0.0, high=86400.0, example="60.0"),

@@ -138,6 +138,7 @@ class BenchSettings:
     hold_level_points: int = 5
     hold_overload_points: int = 3
     hold_force_fraction: float = 0.97
+    hold_temperature_points: int = 3
     hold_retry_s: float = 60.0
 
 
