@@ -42,7 +42,7 @@ from viscorig.identify import (
     summarize,
 )
 from viscorig.models import Context, Model, parse_spec
-from viscorig.report.parallel import default_jobs, parallel_map
+from viscorig.executor import default_jobs, executor
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Fit, Run
 
@@ -378,11 +378,15 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
 
 
 def _climb_all(path: str, requests: list[tuple[str, tuple[float, float], str]], ladder: bool,
-               jobs: int) -> dict[str, Climb | str]:
-    """:func:`climb` for every request, in ``jobs`` processes (in this one when 1)."""
-    results = parallel_map(climb, [(path, name, band, spec, ladder)
-                                   for name, band, spec in requests], jobs)
-    return {name: result for (name, _, _), result in zip(requests, results, strict=True)}
+               jobs: int, scheduler: str | None = None) -> tuple[dict[str, Climb | str], int]:
+    """:func:`climb` for every request, in ``jobs`` processes (in this one when 1) or on the
+    Dask cluster at ``scheduler``; the results, and how many workers shared them."""
+    with executor(min(jobs, len(requests)), scheduler) as workers:
+        results = workers.map(climb, [(path, name, band, spec, ladder)
+                                      for name, band, spec in requests])
+        count = workers.workers
+    return ({name: result for (name, _, _), result in zip(requests, results, strict=True)},
+            count)
 
 
 def analyse_campaign(
@@ -392,6 +396,7 @@ def analyse_campaign(
     diagnosis: bool = True,
     ladder: bool = True,
     jobs: int | None = None,
+    scheduler: str | None = None,
 ) -> CampaignAnalysis:
     """Fit, diagnose and gather what the report shows, every fit made once.
 
@@ -407,6 +412,9 @@ def analyse_campaign(
         Climb the ladder of effects to the best model (seconds per run); else diagnose once.
     jobs
         Processes climbing ladders at once (default: one per core).
+    scheduler
+        ``tcp://HOST:PORT`` of a Dask cluster whose workers climb the ladders instead
+        (:mod:`viscorig.executor`).
     """
     from viscorig.fitting import fit
 
@@ -456,7 +464,8 @@ def analyse_campaign(
             analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
         requests.append((run.name, band, spec))
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
-    climbs = _climb_all(str(campaign.path), requests, ladder, jobs) if requests else {}
+    climbs, workers = ({}, 1) if not requests else _climb_all(
+        str(campaign.path), requests, ladder, jobs, scheduler)
     for analysis in analyses:
         outcome = climbs.get(analysis.name)
         if isinstance(outcome, str):
@@ -491,7 +500,7 @@ def analyse_campaign(
     return CampaignAnalysis(str(campaign.path), analyses, table, rig.theta, band_hz,
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
-                            min(jobs, max(1, len(requests))))
+                            min(workers, max(1, len(requests))))
 
 
 def storage_and_loss(curves: ModulusCurves, theta_m: float | None
