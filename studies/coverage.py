@@ -31,8 +31,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import coverage as helpers  # noqa: E402
-from coverage import (  # noqa: E402
+import coverage as helpers
+from coverage import (
     FIXTURES,
     NOISES,
     change_coverage,
@@ -41,7 +41,7 @@ from coverage import (  # noqa: E402
     replicate,
 )
 
-from viscorig.executor import DaskExecutor, LocalExecutor, executor  # noqa: E402
+from viscorig.executor import DaskExecutor, LocalExecutor, executor
 
 #: Where the replicates run (set by the command line; this process by default).
 WORKERS: LocalExecutor | DaskExecutor = LocalExecutor(1)

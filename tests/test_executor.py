@@ -50,15 +50,14 @@ def test_report_with_bad_scheduler_gives_one_line(tmp_path, capsys):
 
 def test_dask_cluster_runs_the_same_work():
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  host="127.0.0.1", protocol="tcp://",
-                                  dashboard_address="127.0.0.1:0") as cluster:
-        with executor(scheduler=cluster.scheduler_address) as pool:
-            assert isinstance(pool, DaskExecutor)
-            assert pool.workers == 2
-            assert pool.map(operator.mul, [(i, 3) for i in range(10)]) == [3 * i for i in
-                                                                           range(10)]
-            assert sorted(pool.unordered(abs, range(-3, 3))) == [0, 1, 1, 2, 2, 3]
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                       host="127.0.0.1", protocol="tcp://",
+                                       dashboard_address="127.0.0.1:0")
+    with cluster, executor(scheduler=cluster.scheduler_address) as pool:
+        assert isinstance(pool, DaskExecutor)
+        assert pool.workers == 2
+        assert pool.map(operator.mul, [(i, 3) for i in range(10)]) == [3 * i for i in range(10)]
+        assert sorted(pool.unordered(abs, range(-3, 3))) == [0, 1, 1, 2, 2, 3]
 
 
 def test_no_scheduler_listening_is_one_clear_error():

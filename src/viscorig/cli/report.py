@@ -18,9 +18,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from viscorig.executor import check_scheduler
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
+from viscorig.executor import check_scheduler
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
 

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from viscorig.compare import Estimates
 from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
+from viscorig.executor import default_jobs, executor
 from viscorig.fitting import FitResult, estimate_noise
 from viscorig.identify import (
     PAPER_BAND_HZ,
@@ -42,7 +43,6 @@ from viscorig.identify import (
     summarize,
 )
 from viscorig.models import Context, Model, parse_spec
-from viscorig.executor import default_jobs, executor
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Fit, Run
 
