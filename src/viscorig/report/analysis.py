@@ -333,6 +333,49 @@ def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
                          modulus_band(curve.estimates, grid, 1.0), curve.estimates)
 
 
+class ReadOnce:
+    """A campaign whose runs are each read from the file once.
+
+    The report reads every run for Tables 1 and 2, for what it shows, and for each ladder
+    again with the run's companions (every run of the campaign is looked at to find them):
+    sixty reads of seven runs. Everything else is the campaign's own.
+    """
+
+    def __init__(self, campaign: Campaign) -> None:
+        self._campaign = campaign
+        self._runs: dict[str, Run] = {}
+
+    def run(self, name: str) -> Run:
+        """Run ``name``, read on the first call only."""
+        if name not in self._runs:
+            self._runs[name] = self._campaign.run(name)
+        return self._runs[name]
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._campaign, name)
+
+
+#: Campaigns read in this process, by (path, modification time, size): a ladder climbed here
+#: (``--jobs 1``, or a forked worker) reads no run the report has read already.
+_READ: dict[tuple[str, int, int], ReadOnce] = {}
+
+
+def read_once(path: str, campaign: Campaign | None = None) -> ReadOnce:
+    """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
+    unless ``campaign`` is given)."""
+    from pathlib import Path
+
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return ReadOnce(Campaign.open(path))  # which says what is wrong with the path
+    key = (str(Path(path).resolve()), stat.st_mtime_ns, stat.st_size)
+    if key not in _READ:
+        _READ.clear()  # one campaign at a time
+        _READ[key] = ReadOnce(campaign if campaign is not None else Campaign.open(path))
+    return _READ[key]
+
+
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
           ) -> Climb | str:
     """Diagnose one run from ``spec`` and climb the ladder; plain data, or why it failed.
@@ -343,7 +386,7 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
-            campaign = Campaign.open(path)
+            campaign = read_once(path)
             data = _diagnosis.from_campaign(campaign, run_name, band_hz=band_hz)
             first = _diagnosis.diagnose(data, spec)
             steps = first.auto() if ladder else [first]
@@ -419,6 +462,7 @@ def analyse_campaign(
     from viscorig.fitting import fit
 
     started = time.perf_counter()
+    campaign = read_once(str(campaign.path), campaign)
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
     runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
@@ -496,6 +540,7 @@ def analyse_campaign(
         notes.append("diagnosis sections left out: "
                      + ("the diagnosis package is not installed" if _diagnosis is None
                         else "switched off"))
+    _READ.clear()  # the runs read are not kept past the analysis
     spent = sum(c.seconds for c in climbs.values() if isinstance(c, Climb))
     return CampaignAnalysis(str(campaign.path), analyses, table, rig.theta, band_hz,
                             use_diagnosis, ladder and use_diagnosis, notes,
