@@ -4,7 +4,8 @@ Default: the paper's campaign (``viscorig run sequences/paper.toml --yes``, the 
 seven runs on the embedded simulated rig) is made in this process and timed; then, on the same
 file, ``diagnose --auto`` (the ladder from Voigt, with the run's companions) of every specimen
 run, and ``identify`` of one Voigt and one Maxwell fit (hard-10, both FRFs, the table's
-covariance inherited, as the command fits). Each is printed as a ratio to the campaign's
+covariance inherited, as the command fits: with reading the file, and the fit alone on the
+data in memory). Each is printed as a ratio to the campaign's
 simulation time, wall and CPU. Targets: ``diagnose --auto`` ≤ 0.2× on every run, one identify
 fit ≤ 0.01×.
 
@@ -40,7 +41,13 @@ from rigsim.rigfile import load_preset  # noqa: E402
 from viscorig.cli import main as cli  # noqa: E402
 from viscorig.diagnosis import diagnose, diagnose_run  # noqa: E402
 from viscorig.fitting import FrfData, fit  # noqa: E402
-from viscorig.identify import identify_run, is_bare_table  # noqa: E402
+from viscorig.identify import (  # noqa: E402
+    PAPER_BAND_HZ,
+    identify_run,
+    is_bare_table,
+    run_data,
+    table_parameters,
+)
 from viscorig.storage import Campaign  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -115,15 +122,20 @@ def campaign_main() -> None:
             print(f"  diagnose --auto {name:<10} {wall:6.2f} s {wall / sim_wall:5.2f}x  "
                   f"cpu {cpu:6.2f} s {cpu / sim_cpu:5.2f}x   {len(ladder) - 1} steps to "
                   f"{last.rms_error / last.noise_floor:.2f}x floor: {last.model}")
+        table = table_parameters(campaign)
+        data = run_data(campaign.run("hard-10")).in_band(PAPER_BAND_HZ)
         for spec in ("voigt", "maxwell"):
-            times = [clocked(lambda spec=spec: identify_run(campaign, "hard-10", spec))
-                     for _ in range(5)]
-            wall = min(t[1] for t in times)
-            cpu = min(t[2] for t in times)
-            verdict = "met" if cpu / sim_cpu <= IDENTIFY_RATIO else "MISSED"
-            print(f"  identify {spec:<8} hard-10     {wall * 1e3:6.1f} ms {wall / sim_wall:.4f}x  "
-                  f"cpu {cpu * 1e3:6.1f} ms {cpu / sim_cpu:.4f}x   target "
-                  f"{IDENTIFY_RATIO}x: {verdict}")
+            cases = (("identify", lambda spec=spec: identify_run(campaign, "hard-10", spec)),
+                     ("  its fit", lambda spec=spec: fit(spec, data, known=table.known,
+                                                         weighting="noise")))
+            for label, action in cases:
+                times = [clocked(action) for _ in range(5)]
+                wall = min(t[1] for t in times)
+                cpu = min(t[2] for t in times)
+                verdict = "met" if cpu / sim_cpu <= IDENTIFY_RATIO else "MISSED"
+                print(f"  {label} {spec:<8} hard-10  {wall * 1e3:6.1f} ms {wall / sim_wall:.4f}x"
+                      f"  cpu {cpu * 1e3:6.1f} ms {cpu / sim_cpu:.4f}x   target "
+                      f"{IDENTIFY_RATIO}x: {verdict}")
     print(f"diagnose --auto, worst run: {worst:.2f}x the simulation's CPU time, target "
           f"{AUTO_RATIO}x: {'met' if worst <= AUTO_RATIO else 'MISSED'}")
 
