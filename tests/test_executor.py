@@ -60,9 +60,13 @@ def test_dask_cluster_runs_the_same_work():
         assert sorted(pool.unordered(abs, range(-3, 3))) == [0, 1, 1, 2, 2, 3]
 
 
-def test_no_scheduler_listening_is_one_clear_error():
+def test_no_scheduler_listening_is_one_clear_error(monkeypatch):
     pytest.importorskip("distributed")
     import socket
+
+    import viscorig.executor
+
+    monkeypatch.setattr(viscorig.executor, "CONNECT_TIMEOUT_S", 0.5)
 
     with socket.socket() as probe:  # a free loopback port nobody listens on
         probe.bind(("127.0.0.1", 0))
