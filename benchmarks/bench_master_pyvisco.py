@@ -1,6 +1,7 @@
 """Master curve and Prony series of a real DMA sweep: viscorig against pyvisco, same file.
 
-The file is pyvisco's own example sweep (``tests/data/dma/pyvisco_freq_user_raw.csv``, 21
+The file is pyvisco's own example sweep (``pyvisco_freq_user_raw.csv`` in ``shared/data/dma`` or
+``$VISCORIG_REAL_DATA/dma``; tests/data/dma/README.md names it; 21
 temperatures from -50 to 100 °C, 0.1-100 Hz; source and licence beside it). Each tool runs its
 documented pipeline:
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import sys
 import time
 import warnings
@@ -33,8 +35,10 @@ import numpy as np
 from viscorig.materials.dmafile import read_dma_csv
 from viscorig.materials.master import build_master
 
-DATA = (Path(__file__).resolve().parents[1] / "tests" / "data" / "dma"
-        / "pyvisco_freq_user_raw.csv")
+#: pyvisco's example sweep, not held by the repository (tests/data/dma/README.md names it).
+DATA = (Path(os.environ["VISCORIG_REAL_DATA"]) / "dma" if os.environ.get("VISCORIG_REAL_DATA")
+        else Path(__file__).resolve().parents[2] / "shared" / "data" / "dma") \
+    / "pyvisco_freq_user_raw.csv"
 
 
 def rms_log(model: np.ndarray, measured: np.ndarray) -> float:

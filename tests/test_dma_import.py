@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from materialdata import dma_sweep
+from realdata import real_data
 
 from viscorig.cli import main
 from viscorig.errors import InputError
@@ -14,11 +16,30 @@ from viscorig.materials.dmafile import read_dma_csv
 from viscorig.materials.dmastore import dma_run_names, read_dma
 from viscorig.storage import Campaign
 
-REAL = Path(__file__).parent / "data" / "dma" / "pyvisco_freq_user_raw.csv"
+SWEEP = "pyvisco_freq_user_raw.csv"
+
+
+@pytest.fixture
+def sweep_csv(tmp_path) -> Path:
+    """A sweep in pyvisco's layout (names row, units row) made by the test's own generator:
+    21 temperatures from -50 to 100 °C, 10 frequencies from 0.1 to 100 Hz."""
+    data = dma_sweep(np.linspace(-50.0, 100.0, 21), np.logspace(-1, 2, 10))
+    rows = ["f,E_stor,E_loss,T,Set", "Hz,MPa,MPa,C,-"]
+    rows += [f"{f:.17g},{e1 / 1e6:.17g},{e2 / 1e6:.17g},{t:.17g},{k}" for f, e1, e2, t, k in zip(
+        data["frequency_hz"], data["storage_pa"], data["loss_pa"], data["temperature_c"],
+        data["set_index"], strict=True)]
+    path = tmp_path / "sweep.csv"
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def real_sweep() -> Path:
+    """pyvisco's example DMA sweep (tests/data/dma/README.md); skips the test without it."""
+    return real_data("dma", SWEEP) / SWEEP
 
 
 def test_pyvisco_layout_names_then_units_row():
-    table = read_dma_csv(REAL)
+    table = read_dma_csv(real_sweep())
     assert table.points == 210 and table.sets.size == 21 and table.modulus == "E"
     assert table.frequency_hz[0] == 0.1 and table.storage_pa[0] == pytest.approx(8097.175545e6)
     assert table.loss_pa[0] == pytest.approx(93.07449045e6)
@@ -64,19 +85,19 @@ def test_bad_tables_name_file_row_and_column(tmp_path, text, expected):
     assert expected in str(error.value) and "bad.csv" in str(error.value)
 
 
-def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys):
+def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv):
     path = tmp_path / "c.h5"
-    assert main(["import", str(path), "--run", "eca", "--dma", str(REAL)]) == 0
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
     assert "210 points, 21 temperatures" in capsys.readouterr().out
     campaign = Campaign.open(path)
     assert dma_run_names(campaign) == ["eca"] and campaign.run_names == []
     table = read_dma(campaign, "eca")
-    assert np.array_equal(table.storage_pa, read_dma_csv(REAL).storage_pa)
+    assert np.array_equal(table.storage_pa, read_dma_csv(sweep_csv).storage_pa)
     # the rest of the tool still reads the file; a second import never overwrites
     assert main(["show", str(path)]) == 0
     listing = capsys.readouterr().out
     assert "DMA run" in listing and "eca" in listing and "-50.0..100.0" in listing
-    assert main(["import", str(path), "--run", "eca", "--dma", str(REAL)]) == 2
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 2
     assert "DMA run exists" in capsys.readouterr().err
 
 
@@ -106,9 +127,9 @@ def test_hostile_dma_files_are_refused_in_one_line(tmp_path, capsys, content):
     assert not path.exists()
 
 
-def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys):
+def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys, sweep_csv):
     openpyxl = pytest.importorskip("openpyxl")
-    csv_table = read_dma_csv(REAL)
+    csv_table = read_dma_csv(sweep_csv)
     book = openpyxl.Workbook()
     book.active.title = "Data header"
     book.active.append(["Measurement type:", "Temp. Freq. Sweep"])
@@ -135,10 +156,10 @@ def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys):
     assert "sheet 'Exported Data'" in err and "row 7" in err and "column \"E'\"" in err
 
 
-def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys):
+def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys, sweep_csv):
     path = tmp_path / "c.h5"
-    assert main(["import", str(path), "--run", "g", "--dma", str(REAL), "--modulus", "G"]) == 0
+    assert main(["import", str(path), "--run", "g", "--dma", str(sweep_csv), "--modulus", "G"]) == 0
     assert "modulus G" in capsys.readouterr().out
     assert read_dma(Campaign.open(path), "g").modulus == "G"
-    assert main(["import", str(path), "--run", "h", "--uff", str(REAL), "--modulus", "E"]) == 2
+    assert main(["import", str(path), "--run", "h", "--uff", str(sweep_csv), "--modulus", "E"]) == 2
     assert "--modulus: only with --dma" in capsys.readouterr().err

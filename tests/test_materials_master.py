@@ -226,11 +226,12 @@ def test_shift_standard_errors_cover_the_truth_about_68_percent_of_the_time():
 
 @pytest.mark.slow
 def test_real_dma_sweep_master_curve():
-    from pathlib import Path
+    from realdata import real_data
 
     from viscorig.materials.dmafile import read_dma_csv
 
-    table = read_dma_csv(Path(__file__).parent / "data" / "dma" / "pyvisco_freq_user_raw.csv")
+    sweep = "pyvisco_freq_user_raw.csv"
+    table = read_dma_csv(real_data("dma", sweep) / sweep)
     result = build_master(table, ("eca",), 25.0)
     assert result.prony.terms <= 24
     # the target (pyvisco's own pipeline on this file: 0.032 and 0.538, 19 terms)
