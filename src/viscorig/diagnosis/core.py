@@ -30,7 +30,7 @@ from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
 from viscorig.diagnosis.weighted import Likelihood, ml_refit
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.storage import Campaign
 
@@ -317,7 +317,7 @@ def diagnose(
     data: DiagnosisData | FrfData | Sequence[tuple[str, FrfData]],
     model: str | None = None,
     *,
-    table: dict[str, float] | None = None,
+    table: dict[str, float] | Known | None = None,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
 ) -> Diagnosis:
@@ -331,7 +331,9 @@ def diagnose(
     model
         Model spec.
     table
-        The table's ``M_s, K_s, C_s`` (needed for the table FRF).
+        The table's ``M_s, K_s, C_s`` (needed for the table FRF): their values, held as exact,
+        or a :class:`~viscorig.fitting.Known` with the covariance they were found with (the
+        bare-table fit's, ``TableSource.known``), which every test then allows for.
     band_hz, frfs
         Band and FRFs diagnosed (default: every point; both FRFs when the table is known).
     """
@@ -341,7 +343,8 @@ def diagnose(
     spec = parse_spec(model or DEFAULT_MODEL)
     if spec.modulus_term is None or not spec.modulus_term.has_disc:
         raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
-    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}), noise=data.noise)
+    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}),
+                 known=data.table_prior, noise=data.noise)
     return analyse(data, result)
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FrfData, NoiseModel, estimate_noise
+from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.storage import Campaign, Run
 
 
@@ -46,12 +46,18 @@ class DiagnosisData:
     frfs
         FRFs diagnosed (``"table"`` needs ``table``).
     table
-        The table's ``M_s, K_s, C_s`` held fixed, or ``None`` (support FRF only).
+        The table's ``M_s, K_s, C_s`` (their values), or ``None`` (support FRF only).
     noise
         The shared noise model of the core (:class:`viscorig.fitting.NoiseModel`: white power
         along the band, a drift correlated in test time, outlier points), estimated run by run
         from the data alone and joined in the order of the segments. The error floor, the
         whitening of every comparison and so every threshold of diagnosis rest on it.
+    table_prior
+        The table's values with the covariance they were found with (the bare-table fit's, or
+        standard uncertainties given with ``/rig``), or ``None``: the values are exact. The
+        parameters it has a covariance for are *nuisance parameters* of every likelihood fit
+        (:mod:`viscorig.diagnosis.weighted`): free, with that covariance as a Gaussian prior,
+        so that no test mistakes the error of an inherited value for an effect.
     """
 
     data: FrfData
@@ -59,6 +65,51 @@ class DiagnosisData:
     frfs: tuple[str, ...]
     table: dict[str, float] | None
     noise: NoiseModel
+    table_prior: Known | None = None
+
+    @property
+    def nuisance(self) -> tuple[str, ...]:
+        """The table's parameters fitted under their prior (those with a covariance)."""
+        if self.table_prior is None or self.table is None:
+            return ()
+        return tuple(name for name in self.table_prior.names if name in self.table)
+
+    @property
+    def exact_table(self) -> dict[str, float]:
+        """The table's values held fixed as exact (those without a covariance)."""
+        nuisance = set(self.nuisance)
+        return {k: v for k, v in (self.table or {}).items() if k not in nuisance}
+
+    def prior_residual(self, values: dict[str, float]) -> NDArray[np.float64]:
+        """``W (p − p₀)`` of the nuisance parameters, ``W`` the whitening of their covariance
+        (``WᵀW = Σ⁻¹``): what their prior adds to ``χ²`` is its squared norm."""
+        names = self.nuisance
+        if not names:
+            return np.zeros(0)
+        p = np.array([values[n] for n in names], dtype=float)
+        p0 = np.array([self.table[n] for n in names], dtype=float)  # type: ignore[index]
+        return self._prior_whitening() @ (p - p0)
+
+    def prior_jacobian(self, values: dict[str, float], log: NDArray[np.bool_]) -> NDArray:
+        """``∂ prior_residual/∂x`` for the nuisance parameters' fit coordinates ``x``
+        (logarithms where ``log``)."""
+        names = self.nuisance
+        p = np.array([values[n] for n in names], dtype=float)
+        return self._prior_whitening() * np.where(log, p, 1.0)[None, :]
+
+    def _prior_whitening(self) -> NDArray[np.float64]:
+        cached = self.__dict__.get("_prior_w")
+        if cached is None:
+            known = self.table_prior
+            index = [known.names.index(n) for n in self.nuisance]  # type: ignore[union-attr]
+            covariance = np.asarray(known.covariance, dtype=float)[np.ix_(index, index)]  # type: ignore[union-attr]
+            scale = np.sqrt(np.abs(np.diag(covariance)))
+            scale = np.where(scale > 0, scale, 1.0)
+            eigen, vectors = np.linalg.eigh(covariance / np.outer(scale, scale))
+            floor = 1e-12 * max(float(eigen.max(initial=0.0)), 1e-300)
+            cached = (vectors / np.sqrt(np.maximum(eigen, floor))).T / scale[None, :]
+            object.__setattr__(self, "_prior_w", cached)
+        return cached
 
     @property
     def run(self) -> str:
@@ -207,15 +258,20 @@ def _level(data: FrfData) -> float:
 def combine(
     runs: Sequence[tuple[str, FrfData]],
     *,
-    table: dict[str, float] | None,
+    table: dict[str, float] | Known | None,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
 ) -> DiagnosisData:
     """Diagnosis data from runs as plain arrays (the main run first).
 
     ``time_s`` of every run must already be on one clock (seconds since the main run started)
-    for the ``drift`` term to use it across runs.
+    for the ``drift`` term to use it across runs. ``table``: the table's values, as exact, or
+    with the covariance they were found with (a :class:`~viscorig.fitting.Known`, as
+    ``TableSource.known`` gives it), which the tests then allow for.
     """
+    prior = table if isinstance(table, Known) else None
+    if prior is not None:
+        table = dict(prior.values) if prior.values else None
     if not runs:
         raise InputError("no run to diagnose", "diagnosis")
     pieces = [(name, data.in_band(band_hz)) for name, data in runs]
@@ -261,6 +317,7 @@ def combine(
         frfs,
         None if table is None else dict(table),
         NoiseModel.join(noises),
+        prior if prior is not None and prior.names else None,
     )
 
 
@@ -332,5 +389,5 @@ def from_campaign(
             data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
                            data.reference_amplitude, name=data.name)
         pieces.append((name, data))
-    return combine(pieces, table=None if table is None else table.values, band_hz=band_hz,
+    return combine(pieces, table=None if table is None else table.known, band_hz=band_hz,
                    frfs=frfs)

@@ -31,7 +31,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
-from viscorig.diagnosis.significance import dispersion, judge, threshold
+from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
@@ -215,8 +215,8 @@ def refit(model: Model | str, data: DiagnosisData, start: dict[str, float]) -> F
     """The fit ``identify --model`` makes of ``model`` on ``data`` (the table's values held),
     started at ``start``."""
     fixed = dict(data.table or {})
-    return fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
-               start={k: v for k, v in start.items() if k not in fixed})
+    return fit(model, data.data, frfs=data.frfs, fixed=fixed, known=data.table_prior,
+               noise=data.noise, start={k: v for k, v in start.items() if k not in fixed})
 
 
 def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
@@ -436,12 +436,13 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
     return base
 
 
-def term_threshold(term, scan_threshold: float) -> float:
+def term_threshold(term, scan_threshold: float, alpha: float) -> float:
     """``Δχ²`` an effect term of a model must be worth: a local mode the scan's threshold (it
-    was found by looking everywhere), any other its parameters' chi-square quantile."""
+    was found by looking everywhere), any other its parameters' chi-square quantile at the
+    ``α`` of one test of the step's family."""
     if term.keyword == "fixture":
         return scan_threshold
-    return threshold(max(len(term.parameters()), 1))
+    return threshold(max(len(term.parameters()), 1), alpha)
 
 
 def unpaid_term(
@@ -455,6 +456,7 @@ def unpaid_term(
     explains: judged again in the final model, it goes (backward elimination).
     """
     phi = dispersion(current.chi2, data.residual_count, len(current.free))
+    alpha = alpha_of(current.model, data)
     worst: tuple[float, str, Likelihood] | None = None
     for term in current.model.effects:
         specs = [t.spec for t in current.model.terms if t is not term]
@@ -464,7 +466,7 @@ def unpaid_term(
             continue
         start = {**reduced.defaults(), **carried_values(current, reduced)}
         result = ml_fit(reduced, data, start)
-        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold)
+        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold, alpha)
         if ratio < 1.0 and (worst is None or ratio < worst[0]):
             worst = (ratio, term.spec, result)
     return None if worst is None else (worst[1], worst[2])
