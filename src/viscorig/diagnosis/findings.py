@@ -472,6 +472,43 @@ def unpaid_term(
     return None if worst is None else (worst[1], worst[2])
 
 
+#: A finding whose parameter owes more than this share of its variance to the table's inherited
+#: values is said to be hard to tell from an error of them.
+INHERITED_SHARE = 0.5
+
+
+def inherited_confusion(finding: Finding, data: DiagnosisData) -> tuple[str, float] | None:
+    """``(name, share)`` when the finding's size owes more than :data:`INHERITED_SHARE` of its
+    variance to the uncertainty of the table's inherited values (nuisance parameters with the
+    bare-table fit's covariance as prior, :mod:`viscorig.diagnosis.weighted`): ``share`` is
+    ``1 − var(held exact)/var(with the prior)`` of the finding's first parameter, ``name`` the
+    inherited parameter most correlated with it. ``None`` when the data tell them apart (or
+    nothing was inherited with an uncertainty)."""
+    result = finding.likelihood
+    nuisance = [n for n in data.nuisance if n in result.fitted]
+    added = [n for n in result.fitted if n in added_parameters(result.model, finding.term)]
+    if not nuisance or not added or result.jacobian.shape[1] != len(result.fitted):
+        return None
+    jac = result.jacobian
+    at = result.fitted.index(added[0])
+    keep = [i for i, n in enumerate(result.fitted) if n not in nuisance]
+    try:
+        full = np.linalg.pinv(jac.T @ jac)
+        held = np.linalg.pinv(jac[:, keep].T @ jac[:, keep])
+    except np.linalg.LinAlgError:
+        return None
+    var_full, var_held = full[at, at], held[keep.index(at), keep.index(at)]
+    if not (var_full > 0 and var_held > 0):
+        return None
+    share = 1.0 - var_held / var_full
+    if share <= INHERITED_SHARE:
+        return None
+    index = {n: result.fitted.index(n) for n in nuisance}
+    correlation = {n: abs(full[at, j]) / np.sqrt(full[at, at] * max(full[j, j], 1e-300))
+                   for n, j in index.items()}
+    return max(correlation, key=correlation.__getitem__), float(share)
+
+
 def _mark_ambiguities(findings: list[Finding], ties: list[Finding]) -> None:
     """Name, for the best finding, the effects the data do not tell apart from it: those tied
     with it, and the confounded smooth changes of K* close to it."""
