@@ -9,8 +9,8 @@ Voigt damper of the paper's Table 1 (``K_v``, ``C_v``) on a disc of mass ``M_v``
 
 - bare-table run, 12-28 Hz in 0.125 Hz steps (the paper plan's): ``ẍ_s/F_e = −ω²/D_s``,
   ``D_s = K_s − ω² M_s + iω C_s``;
-- specimen run, 20-120 Hz in 0.25 Hz steps: ``ẍ_s/F_e = −ω²/(D_s + K_v + iω C_v − ω² M_v)``
-  and ``ẍ_v/F_v = −ω²/(K_v + iω C_v − ω² M_v)``.
+- specimen run, 20-120 Hz in 0.25 Hz steps (or coarser, :attr:`CleanCase.step_hz`):
+  ``ẍ_s/F_e = −ω²/(D_s + K_v + iω C_v − ω² M_v)`` and ``ẍ_v/F_v = −ω²/(K_v + iω C_v − ω² M_v)``.
 
 Noise: every point of every FRF is multiplied by ``1 + σ (n₁ + i n₂)/√2`` with ``n₁, n₂``
 standard normal and independent, so ``σ`` is the rms relative error of the FRFs (the noise
@@ -53,10 +53,13 @@ class CleanCase:
     noise_level: float
     seed: int
     disc_mass_kg: float = 0.25
+    step_hz: float = SPECIMEN_STEP_HZ
+    """Frequency step of the specimen run (the paper plan's 0.25 Hz, or coarser)."""
 
     @property
     def name(self) -> str:
-        return (f"{self.rig}-m{self.disc_mass_kg:g}-{self.noise_level * 100:g}%-s{self.seed}")
+        step = "" if self.step_hz == SPECIMEN_STEP_HZ else f"-{self.step_hz:g}Hz"
+        return f"{self.rig}-m{self.disc_mass_kg:g}-{self.noise_level * 100:g}%{step}-s{self.seed}"
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ def bare_table(case: CleanCase) -> Sweep:
 def specimen(case: CleanCase) -> Sweep:
     """The specimen run of a case (its own noise draw)."""
     rng = np.random.default_rng([case.seed, 2, int(case.noise_level * 1e6)])
-    f = _grid(SPECIMEN_BAND_HZ, SPECIMEN_STEP_HZ)
+    f = _grid(SPECIMEN_BAND_HZ, case.step_hz)
     w = 2 * np.pi * f
     k_v, c_v = VOIGT[case.rig]
     d_v = k_v + 1j * w * c_v - w**2 * case.disc_mass_kg
@@ -106,13 +109,14 @@ def specimen(case: CleanCase) -> Sweep:
     return Sweep(f, table, support, _times(f), np.ones_like(f))
 
 
-def cases(count: int, rigs=RIGS, levels=NOISE_LEVELS, first_seed: int = 0) -> list[CleanCase]:
+def cases(count: int, rigs=RIGS, levels=NOISE_LEVELS, first_seed: int = 0,
+          step_hz: float = SPECIMEN_STEP_HZ) -> list[CleanCase]:
     """``count`` cases, cycling over rigs, noise levels and disc masses, seeds from
-    ``first_seed``."""
+    ``first_seed``, specimen runs in steps of ``step_hz``."""
     out = []
     for i in range(count):
         rig = rigs[i % len(rigs)]
         level = levels[(i // len(rigs)) % len(levels)]
         mass = DISC_MASSES_KG[(i // (len(rigs) * len(levels))) % len(DISC_MASSES_KG)]
-        out.append(CleanCase(rig, level, first_seed + i, mass))
+        out.append(CleanCase(rig, level, first_seed + i, mass, step_hz))
     return out

@@ -9,7 +9,9 @@ whose report lists a failure band.
 Run (``--jobs``: processes; results are appended to ``--out`` and a rerun resumes)::
 
     nice python studies/diagnosis/false_findings.py --cases 2400 --jobs 2 \
-        --out studies/diagnosis/false_findings.jsonl
+        --out studies/diagnosis/false_findings.jsonl [--step-hz 0.5]
+
+``--table-only FILE``: print the table of a results file without running anything.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ def run_case(case: CleanCase, exact_table: bool | None = None) -> dict:
     elapsed = time.perf_counter() - start
     return {
         "case": case.name, "rig": case.rig, "noise_level": case.noise_level, "seed": case.seed,
-        "disc_mass_kg": case.disc_mass_kg, "exact_table": exact,
+        "disc_mass_kg": case.disc_mass_kg, "step_hz": case.step_hz, "exact_table": exact,
         "table_error": {n: known.values[n] / v - 1 for n, v in
                         {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}.items()},
         "false": [f.term for f in diagnosis.significant],
@@ -112,9 +114,15 @@ def table(results: list[dict]) -> str:
     for r in results:
         groups[(r["rig"], r["noise_level"])].append(r)
         groups[("all", r["noise_level"])].append(r)
+        groups[(f"all, {r.get('step_hz', 0.25):g} Hz steps", r["noise_level"])].append(r)
+        groups[("all", "all")].append(r)
     lines = ["| rig | noise | cases | any significant finding | failure band listed | "
              "findings named |", "|---|---|---|---|---|---|"]
-    for (rig, level), items in sorted(groups.items(), key=lambda kv: (kv[0][0] == "all", kv[0])):
+    def order(key: tuple) -> tuple:
+        rig, level = key
+        return (rig.startswith("all"), rig == "all" and level == "all", rig, str(level))
+
+    for (rig, level), items in sorted(groups.items(), key=lambda kv: order(kv[0])):
         n = len(items)
         false = sum(bool(i["false"]) for i in items)
         failed = sum(bool(i["failures"]) for i in items)
@@ -123,7 +131,8 @@ def table(results: list[dict]) -> str:
             for term in i["false"]:
                 names[term.split("(")[0]] += 1
         named = ", ".join(f"{k} {v}" for k, v in sorted(names.items(), key=lambda kv: -kv[1]))
-        lines.append(f"| {rig} | {level * 100:g} % | {n} | {false} ({100 * false / n:.2f} %) | "
+        noise = "both" if level == "all" else f"{level * 100:g} %"
+        lines.append(f"| {rig} | {noise} | {n} | {false} ({100 * false / n:.2f} %) | "
                      f"{failed} ({100 * failed / n:.2f} %) | {named} |")
     seconds = sorted(r["seconds"] for r in results)
     if seconds:
@@ -138,14 +147,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", type=int, default=120)
     parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--step-hz", type=float, default=0.25,
+                        help="frequency step of the specimen runs (the paper plan's 0.25 Hz)")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--exact-table", action="store_true",
                         help="hold the table's values as exact (the behaviour before the prior)")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--table-only", type=Path, default=None,
+                        help="print the table of a results file (JSON lines) and stop")
     args = parser.parse_args(argv)
+    if args.table_only is not None:
+        rows = [json.loads(line) for line in args.table_only.read_text().splitlines() if line]
+        print(table([r for r in rows if r["exact_table"] == args.exact_table]))
+        return 0
     EXACT_TABLE = args.exact_table
     start = time.perf_counter()
-    results = _run_all(cases(args.cases, first_seed=args.first_seed), args.jobs, args.out)
+    todo = cases(args.cases, first_seed=args.first_seed, step_hz=args.step_hz)
+    results = _run_all(todo, args.jobs, args.out)
     text = table(results)
     print(text)
     print(f"{len(results)} cases in {time.perf_counter() - start:.0f} s")
