@@ -28,7 +28,8 @@ from viscorig.diagnosis.findings import (
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
-from viscorig.diagnosis.weighted import Likelihood, ml_refit
+from viscorig.diagnosis.significance import dispersion
+from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
@@ -292,6 +293,11 @@ def analyse(
     recentred = recentred_modes(result, data)
     if recentred is not result:
         result, likelihood = recentred, None
+    if data.nuisance:
+        chi2 = float(np.sum(huber(data.whiten(result.residuals))))
+        scaled = data.with_prior_scale(dispersion(chi2, data.residual_count, len(result.free)))
+        if scaled is not data:
+            data, likelihood = scaled, None
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 
 import numpy as np
@@ -66,6 +66,22 @@ class DiagnosisData:
     table: dict[str, float] | None
     noise: NoiseModel
     table_prior: Known | None = None
+    prior_scale: float = 1.0
+    """``φ`` the prior's ``χ²`` is weighed by: the misfit of the model a diagnosis step starts
+    from (:meth:`with_prior_scale`)."""
+
+    def with_prior_scale(self, phi: float) -> DiagnosisData:
+        """These data with the table's prior weighed by ``φ``, the dispersion of the model a
+        step diagnoses (quasi-likelihood: where the data's ``χ²`` is ``φ`` times what noise
+        gives, the prior counts ``φ`` times as much, so that a grossly wrong model does not
+        move the table to soak up its misfit; at the noise ``φ = 1``)."""
+        if not self.nuisance or phi == self.prior_scale:
+            return self
+        other = replace(self, prior_scale=float(phi))
+        for key in ("_whitening", "_diagonal", "_kept", "_prior_w"):
+            if key in self.__dict__:
+                object.__setattr__(other, key, self.__dict__[key])
+        return other
 
     @property
     def nuisance(self) -> tuple[str, ...]:
@@ -88,14 +104,14 @@ class DiagnosisData:
             return np.zeros(0)
         p = np.array([values[n] for n in names], dtype=float)
         p0 = np.array([self.table[n] for n in names], dtype=float)  # type: ignore[index]
-        return self._prior_whitening() @ (p - p0)
+        return np.sqrt(self.prior_scale) * (self._prior_whitening() @ (p - p0))
 
     def prior_jacobian(self, values: dict[str, float], log: NDArray[np.bool_]) -> NDArray:
         """``∂ prior_residual/∂x`` for the nuisance parameters' fit coordinates ``x``
         (logarithms where ``log``)."""
         names = self.nuisance
         p = np.array([values[n] for n in names], dtype=float)
-        return self._prior_whitening() * np.where(log, p, 1.0)[None, :]
+        return np.sqrt(self.prior_scale) * self._prior_whitening() * np.where(log, p, 1.0)[None, :]
 
     def _prior_whitening(self) -> NDArray[np.float64]:
         cached = self.__dict__.get("_prior_w")

@@ -22,7 +22,9 @@ the prior ``χ²_prior = |W (p − p₀)|²`` (``WᵀW = Σ⁻¹``) added to the
 ``W (p − p₀)`` appended to the residual (:attr:`Likelihood.prior`) and to the Jacobian. Every
 ``Δχ²`` is then a profile likelihood ratio with the table's error allowed for, and a linear
 estimate of an effect (:class:`~viscorig.diagnosis.scan.Residual`) has the table's directions
-projected out as far as their prior lets them move.
+projected out as far as their prior lets them move. The prior is weighed by the misfit ``φ``
+of the model a step diagnoses (:meth:`DiagnosisData.with_prior_scale`, quasi-likelihood): a
+model far from the noise cannot drag the table to soak up its misfit.
 """
 
 from __future__ import annotations
