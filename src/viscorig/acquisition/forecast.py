@@ -58,7 +58,7 @@ class StepForecast:
     low_s, high_s
         Shortest and longest test time expected (equal when known; ``inf``: no upper end).
     probe_s
-        Of which the probe before it.
+        Of which the probe before it (and, before an adaptive run, the gain points).
     floor
         An adaptive step's floor, when known.
     note
@@ -151,6 +151,8 @@ def forecast_sequence(
             continue
         from viscorig.acquisition.adaptive import adaptive_settings  # scipy: only when needed
         from viscorig.planning import expected_time_s
+
+        probe += probe_test_time_s(step)  # the shaker's gain, measured at the probe's points
 
         settings = adaptive_settings(step, step.level_m_per_s2, None, force_limit_n)
         floor = floors.get(step.run)

@@ -117,6 +117,8 @@ class Session:
         The simulated rig preset the sequence mounts, and the one mounted.
     records
         One record per step, in order.
+    shaker_gain_n_per_v
+        The gain measured for the run being measured (:mod:`viscorig.acquisition.gain`).
     """
 
     sequence: Sequence
@@ -132,6 +134,9 @@ class Session:
     preset_wanted: str | None = None
     preset_mounted: str | None = None
     records: list[StepRecord] = field(default_factory=list)
+    shaker_gain_n_per_v: float | None = None
+    """The amplifier-and-shaker gain measured before the adaptive run being measured (its
+    start levels use it), N/V; ``None``: the station's."""
 
     def station_table(self, rig: dict) -> RigEstimate | None:
         """The table the station gives, else the file's ``/rig``."""

@@ -54,9 +54,13 @@ def register(subparsers: Any) -> None:
                        "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS (wiring "
                        "faults, they last); repeatable")
     serve.add_argument("--max-connections", type=_count, default=8, metavar="N",
-                       help="clients served at once (default 8)")
+                       help="clients served at once (default 8); when all are held, a new "
+                       "client takes the slot of the one longest without a message")
     serve.add_argument("--idle-timeout", type=positive_number, default=3600.0, metavar="S",
                        help="close a connection silent for S seconds (default 3600)")
+    serve.add_argument("--message-timeout", type=positive_number, default=10.0, metavar="S",
+                       help="close a connection whose message, begun, has not ended within S "
+                       "seconds (default 10)")
     serve.add_argument("--max-message", type=_count, default=65536, metavar="BYTES",
                        help="longest program message; longer ones get error -100 and the "
                        "connection is closed (default 65536)")
@@ -113,7 +117,8 @@ def serve_command(args: argparse.Namespace) -> int:
     options = tuple(o for o in DEFAULT_OPTIONS if o not in args.without_option)
     limits = ServiceLimits(max_message_bytes=args.max_message,
                            max_connections=args.max_connections,
-                           idle_timeout_s=args.idle_timeout)
+                           idle_timeout_s=args.idle_timeout,
+                           message_timeout_s=args.message_timeout)
     floor = READ_TIMEOUT_FLOOR_S if args.read_timeout_floor is None else args.read_timeout_floor
     server = SimulatedAnalyserServer(
         rig, port=args.port, prologix=args.prologix, prologix_port=args.prologix_port,

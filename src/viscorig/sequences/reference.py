@@ -100,8 +100,10 @@ batch, until every target is met, the model turns out not to fit (the band is th
 `viscorig diagnose`), or `dwell_limit_s` is reached. `resolution_hz` is the spacing of the
 frequencies it may choose, `settle_cycles` and `integrate_cycles` the most any point may use.
 A specimen plan needs the table (an `identify_table` step after the bare-table sweep, or a
-`[table]` in the station) and, on a station, the shaker's `gain_n_per_v`: each point starts
-the analyser's level controller at the source level it needs.
+`[table]` in the station). Each point starts the analyser's level controller at the source
+level it needs, the force over the shaker's gain: the gain is measured before the run (force
+per source volt at the band's edges, the level controller off) and stored with it; a station's
+`gain_n_per_v` is then a check, with a warning when it disagrees.
 
 ```toml
 [[steps]]

@@ -531,7 +531,8 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
         Field("force_limit_n", "number", "Peak force the shaker may give.", unit="N", low=0.0,
               high=1e5, low_open=True, example="100.0"),
         Field("gain_n_per_v", "number", "Force per source volt, if known: the source limit is "
-              "then capped at force_limit_n / gain_n_per_v.", default=None, unit="N/V",
+              "then capped at force_limit_n / gain_n_per_v. Adaptive plans measure it before "
+              "each run and check this value against it.", default=None, unit="N/V",
               low=0.0, high=1e6, low_open=True, example="50.0"),
     )),
     TableSchema("source", "The analyser's source.", (
