@@ -37,7 +37,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.scan import Residual, ScanResult
-from viscorig.diagnosis.significance import alpha_of, threshold
+from viscorig.diagnosis.significance import alpha_of, scan_threshold, threshold
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
@@ -255,7 +255,8 @@ def screen_frame(
     with np.errstate(all="ignore"):
         change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
     size, stderr, gain = residual.estimate(change)
-    need = threshold(3, alpha)
+    need = max(threshold(3, alpha), scan_threshold(_frame_length(model, framed, current,
+                                                                 data, residual), alpha))
     if gain < SENSOR_TRY_SHARE * need:
         return None
     evidence = (
@@ -264,6 +265,42 @@ def screen_frame(
         f"{FRAME_START['f_g']:g} Hz would explain {_pm(size, stderr)} of it)"
     )
     return Candidate("frame_mode", "frame", evidence, need, dict(FRAME_START), dof=3)
+
+
+#: Frequencies (Hz, log-spaced over the frame term's range) and damping ratios of the frame's
+#: mode along which its look-elsewhere length is measured.
+FRAME_SCAN_HZ = np.geomspace(0.05, 100.0, 160)
+FRAME_SCAN_ZETA = (0.02, 0.1, 0.5, 2.0)
+
+
+def _frame_length(model: Model, framed: Model, current: Likelihood, data: DiagnosisData,
+                  residual: Residual) -> float:
+    """The frame's look-elsewhere length: its free frequency and damping move the shape of
+    what it changes, so its largest ``Δχ²`` is the maximum over a family of shapes, as the scan
+    for local modes is. Summed arc length of the normalised, whitened and projected change
+    along :data:`FRAME_SCAN_HZ`, for each damping of :data:`FRAME_SCAN_ZETA`."""
+    ctx = data.data.context()
+    frame = next(term for term in framed.effects if term.keyword == "frame")
+    names = framed.local_names(frame)
+    base = model.predict(ctx, current.values)
+    length = 0.0
+    for zeta in FRAME_SCAN_ZETA:
+        columns: dict[str, list] = {frf: [] for frf in data.frfs}
+        for f_g in FRAME_SCAN_HZ:
+            values = {**current.values, names["M_f"]: FRAME_START["M_f"], names["f_g"]: f_g,
+                      names["zeta_g"]: zeta}
+            moved = framed.predict(ctx, values)
+            with np.errstate(all="ignore"):
+                for frf in data.frfs:
+                    columns[frf].append(np.log(moved[frf] / base[frf]))
+        t = residual.template({frf: np.nan_to_num(np.stack(c, axis=1))
+                               for frf, c in columns.items()})
+        norm = np.sqrt(np.einsum("ij,ij->j", t, t))
+        ok = norm > 0
+        unit = t[:, ok] / norm[ok]
+        # the sign of a frame's change is fixed by its mass: a one-sided family
+        length += float(np.sum(np.linalg.norm(np.diff(unit, axis=1), axis=0)))
+    return length
 
 
 def _log_errors(current: Likelihood, data: DiagnosisData, frf: str):
