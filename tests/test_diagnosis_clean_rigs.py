@@ -98,6 +98,15 @@ def test_the_table_prior_moves_the_table_only_as_far_as_its_fit_allows() -> None
     assert float(diagnosis.likelihood.prior @ diagnosis.likelihood.prior) < 20
 
 
+def test_the_frame_pays_for_looking_along_its_free_frequency() -> None:
+    known = table_known(0.01, 7)
+    diagnosis = diagnose(specimen_run("hard-10", 0.01, 7), "voigt", table=known)
+    frame = next(f for f in diagnosis.findings if f.effect == "frame_mode")
+    gain = next(f for f in diagnosis.findings if f.term.startswith("gain"))
+    alpha = chi2.sf(gain.threshold, 1)  # the α of one test of this step's family
+    assert frame.threshold > chi2.isf(alpha, 3) + 1.0
+
+
 def _bands(data: FrfData) -> tuple[list, float]:
     d = combine([("run", data)], table=TABLE)
     result = fit("voigt", d.data, frfs=d.frfs, fixed=TABLE, noise=d.noise)
