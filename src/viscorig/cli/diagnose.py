@@ -91,6 +91,10 @@ def format_diagnosis(
         + (", at the noise floor)" if d.at_noise_floor else ")"),
         "noise: " + "; ".join(d.data.noise.describe()),
     ]
+    prior = d.data.table_prior
+    if prior is not None and d.data.nuisance:
+        lines.append(f"table: {', '.join(d.data.nuisance)} from {prior.source or 'elsewhere'}, "
+                     "fitted within their uncertainty in every test")
     if not d.failures:
         lines.append("where it fails: nowhere"
                      + (" (at the noise floor: what is left is noise)" if d.at_noise_floor
