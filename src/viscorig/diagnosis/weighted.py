@@ -224,8 +224,16 @@ def ml_fit(
         current.update(zip(free, to_values(x), strict=True))
         return data.prior_residual(current)
 
+    # With a prior, the Huber loss is applied here to the data's rows only (r = sign(e)·√ρ(e),
+    # a plain least-squares fit of r minimises Σρ(e) + |prior|²): the prior is a Gaussian,
+    # never down-weighted as an outlier would be. Without one, the solver's own Huber loss.
+    robust_here = bool(nuisance)
+
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        e = np.concatenate([data.whiten(cached_ratio(x), exact), prior_of(x)])
+        e = data.whiten(cached_ratio(x), exact)
+        if robust_here:
+            e = np.sign(e) * np.sqrt(huber(e))
+        e = np.concatenate([e, prior_of(x)])
         return np.where(np.isfinite(e), e, 1e6)
 
     def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -242,6 +250,11 @@ def ml_fit(
             for frf in base:
                 columns[frf][:, j] = (shifted[frf] - base[frf]) / step
         matrix = data.whiten(columns, exact)
+        if robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
+            e = np.abs(data.whiten(base, exact))
+            slope = np.where(e <= HUBER_SCALE, 1.0,
+                             HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
+            matrix = matrix * slope[:, None]
         matrix = np.vstack([matrix, prior_rows(x)])
         return np.where(np.isfinite(matrix), matrix, 0.0)
 
@@ -261,7 +274,8 @@ def ml_fit(
         with np.errstate(all="ignore"):
             solution = least_squares(
                 residual, x0, jac=jacobian_of, bounds=(lower, upper), x_scale="jac", method="trf",
-                loss="huber", f_scale=HUBER_SCALE, ftol=1e-6, xtol=1e-8, gtol=1e-8,
+                loss="linear" if robust_here else "huber", f_scale=HUBER_SCALE,
+                ftol=1e-6, xtol=1e-8, gtol=1e-8,
                 max_nfev=max_steps,
             )
         x = solution.x
