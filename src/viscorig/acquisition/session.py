@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from viscorig.acquisition.limits import RigEstimate, source_limit_v
 from viscorig.acquisition.sweep import SweepSettings, Wiring
@@ -39,6 +40,9 @@ class RunnerOptions:
     """Stand-in for the technician on a simulated rig: mounts a rig preset at a prompt."""
     instrument_errors: tuple[type[BaseException], ...] = ()
     """The driver's exception types that mean an instrument fault."""
+    chamber: Any = None
+    """The temperature chamber (:class:`viscorig.acquisition.chamber.ChamberMonitor`), if the
+    station has one."""
 
     def __post_init__(self) -> None:
         if self.over_limit not in (None, *OVER_LIMIT_CHOICES):

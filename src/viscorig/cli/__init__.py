@@ -51,16 +51,20 @@ COMMANDS: dict[str, Command] = {
     ),
     "report": Command("report", "HTML report with figures (PNG, SVG) of a campaign file"),
     "export": Command(
-        "exchange", "write a run's FRFs to a universal file (dataset 58) or CSV"
+        "exchange",
+        "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)",
     ),
     "import": Command(
-        "exchange", "add a run to a campaign from UFF 58, CSV or SDF files (35670A family)"
+        "exchange", "add a run to a campaign from UFF 58, CSV, SDF (35670A family) or DMA files"
+    ),
+    "master": Command(
+        "master", "master curve, shift factors and Prony series of a material over temperature"
     ),
     "sim": Command("sim", "simulated rig and analyser"),
     "check": Command("check", "list every problem of a sequence (and station) file at once"),
     "plan": Command("plan", "predict each step's test time and the total, touching no instrument"),
     "watch": Command("watch", "live view of a campaign file in the browser, on loopback"),
-    "bench": Command("bench", "check the test station in a minute before a campaign"),
+    "bench": Command("bench", "check the station; serve the bench page (queue, run, pause, notes)"),
 }
 
 

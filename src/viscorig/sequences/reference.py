@@ -26,7 +26,9 @@ schema, not this file (a test fails when they differ). -->
 
 A sequence is a TOML file: a name, `[defaults]` for the sweeps, then a list of `[[steps]]` run
 in order. The steps are `prompt` (an instruction to the operator), `wait`, `sweep` (one run,
-measured and stored) and `identify_table`. Check a sequence before taking it to the rig:
+measured and stored), `identify_table`, `temperature` (the chamber to a set point, then a soak)
+and `repeat` (steps written once, measured per temperature and per level). Check a sequence
+before taking it to the rig:
 
 ```
 viscorig check my-test.toml                      # every problem at once, with its line
