@@ -336,7 +336,7 @@ def combine(
         frfs,
         None if table is None else dict(table),
         NoiseModel.join(noises),
-        prior if prior is not None and prior.names else None,
+        table_prior=prior if prior is not None and prior.names else None,
     )
 
 
