@@ -37,10 +37,10 @@ def test_threshold_is_a_share_of_the_excess() -> None:
 
 
 def test_thresholds_are_chi_square_quantiles() -> None:
-    assert threshold(1) == pytest.approx(chi2.isf(1e-3, 1))
-    assert threshold(3) > threshold(1)
+    assert threshold(1, 1e-3) == pytest.approx(chi2.isf(1e-3, 1))
+    assert threshold(3, 1e-3) > threshold(1, 1e-3)
     # a scan over more correlation lengths needs more
-    assert scan_threshold(5000) > scan_threshold(500) > threshold(1)
+    assert scan_threshold(5000, 1e-3) > scan_threshold(500, 1e-3) > threshold(1, 1e-3)
 
 
 def test_scan_threshold_meets_its_false_alarm_rate() -> None:

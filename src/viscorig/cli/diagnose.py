@@ -91,7 +91,15 @@ def format_diagnosis(
         + (", at the noise floor)" if d.at_noise_floor else ")"),
         "noise: " + "; ".join(d.data.noise.describe()),
     ]
-    if d.failures:
+    prior = d.data.table_prior
+    if prior is not None and d.data.nuisance:
+        lines.append(f"table: {', '.join(d.data.nuisance)} from {prior.source or 'elsewhere'}, "
+                     "fitted within their uncertainty in every test")
+    if not d.failures:
+        lines.append("where it fails: nowhere"
+                     + (" (at the noise floor: what is left is noise)" if d.at_noise_floor
+                        else ": no band stands out of the noise"))
+    else:
         lines.append("where it fails:")
         for band in d.failures[:6]:
             run = f" [{band.run}]" if band.run != d.data.run else ""

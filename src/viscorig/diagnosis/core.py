@@ -28,9 +28,10 @@ from viscorig.diagnosis.findings import (
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
 from viscorig.diagnosis.screening import screen
-from viscorig.diagnosis.weighted import Likelihood, ml_refit
+from viscorig.diagnosis.significance import dispersion
+from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult, FrfData, fit
+from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.storage import Campaign
 
@@ -292,6 +293,11 @@ def analyse(
     recentred = recentred_modes(result, data)
     if recentred is not result:
         result, likelihood = recentred, None
+    if data.nuisance:
+        chi2 = float(np.sum(huber(data.whiten(result.residuals))))
+        scaled = data.with_prior_scale(dispersion(chi2, data.residual_count, len(result.free)))
+        if scaled is not data:
+            data, likelihood = scaled, None
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
@@ -317,7 +323,7 @@ def diagnose(
     data: DiagnosisData | FrfData | Sequence[tuple[str, FrfData]],
     model: str | None = None,
     *,
-    table: dict[str, float] | None = None,
+    table: dict[str, float] | Known | None = None,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
 ) -> Diagnosis:
@@ -331,7 +337,9 @@ def diagnose(
     model
         Model spec.
     table
-        The table's ``M_s, K_s, C_s`` (needed for the table FRF).
+        The table's ``M_s, K_s, C_s`` (needed for the table FRF): their values, held as exact,
+        or a :class:`~viscorig.fitting.Known` with the covariance they were found with (the
+        bare-table fit's, ``TableSource.known``), which every test then allows for.
     band_hz, frfs
         Band and FRFs diagnosed (default: every point; both FRFs when the table is known).
     """
@@ -341,7 +349,8 @@ def diagnose(
     spec = parse_spec(model or DEFAULT_MODEL)
     if spec.modulus_term is None or not spec.modulus_term.has_disc:
         raise InputError(f"diagnosis needs a specimen model, not '{spec.spec}'", "model spec")
-    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}), noise=data.noise)
+    result = fit(spec, data.data, frfs=data.frfs, fixed=dict(data.table or {}),
+                 known=data.table_prior, noise=data.noise)
     return analyse(data, result)
 
 

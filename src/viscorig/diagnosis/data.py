@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.fitting import FrfData, NoiseModel, estimate_noise
+from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.storage import Campaign, Run
 
 
@@ -46,12 +46,18 @@ class DiagnosisData:
     frfs
         FRFs diagnosed (``"table"`` needs ``table``).
     table
-        The table's ``M_s, K_s, C_s`` held fixed, or ``None`` (support FRF only).
+        The table's ``M_s, K_s, C_s`` (their values), or ``None`` (support FRF only).
     noise
         The shared noise model of the core (:class:`viscorig.fitting.NoiseModel`: white power
         along the band, a drift correlated in test time, outlier points), estimated run by run
         from the data alone and joined in the order of the segments. The error floor, the
         whitening of every comparison and so every threshold of diagnosis rest on it.
+    table_prior
+        The table's values with the covariance they were found with (the bare-table fit's, or
+        standard uncertainties given with ``/rig``), or ``None``: the values are exact. The
+        parameters it has a covariance for are *nuisance parameters* of every likelihood fit
+        (:mod:`viscorig.diagnosis.weighted`): free, with that covariance as a Gaussian prior,
+        so that no test mistakes the error of an inherited value for an effect.
     """
 
     data: FrfData
@@ -62,6 +68,67 @@ class DiagnosisData:
     temperature_range_c: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Lowest and highest specimen temperature recorded during each run (its per-point
     ``temperature_c`` dataset, a run measured in a chamber), by run name."""
+    table_prior: Known | None = None
+    prior_scale: float = 1.0
+    """``φ`` the prior's ``χ²`` is weighed by: the misfit of the model a diagnosis step starts
+    from (:meth:`with_prior_scale`)."""
+
+    def with_prior_scale(self, phi: float) -> DiagnosisData:
+        """These data with the table's prior weighed by ``φ``, the dispersion of the model a
+        step diagnoses (quasi-likelihood: where the data's ``χ²`` is ``φ`` times what noise
+        gives, the prior counts ``φ`` times as much, so that a grossly wrong model does not
+        move the table to soak up its misfit; at the noise ``φ = 1``)."""
+        if not self.nuisance or phi == self.prior_scale:
+            return self
+        other = replace(self, prior_scale=float(phi))
+        for key in ("_whitening", "_diagonal", "_kept", "_prior_w"):
+            if key in self.__dict__:
+                object.__setattr__(other, key, self.__dict__[key])
+        return other
+
+    @property
+    def nuisance(self) -> tuple[str, ...]:
+        """The table's parameters fitted under their prior (those with a covariance)."""
+        if self.table_prior is None or self.table is None:
+            return ()
+        return tuple(name for name in self.table_prior.names if name in self.table)
+
+    @property
+    def exact_table(self) -> dict[str, float]:
+        """The table's values held fixed as exact (those without a covariance)."""
+        nuisance = set(self.nuisance)
+        return {k: v for k, v in (self.table or {}).items() if k not in nuisance}
+
+    def prior_residual(self, values: dict[str, float]) -> NDArray[np.float64]:
+        """``W (p − p₀)`` of the nuisance parameters, ``W`` the whitening of their covariance
+        (``WᵀW = Σ⁻¹``): what their prior adds to ``χ²`` is its squared norm."""
+        names = self.nuisance
+        if not names:
+            return np.zeros(0)
+        p = np.array([values[n] for n in names], dtype=float)
+        p0 = np.array([self.table[n] for n in names], dtype=float)  # type: ignore[index]
+        return np.sqrt(self.prior_scale) * (self._prior_whitening() @ (p - p0))
+
+    def prior_jacobian(self, values: dict[str, float], log: NDArray[np.bool_]) -> NDArray:
+        """``∂ prior_residual/∂x`` for the nuisance parameters' fit coordinates ``x``
+        (logarithms where ``log``)."""
+        names = self.nuisance
+        p = np.array([values[n] for n in names], dtype=float)
+        return np.sqrt(self.prior_scale) * self._prior_whitening() * np.where(log, p, 1.0)[None, :]
+
+    def _prior_whitening(self) -> NDArray[np.float64]:
+        cached = self.__dict__.get("_prior_w")
+        if cached is None:
+            known = self.table_prior
+            index = [known.names.index(n) for n in self.nuisance]  # type: ignore[union-attr]
+            covariance = np.asarray(known.covariance, dtype=float)[np.ix_(index, index)]  # type: ignore[union-attr]
+            scale = np.sqrt(np.abs(np.diag(covariance)))
+            scale = np.where(scale > 0, scale, 1.0)
+            eigen, vectors = np.linalg.eigh(covariance / np.outer(scale, scale))
+            floor = 1e-12 * max(float(eigen.max(initial=0.0)), 1e-300)
+            cached = (vectors / np.sqrt(np.maximum(eigen, floor))).T / scale[None, :]
+            object.__setattr__(self, "_prior_w", cached)
+        return cached
 
     @property
     def run(self) -> str:
@@ -210,15 +277,20 @@ def _level(data: FrfData) -> float:
 def combine(
     runs: Sequence[tuple[str, FrfData]],
     *,
-    table: dict[str, float] | None,
+    table: dict[str, float] | Known | None,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
 ) -> DiagnosisData:
     """Diagnosis data from runs as plain arrays (the main run first).
 
     ``time_s`` of every run must already be on one clock (seconds since the main run started)
-    for the ``drift`` term to use it across runs.
+    for the ``drift`` term to use it across runs. ``table``: the table's values, as exact, or
+    with the covariance they were found with (a :class:`~viscorig.fitting.Known`, as
+    ``TableSource.known`` gives it), which the tests then allow for.
     """
+    prior = table if isinstance(table, Known) else None
+    if prior is not None:
+        table = dict(prior.values) if prior.values else None
     if not runs:
         raise InputError("no run to diagnose", "diagnosis")
     pieces = [(name, data.in_band(band_hz)) for name, data in runs]
@@ -264,6 +336,7 @@ def combine(
         frfs,
         None if table is None else dict(table),
         NoiseModel.join(noises),
+        table_prior=prior if prior is not None and prior.names else None,
     )
 
 
@@ -357,7 +430,7 @@ def from_campaign(
             data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
                            data.reference_amplitude, name=data.name)
         pieces.append((name, data))
-    combined = combine(pieces, table=None if table is None else table.values, band_hz=band_hz,
+    combined = combine(pieces, table=None if table is None else table.known, band_hz=band_hz,
                        frfs=frfs)
     ranges = {piece.name: recorded_temperature_range(piece) for piece in runs}
     return replace(combined, temperature_range_c={

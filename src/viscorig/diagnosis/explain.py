@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from viscorig.diagnosis.data import DiagnosisData
-from viscorig.diagnosis.findings import Finding
+from viscorig.diagnosis.findings import Finding, inherited_confusion
 from viscorig.models.sensors import CHANNELS
 
 #: A recorded temperature that moves this much during a run explains a drift of its modulus, K.
@@ -98,7 +98,23 @@ def _sensor(finding: Finding) -> str:
 
 
 def explain(finding: Finding, data: DiagnosisData) -> str:
-    """One or two sentences a technician can act on, for one finding."""
+    """One or two sentences a technician can act on, for one finding (and, when these data
+    cannot tell it from an error of the table's inherited values, a sentence that says so)."""
+    text = _explain(finding, data)
+    if finding.significant:
+        confusion = inherited_confusion(finding, data)
+        if confusion is not None:
+            name, share = confusion
+            source = data.table_prior.source if data.table_prior is not None else ""
+            text += (
+                f" These data cannot tell it well from an error of the table's {name} "
+                f"inherited from {source or 'the bare-table run'}: {share * 100:.0f} % of its "
+                f"uncertainty is that value's; a longer or finer bare-table run would decide."
+            )
+    return text
+
+
+def _explain(finding: Finding, data: DiagnosisData) -> str:
     effect = finding.effect
     why = finding.evidence
     if not finding.significant:

@@ -31,7 +31,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
-from viscorig.diagnosis.significance import dispersion, judge, threshold
+from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
@@ -215,8 +215,8 @@ def refit(model: Model | str, data: DiagnosisData, start: dict[str, float]) -> F
     """The fit ``identify --model`` makes of ``model`` on ``data`` (the table's values held),
     started at ``start``."""
     fixed = dict(data.table or {})
-    return fit(model, data.data, frfs=data.frfs, fixed=fixed, noise=data.noise,
-               start={k: v for k, v in start.items() if k not in fixed})
+    return fit(model, data.data, frfs=data.frfs, fixed=fixed, known=data.table_prior,
+               noise=data.noise, start={k: v for k, v in start.items() if k not in fixed})
 
 
 def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
@@ -436,12 +436,13 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
     return base
 
 
-def term_threshold(term, scan_threshold: float) -> float:
+def term_threshold(term, scan_threshold: float, alpha: float) -> float:
     """``Δχ²`` an effect term of a model must be worth: a local mode the scan's threshold (it
-    was found by looking everywhere), any other its parameters' chi-square quantile."""
+    was found by looking everywhere), any other its parameters' chi-square quantile at the
+    ``α`` of one test of the step's family."""
     if term.keyword == "fixture":
         return scan_threshold
-    return threshold(max(len(term.parameters()), 1))
+    return threshold(max(len(term.parameters()), 1), alpha)
 
 
 def unpaid_term(
@@ -455,6 +456,7 @@ def unpaid_term(
     explains: judged again in the final model, it goes (backward elimination).
     """
     phi = dispersion(current.chi2, data.residual_count, len(current.free))
+    alpha = alpha_of(current.model, data)
     worst: tuple[float, str, Likelihood] | None = None
     for term in current.model.effects:
         specs = [t.spec for t in current.model.terms if t is not term]
@@ -464,10 +466,47 @@ def unpaid_term(
             continue
         start = {**reduced.defaults(), **carried_values(current, reduced)}
         result = ml_fit(reduced, data, start)
-        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold)
+        ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold, alpha)
         if ratio < 1.0 and (worst is None or ratio < worst[0]):
             worst = (ratio, term.spec, result)
     return None if worst is None else (worst[1], worst[2])
+
+
+#: A finding whose parameter owes more than this share of its variance to the table's inherited
+#: values is said to be hard to tell from an error of them.
+INHERITED_SHARE = 0.5
+
+
+def inherited_confusion(finding: Finding, data: DiagnosisData) -> tuple[str, float] | None:
+    """``(name, share)`` when the finding's size owes more than :data:`INHERITED_SHARE` of its
+    variance to the uncertainty of the table's inherited values (nuisance parameters with the
+    bare-table fit's covariance as prior, :mod:`viscorig.diagnosis.weighted`): ``share`` is
+    ``1 − var(held exact)/var(with the prior)`` of the finding's first parameter, ``name`` the
+    inherited parameter most correlated with it. ``None`` when the data tell them apart (or
+    nothing was inherited with an uncertainty)."""
+    result = finding.likelihood
+    nuisance = [n for n in data.nuisance if n in result.fitted]
+    added = [n for n in result.fitted if n in added_parameters(result.model, finding.term)]
+    if not nuisance or not added or result.jacobian.shape[1] != len(result.fitted):
+        return None
+    jac = result.jacobian
+    at = result.fitted.index(added[0])
+    keep = [i for i, n in enumerate(result.fitted) if n not in nuisance]
+    try:
+        full = np.linalg.pinv(jac.T @ jac)
+        held = np.linalg.pinv(jac[:, keep].T @ jac[:, keep])
+    except np.linalg.LinAlgError:
+        return None
+    var_full, var_held = full[at, at], held[keep.index(at), keep.index(at)]
+    if not (var_full > 0 and var_held > 0):
+        return None
+    share = 1.0 - var_held / var_full
+    if share <= INHERITED_SHARE:
+        return None
+    index = {n: result.fitted.index(n) for n in nuisance}
+    correlation = {n: abs(full[at, j]) / np.sqrt(full[at, at] * max(full[j, j], 1e-300))
+                   for n, j in index.items()}
+    return max(correlation, key=correlation.__getitem__), float(share)
 
 
 def _mark_ambiguities(findings: list[Finding], ties: list[Finding]) -> None:

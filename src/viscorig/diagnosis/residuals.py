@@ -3,7 +3,10 @@
 For each FRF the residual of a fit ``H_model/H_measured − 1`` is shown as a magnitude error in
 percent and a phase error in degrees, and *whitened* by the local noise (``|r_i|/σ_i``, about 1
 where the model is as good as the data). A failure band is a frequency range where the
-whitened residual, smoothed over a few points, stands clearly above the noise; its ``what``
+whitened residual, smoothed over a few points, stands clearly above the noise *and* out of it:
+a model error is smooth along the band (the sweep resolves every mode it can hold), so
+neighbouring points err alike, while noise, however much louder than its estimate, errs
+independently from point to point (:func:`stands_out`); its ``what``
 reads the error as a physical quantity: the model's dynamic stiffness ``Z = −ω²/H`` is too
 high or too low in its real part (stiffness) or its imaginary part (damping), or the error is a
 narrow peak, or a phase that drifts linearly with frequency.
@@ -15,8 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import norm
 
 from viscorig.diagnosis.data import DiagnosisData
+from viscorig.diagnosis.significance import FAMILY_ALPHA
 from viscorig.fitting import FitResult
 from viscorig.models.effects import running_median
 
@@ -60,6 +65,8 @@ class FrfResidual:
     stiffness_error: NDArray[np.complex128]
     """``(Z_model − Z_measured)/|K*|``: the error of the dynamic stiffness ``Z = −ω²/H`` as a
     fraction of the fitted specimen stiffness (real part: stiffness, imaginary: damping)."""
+    noise_sigma: NDArray[np.float64] | None = None
+    """``σ_i``, the noise model's standard deviation of ``H_model/H_measured − 1`` per point."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +116,7 @@ def residuals(fit: FitResult, data: DiagnosisData) -> list[FrfResidual]:
                     np.degrees(np.angle(ratio)),
                     np.abs(r) / sigma[segment.index][order],
                     stiffness_error[segment.index][order],
+                    sigma[segment.index][order],
                 )
             )
     return out
@@ -151,17 +159,59 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     return f"model damping too {sense} (by {abs(k.imag) * 100:.1f} % of |K*| near {where})"
 
 
+def coherence(residual: FrfResidual, part: slice) -> tuple[float, int]:
+    """``(ρ, n)``: the correlation of neighbouring points' whitened complex residuals over
+    ``part`` widened by :data:`FAILURE_WINDOW` points each side, ``Re Σ z_i z̄_{i+1} /
+    √(Σ|z_i|² Σ|z_{i+1}|²)``, and the ``n`` neighbouring pairs it is taken over.
+
+    About 1 for a model error (smooth along the band, so neighbours err alike); for noise,
+    independent from point to point whatever its level, about normal with mean 0 and variance
+    ``1/(2n)``.
+    """
+    sigma = residual.noise_sigma
+    if sigma is None:
+        sigma = np.abs(residual.complex_error) / np.maximum(residual.whitened, 1e-300)
+    lo = max(part.start - FAILURE_WINDOW, 0)
+    hi = min(part.stop + FAILURE_WINDOW, residual.frequency_hz.size)
+    z = residual.complex_error[lo:hi] / sigma[lo:hi]
+    z = z[np.isfinite(z)]
+    if z.size < 3:
+        return 0.0, 0
+    a, b = z[:-1], z[1:]
+    scale = np.sqrt(np.sum(np.abs(a) ** 2) * np.sum(np.abs(b) ** 2))
+    if not scale > 0:
+        return 0.0, 0
+    return float(np.real(np.sum(a * np.conj(b))) / scale), int(a.size)
+
+
+def stands_out(residual: FrfResidual, part: slice, candidates: int = 1) -> bool:
+    """The band ``part`` holds a model error, not a stretch of noise louder than its estimate:
+    its neighbouring points err alike (:func:`coherence`) beyond what independent noise gives
+    with a probability :data:`~viscorig.diagnosis.significance.FAMILY_ALPHA` shared among the
+    ``candidates`` bands examined (one-sided normal test, scale-free: it holds whatever the
+    noise's level)."""
+    rho, pairs = coherence(residual, part)
+    if pairs == 0:
+        return False
+    z = float(norm.isf(FAMILY_ALPHA / max(candidates, 1)))
+    return rho * np.sqrt(2.0 * pairs) > z
+
+
 def failure_bands(
     fit: FitResult, data: DiagnosisData, level: float = FAILURE_LEVEL
 ) -> list[FailureBand]:
-    """Frequency ranges where the residual stands clearly above the noise, worst first.
+    """Frequency ranges where the residual stands clearly above the noise and out of it,
+    worst first: what a report lists as where the model still fails.
 
     A point belongs to a band when the whitened residual power ``|r|²/σ²``, averaged over
     :data:`FAILURE_WINDOW` points, exceeds ``level`` (noise alone averages 1 and exceeds 6
     over five points with a probability below 1e-5). Bands closer than 1 Hz merge; single
-    points are left out.
+    points are left out. A band is kept only when it also stands out of the noise
+    (:func:`stands_out`): where the noise is louder than the noise model says (a burst, a dip
+    of the force the running estimate does not follow) its power is high but its points err
+    independently, and what is left there is noise, however the model is.
     """
-    bands = []
+    found: list[tuple[FrfResidual, slice]] = []
     for residual in residuals(fit, data):
         power = residual.whitened**2
         kernel = np.ones(FAILURE_WINDOW) / FAILURE_WINDOW
@@ -178,17 +228,19 @@ def failure_bands(
                 merged[-1][1] = e
             else:
                 merged.append([s, e])
-        for s, e in merged:
-            if e - s < 2:
-                continue
-            part = slice(s, e)
-            bands.append(
-                FailureBand(
-                    (float(f[s]), float(f[e - 1])),
-                    residual.frf,
-                    _describe(residual, part),
-                    residual.run,
-                    float(np.mean(power[part])),
-                )
+        found += [(residual, slice(s, e)) for s, e in merged if e - s >= 2]
+    bands = []
+    for residual, part in found:
+        if not stands_out(residual, part, len(found)):
+            continue
+        f = residual.frequency_hz
+        bands.append(
+            FailureBand(
+                (float(f[part.start]), float(f[part.stop - 1])),
+                residual.frf,
+                _describe(residual, part),
+                residual.run,
+                float(np.mean(residual.whitened[part] ** 2)),
             )
+        )
     return sorted(bands, key=lambda band: -band.severity * (band.band_hz[1] - band.band_hz[0] + 1))

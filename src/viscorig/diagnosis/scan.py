@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.diagnosis.data import DiagnosisData
-from viscorig.diagnosis.significance import scan_threshold
+from viscorig.diagnosis.significance import alpha_of, scan_threshold
 from viscorig.diagnosis.weighted import Likelihood, winsorized
 from viscorig.models import Model, Term
 
@@ -108,11 +108,17 @@ class Residual:
         self.current = current
         self.data = data
         self.basis = _orthonormal(current.jacobian)
-        self.e = self.project(current.whitened)
-        self.clipped = self.project(winsorized(current.whitened))
+        self.e = self.project(current.augmented)
+        self.clipped = self.project(np.concatenate([winsorized(current.whitened),
+                                                    current.prior]))
 
     def project(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``t`` less its part the current model's parameters can follow."""
+        """``t`` less its part the current model's parameters can follow; a data-only ``t`` is
+        first given zero rows for the table's prior (an effect does not move the prior), so that
+        the table's nuisance parameters follow it only as far as their prior lets them."""
+        missing = self.basis.shape[0] - t.shape[0]
+        if missing > 0:
+            t = np.concatenate([t, np.zeros((missing, *t.shape[1:]))])
         return t - self.basis @ (self.basis.T @ t)
 
     def template(self, change: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
@@ -141,7 +147,8 @@ def scan(
     current: Likelihood, data: DiagnosisData, existing_hz: tuple[float, ...] = ()
 ) -> ScanResult:
     """Scan the residual of ``current`` for local modes; peaks near ``existing_hz`` are left
-    out (modes the model already has)."""
+    out (modes the model already has). Its threshold is at the ``α`` of one test of the
+    diagnosis step's family (:func:`~viscorig.diagnosis.significance.alpha_of`)."""
     d = data.data
     omega = 2 * np.pi * d.frequency_hz
     sensitivity = log_sensitivity(current.model, current.values, data)
@@ -185,4 +192,5 @@ def scan(
         peaks.append(Peak(f_n, zeta, mass, robust))
         if len(peaks) >= 8:
             break
-    return ScanResult(tuple(peaks), length, scan_threshold(length), count)
+    return ScanResult(tuple(peaks), length,
+                      scan_threshold(length, alpha_of(current.model, data)), count)

@@ -37,7 +37,7 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.scan import Residual, ScanResult
-from viscorig.diagnosis.significance import FAMILY_ALPHA, threshold
+from viscorig.diagnosis.significance import alpha_of, scan_threshold, threshold
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
@@ -95,7 +95,7 @@ def _has(model: Model, keyword: str, argument: str | None = None) -> bool:
     )
 
 
-def screen_modulus(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+def screen_modulus(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
     """A K* that changes with frequency in place of the current one."""
     term = current.model.modulus_term
     if term is None or term.keyword == "fractional":
@@ -109,13 +109,13 @@ def screen_modulus(current: Likelihood, data: DiagnosisData) -> Candidate | None
         # Voigt is a limit of both families (α → 1, an arm's K → ∞): at that boundary one
         # more parameter buys the freedom of two, so the test counts two.
         return Candidate("frequency_dependent_modulus", "fractional", evidence,
-                         threshold(2, FAMILY_ALPHA / 2), alternatives=("maxwell(2)",), dof=2)
+                         threshold(2, alpha / 2), alternatives=("maxwell(2)",), dof=2)
     order = getattr(term, "order", None) or 1
     return Candidate("frequency_dependent_modulus", f"maxwell({order + 1})", evidence,
-                     threshold(2), dof=2)
+                     threshold(2, alpha), dof=2)
 
 
-def screen_load_cell(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+def screen_load_cell(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
     """Eq. (4) against Eq. (5)."""
     if _has(current.model, "load_cell") or set(data.frfs) != {"table", "support"}:
         return None
@@ -137,7 +137,7 @@ def screen_load_cell(current: Likelihood, data: DiagnosisData) -> Candidate | No
         f"the table FRF (Eq. 4) sees a K* {abs(gap):.1f} % {'softer' if gap < 0 else 'stiffer'}"
         f" than the support FRF (Eq. 5) does ({stiffness})"
     )
-    return Candidate("load_cell_compliance", "load_cell", evidence, threshold(1), start)
+    return Candidate("load_cell_compliance", "load_cell", evidence, threshold(1, alpha), start)
 
 
 def screen_fixtures(scan: ScanResult) -> list[Candidate]:
@@ -177,12 +177,14 @@ def _frf_words(frf: str) -> str:
     return {"table": "table FRF (ẍ_s/F_e)", "support": "support FRF (ẍ_v/F_v)"}[frf]
 
 
-def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual) -> list[Candidate]:
+def screen_sensors(
+    current: Likelihood, data: DiagnosisData, residual: Residual, alpha: float
+) -> list[Candidate]:
     """Delay, high-pass and gain of each FRF's channels, from linear estimates."""
     omega = 2 * np.pi * data.data.frequency_hz
     model = current.model
     out: list[Candidate] = []
-    need = threshold(1)
+    need = threshold(1, alpha)
     if set(data.frfs) == {"table", "support"} and not _has(model, "delay"):
         tau, stderr, gain = residual.estimate({frf: -1j * omega for frf in data.frfs})
         if gain >= SENSOR_TRY_SHARE * need:
@@ -200,7 +202,7 @@ def screen_sensors(current: Likelihood, data: DiagnosisData, residual: Residual)
                 "sensor_delay", f"delay({lagging.name})",
                 f"the {_frf_words(frf)} phase error grows linearly with frequency "
                 f"({_pm(tau * 1e6, stderr * 1e6)} µs)",
-                threshold(1, FAMILY_ALPHA / 2), {f"tau_{lagging.name}": abs(tau)},
+                threshold(1, alpha / 2), {f"tau_{lagging.name}": abs(tau)},
                 alternatives=(f"lowpass({lagging.name})",)))
         corner, stderr, gain = residual.estimate({frf: 2j * np.pi / omega})
         filtered = response if corner > 0 else force
@@ -230,7 +232,9 @@ FRAME_NEAR_NOISE = 4.0
 FRAME_START = {"M_f": 2000.0, "f_g": 3.0, "zeta_g": 0.1}
 
 
-def screen_frame(current: Likelihood, data: DiagnosisData, residual: Residual) -> Candidate | None:
+def screen_frame(
+    current: Likelihood, data: DiagnosisData, residual: Residual, alpha: float
+) -> Candidate | None:
     """The inertial frame's rigid-body mode: what a frame of :data:`FRAME_START` would change,
     compared with the residual (to first order)."""
     model = current.model
@@ -251,7 +255,8 @@ def screen_frame(current: Likelihood, data: DiagnosisData, residual: Residual) -
     with np.errstate(all="ignore"):
         change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
     size, stderr, gain = residual.estimate(change)
-    need = threshold(3)
+    need = max(threshold(3, alpha), scan_threshold(_frame_length(model, framed, current,
+                                                                 data, residual), alpha))
     if gain < SENSOR_TRY_SHARE * need:
         return None
     evidence = (
@@ -260,6 +265,42 @@ def screen_frame(current: Likelihood, data: DiagnosisData, residual: Residual) -
         f"{FRAME_START['f_g']:g} Hz would explain {_pm(size, stderr)} of it)"
     )
     return Candidate("frame_mode", "frame", evidence, need, dict(FRAME_START), dof=3)
+
+
+#: Frequencies (Hz, log-spaced over the frame term's range) and damping ratios of the frame's
+#: mode along which its look-elsewhere length is measured.
+FRAME_SCAN_HZ = np.geomspace(0.05, 100.0, 160)
+FRAME_SCAN_ZETA = (0.02, 0.1, 0.5, 2.0)
+
+
+def _frame_length(model: Model, framed: Model, current: Likelihood, data: DiagnosisData,
+                  residual: Residual) -> float:
+    """The frame's look-elsewhere length: its free frequency and damping move the shape of
+    what it changes, so its largest ``Δχ²`` is the maximum over a family of shapes, as the scan
+    for local modes is. Summed arc length of the normalised, whitened and projected change
+    along :data:`FRAME_SCAN_HZ`, for each damping of :data:`FRAME_SCAN_ZETA`."""
+    ctx = data.data.context()
+    frame = next(term for term in framed.effects if term.keyword == "frame")
+    names = framed.local_names(frame)
+    base = model.predict(ctx, current.values)
+    length = 0.0
+    for zeta in FRAME_SCAN_ZETA:
+        columns: dict[str, list] = {frf: [] for frf in data.frfs}
+        for f_g in FRAME_SCAN_HZ:
+            values = {**current.values, names["M_f"]: FRAME_START["M_f"], names["f_g"]: f_g,
+                      names["zeta_g"]: zeta}
+            moved = framed.predict(ctx, values)
+            with np.errstate(all="ignore"):
+                for frf in data.frfs:
+                    columns[frf].append(np.log(moved[frf] / base[frf]))
+        t = residual.template({frf: np.nan_to_num(np.stack(c, axis=1))
+                               for frf, c in columns.items()})
+        norm = np.sqrt(np.einsum("ij,ij->j", t, t))
+        ok = norm > 0
+        unit = t[:, ok] / norm[ok]
+        # the sign of a frame's change is fixed by its mass: a one-sided family
+        length += float(np.sum(np.linalg.norm(np.diff(unit, axis=1), axis=0)))
+    return length
 
 
 def _log_errors(current: Likelihood, data: DiagnosisData, frf: str):
@@ -280,7 +321,7 @@ def _weighted_lstsq(columns, target, weight):
     return coefficients, np.sqrt(np.abs(np.diag(covariance)))
 
 
-def screen_levels(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+def screen_levels(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
     """Runs at two levels disagree."""
     if _has(current.model, "amplitude") or data.data.reference_amplitude is None:
         return None
@@ -290,7 +331,7 @@ def screen_levels(current: Likelihood, data: DiagnosisData) -> Candidate | None:
             f"one level only ({levels[0]:.3g} m/s²): along a constant-acceleration sweep the "
             "displacement falls as 1/f², so amplitude dependence looks like frequency dependence"
         )
-        return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1),
+        return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1, alpha),
                          identifiable=False)
     e, sigma = _log_errors(current, data, data.frfs[0])
     means = []
@@ -303,10 +344,10 @@ def screen_levels(current: Likelihood, data: DiagnosisData) -> Candidate | None:
         f"runs at {low[0]:.3g} and {high[0]:.3g} m/s² disagree by "
         f"{abs(high[1] - low[1]) * 100:.2f} % in magnitude"
     )
-    return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1))
+    return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1, alpha))
 
 
-def screen_drift(current: Likelihood, data: DiagnosisData) -> Candidate | None:
+def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
     """Residual against time, beyond what frequency explains."""
     d = data.data
     if _has(current.model, "drift") or d.time_s is None:
@@ -316,7 +357,8 @@ def screen_drift(current: Likelihood, data: DiagnosisData) -> Candidate | None:
             f"one {data.directions[0]} sweep: time and frequency advance together, so a drift "
             "looks like frequency dependence"
         )
-        return Candidate("thermal_drift", "drift", evidence, threshold(1), identifiable=False)
+        return Candidate("thermal_drift", "drift", evidence, threshold(1, alpha),
+                         identifiable=False)
     f = d.frequency_hz
     u = np.log(f / np.sqrt(f.min() * f.max()))
     span = max(float(np.ptp(d.time_s)), 1.0)
@@ -330,20 +372,22 @@ def screen_drift(current: Likelihood, data: DiagnosisData) -> Candidate | None:
         f"the {'/'.join(data.directions)} sweeps disagree as the test time goes on "
         f"(about {per_hour:+.2f} % per hour)"
     )
-    return Candidate("thermal_drift", "drift", evidence, threshold(1))
+    return Candidate("thermal_drift", "drift", evidence, threshold(1, alpha))
 
 
 def screen(
     current: Likelihood, data: DiagnosisData, residual: Residual, scan: ScanResult
 ) -> list[Candidate]:
-    """Every candidate that applies to this model and these data."""
+    """Every candidate that applies to this model and these data, each with the threshold of
+    one test of the step's family (:func:`alpha_of`)."""
+    alpha = alpha_of(current.model, data)
     candidates: list[Candidate] = []
     for method in (screen_modulus, screen_load_cell, screen_levels, screen_drift):
-        candidate = method(current, data)
+        candidate = method(current, data, alpha)
         if candidate is not None:
             candidates.append(candidate)
-    candidates += screen_sensors(current, data, residual)
-    frame = screen_frame(current, data, residual)
+    candidates += screen_sensors(current, data, residual, alpha)
+    frame = screen_frame(current, data, residual, alpha)
     if frame is not None:
         candidates.append(frame)
     candidates += screen_fixtures(scan)

@@ -4,10 +4,13 @@ Every comparison is a likelihood-ratio test on the residual whitened by the nois
 (:mod:`viscorig.diagnosis.weighted`): adding an effect with ``k`` parameters to a correct model
 lowers ``χ²`` by a chi-square variable with ``k`` degrees of freedom when the effect is absent.
 An effect is significant when the drop ``Δχ²`` exceeds the ``1 − α`` quantile of that
-distribution, with ``α`` = :data:`FAMILY_ALPHA` for each family of candidates a diagnosis tries
-(about a dozen per step, so that clean data give a false finding in about one diagnosis out of a
-hundred). For one parameter this is ``Δχ² > 10.8``: the parameter is more than 3.3 of its own
-standard errors away from "no effect".
+distribution. One diagnosis step makes a family of such tests (the scan for local modes, the
+frame, every sensor term of every FRF, K*, the load cell...: :func:`family_size` counts them
+for the model and data at hand, about a dozen), and clean data must give a false finding in at
+most :data:`FAMILY_ALPHA` of the diagnoses, whichever test makes it: each test gets
+``α = FAMILY_ALPHA / m`` of the ``m`` in the family (Bonferroni, :func:`test_alpha`), a test
+that tries two alternative terms half of that. With the thirteen tests of a run with both FRFs
+this is ``α ≈ 3.8·10⁻⁴``, ``Δχ² > 12.6`` for one parameter: 3.5 of its own standard errors.
 
 The scan for local modes looks everywhere along the band and at several widths, so its largest
 ``Δχ²`` is the maximum of a chi-square *process*, not one chi-square variable. Its threshold
@@ -15,8 +18,8 @@ accounts for that (the look-elsewhere effect) through the expected number of upc
 matched-filter statistic (Rice, Davies; :mod:`viscorig.diagnosis.scan`): with ``L`` the length of
 the scan measured in correlation lengths of the statistic, ``P(max Δχ² > u) ≈ L e^{−u/2}/(2π)``,
 and the threshold is the ``u`` that makes it ``α``. On a 401-point paper sweep ``L`` is 400 to
-1000 and the threshold ``Δχ² ≈ 22-24``: a mode is reported when its mass exceeds about 4.8 of its
-own standard errors.
+1000 and, at the ``α`` of one test of the family, the threshold ``Δχ² ≈ 24-26``: a mode is
+reported when its mass exceeds about 5 of its own standard errors.
 
 A model that does not fit to the noise makes every test too easy: the residual holds structure
 that any extra parameter partly absorbs. Each test is therefore made against the larger of the
@@ -35,9 +38,15 @@ from scipy.stats import chi2
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
+from viscorig.models import Model
 
-#: False-finding probability allowed to each family of candidates in one diagnosis step.
-FAMILY_ALPHA = 1e-3
+#: False-finding probability allowed to one diagnosis step, all its tests together.
+FAMILY_ALPHA = 5e-3
+
+
+def test_alpha(tests: int, family_alpha: float = FAMILY_ALPHA) -> float:
+    """``α`` of each of ``tests`` tests so that all together stay within ``family_alpha``."""
+    return family_alpha / max(int(tests), 1)
 #: A significant finding removes at least this share of the χ² in excess of the noise.
 MIN_EXCESS_FRACTION = 0.1
 #: Terms a slow drift of the transducers (sensitivity, conditioning phase) can pass for along a
@@ -47,12 +56,12 @@ MIN_EXCESS_FRACTION = 0.1
 DRIFT_LIKE = ("gain", "delay", "lowpass", "highpass", "drift", "amplitude", "frame")
 
 
-def threshold(dof: int, alpha: float = FAMILY_ALPHA) -> float:
+def threshold(dof: int, alpha: float) -> float:
     """``Δχ²`` an effect with ``dof`` parameters must exceed (chi-square ``1 − α`` quantile)."""
     return float(chi2.isf(alpha, max(int(dof), 1)))
 
 
-def scan_threshold(length: float, alpha: float = FAMILY_ALPHA) -> float:
+def scan_threshold(length: float, alpha: float) -> float:
     """``Δχ²`` the largest peak of a scan of ``length`` correlation lengths must exceed.
 
     ``P(max > u) ≈ length · e^{−u/2} / (2π) + P(χ²₁ > u)/2`` (upcrossings of the matched filter
@@ -187,3 +196,33 @@ def judge(
     if passes and term.startswith("fixture"):
         passes = (delta - single_point_share(before, after, data)) / phi > needed
     return delta, phi, passes
+
+
+def _has_term(model: Model, keyword: str) -> bool:
+    return any(term.keyword == keyword for term in model.terms)
+
+
+def family_size(model: Model, data: DiagnosisData) -> int:
+    """The tests one diagnosis step of ``model`` on ``data`` makes, whether screening then
+    fits each or not (a candidate the linear screen finds weak is a test passed, not one
+    skipped): the scan for local modes, K*, the load cell, the level and drift terms, every
+    sensor term of every FRF and the frame, as far as they apply."""
+    both = set(data.frfs) == {"table", "support"}
+    d = data.data
+    tests = [
+        True,  # the scan for local modes (its threshold holds its own look-elsewhere)
+        model.modulus_term is not None and model.modulus_term.keyword != "fractional",
+        both and data.table is not None and not _has_term(model, "load_cell"),
+        d.reference_amplitude is not None and not _has_term(model, "amplitude"),
+        d.time_s is not None and not _has_term(model, "drift"),
+        "table" in data.frfs and data.table is not None and not _has_term(model, "frame"),
+        both and not _has_term(model, "delay"),
+    ]
+    sensors = 6 if both else 2 * len(data.frfs)  # delay, high-pass (and gain) per FRF
+    return sum(bool(t) for t in tests) + sensors
+
+
+def alpha_of(model: Model, data: DiagnosisData) -> float:
+    """``α`` of each test of one diagnosis step (:func:`family_size`,
+    :func:`~viscorig.diagnosis.significance.test_alpha`)."""
+    return test_alpha(family_size(model, data))

@@ -12,6 +12,19 @@ outlier point, which heavy-tailed noise makes, neither drives a fit nor fakes a 
 The statistic is ``χ² = Σ ρ(e_i)`` over the whitened residual ``e`` (``ρ(e) = e²`` inside the
 Huber scale): a chi-square with as many degrees of freedom as real residuals, less the
 parameters, when the model is right. ``rms_error`` stays the design's measure.
+
+The table's ``M_s, K_s, C_s`` come from another run (the bare-table fit) with an error of their
+own. Held as exact, that error is a systematic misfit every test sees: above the system's
+resonance ``ẍ_s/F_e ≈ −1/(M_s + M_v)``, so a 0.1 % error of ``M_s`` reads as a 0.1 % gain of the
+table accelerometer. When the data carry the covariance the values were found with
+(:attr:`DiagnosisData.table_prior`), they are *nuisance parameters*: fitted in every model, with
+the prior ``χ²_prior = |W (p − p₀)|²`` (``WᵀW = Σ⁻¹``) added to the statistic, and its rows
+``W (p − p₀)`` appended to the residual (:attr:`Likelihood.prior`) and to the Jacobian. Every
+``Δχ²`` is then a profile likelihood ratio with the table's error allowed for, and a linear
+estimate of an effect (:class:`~viscorig.diagnosis.scan.Residual`) has the table's directions
+projected out as far as their prior lets them move. The prior is weighed by the misfit ``φ``
+of the model a step diagnoses (:meth:`DiagnosisData.with_prior_scale`, quasi-likelihood): a
+model far from the noise cannot drag the table to soak up its misfit.
 """
 
 from __future__ import annotations
@@ -57,14 +70,16 @@ class Likelihood:
     values
         Every parameter's value by global name (the table's held fixed).
     free
-        Names of the model's free parameters (every one but the table's).
+        Names of the model's free parameters (every one but the table's values held exact;
+        the table's nuisance parameters included).
     chi2
-        ``Σ ρ(e_i)`` at the optimum.
+        ``Σ ρ(e_i)`` at the optimum, plus the nuisance parameters' prior ``|prior|²``.
     whitened
-        The whitened residual ``e`` at the optimum.
+        The whitened residual ``e`` at the optimum (the data's part).
     jacobian
-        ``∂e/∂x`` at the optimum, ``x`` the fitted coordinates (logarithms of positive
-        parameters, the values of the others), one column per name of ``fitted``.
+        ``∂(e, prior)/∂x`` at the optimum, ``x`` the fitted coordinates (logarithms of positive
+        parameters, the values of the others), one column per name of ``fitted``; the rows of
+        :attr:`prior` follow the data's.
     residuals
         ``H_model/H_measured − 1`` per FRF.
     """
@@ -78,10 +93,17 @@ class Likelihood:
     residuals: dict[str, NDArray[np.complex128]] = field(repr=False)
     fitted: tuple[str, ...] = ()
     """Names of the parameters the fit moved (``free`` unless it held some at their start)."""
+    prior: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
+    """The nuisance parameters' prior residual ``W (p − p₀)`` (empty without a prior)."""
 
     def __post_init__(self) -> None:
         if not self.fitted:
             self.fitted = self.free
+
+    @property
+    def augmented(self) -> NDArray[np.float64]:
+        """The whitened residual with the prior's rows after it (the Jacobian's rows)."""
+        return np.concatenate([self.whitened, self.prior])
 
     @property
     def spec(self) -> str:
@@ -169,10 +191,12 @@ def ml_fit(
     left out, a product fewer per evaluation); ``χ²`` and the whitened residual returned are
     still the exact ones, at the values found, so a drop of ``χ²`` read from them is a lower
     bound of the exact fit's."""
-    fixed = dict(data.table or {})
+    fixed = data.exact_table
+    nuisance = data.nuisance
     every = tuple(name for name in model.names if name not in fixed)
-    free = every if only is None else tuple(name for name in every if name in only)
-    values = {**model.defaults(), **dict(start), **fixed}
+    free = every if only is None else tuple(
+        name for name in every if name in only or name in nuisance)
+    values = {**model.defaults(), **(data.table or {}), **dict(start), **fixed}
     ctx = data.data.context()
     measured = {name: data.data.frf(name) for name in data.frfs}
     log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
@@ -194,8 +218,23 @@ def ml_fit(
             last["x"], last["ratio"] = x.copy(), ratio(x)
         return last["ratio"]  # type: ignore[return-value]
 
+    prior_at = [free.index(name) for name in nuisance]
+
+    def prior_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        current = dict(values)
+        current.update(zip(free, to_values(x), strict=True))
+        return data.prior_residual(current)
+
+    # With a prior, the Huber loss is applied here to the data's rows only (r = sign(e)·√ρ(e),
+    # a plain least-squares fit of r minimises Σρ(e) + |prior|²): the prior is a Gaussian,
+    # never down-weighted as an outlier would be. Without one, the solver's own Huber loss.
+    robust_here = bool(nuisance)
+
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
         e = data.whiten(cached_ratio(x), exact)
+        if robust_here:
+            e = np.sign(e) * np.sqrt(huber(e))
+        e = np.concatenate([e, prior_of(x)])
         return np.where(np.isfinite(e), e, 1e6)
 
     def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -210,7 +249,21 @@ def ml_fit(
             columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - base[frf]).T / steps
                        for frf in base}
         matrix = data.whiten(columns, exact)
+        if robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
+            e = np.abs(data.whiten(base, exact))
+            slope = np.where(e <= HUBER_SCALE, 1.0,
+                             HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
+            matrix = matrix * slope[:, None]
+        matrix = np.vstack([matrix, prior_rows(x)])
         return np.where(np.isfinite(matrix), matrix, 0.0)
+
+    def prior_rows(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        rows = np.zeros((len(nuisance), x.size))
+        if nuisance:
+            current = dict(values)
+            current.update(zip(free, to_values(x), strict=True))
+            rows[:, prior_at] = data.prior_jacobian(current, log[prior_at])
+        return rows
 
     start_values = np.array([values[name] for name in free], dtype=float)
     x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
@@ -220,7 +273,8 @@ def ml_fit(
         with np.errstate(all="ignore"):
             solution = least_squares(
                 residual, x0, jac=jacobian_of, bounds=(lower, upper), x_scale="jac", method="trf",
-                loss="huber", f_scale=HUBER_SCALE, ftol=1e-6, xtol=1e-8, gtol=1e-8,
+                loss="linear" if robust_here else "huber", f_scale=HUBER_SCALE,
+                ftol=1e-6, xtol=1e-8, gtol=1e-8,
                 max_nfev=max_steps,
             )
         x = solution.x
@@ -232,8 +286,10 @@ def ml_fit(
     fitted.update(zip(free, (float(v) for v in to_values(x)), strict=True))
     residuals = ratio(x)
     whitened = data.whiten(residuals)
+    prior = data.prior_residual(fitted)
     return Likelihood(
-        model, fitted, every, float(np.sum(huber(whitened))), whitened, jacobian, residuals, free
+        model, fitted, every, float(np.sum(huber(whitened)) + prior @ prior), whitened,
+        jacobian, residuals, free, prior,
     )
 
 
@@ -245,9 +301,9 @@ def ml_refit(result: FitResult | Likelihood, data: DiagnosisData) -> Likelihood:
 def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> Likelihood:
     """The likelihood of ``model`` at ``values`` (no fit), with a finite-difference Jacobian
     weighted as the Huber loss weighs each residual."""
-    fixed = dict(data.table or {})
+    fixed = data.exact_table
     free = tuple(name for name in model.names if name not in fixed)
-    values = {**dict(values), **fixed}
+    values = {**(data.table or {}), **dict(values), **fixed}
     ctx = data.data.context()
     measured = {name: data.data.frf(name) for name in data.frfs}
     log, _, _ = _coordinates(model, free)
@@ -271,6 +327,12 @@ def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> 
     jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
     jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
     weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
-    return Likelihood(model, dict(values), free, float(np.sum(huber(whitened))), whitened,
-                      jacobian * weight[:, None], residuals)
+    prior = data.prior_residual(values)
+    rows = np.zeros((prior.size, len(free)))
+    if prior.size:
+        at = [free.index(name) for name in data.nuisance]
+        rows[:, at] = data.prior_jacobian(values, log[at])
+    return Likelihood(model, dict(values), free, float(np.sum(huber(whitened)) + prior @ prior),
+                      whitened, np.vstack([jacobian * weight[:, None], rows]), residuals,
+                      prior=prior)
 

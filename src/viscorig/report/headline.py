@@ -103,6 +103,9 @@ def failure_words(run: RunAnalysis, most: int = 2) -> str:
         return "not diagnosed" if not run.bare else "–"
     bands = run.failures
     if not bands:
+        shown = run.shown
+        if shown is not None and at_floor(shown.rms_error, shown.noise_floor):
+            return "nowhere: at the noise floor, what is left is noise"
         return "nowhere above the noise"
     first = bands[0]
     parts = [f"{FRF_WORDS.get(first.frf, first.frf)} {first.band_hz[0]:.0f}–"
