@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from viscorig import __version__
+from viscorig.version import __version__
 from viscorig.cli import main
 
 

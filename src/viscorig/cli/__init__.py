@@ -26,8 +26,8 @@ from viscorig.runtime import limit_blas_threads
 
 limit_blas_threads()
 
-from viscorig import __version__  # noqa: E402  (after the BLAS setting, before numpy loads)
 from viscorig.errors import ViscorigError  # noqa: E402
+from viscorig.version import __version__  # noqa: E402  (after the BLAS setting, before numpy loads)
 
 
 class Command(NamedTuple):

@@ -58,11 +58,11 @@ import h5py
 import numpy as np
 from numpy.typing import ArrayLike
 
-from viscorig import __version__
 from viscorig.errors import InputError
 from viscorig.storage import layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import Fit, Run, RunSettings, Segment
+from viscorig.version import __version__
 
 
 def utc_now() -> str:
