@@ -36,6 +36,7 @@ def test_the_embedded_simulated_rig_passes_every_check() -> None:
     assert out.strip().splitlines()[-1] == "bench check: 8 of 8 checks passed"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("fault", "named"), [
     ("unplug=3", "FAIL  input 3 (device force): reads nothing at 10, 25, 45 Hz (no signal "
                  "above its own noise); check the cable or the ICP supply"),
@@ -66,6 +67,7 @@ def test_an_injected_fault_is_named(tmp_path: Path, fault: str, named: str) -> N
         assert blamed <= {culprit}, out
 
 
+@pytest.mark.slow
 def test_a_station_without_table_parameters_skips_the_role_check(tmp_path: Path) -> None:
     with sim_serve("--preset", "soft-0", "--seed", "2") as (_, _, resource, _):
         station = tmp_path / "station.toml"

@@ -102,6 +102,7 @@ def test_connections_are_bounded() -> None:
             sock.close()
 
 
+@pytest.mark.slow
 def test_an_idle_connection_is_closed_and_a_busy_one_is_not() -> None:
     with sim_serve("--preset", "table", "--idle-timeout", "0.5") as (_, host, _, port):
         idle = connect(host, port)

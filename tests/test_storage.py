@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from viscorig.version import __version__, frf
+from viscorig import __version__, frf
 from viscorig.errors import InputError
 from viscorig.storage import (
     FORCE_ABOVE_SHAKER_LIMIT,
