@@ -196,7 +196,7 @@ def test_report_and_summary_print_the_same_numbers(report_dir: Path, campaign_fi
         assert change in tables, change
     for run in document["runs"]:  # Table 2's f_r with the ± summary gives it
         f_r = run["system"]["f_r"]
-        from viscorig.report.words import with_uncertainty
+        from viscorig.numbers import with_uncertainty
 
         assert with_uncertainty(f_r["value"], f_r["stderr"], "Hz") in tables
     assert "shared (run 'table'), counted once" in tables

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from viscorig.errors import InputError
+from viscorig.numbers import with_uncertainty
 
 _DEFAULT_BAND = None  # every point, as identify and diagnose do
 
@@ -391,7 +392,7 @@ class Fit:
 
     def __repr__(self) -> str:
         w = _words()
-        shown = [f"{name} = {w.with_uncertainty(v, e, u)}"
+        shown = [f"{name} = {with_uncertainty(v, e, u)}"
                  for name, (v, e, u) in self.parameters.items() if name in self.curve.free][:4]
         more = ", ..." if len(self.curve.free) > 4 else ""
         return (f"<Fit {self.run.name} {self.model}: "
@@ -401,7 +402,7 @@ class Fit:
         w = _words()
         rows = "".join(
             f"<tr><td style=\"text-align:left\">{_e(name)}</td><td>"
-            f"{_e(w.with_uncertainty(v, e if name in self.curve.free else math.nan, u))}</td>"
+            f"{_e(with_uncertainty(v, e if name in self.curve.free else math.nan, u))}</td>"
             f"<td style=\"text-align:left\">{'' if name in self.curve.free else 'fixed'}</td>"
             "</tr>" for name, (v, e, u) in self.parameters.items())
         return (f"<b>Fit of {_e(self.run.name)}</b>: <code>{_e(self.model)}</code> "

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
 from viscorig.models import Context
+from viscorig.numbers import with_uncertainty
 
 
 def kstar_from_table(
@@ -147,10 +148,9 @@ class Quantity:
     stderr: float
     unit: str = ""
 
-    def text(self, digits: str = ".4g") -> str:
-        """``"39.41 ± 0.02 Hz"`` (the uncertainty to two significant digits)."""
-        unit = f" {self.unit}" if self.unit else ""
-        return f"{self.value:{digits}} ± {self.stderr:.2g}{unit}"
+    def text(self) -> str:
+        """``"39.41 ± 0.02 Hz"``, written by :func:`viscorig.numbers.with_uncertainty`."""
+        return with_uncertainty(self.value, self.stderr, self.unit)
 
     def to_json(self) -> dict[str, float | str]:
         """``{"value", "stderr", "unit"}`` as in the fits' JSON."""

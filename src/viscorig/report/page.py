@@ -17,6 +17,7 @@ from datetime import UTC, datetime
 
 from viscorig.compare import compare_fits, kstar_changes
 from viscorig.identify import Variation, preload_variations
+from viscorig.numbers import with_uncertainty
 from viscorig.paper import (
     PAPER_TABLE_1,
     PAPER_TABLE_2,
@@ -33,7 +34,7 @@ from viscorig.report.analysis import (
 )
 from viscorig.report.figures import SavedFigure
 from viscorig.report.headline import FRF_WORDS, headline
-from viscorig.report.words import error_words, evidence_words, with_uncertainty
+from viscorig.report.words import error_words, evidence_words
 from viscorig.storage import FLAG_NAMES, count_flags
 from viscorig.version import __version__
 
