@@ -76,6 +76,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import median_filter
 
+from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 
 #: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
@@ -111,7 +112,6 @@ _TAU_GRID = np.geomspace(0.3, 30.0, 13)
 #: Fewest points for an estimate of the correlated part.
 MIN_CORRELATION_POINTS = 40
 #: The analyser sets frequencies in steps of this (Hz): a linear sweep's steps differ by up to one.
-FREQUENCY_STEP_HZ = 0.015625
 
 
 def regular_grid(frequency_hz: NDArray[np.float64]) -> bool:
