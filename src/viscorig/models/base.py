@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 
@@ -133,14 +133,6 @@ class Context:
                     raise ValueError(f"{name} must have one value per frequency point")
                 object.__setattr__(self, name, value)
         object.__setattr__(self, "omega", 2.0 * np.pi * frequency)
-
-    def subset(self, index: ArrayLike) -> Context:
-        """The context at the selected points."""
-        return Context(
-            self.frequency_hz[index],
-            None if self.time_s is None else self.time_s[index],
-            None if self.reference_amplitude is None else self.reference_amplitude[index],
-        )
 
 
 class Term:

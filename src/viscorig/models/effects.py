@@ -341,11 +341,3 @@ EFFECTS: dict[str, tuple[str, str]] = {
 }
 
 
-def effect_of(keyword: str) -> str:
-    """Effect name of a term keyword (``fixture`` -> ``fixture_resonance``)."""
-    if keyword in ("maxwell", "fractional"):
-        return "frequency_dependent_modulus"
-    for effect, (term, _) in EFFECTS.items():
-        if term == keyword:
-            return effect
-    raise KeyError(keyword)

@@ -101,7 +101,3 @@ class InformationModel:
                 total += np.einsum("p,pi,pj->ij", weight, j.conj(), j).real
         return total
 
-    def relative_values(self) -> NDArray[np.float64]:
-        """``|p̂_k|`` (1 where the value is 0): the scale of the relative coordinates."""
-        v = np.array([abs(float(self.values[n])) for n in self.names])
-        return np.where(v > 0, v, 1.0)

@@ -491,14 +491,6 @@ class Campaign:
                                  f"{self.path}: attribute {key!r}")
         return checked
 
-    def set_rig(self, **attributes: float | int) -> None:
-        """Set ``/rig`` attributes (e.g. table parameters identified from the bare-table run)."""
-        checked = _checked_rig(attributes, str(self.path))
-        with self._commit() as h5:
-            group = h5.require_group(layout.RIG_GROUP)
-            for key, value in checked.items():
-                group.attrs[key] = value
-
     def add_fit(
         self,
         run_name: str,
