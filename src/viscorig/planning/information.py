@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.models import Model
-from viscorig.planning.noise import NoiseModel, model_amplitudes
+from viscorig.planning.noise import NoiseForecast, model_amplitudes
 from viscorig.planning.sensitivity import log_sensitivities
 
 __all__ = ["InformationModel", "log_sensitivities"]
@@ -48,7 +48,7 @@ class InformationModel:
     model: Model
     values: Mapping[str, float]
     names: tuple[str, ...]
-    noise: NoiseModel
+    noise: NoiseForecast
     level_m_per_s2: float
     force_limit_n: float | None = None
 
