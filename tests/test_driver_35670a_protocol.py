@@ -476,3 +476,50 @@ def test_the_prologix_path_configures_the_adapter_and_carries_binary_blocks() ->
     ]
     assert "++addr 11" in server.adapter_commands
     assert "SOUR:VOLT:REF 2 EU" in server.received
+
+
+def test_every_dwell_and_settle_time_sent_carries_its_unit() -> None:
+    """A bare number on ``SWE:DWEL``/``SWE:STIM`` is read in a unit the guide does not name
+    (docs/virtual-analyser.md): the driver never sends one."""
+    with Analyser(esr=("+0", "+1")) as server, configured(
+            server, settle_cycles=3, integrate_cycles=4) as analyser:
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(
+            np.array([float(server.settings["FREQ:MAN"].split()[0])]))
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(
+            trace_for(server.last_feed())[:2 if "VAR" not in server.last_feed() else 1])
+        analyser.measure_points([30.0], settle_cycles=10, integrate_cycles=20,
+                                poll_interval_s=0.01)
+        analyser.sweep.settle_s = 0.5
+        analyser.sweep.integrate_s = 0.02
+        commands = server.commands()
+    timing = [c for c in commands if c.upper().startswith(("SWE:DWEL", "SWE:STIM"))
+              and not c.endswith("?") and "? " not in c]
+    assert len(timing) >= 5
+    for command in timing:
+        assert command.split()[-1] in ("CYCLE", "S"), command
+    assert "SWE:STIM 0.5 S" in timing and "SWE:DWEL 0.02 S" in timing
+
+
+def test_a_fixed_source_measurement_turns_auto_level_off_and_on_again() -> None:
+    """``measure_at_source``: auto level off, the source held at the level asked (within the
+    limit), the points measured, auto level on again, also after a failed measurement."""
+    with Analyser(esr=("+0", "+1")) as server, configured(server) as analyser:
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(
+            np.array([float(server.settings["FREQ:MAN"].split()[0])]))
+        server.replies["TRAC:DATA? D1"] = lambda message: definite_block(
+            trace_for(server.last_feed())[:2 if "VAR" not in server.last_feed() else 1])
+        before = len(server.commands())
+        segment = analyser.measure_at_source([30.0], 0.01, poll_interval_s=0.01)
+        commands = server.commands()[before:]
+        with pytest.raises(SettingOutOfRange):
+            analyser.measure_at_source([30.0], 2.0)  # above the 1.5 Vpk source limit
+        server.replies["TRAC:X? D1"] = lambda message: definite_block(np.array([99.0]))
+        before = len(server.commands())
+        with pytest.raises(MalformedReply):
+            analyser.measure_at_source([30.0], 0.01, poll_interval_s=0.01)
+        after_error = server.commands()[before:]
+    np.testing.assert_array_equal(segment.frequency_hz, [30.0])
+    off, level = commands.index("SOUR:VOLT:AUTO OFF"), commands.index("SOUR:VOLT 0.01 VPK")
+    start = commands.index(":INIT:IMM")
+    assert off < level < start < commands.index("SOUR:VOLT:AUTO ON")
+    assert after_error[0] == "SOUR:VOLT:AUTO OFF" and "SOUR:VOLT:AUTO ON" in after_error

@@ -201,13 +201,14 @@ def _sdf(tmp_path: Path, **changes) -> Path:
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"revision": 3}, "SDF revision 3"),
-        ({"application": 2}, "not a 35670A file"),
-        ({"measurement": 3}, "not a swept sine"),
-        ({"data_type": 2}, "holds no frequency response"),
+        ({"revision": 1}, "SDF revision 1"),
+        ({"data_type": 2, "powers": (96, 0)},
+         r"holds an auto-power spectrum .* \(HP 35670A, swept sine\)"),
         ({"x_unit": "s"}, "not a unit of frequency"),
-        ({"channels": [Channel("F", "N", 0.01), Channel("a", "V", 1.0)]},
+        ({"channels": [Channel("F", "N", 0.01), Channel("a", "N", 1.0)]},
          "not a unit of acceleration"),
+        ({"channels": [Channel("F", "N", 0.01), Channel("a", "V", 1.0)]},
+         "volt-over-volt .* give --station"),
         ({"powers": (48, 0)}, "not those of a frequency response"),
     ],
 )

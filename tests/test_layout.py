@@ -13,6 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FORBIDDEN = {
     "sim/rigsim": {"viscorig"},
     "drivers/agilent35670a": {"viscorig", "rigsim"},
+    "drivers/eurotherm3200": {"viscorig", "rigsim"},
 }
 
 

@@ -127,7 +127,7 @@ def test_plan_of_an_adaptive_step_gives_its_range_and_the_floor_of_its_rig(tmp_p
     assert main(["plan", str(fitting)]) == 0
     printed = capsys.readouterr().out
     line = next(line for line in printed.splitlines() if "soft-0" in line)
-    assert re.search(r"adaptive sweep soft-0 +[\d:]+ to [\d:]+ \(probe 0:0\d\); floor [\d:]+ "
+    assert re.search(r"adaptive sweep soft-0 +[\d:]+ to [\d:]+ \(probe 0:[01]\d\); floor [\d:]+ "
                      r"\(integration at least [\d:]+\); the points it chooses within 0.9 to 1.3 "
                      r"times the floor of simulated rig 'soft-0'", line), line
     assert "total test time" in printed.splitlines()[-1]

@@ -148,7 +148,8 @@ def test_load_rig_reports_missing_and_binary_files(tmp_path) -> None:
 def test_presets() -> None:
     names = preset_names()
     assert names == sorted(
-        ["table", "soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10"]
+        ["table", "soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10",
+         "medium-chamber"]
     )
     for name in names:
         rig = load_preset(name)

@@ -103,7 +103,8 @@ def test_json_holds_what_the_listing_shows(campaign_path: Path, capsys) -> None:
     assert table["hardness_shore_a"] is None  # NaN in the file: unknown, valid JSON
     assert table["flagged_points"] == 18
     assert table["flags"] == {"level not reached": 10, "input overload": 10,
-                              "source at limit": 8, "force above shaker limit": 8}
+                              "source at limit": 8, "force above shaker limit": 8,
+                              "outside the soak band": 0}
     (fit,) = table["fits"]
     assert fit["id"] == "0001" and fit["model"] == "table"
     assert fit["parameters"]["M_s"] == {"value": 3.41, "stderr": 0.02, "unit": "kg"}

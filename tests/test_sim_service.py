@@ -3,6 +3,8 @@ memory under floods and slow clients; loopback only by default."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import socket
 import threading
 import time
@@ -84,21 +86,22 @@ def test_a_long_block_with_line_feeds_inside_is_one_message() -> None:
         sock.close()
 
 
-def test_connections_are_bounded() -> None:
+def test_connections_are_bounded_and_a_new_one_takes_the_idlest_slot() -> None:
     limits = ServiceLimits(max_connections=3)
     with SimulatedAnalyserServer("table", limits=limits) as server:
         host, port = server.socket_resource.split("::")[1:3]
         kept = [connect(host, int(port)) for _ in range(3)]
         for sock in kept:
             assert b"35670A" in ask(sock, b"*IDN?")
+        assert b"35670A" in ask(kept[0], b"*IDN?")  # kept[1] is now the idlest
         extra = connect(host, int(port))
-        assert closed_by_peer(extra, 2.0)
-        assert server.refused == 1
-        kept.pop().close()
-        time.sleep(0.2)
-        again = connect(host, int(port))
-        assert b"35670A" in ask(again, b"*IDN?")
-        for sock in (*kept, again, extra):
+        assert b"35670A" in ask(extra, b"*IDN?")
+        assert closed_by_peer(kept[1], 2.0)
+        assert (server.evicted, server.refused) == (1, 0)
+        assert len(server._connections) == 3
+        for sock in (kept[0], kept[2]):
+            assert b"35670A" in ask(sock, b"*IDN?")
+        for sock in (*kept, extra):
             sock.close()
 
 
@@ -196,3 +199,121 @@ def test_the_message_bound_is_the_one_asked_for(limit: int) -> None:
         assert ask(fits, b"SYST:ERR?").startswith(b"-100,")
         fits.close()
         too_long.close()
+
+
+# -- crowds: a new client is answered whatever holds the slots ------------------------------
+
+def _crowd_of_non_readers(host: str, port: int, count: int) -> list[socket.socket]:
+    """Clients that send queries and never read a reply (their receive buffers fill)."""
+    crowd = []
+    for _ in range(count):
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.settimeout(2.0)
+        sock.connect((host, port))
+        sock.settimeout(0.05)
+        with contextlib.suppress(OSError):  # full buffers, or dropped: it never reads anyway
+            sock.sendall(b"*IDN?;*IDN?;*IDN?;*IDN?\n" * 200)  # 150 kB of replies
+        crowd.append(sock)
+    return crowd
+
+
+def test_200_connections_half_not_reading_do_not_lock_out_a_new_client() -> None:
+    """200 clients held open at once, 100 of them flooding queries without reading a reply: a
+    new connection's ``*IDN?`` is answered at once; connections, threads and memory stay
+    bounded."""
+    with SimulatedAnalyserServer("table") as server:
+        host, port = server.socket_resource.split("::")[1:3]
+        probe = connect(host, int(port))
+        assert b"35670A" in ask(probe, b"*IDN?")
+        probe.close()
+        before = rss_kib(os.getpid())
+        start = time.monotonic()
+        crowd = []
+        for _ in range(50):  # idle and non-reading clients interleaved
+            crowd += _crowd_of_non_readers(host, int(port), 2)
+            crowd += [connect(host, int(port)) for _ in range(2)]
+        built_s = time.monotonic() - start
+        newcomer = connect(host, int(port))
+        asked = time.monotonic()
+        answer = ask(newcomer, b"*IDN?")
+        answered_s = time.monotonic() - asked
+        served, threads = len(server._connections), threading.active_count()
+        after = rss_kib(os.getpid())
+        for sock in (*crowd, newcomer):
+            sock.close()
+    print(f"\n200 connections in {built_s:.2f} s ({server.evicted} dropped for a newer one); "
+          f"*IDN? answered in {1000 * answered_s:.1f} ms; {threads} threads; "
+          f"RSS {before} -> {after} KiB")
+    assert b"35670A" in answer
+    assert answered_s < 5.0  # about 0.03 s alone, up to 1 s on a loaded 2-core machine
+    assert served <= server.limits.max_connections
+    assert threads < 8 + 2 * server.limits.max_connections
+    assert after - before < 16 * 1024, (before, after)
+
+
+def test_50_slowloris_connections_do_not_lock_out_a_new_client() -> None:
+    """50 clients each dripping a message one byte at a time: a new ``*IDN?`` is answered."""
+    with SimulatedAnalyserServer("table") as server:
+        host, port = server.socket_resource.split("::")[1:3]
+        drips = [connect(host, int(port)) for _ in range(50)]
+        for _ in range(3):  # bounded: three drips each, 50 ms apart
+            for sock in drips:
+                with contextlib.suppress(OSError):
+                    sock.sendall(b"*")
+            time.sleep(0.05)
+        newcomer = connect(host, int(port))
+        asked = time.monotonic()
+        answer = ask(newcomer, b"*IDN?")
+        answered_s = time.monotonic() - asked
+        threads = threading.active_count()
+        served = len(server._connections)
+        for sock in (*drips, newcomer):
+            sock.close()
+    assert b"35670A" in answer and answered_s < 2.0
+    assert served <= server.limits.max_connections
+    assert threads < 8 + 2 * server.limits.max_connections
+
+
+def test_a_message_begun_and_never_ended_closes_its_connection() -> None:
+    """A client dripping bytes of one message is closed once the message is older than
+    ``message_timeout_s``, though it is never silent for the idle time-out."""
+    limits = ServiceLimits(message_timeout_s=0.5, idle_timeout_s=5.0)
+    with SimulatedAnalyserServer("table", limits=limits) as server:
+        host, port = server.socket_resource.split("::")[1:3]
+        drip = connect(host, int(port))
+        start = time.monotonic()
+        closed = False
+        for _ in range(40):  # at most 4 s
+            try:
+                drip.sendall(b"*")
+            except OSError:
+                closed = True
+                break
+            if closed_by_peer(drip, 0.1):
+                closed = True
+                break
+        elapsed = time.monotonic() - start
+        drip.close()
+        other = connect(host, int(port))
+        assert b"35670A" in ask(other, b"*IDN?")
+        other.close()
+    assert closed and 0.4 < elapsed < 2.0, elapsed
+
+
+def test_a_crowd_behind_the_prologix_adapter_does_not_lock_out_a_new_client() -> None:
+    """The Prologix endpoint shares the slots: 12 adapters each left with half a message, and a
+    new one's ``*IDN?`` is answered."""
+    with SimulatedAnalyserServer("table", prologix=True) as server:
+        host, port = server.prologix_resource.split("::")[1:3]
+        crowd = [connect(host, int(port)) for _ in range(12)]
+        for sock in crowd:
+            sock.sendall(b"++addr 11\n*ID")
+        time.sleep(0.1)
+        newcomer = connect(host, int(port))
+        answer = ask(newcomer, b"++addr 11\n*IDN?\n++read eoi")
+        served = len(server._connections)
+        for sock in (*crowd, newcomer):
+            sock.close()
+    assert b"35670A" in answer
+    assert served <= server.limits.max_connections

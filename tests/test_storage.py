@@ -176,7 +176,9 @@ def test_flag_bits_are_the_contract_values() -> None:
         PointFlag.INPUT_OVERLOAD: 1,
         PointFlag.SOURCE_AT_LIMIT: 1,
         PointFlag.FORCE_ABOVE_SHAKER_LIMIT: 3,
+        PointFlag.OUTSIDE_SOAK_BAND: 0,
     }
+    assert PointFlag.OUTSIDE_SOAK_BAND == 16  # the project's extension (docs/temperature.md)
 
 
 def test_fits_are_numbered_and_read_back(campaign_path: Path) -> None:

@@ -1,4 +1,4 @@
-"""The type hints are checked: mypy (configured in pyproject.toml) finds nothing in the driver."""
+"""The type hints are checked: mypy (configured in pyproject.toml) finds nothing in the drivers."""
 
 from __future__ import annotations
 
@@ -14,9 +14,10 @@ pytest.importorskip("mypy")
 
 
 @pytest.mark.slow
-def test_mypy_finds_nothing_in_the_driver() -> None:
+def test_mypy_finds_nothing_in_the_drivers() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "mypy", "--no-incremental", "drivers/agilent35670a"],
+        [sys.executable, "-m", "mypy", "--no-incremental", "drivers/agilent35670a",
+         "drivers/eurotherm3200"],
         cwd=ROOT, capture_output=True, text=True, timeout=600, check=False,
     )
     assert done.returncode == 0, done.stdout + done.stderr

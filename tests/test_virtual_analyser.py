@@ -161,6 +161,30 @@ def test_forms_paths_strings_and_blocks(inst) -> None:
     assert codes(inst) == []
 
 
+def test_a_dwell_or_settle_time_without_a_unit_is_in_seconds(inst) -> None:
+    """The guide gives ``SWE:DWEL`` and ``SWE:STIM`` as ``<number>[S|CYCLE]`` with the preset
+    in cycles; a bare number is taken in seconds (inferred, docs/virtual-analyser.md), never in
+    the unit left in use, and never rounded up to a cycle."""
+    inst.write("INST:SEL SINE")
+    assert inst.query("SWE:DWEL? UNIT") == '"CYCLE"'  # preset +5.0 CYCLE
+    assert inst.query("SWE:STIM? UNIT") == '"CYCLE"'
+    inst.write("SWE:DWEL 0.005;STIM 0.25")  # what a driver sending seconds sends
+    assert codes(inst) == []
+    assert inst.query("SWE:DWEL?") == "+5.00000000000E-003"
+    assert inst.query("SWE:DWEL? UNIT") == '"S"'
+    assert inst.query("SWE:STIM?") == "+2.50000000000E-001"
+    assert inst.query("SWE:STIM? UNIT") == '"S"'
+    inst.write("SWE:DWEL 7 CYCLE;DWEL 0.01")  # from cycles: still seconds
+    assert (inst.query("SWE:DWEL?"), inst.query("SWE:DWEL? UNIT")) == (
+        "+1.00000000000E-002", '"S"')
+    inst.write("SWE:DWEL 100E-6")  # below 250 us: refused, not rounded to a cycle
+    assert codes(inst) == [-222]
+    assert inst.query("SWE:DWEL?") == "+1.00000000000E-002"
+    inst.write("SWE:DWEL 7 CYCLE;DWEL UP")  # a step keeps the unit in use
+    assert (inst.query("SWE:DWEL?"), inst.query("SWE:DWEL? UNIT")) == (
+        "+1.40000000000E+001", '"CYCLE"')
+
+
 def test_units_with_si_multipliers_and_keywords(inst) -> None:
     inst.write("INST:SEL SINE;:FREQ:STOP 25.6 KHZ;:FREQ:STAR 2 MHZ")  # MHZ is megahertz
     assert codes(inst) == [-222]  # 2 MHz is out of range: value not changed

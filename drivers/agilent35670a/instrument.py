@@ -493,6 +493,51 @@ class Agilent35670A(Subsystem):
             pieces.append(_picked(segment, index))
         return _joined(pieces)
 
+    def measure_at_source(
+        self,
+        frequencies_hz: Sequence[float],
+        source_vpk: float,
+        *,
+        settle_cycles: float | None = None,
+        integrate_cycles: float | None = None,
+        progress: Progress | None = None,
+        timeout_s: float | None = None,
+        poll_interval_s: float = 0.2,
+    ) -> SweepSegment:
+        """Measure chosen frequencies (manual sweep mode, see :meth:`measure_points`) with the
+        auto-level controller off and the source held at ``source_vpk``: what each input reads
+        per source volt, such as the shaker's force per volt, which the 35670A does not report
+        for a point measured under auto level.
+
+        The source limit must be set (:meth:`configure_swept_sine`) and ``source_vpk`` lie above
+        0 and within it. Auto level is switched on again afterwards, after an error too.
+
+        Raises
+        ------
+        SettingOutOfRange, SCPIError, SettingNotApplied, MeasurementAborted, InstrumentTimeout
+        """
+        limit = self.source.sent.get("limit_vpk")
+        if limit is None:
+            raise SettingOutOfRange("set the source limit (configure_swept_sine) first")
+        strict_range(0.0, float(limit), "Vpk", low_inclusive=False)(source_vpk, self)
+        restore = self.source.sent.get("auto_level", True)
+        self.source.auto_level = False
+        measured = False
+        try:
+            self.source.level_vpk = source_vpk
+            segment = self.measure_points(frequencies_hz, settle_cycles=settle_cycles,
+                                          integrate_cycles=integrate_cycles, progress=progress,
+                                          timeout_s=timeout_s, poll_interval_s=poll_interval_s)
+            measured = True
+        finally:
+            if restore:
+                try:
+                    self.source.auto_level = True
+                except Exception:  # after a failed measurement, its own error says more
+                    if measured:
+                        raise
+        return segment
+
     def expected_duration_s(self, grid_hz: Iterable[float]) -> float:
         """Time the analyser takes for these points from the settings sent (s): settle,
         integration and its own time per point."""

@@ -54,8 +54,13 @@ class StateSpace:
     relative_displacement: np.ndarray
 
 
-def build_state_space(rig: Rig, modulus_scale: float = 1.0) -> StateSpace:
-    """State-space matrices of a rig, with K* multiplied by ``modulus_scale``."""
+def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 1.0,
+                      added_stiffness_n_per_m: float = 0.0,
+                      added_damping_ns_per_m: float = 0.0) -> StateSpace:
+    """State-space matrices of a rig, with K* multiplied by ``modulus_scale``, every relaxation
+    time of the material (dashpot and arms) multiplied by ``time_shift`` (the temperature's
+    ``a_T``), and a spring and dashpot added in parallel with the specimens (the filler
+    network of a Payne effect)."""
     names = ["table"]
     has_device = rig.device is not None
     rigid_link = rig.load_cell is None
@@ -97,10 +102,12 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0) -> StateSpace:
         if not rigid_link:
             connect(0, disc, rig.load_cell.stiffness_n_per_m, 0.0)
         material = state_model(rig.device.material)
-        device_k = modulus_scale * material.static_stiffness_n_per_m
-        device_c = modulus_scale * material.damping_ns_per_m
+        device_k = (modulus_scale * material.static_stiffness_n_per_m
+                    + added_stiffness_n_per_m)
+        device_c = (modulus_scale * time_shift * material.damping_ns_per_m
+                    + added_damping_ns_per_m)
         arm_k = modulus_scale * material.arm_stiffness_n_per_m
-        arm_c = modulus_scale * material.arm_damping_ns_per_m
+        arm_c = modulus_scale * time_shift * material.arm_damping_ns_per_m
         connect(disc, frame, device_k, device_c)
     fixture_k = []
     fixture_c = []

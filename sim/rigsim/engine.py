@@ -22,7 +22,9 @@ next sweep started right after the last one ended.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -133,6 +135,8 @@ class RigSimulator:
         if seed is None and rig.noise is not None:
             seed = rig.noise.seed
         self._rng = np.random.default_rng(seed)
+        self._chamber = None
+        self._chamber_advances = False
         self.mount(rig)
 
     # ------------------------------------------------------------------ state and clock
@@ -162,6 +166,8 @@ class RigSimulator:
         self._a_per_scale = build_state_space(rig, 2.0).a - base.a
         self._state = np.zeros(base.a.shape[0])
         self._scale = 1.0
+        self._point: tuple[float, float, float, float] = (1.0, 1.0, 0.0, 0.0)
+        self._displacement = 0.0
         # The true sensitivity of each channel: the nominal one times its gain error.
         self._sensitivity = np.array(
             [rig.sensors.force_v_per_n, rig.sensors.acceleration_v_per_m_s2] * 2
@@ -190,22 +196,87 @@ class RigSimulator:
         """Let ``duration_s`` seconds pass with the source off (free decay, clock advances)."""
         if not duration_s >= 0.0:
             raise ValueError(f"duration_s must be >= 0, not {duration_s}")
-        self._state = self._modal(self._scale).free_decay(self._state, duration_s)
+        self._state = self._modal(*self._point).free_decay(self._state, duration_s)
         self._clock_s += duration_s
+        self._time_passes(duration_s)
+
+    # ------------------------------------------------------------------ the chamber
+
+    def attach_chamber(self, chamber: Any, *, advance: bool = True) -> None:
+        """Put the specimens in a chamber (:class:`rigsim.chamber.Chamber`): the rubber's
+        modulus follows its specimen temperature (the rig's ``[temperature]``).
+
+        ``advance``: the test time this simulator spends (measuring, idling) passes in the
+        chamber too (False: something else, a wall clock, moves the chamber's time).
+        """
+        self._chamber = chamber
+        self._chamber_advances = advance
+
+    @property
+    def chamber(self) -> Any:
+        """The chamber the specimens are in, or None."""
+        return self._chamber
+
+    def specimen_temperature_c(self) -> float:
+        """The specimens' temperature (the chamber's, else the rig's reference, else NaN)."""
+        if self._chamber is not None:
+            return float(self._chamber.specimen_c)
+        shift = self._rig.temperature
+        return math.nan if shift is None else shift.reference_temperature_c
+
+    def _time_shift(self) -> float:
+        shift = self._rig.temperature
+        if shift is None or self._chamber is None:
+            return 1.0
+        return 10.0 ** shift.log10_shift(float(self._chamber.specimen_c))
+
+    def _time_passes(self, duration_s: float) -> None:
+        if self._chamber is not None and self._chamber_advances and duration_s > 0.0:
+            self._chamber.advance(duration_s)
 
     def state(self) -> np.ndarray:
         """Copy of the rig's state vector (positions, velocities, arm forces)."""
         return self._state.copy()
 
-    def _modal(self, scale: float) -> ModalSystem:
-        key = round(scale / _SCALE_RESOLUTION) * _SCALE_RESOLUTION
+    def _modal(self, scale: float, shift: float = 1.0, stiffness: float = 0.0,
+               damping: float = 0.0) -> ModalSystem:
+        key = tuple(round(value / _SCALE_RESOLUTION) * _SCALE_RESOLUTION
+                    for value in (scale, shift, stiffness, damping))
         modal = self._modal_cache.get(key)
         if modal is None:
             if len(self._modal_cache) > 256:
                 self._modal_cache.clear()
-            modal = ModalSystem(build_state_space(self._rig, key))
+            modal = ModalSystem(build_state_space(self._rig, *key))
             self._modal_cache[key] = modal
         return modal
+
+    def _point_physics(self, omega: float, force_n: float, drift: float,
+                       shift: float) -> tuple[float, float, float, float]:
+        """(modulus factor, time shift, added stiffness, added damping) at which the specimens'
+        own amplitude is consistent with the Payne effect and amplitude dependence (fixed
+        point on the displacement across the specimens)."""
+        amplitude, payne = self._rig.amplitude, self._rig.payne
+        if payne is None:
+            if amplitude is None:
+                return drift, shift, 0.0, 0.0
+            if shift == 1.0:
+                return self._amplitude_scale(omega, force_n, drift), 1.0, 0.0, 0.0
+        x = self._displacement
+        point = (drift, shift, 0.0, 0.0)
+        for _ in range(80):
+            scale = drift * (1.0 if amplitude is None else amplitude.scale(x))
+            storage, loss = (0.0, 0.0) if payne is None else payne.stiffness(x)
+            point = (scale, shift, storage, loss / omega)
+            space = build_state_space(self._rig, *point)
+            size = space.a.shape[0]
+            response = np.linalg.solve(1j * omega * np.eye(size) - space.a, space.b)
+            new_x = abs(space.relative_displacement @ response) * force_n
+            if abs(new_x - x) <= 1e-9 * max(new_x, 1e-15):
+                x = new_x
+                break
+            x = 0.5 * (x + new_x)
+        self._displacement = x
+        return point
 
     def _amplitude_scale(self, omega: float, force_n: float, drift: float) -> float:
         """Modulus factor at which the specimens' own amplitude is consistent (fixed point)."""
@@ -252,7 +323,9 @@ class RigSimulator:
             [np.nan if r is None else float(r) for r in request.input_range_vpk], dtype=float
         )
 
-        varying = self._rig.drift is not None or self._rig.amplitude is not None
+        varying = (self._rig.drift is not None or self._rig.amplitude is not None
+                   or self._rig.payne is not None
+                   or (self._rig.temperature is not None and self._chamber is not None))
         kernels = None
         if not varying:
             kernels = _kernels(
@@ -274,6 +347,7 @@ class RigSimulator:
         force_n = np.zeros(points)
         modulus_scale = np.ones(points)
         displacement = np.zeros(points)
+        temperature = np.full(points, math.nan)
 
         gain = self._rig.shaker.force_n_per_v
         force_limit = self._rig.shaker.force_limit_n
@@ -290,13 +364,17 @@ class RigSimulator:
             count = 0
             reached = not control.auto_level
             cap = None
+            temperature[n] = self.specimen_temperature_c()
+            shift = self._time_shift()
             while True:
                 count += 1
                 force = min(gain * level, force_limit)
                 if varying:
-                    scale = self._amplitude_scale(omega[n], force, drift)
+                    point = self._point_physics(omega[n], force, drift, shift)
+                    scale = point[0]
+                    self._point = point
                     k = _kernels(
-                        self._modal(scale),
+                        self._modal(*point),
                         omega[n : n + 1],
                         settle[n : n + 1],
                         integrate[n : n + 1],
@@ -312,6 +390,7 @@ class RigSimulator:
                     self._clock_s + settle[n] + 0.5 * integrate[n],
                 )
                 self._clock_s += settle[n] + integrate[n]
+                self._time_passes(settle[n] + integrate[n])
                 if not control.auto_level:
                     break
                 reference = abs(measured[control.reference_channel - 1])
@@ -370,6 +449,7 @@ class RigSimulator:
                 "excitation_force_n": force_n,
                 "modulus_scale": modulus_scale,
                 "specimen_displacement_m": displacement,
+                "specimen_temperature_c": temperature,
             },
         )
 

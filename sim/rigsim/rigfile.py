@@ -39,6 +39,23 @@ A rig file is TOML. The sections ``[table]``, ``[device]``, ``[load_cell]``, ``[
 ``[drift]``
     ``modulus_change_per_hour``: fractional change of K* per hour of test time (linear in the
     simulator clock; -0.02 means the modulus falls 2 % per hour as the rubber warms).
+``[temperature]``
+    Time-temperature superposition of the rubber on the specimens' own temperature (WLF):
+    ``reference_temperature_c``, ``c1``, ``c2_k``. At temperature ``T`` every relaxation time
+    of the device's material (its dashpot and Maxwell arms) is multiplied by ``a_T`` with
+    ``log10 a_T = -c1 (T - T_ref) / (c2_k + T - T_ref)``, i.e. ``K*(f, T) = K*(f a_T, T_ref)``
+    (no vertical shift). The temperature is the simulated chamber's specimen temperature.
+``[chamber]``
+    The temperature chamber around the specimens (:mod:`rigsim.chamber`):
+    ``heating_rate_k_per_min``, ``cooling_rate_k_per_min``, ``air_time_constant_s``,
+    ``specimen_time_constant_s``, ``start_temperature_c``.
+``[payne]``
+    Strain-amplitude dependence of a filled rubber (Payne effect, Kraus's model) on the
+    displacement amplitude ``x`` across the specimens, added to the material's K*:
+    ``K' += storage_drop_n_per_m / (1 + r^(2m))`` and
+    ``K'' += 2 loss_peak_n_per_m r^m / (1 + r^(2m))`` with ``r = x / critical_displacement_m``
+    and ``m = exponent``. In the time-domain rig it is a spring and a dashpot (``K''/ω`` at the
+    point's frequency) between disc and frame, set at each point for the amplitude reached there.
 ``[frame]``
     The inertial frame that carries the shaker body, the table suspension and the device, on its
     own isolators: ``mass_kg``, ``frequency_hz``, ``damping_ratio``. Leave out for a rigid frame.
@@ -71,12 +88,14 @@ __all__ = [
     "LoadCell",
     "MaxwellMaterial",
     "Noise",
+    "Payne",
     "Rig",
     "RigFileError",
     "Sensors",
     "Shaker",
     "Specimen",
     "Table",
+    "TemperatureShift",
     "VoigtMaterial",
     "load_preset",
     "load_rig",
@@ -241,6 +260,36 @@ class Delays:
 
 
 @dataclass(frozen=True)
+class TemperatureShift:
+    """WLF time-temperature shift of the rubber (``[temperature]``)."""
+
+    reference_temperature_c: float
+    c1: float
+    c2_k: float
+
+    def log10_shift(self, temperature_c: float) -> float:
+        """``log10 a_T`` at a temperature (°C): positive below the reference."""
+        dt = temperature_c - self.reference_temperature_c
+        return -self.c1 * dt / (self.c2_k + dt)
+
+
+@dataclass(frozen=True)
+class Payne:
+    """Kraus model of the filler network's stiffness and loss (``[payne]``)."""
+
+    storage_drop_n_per_m: float
+    loss_peak_n_per_m: float
+    critical_displacement_m: float
+    exponent: float
+
+    def stiffness(self, displacement_m: float) -> tuple[float, float]:
+        """(K', K'') the filler network adds at a displacement amplitude, N/m."""
+        r = (abs(displacement_m) / self.critical_displacement_m) ** self.exponent
+        return (self.storage_drop_n_per_m / (1.0 + r * r),
+                2.0 * self.loss_peak_n_per_m * r / (1.0 + r * r))
+
+
+@dataclass(frozen=True)
 class AmplitudeDependence:
     """Payne-like softening with the displacement amplitude across the specimens."""
 
@@ -300,6 +349,10 @@ class Rig:
     delays: Delays = field(default_factory=Delays)
     amplitude: AmplitudeDependence | None = None
     drift: Drift | None = None
+    temperature: TemperatureShift | None = None
+    chamber: Any = None
+    """``rigsim.chamber.ChamberParameters`` of ``[chamber]``, or None."""
+    payne: Payne | None = None
     frame: Frame | None = None
     specimen: Specimen = field(default_factory=Specimen)
     name: str = ""
@@ -660,6 +713,44 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
         )
         sec.finish()
 
+    temperature = None
+    sec = top.section("temperature")
+    if sec is not None:
+        temperature = TemperatureShift(
+            reference_temperature_c=sec.number("reference_temperature_c", minimum=-100.0,
+                                               maximum=300.0),
+            c1=sec.number("c1", minimum=0.0, maximum=100.0),
+            c2_k=sec.number("c2_k", minimum=0.0, exclusive_minimum=True, maximum=1000.0),
+        )
+        sec.finish()
+
+    chamber = None
+    sec = top.section("chamber")
+    if sec is not None:
+        from rigsim.chamber import ChamberParameters
+
+        chamber = ChamberParameters(
+            heating_rate_k_per_min=sec.positive("heating_rate_k_per_min", 5.0),
+            cooling_rate_k_per_min=sec.positive("cooling_rate_k_per_min", 3.0),
+            air_time_constant_s=sec.positive("air_time_constant_s", 60.0),
+            specimen_time_constant_s=sec.positive("specimen_time_constant_s", 420.0),
+            start_temperature_c=sec.number("start_temperature_c", 25.0, minimum=-70.0,
+                                           maximum=180.0),
+        )
+        sec.finish()
+
+    payne = None
+    sec = top.section("payne")
+    if sec is not None:
+        payne = Payne(
+            storage_drop_n_per_m=sec.non_negative("storage_drop_n_per_m"),
+            loss_peak_n_per_m=sec.non_negative("loss_peak_n_per_m"),
+            critical_displacement_m=sec.positive("critical_displacement_m"),
+            exponent=sec.number("exponent", 0.6, minimum=0.0, exclusive_minimum=True,
+                                maximum=4.0),
+        )
+        sec.finish()
+
     frame = None
     sec = top.section("frame")
     if sec is not None:
@@ -696,6 +787,9 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
         delays=delays,
         amplitude=amplitude,
         drift=drift,
+        temperature=temperature,
+        chamber=chamber,
+        payne=payne,
         frame=frame,
         specimen=specimen,
         name=name,

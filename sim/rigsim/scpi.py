@@ -119,6 +119,11 @@ class MessageFramer:
         self._quote = 0  # the open quote character, or 0
         self._skip = 0  # block bytes still to pass over
 
+    @property
+    def pending(self) -> bool:
+        """Part of a message has arrived and its terminator not yet."""
+        return bool(self._buffer)
+
     def feed(self, data: bytes) -> list[bytes]:
         """Add received bytes; return the messages they complete (terminator removed)."""
         messages: list[bytes] = []

@@ -19,11 +19,15 @@ shorter, so a loaded CI machine does not turn into spurious timeouts (0 makes it
 
 As a network service it is bounded (:class:`ServiceLimits`): a message longer than
 ``max_message_bytes`` (the instrument's input buffer is finite) puts -100 in the error queue and
-the connection is closed; at most ``max_connections`` clients at once (more are closed at
-accept); a connection silent for ``idle_timeout_s`` is closed; a client that does not read its
-replies for ``send_timeout_s`` is dropped; behind the Prologix adapter, messages wait in a
-bounded queue and the adapter stops reading the socket while it is full (as GPIB's handshake
-holds a talker), so no flood or slow client makes the server's memory grow.
+the connection is closed; a message begun and not ended within ``message_timeout_s`` closes the
+connection (a client dripping bytes cannot hold it); at most ``max_connections`` clients at once:
+when every slot is held, a new client takes the slot of the one that has gone longest without a
+message handled (idle, not reading its replies, or stuck in a partial message), and is refused
+only while every slot is executing a message; a connection silent for ``idle_timeout_s`` is
+closed; a client that does not read its replies for ``send_timeout_s`` is dropped; behind the
+Prologix adapter, messages wait in a bounded queue and the adapter stops reading the socket
+while it is full (as GPIB's handshake holds a talker), so no flood, crowd or slow client makes
+the server's memory grow or keeps a new client from being answered.
 
 Everything binds 127.0.0.1 unless a host is given.
 """
@@ -36,8 +40,10 @@ import select
 import socket
 import sys
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 from rigsim.analyser import (
@@ -53,6 +59,45 @@ from rigsim.scpi import MessageFramer, MessageTooLong
 from rigsim.service import READ_TIMEOUT_FLOOR_S, ServiceLimits
 
 __all__ = ["READ_TIMEOUT_FLOOR_S", "ServiceLimits", "SimulatedAnalyserServer"]
+
+#: Connections the kernel completes while the accept loop is busy (a crowd arriving at once
+#: would otherwise wait a second per SYN retransmission).
+LISTEN_BACKLOG = 128
+
+
+@dataclass
+class _Slot:
+    """A served connection, as the accept loop weighs it when every slot is held."""
+
+    conn: socket.socket
+    progress_at: float
+    """``time.monotonic()`` of the last message executed, or of the accept."""
+    busy: int = 0
+    """Messages executing now (a client waiting on ``*OPC?`` is not idle)."""
+    partial_since: float | None = None
+    """When the message not yet ended began to arrive."""
+
+    def handled(self) -> None:
+        self.progress_at = time.monotonic()
+
+    def pending(self, partial: bool, limits: ServiceLimits) -> bool:
+        """Note whether a message is part-received; False once one is older than
+        ``limits.message_timeout_s`` (close the connection). Sets the socket's time-out to
+        what is left of that time (or the idle time-out)."""
+        now = time.monotonic()
+        if not partial:
+            self.partial_since = None
+            self.conn.settimeout(limits.idle_timeout_s)
+            return True
+        if self.partial_since is None:
+            self.partial_since = now
+        left = limits.message_timeout_s - (now - self.partial_since)
+        if left <= 0:
+            return False
+        idle = limits.idle_timeout_s
+        self.conn.settimeout(left if idle is None else min(left, idle))
+        return True
+
 
 def _too_long(analyser: VirtualAnalyser, limits: ServiceLimits) -> None:
     analyser.push_error(-100, f"Command error; input message longer than "
@@ -102,8 +147,9 @@ def _send(conn: socket.socket, data: bytes, limits: ServiceLimits) -> bool:
     return True
 
 
-def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInjector,
+def _serve_raw(slot: _Slot, analyser: VirtualAnalyser, faults: FaultInjector,
                limits: ServiceLimits) -> None:
+    conn = slot.conn
     session = analyser.session()
     framer = MessageFramer(limits.max_message_bytes)
     conn.settimeout(limits.idle_timeout_s)
@@ -123,13 +169,19 @@ def _serve_raw(conn: socket.socket, analyser: VirtualAnalyser, faults: FaultInje
                     with contextlib.suppress(OSError):
                         conn.shutdown(socket.SHUT_RDWR)
                     return
-                response = session.execute(text)
-                if response is None or "no_reply" in kinds:
-                    continue
-                if "garble" in kinds:
-                    response = garble(response)
-                if not _send(conn, response, limits):
-                    return
+                slot.busy += 1
+                try:
+                    response = session.execute(text)
+                finally:
+                    slot.busy -= 1
+                slot.handled()  # before the reply: a client that has it finds it counted
+                if response is not None and "no_reply" not in kinds:
+                    if "garble" in kinds:
+                        response = garble(response)
+                    if not _send(conn, response, limits):
+                        return
+            if not slot.pending(framer.pending, limits):
+                return
 
 
 # --------------------------------------------------------------------------------------------
@@ -217,6 +269,8 @@ class SimulatedAnalyserServer:
         self.limits = limits or ServiceLimits()
         self.read_timeout_floor_s = read_timeout_floor_s
         self.refused = 0
+        #: Connections dropped to give their slot to a new client.
+        self.evicted = 0
         self._adapter_log: deque[str] = deque(maxlen=1000)
         self.host = host
         self.gpib_address = gpib_address
@@ -227,7 +281,7 @@ class SimulatedAnalyserServer:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._listeners: list[socket.socket] = []
-        self._connections: set[socket.socket] = set()
+        self._connections: dict[socket.socket, _Slot] = {}
         self._adapters: list[PrologixAdapter] = []
         self._lock = threading.Lock()
         self._pty_fds: tuple[int, ...] | None = None
@@ -330,7 +384,7 @@ class SimulatedAnalyserServer:
         listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         listener.bind((self.host, port))
-        listener.listen(8)
+        listener.listen(LISTEN_BACKLOG)
         self._listeners.append(listener)
         return listener
 
@@ -350,33 +404,50 @@ class SimulatedAnalyserServer:
             except OSError:
                 return
             _configure(conn)
+            slot = _Slot(conn, time.monotonic())
             with self._lock:
-                full = len(self._connections) >= self.limits.max_connections
-                if not full:
-                    self._connections.add(conn)
-            if full:
+                victim = self._victim() if len(self._connections) >= \
+                    self.limits.max_connections else None
+                admitted = len(self._connections) < self.limits.max_connections or \
+                    victim is not None
+                if victim is not None:
+                    del self._connections[victim.conn]
+                if admitted:
+                    self._connections[conn] = slot
+            if victim is not None:
+                self.evicted += 1
+                with contextlib.suppress(OSError):  # its thread ends: recv or send fails
+                    victim.conn.shutdown(socket.SHUT_RDWR)
+            if not admitted:
                 self.refused += 1
                 with contextlib.suppress(OSError):
                     conn.close()
                 continue
-            thread = threading.Thread(target=self._serve_connection, args=(serve, conn),
+            thread = threading.Thread(target=self._serve_connection, args=(serve, slot),
                                       daemon=True, name="35670A-connection")
             thread.start()
 
-    def _serve_connection(self, serve: Callable[[socket.socket], None],
-                          conn: socket.socket) -> None:
+    def _victim(self) -> _Slot | None:
+        """The connection to drop for a new one (lock held): of those not executing a message,
+        the one longest without a message handled; ``None`` when every one is executing."""
+        idle = [slot for slot in self._connections.values() if not slot.busy]
+        return min(idle, key=lambda slot: slot.progress_at, default=None)
+
+    def _serve_connection(self, serve: Callable[[_Slot], None], slot: _Slot) -> None:
         try:
-            serve(conn)
+            serve(slot)
         finally:
             with self._lock:
-                self._connections.discard(conn)
+                if self._connections.get(slot.conn) is slot:
+                    del self._connections[slot.conn]
             with contextlib.suppress(OSError):
-                conn.close()
+                slot.conn.close()
 
-    def _serve_raw_connection(self, conn: socket.socket) -> None:
-        _serve_raw(conn, self.analyser, self.faults, self.limits)
+    def _serve_raw_connection(self, slot: _Slot) -> None:
+        _serve_raw(slot, self.analyser, self.faults, self.limits)
 
-    def _serve_prologix_connection(self, conn: socket.socket) -> None:
+    def _serve_prologix_connection(self, slot: _Slot) -> None:
+        conn = slot.conn
         dropped = threading.Event()
 
         def drop() -> None:
@@ -396,12 +467,20 @@ class SimulatedAnalyserServer:
         conn.settimeout(self.limits.idle_timeout_s)
         try:
             for data in _received(conn, quickack=True):
+                slot.busy += 1
                 try:
                     adapter.feed(data)
                 except MessageTooLong:
                     _too_long(self.analyser, self.limits)
                     break
+                finally:
+                    slot.busy -= 1
                 if dropped.is_set():
+                    break
+                partial = bool(adapter.buffer)
+                if not partial:
+                    slot.handled()
+                if not slot.pending(partial, self.limits):
                     break
         finally:
             adapter.close()

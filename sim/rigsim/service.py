@@ -29,6 +29,10 @@ class ServiceLimits:
         A reply the client does not take within this time drops the connection.
     queued_messages
         Messages waiting for the GPIB device behind a Prologix adapter.
+    message_timeout_s
+        A message begun (bytes received, no terminator yet) must end within this time, else the
+        connection is closed; a program writes a message at once (64 KiB take milliseconds on
+        loopback or a LAN).
     """
 
     max_message_bytes: int = 65536
@@ -36,3 +40,4 @@ class ServiceLimits:
     idle_timeout_s: float | None = None
     send_timeout_s: float = 30.0
     queued_messages: int = 64
+    message_timeout_s: float = 10.0

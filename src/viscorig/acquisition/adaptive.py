@@ -28,8 +28,26 @@ import numpy as np
 
 from viscorig.acquisition import stubs
 from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, RunRefused
+from viscorig.acquisition.gain import (
+    DISAGREE_STDERRS,
+    GAIN_SOURCE_V,
+    disagreement,
+    estimate_gain,
+)
+from viscorig.acquisition.probe import (
+    FREQUENCY_STEP_HZ,
+    probe_cycles,
+    probe_frequencies_hz,
+    probe_settings,
+)
 from viscorig.acquisition.session import RunState, Session, StepRecord
-from viscorig.acquisition.sweep import SegmentDone, check_axis, point_times_s, segment_of
+from viscorig.acquisition.sweep import (
+    SegmentDone,
+    SweepSettings,
+    check_axis,
+    point_times_s,
+    segment_of,
+)
 from viscorig.planning import (
     ANALYSER,
     AdaptivePlan,
@@ -40,11 +58,11 @@ from viscorig.planning import (
     SweepSegment,
     sweep_segments,
 )
-from viscorig.sequences import SweepStep
+from viscorig.sequences import SweepStep, point_durations_s
 from viscorig.storage import Campaign, Run, RunSettings, Segment
 
 __all__ = ["DEFAULT_RESOLUTION_HZ", "adaptive_run_settings", "adaptive_settings",
-           "adaptive_sweep", "check_adaptive", "stored_points"]
+           "adaptive_sweep", "check_adaptive", "shaker_gain", "stored_points"]
 
 #: Spacing of the frequencies an adaptive plan may choose when the step gives none, Hz.
 DEFAULT_RESOLUTION_HZ = 0.25
@@ -98,11 +116,13 @@ def check_adaptive(session: Session, step: SweepStep) -> Plan:
         raise RunRefused(f"run '{step.run}': plan = \"adaptive\" needs an analyser that "
                          "measures chosen frequencies (manual sweep mode); this driver has no "
                          "measure_points. Nothing was measured")
-    if session.station.shaker_gain_n_per_v is None:
+    if session.station.shaker_gain_n_per_v is None and not (
+            yield Msg("supports", ("measure_at_source",), step="adaptive")):
         raise RunRefused(f"run '{step.run}': an adaptive plan starts each point's auto-level "
                          "controller at the source level the point needs (the force it needs "
                          "over the shaker's gain), so that the rig is steady when it comes back "
-                         "to a frequency: give [shaker] gain_n_per_v in the station file. "
+                         "to a frequency; this driver cannot measure the gain (no "
+                         "measure_at_source): give [shaker] gain_n_per_v in the station file. "
                          "Nothing was measured")
     if not step.bare_table and session.table is None:
         raise RunRefused(f"run '{step.run}': an adaptive plan fits the specimen with the table's "
@@ -146,6 +166,7 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
         + f", {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz, level {level:.4g} m/s^2"
         + (f", dwell limit {step.dwell_limit_s:g} s" if step.dwell_limit_s else ""), "adaptive")
     record.move(RunState.CONFIGURING)
+    yield from shaker_gain(session, step, sweep)
     yield from stubs.configure(sweep, "adaptive", band_hz=step.band_hz,
                                resolution_hz=settings.resolution_hz,
                                settle_cycles=step.settle_cycles or 0,
@@ -359,7 +380,7 @@ def start_levels(frequency_hz: np.ndarray, plan: AdaptivePlan, measured: Measure
     """
     from viscorig.planning import model_amplitudes
 
-    gain = session.station.shaker_gain_n_per_v
+    gain = session.shaker_gain_n_per_v or session.station.shaker_gain_n_per_v
     if gain is None:
         return None
     level = settings.level_m_per_s2
@@ -380,6 +401,73 @@ def start_levels(frequency_hz: np.ndarray, plan: AdaptivePlan, measured: Measure
         return None
     return np.clip(np.asarray(force, dtype=float) / gain, MIN_START_LEVEL_V,
                    session.source_limit_v())
+
+
+def shaker_gain(session: Session, step: SweepStep, sweep: SweepSettings) -> Plan:
+    """Measure the amplifier-and-shaker gain before an adaptive run (module
+    :mod:`viscorig.acquisition.gain`), store it with the run and use it; the station's value,
+    when given, is a check. Returns the gain used, N/V.
+
+    Raises
+    ------
+    RunRefused
+        No force was measured and the station gives no gain.
+    """
+    station = session.station.shaker_gain_n_per_v
+    session.shaker_gain_n_per_v = None
+    if not (yield Msg("supports", ("measure_at_source",), step="gain")):
+        yield from stubs.annotate(step.run, {"shaker_gain_n_per_v": station,
+                                             "shaker_gain_stderr_n_per_v": math.nan,
+                                             "shaker_gain_basis": "the station file"}, step="gain")
+        return station
+    frequencies = np.array(probe_frequencies_hz(step))
+    settle, integrate = probe_cycles(step)
+    source = min(GAIN_SOURCE_V, sweep.source_limit_v)
+    low = probe_settings(sweep)
+    span = max(frequencies[-1] - frequencies[0], FREQUENCY_STEP_HZ)
+    yield from stubs.configure(low, "gain", band_hz=(frequencies[0], frequencies[0] + span),
+                               resolution_hz=span, settle_cycles=settle,
+                               integrate_cycles=integrate)
+    durations = point_durations_s(frequencies, settle, integrate)
+
+    def call(analyser, progress, poll_interval_s):
+        return analyser.measure_at_source(frequencies.tolist(), source,
+                                          progress=progress, poll_interval_s=poll_interval_s)
+
+    request = MeasureRequest(step.run, session.resource, frequencies, durations, 0.0, call)
+    measured, _ = yield from stubs.measure_segment(
+        request, lambda m: check_axis(m, frequencies, session.resource), "gain")
+    force_channel = session.wiring.excitation_force
+    estimate = estimate_gain(measured.frequency_hz,
+                             measured.amplitude_eu.get(force_channel, [math.nan]), source,
+                             measured.variance.get(force_channel))
+    if estimate is None:
+        where = (f"{source:.3g} Vpk at " + " and ".join(f"{f:g}" for f in frequencies)
+                 + f" Hz gave no force on input {force_channel}")
+        if station is None:
+            raise RunRefused(f"run '{step.run}': measuring the shaker's gain, {where}: check "
+                             "the amplifier (on, gain) and the excitation force transducer, or "
+                             "give [shaker] gain_n_per_v in the station file. Nothing was "
+                             "measured")
+        yield from stubs.warn(f"run '{step.run}': measuring the shaker's gain, {where}; the "
+                              f"station's {station:g} N/V is used", "gain")
+        yield from stubs.annotate(step.run, {"shaker_gain_n_per_v": station,
+                                             "shaker_gain_stderr_n_per_v": math.nan,
+                                             "shaker_gain_basis": "the station file"}, step="gain")
+        return station
+    yield from stubs.say(f"run '{step.run}': shaker gain {estimate.text()} ({estimate.basis}; "
+                         f"{float(durations.sum()):.0f} s of test time, not part of the run)",
+                         "gain")
+    distance = disagreement(estimate, station)
+    if distance is not None and distance > DISAGREE_STDERRS:
+        yield from stubs.warn(
+            f"run '{step.run}': the station file's [shaker] gain_n_per_v = {station:g} N/V "
+            f"disagrees with the {estimate.text()} measured ({distance:.3g} standard errors "
+            "apart); the measured gain is used. Check the amplifier's gain setting, or correct "
+            "the station file", "gain")
+    yield from stubs.annotate(step.run, estimate.attributes(), step="gain")
+    session.shaker_gain_n_per_v = estimate.value_n_per_v
+    return estimate.value_n_per_v
 
 
 def _call(group: SweepSegment, levels: np.ndarray | None):

@@ -19,7 +19,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from viscorig.acquisition.probe import probe_test_time_s
-from viscorig.sequences import IdentifyTableStep, PromptStep, Sequence, SweepStep, WaitStep
+from viscorig.sequences import (
+    IdentifyTableStep,
+    PromptStep,
+    Sequence,
+    SweepStep,
+    TemperatureStep,
+    WaitStep,
+)
 
 __all__ = ["Floor", "StepForecast", "forecast_sequence", "format_forecast", "probe_expected"]
 
@@ -58,7 +65,7 @@ class StepForecast:
     low_s, high_s
         Shortest and longest test time expected (equal when known; ``inf``: no upper end).
     probe_s
-        Of which the probe before it.
+        Of which the probe before it (and, before an adaptive run, the gain points).
     floor
         An adaptive step's floor, when known.
     note
@@ -115,6 +122,10 @@ def forecast_sequence(
     floors: Mapping[str, Floor | None] | None = None,
     force_limit_n: float | None = None,
     status: Callable[[str], str | None] = lambda run: None,
+    chamber_start_c: float = 25.0,
+    specimen_time_constant_s: float = 600.0,
+    heating_rate_k_per_min: float | None = None,
+    cooling_rate_k_per_min: float | None = None,
 ) -> list[StepForecast]:
     """The predicted test time of every step (prompts and table fits take none).
 
@@ -130,10 +141,22 @@ def forecast_sequence(
         The shaker's limit (an adaptive plan keeps its forces below it).
     status
         A run's status in the campaign file (a run already measured is not probed again).
+    chamber_start_c, specimen_time_constant_s, heating_rate_k_per_min, cooling_rate_k_per_min
+        The specimens' temperature before the first temperature step, how slowly they follow
+        the chamber, and how fast its air heats and cools (a soak is its ramp, the lag into the
+        band, and the soak time: :meth:`~viscorig.sequences.TemperatureStep.duration_s`).
     """
     floors = floors or {}
     out = []
+    temperature_c = chamber_start_c
     for index, step in enumerate(sequence.steps):
+        if isinstance(step, TemperatureStep):
+            seconds = step.duration_s(temperature_c, specimen_time_constant_s,
+                                      heating_rate_k_per_min, cooling_rate_k_per_min)
+            out.append(StepForecast(index, "soak", f"{step.set_point_c:g} °C", seconds, seconds,
+                                    note=f"from {temperature_c:g} °C"))
+            temperature_c = step.set_point_c
+            continue
         if isinstance(step, WaitStep):
             out.append(StepForecast(index, "wait", f"{step.seconds:g} s", step.seconds,
                                     step.seconds, note="waited on a real rig"))
@@ -151,6 +174,8 @@ def forecast_sequence(
             continue
         from viscorig.acquisition.adaptive import adaptive_settings  # scipy: only when needed
         from viscorig.planning import expected_time_s
+
+        probe += probe_test_time_s(step)  # the shaker's gain, measured at the probe's points
 
         settings = adaptive_settings(step, step.level_m_per_s2, None, force_limit_n)
         floor = floors.get(step.run)
@@ -196,5 +221,9 @@ def format_forecast(forecasts: list[StepForecast], heading: str = "") -> str:
         lines.append(text)
     low = sum(item.low_s for item in forecasts)
     high = sum(item.high_s for item in forecasts)
+    soaks = [item for item in forecasts if item.kind == "soak"]
+    if soaks:
+        lines.append(f"  {len(soaks)} soak{'s' if len(soaks) != 1 else ''}: "
+                     f"{format_duration(sum(item.low_s for item in soaks))} of the total")
     lines.append(f"  total test time {span(low, high)}")
     return "\n".join(lines)

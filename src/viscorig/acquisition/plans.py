@@ -44,6 +44,7 @@ from viscorig.sequences import (
     PromptStep,
     Step,
     SweepStep,
+    TemperatureStep,
     WaitStep,
     plan_segments,
     point_durations_s,
@@ -58,7 +59,7 @@ __all__ = ["SweepMeasurement", "full_sweep", "sequence_plan", "step_kind", "step
 def step_kind(step: Step) -> str:
     """``prompt``, ``wait``, ``sweep`` or ``identify_table``."""
     return {PromptStep: "prompt", WaitStep: "wait", SweepStep: "sweep",
-            IdentifyTableStep: "identify_table"}[type(step)]
+            IdentifyTableStep: "identify_table", TemperatureStep: "temperature"}[type(step)]
 
 
 def step_name(step: Step) -> str:
@@ -67,6 +68,8 @@ def step_name(step: Step) -> str:
         return step.run
     if isinstance(step, PromptStep):
         return step.message[:40]
+    if isinstance(step, TemperatureStep):
+        return f"{step.set_point_c:g} °C"
     return f"{step.seconds:g} s"
 
 
@@ -99,6 +102,10 @@ def sequence_plan(session: Session, forecast: Callable[[int], float] | None = No
             yield from wait_step(step, record)
         elif isinstance(step, IdentifyTableStep):
             yield from identify_table_step(session, step, record)
+        elif isinstance(step, TemperatureStep):
+            from viscorig.acquisition.chamber import temperature_step
+
+            yield from temperature_step(session, step, record)
         else:
             yield from sweep_step(session, step, record)
         yield from stubs.checkpoint("sequence")

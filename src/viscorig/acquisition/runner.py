@@ -95,9 +95,17 @@ class Runner:
         self.session = Session(sequence, station, wiring, self.options, campaign.path,
                                resource=analyser.resource)
         self.session.table = self.session.station_table(campaign.rig)
-        rig = Rig(analyser, wiring, self.options.mount, self.options.real_time_waits,
-                  self.options.poll_interval_s)
-        self.engine = RunEngine(campaign, rig, console)
+        if self.options.chamber is None:
+            rig = Rig(analyser, wiring, self.options.mount, self.options.real_time_waits,
+                      self.options.poll_interval_s)
+            self.engine = RunEngine(campaign, rig, console)
+        else:
+            from viscorig.acquisition.chamber import ChamberedAnalyser, ChamberEngine
+
+            rig = Rig(ChamberedAnalyser(analyser, self.options.chamber), wiring,
+                      self.options.mount, self.options.real_time_waits,
+                      self.options.poll_interval_s)
+            self.engine = ChamberEngine(campaign, rig, console, self.options.chamber)
         self.console.time_label = "test time left" if self.options.time_base == "test" else "left"
 
     @property

@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from viscorig.acquisition.limits import RigEstimate, source_limit_v
 from viscorig.acquisition.sweep import SweepSettings, Wiring
@@ -39,6 +40,9 @@ class RunnerOptions:
     """Stand-in for the technician on a simulated rig: mounts a rig preset at a prompt."""
     instrument_errors: tuple[type[BaseException], ...] = ()
     """The driver's exception types that mean an instrument fault."""
+    chamber: Any = None
+    """The temperature chamber (:class:`viscorig.acquisition.chamber.ChamberMonitor`), if the
+    station has one."""
 
     def __post_init__(self) -> None:
         if self.over_limit not in (None, *OVER_LIMIT_CHOICES):
@@ -117,6 +121,8 @@ class Session:
         The simulated rig preset the sequence mounts, and the one mounted.
     records
         One record per step, in order.
+    shaker_gain_n_per_v
+        The gain measured for the run being measured (:mod:`viscorig.acquisition.gain`).
     """
 
     sequence: Sequence
@@ -132,6 +138,9 @@ class Session:
     preset_wanted: str | None = None
     preset_mounted: str | None = None
     records: list[StepRecord] = field(default_factory=list)
+    shaker_gain_n_per_v: float | None = None
+    """The amplifier-and-shaker gain measured before the adaptive run being measured (its
+    start levels use it), N/V; ``None``: the station's."""
 
     def station_table(self, rig: dict) -> RigEstimate | None:
         """The table the station gives, else the file's ``/rig``."""

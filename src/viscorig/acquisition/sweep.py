@@ -23,6 +23,7 @@ from viscorig.sequences import (
     SweepStep,
 )
 from viscorig.storage import SOURCE_AT_LIMIT, Segment
+from viscorig.storage.flags import OUTSIDE_SOAK_BAND
 
 #: ``time_s`` clocks: "wall" is seconds of real time since the run started (a real rig);
 #: "test" is accumulated settle and integration time (a simulated rig running faster than
@@ -253,6 +254,12 @@ def segment_of(
         device = np.asarray(amplitude.get(wiring.device_force, nan), dtype=float)
         held = device >= settings.force_limit_n * 10.0 ** (-AT_FORCE_LIMIT_DB / 20.0)
         flags[held] &= np.uint16(~int(SOURCE_AT_LIMIT) & 0xFFFF)
+    extra = {}
+    temperatures = getattr(measured, "specimen_temperature_c", None)
+    if temperatures is not None:  # a segment measured in a temperature chamber
+        extra["temperature_c"] = (np.asarray(temperatures, dtype=float), "degC")
+        outside = np.asarray(measured.outside_soak_band, dtype=bool)
+        flags = np.where(outside, flags | np.uint16(OUTSIDE_SOAK_BAND), flags)
     return Segment(
         frequency_hz=np.asarray(measured.frequency_hz, dtype=float),
         time_s=time_s,
@@ -266,6 +273,7 @@ def segment_of(
         variance_support=variance_support,
         settle_cycles=None if cycles is None else cycles[0],
         integrate_cycles=None if cycles is None else cycles[1],
+        extra=extra,
     )
 
 

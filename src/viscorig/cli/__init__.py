@@ -57,7 +57,7 @@ COMMANDS: dict[str, Command] = {
         "exchange", "write a run's FRFs to a universal file (dataset 58) or CSV"
     ),
     "import": Command(
-        "exchange", "add a run to a campaign from UFF 58, CSV or 35670A SDF files"
+        "exchange", "add a run to a campaign from UFF 58, CSV or SDF files (35670A family)"
     ),
     "sim": Command("sim", "simulated rig and analyser"),
     "check": Command("check", "list every problem of a sequence (and station) file at once"),

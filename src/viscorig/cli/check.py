@@ -96,6 +96,17 @@ def check_texts(sequence_text: str, sequence_source: str, station_text: str | No
         from viscorig.cli.stations import simulated_rig_problems
 
         checked.problems += simulated_rig_problems(checked.sequence, sequence_text)
+    if checked.sequence is not None and checked.sequence.soaks and (
+            station_text is None or checked.station is not None):
+        from viscorig.sequences.setpoints import set_point_problems
+
+        if station_text is None:
+            from viscorig.cli.stations import embedded_chamber_station
+
+            chamber, name = embedded_chamber_station(checked.sequence), "the embedded rig"
+        else:
+            chamber, name = checked.station.chamber, station_source
+        checked.problems += set_point_problems(checked.sequence, chamber, sequence_text, name)
     return checked
 
 

@@ -6,15 +6,18 @@ default, so values survive to the last bit; ``--uff-ascii`` for plain ASCII), or
 units in the column names and the point flags, which spreadsheets and pandas.read_csv open as
 it is, with its metadata beside it in NAME.csv-metadata.json (CSV on the Web).
 
-``import FILE.h5 --run NAME (--uff PATH | --csv PATH | --sdf PATH [--sdf PATH2])`` adds a new,
-complete run to a campaign file (created when missing): from a universal file's FRF records,
-from a CSV written by ``export``, or from SDF files a 35670A saved to its disk (swept-sine
-frequency responses; the first file is ẍ_s/F_e, the second ẍ_v/F_v, or one file holding both).
-Units and frequency axis are those the file declares, converted to Hz and m/s²/N; a file whose
-units are not acceleration over force is refused. What the files do not say (specimen, preload,
-hardness) is given with options. Everything is read and checked before the campaign file is
-touched, an existing run is never overwritten, and a truncated or inconsistent file is refused
-whole: an import is never partial.
+``import FILE.h5 --run NAME (--uff PATH | --csv PATH | --sdf PATH [--sdf PATH2])
+[--station STATION.toml]`` adds a new, complete run to a campaign file (created when missing):
+from a universal file's FRF records, from a CSV written by ``export``, or from SDF files that an
+analyser of the 35665A/35670A family saved to its disk (frequency responses from a swept sine
+or from FFT mode; the first is ẍ_s/F_e, the second ẍ_v/F_v, or one file holding both; with
+--station, the channel roles decide). Units and frequency axis are those the file declares,
+converted to Hz and m/s²/N; volt-over-volt SDF responses are converted with the station's
+channel roles and sensitivities, and refused without one; other units than acceleration over
+force are refused. One FRF alone gives a run whose ẍ_v/F_v is missing. What the files do not
+say (specimen, preload, hardness) is given with options. Everything is read and checked before
+the campaign file is touched, an existing run is never overwritten, and a truncated or
+inconsistent file is refused whole: an import is never partial.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from viscorig.exchange import (
     write_csv,
     write_uff,
 )
+from viscorig.sequences import load_station
 from viscorig.storage import Campaign
 
 
@@ -71,7 +75,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     source.add_argument("--uff", metavar="PATH", help="universal file with dataset 58 FRFs")
     source.add_argument("--csv", metavar="PATH", help="CSV written by 'viscorig export'")
     source.add_argument("--sdf", metavar="PATH", action="append",
-                        help="35670A SDF file (give twice: ẍ_s/F_e, then ẍ_v/F_v)")
+                        help="SDF file of a 35665A/35670A-family analyser (give twice: "
+                        "ẍ_s/F_e, then ẍ_v/F_v)")
+    imports.add_argument("--station", metavar="STATION.toml",
+                         help="station file: its [channels] and [sensitivity] convert "
+                         "volt-over-volt SDF responses and say which FRF is which")
     imports.add_argument("--specimen", default="unknown",
                          help="specimen name; 'none' for a bare-table run (default: unknown)")
     imports.add_argument("--hardness", type=float, default=math.nan, help="Shore A hardness")
@@ -103,6 +111,9 @@ def export_handler(args: argparse.Namespace) -> int:
 
 def import_handler(args: argparse.Namespace) -> int:
     """Run ``import``."""
+    if args.station and not args.sdf:
+        raise InputError("a station converts SDF files only; the other formats carry "
+                         "their units", "--station")
     if args.uff:
         frfs = read_uff(Path(args.uff))
     elif args.csv:
@@ -110,7 +121,8 @@ def import_handler(args: argparse.Namespace) -> int:
     else:
         if len(args.sdf) > 2:
             raise InputError(f"{len(args.sdf)} files; give one or two", "--sdf")
-        frfs = read_sdf_frfs([Path(p) for p in args.sdf])
+        station = load_station(args.station) if args.station else None
+        frfs = read_sdf_frfs([Path(p) for p in args.sdf], station)
     for value, name in ((args.hardness, "--hardness"), (args.level, "--level")):
         if not (math.isnan(value) or (math.isfinite(value) and value > 0)):
             raise InputError(f"{value} must be a positive number", name)

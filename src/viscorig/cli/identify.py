@@ -15,6 +15,7 @@ import math
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
+from viscorig.errors import InputError
 from viscorig.fitting import FitResult
 from viscorig.identify import (
     TableSource,
@@ -33,7 +34,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` command."""
     parser = subparsers.add_parser("identify", help=summary_of("identify"))
     parser.add_argument("file", help="campaign file (.h5)")
-    parser.add_argument("--run", required=True, help="run name, e.g. soft-0")
+    parser.add_argument("--run", required=True, action="append",
+                        help="run name, e.g. soft-0; several runs of one specimen at one "
+                        "temperature and different levels with --model kraus: the "
+                        "strain-amplitude dependence (Payne effect) from their differences")
     parser.add_argument(
         "--model",
         default=None,
@@ -69,6 +73,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def handler(args: argparse.Namespace) -> int:
     """Run ``identify``."""
     band = parse_band(args.band)
+    if len(args.run) > 1:
+        return _strain(args, band)
+    args.run = args.run[0]
     frfs = FRF_CHOICES[args.frf] if args.frf else None
     mode = "r" if args.no_store else "a"
     with Campaign.open(args.file, mode) as campaign:
@@ -132,3 +139,27 @@ def format_result(
     if fit_id is not None:
         lines.append(f"stored as fit {fit_id}")
     return "\n".join(lines)
+
+
+def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
+    """``identify --run A --run B ... --model kraus``: :func:`viscorig.strain.identify_payne`."""
+    from viscorig.strain import identify_payne
+
+    if args.model != "kraus":
+        raise InputError("several runs are fitted together only for the strain-amplitude "
+                         "dependence: add --model kraus (or give one --run)", "--run")
+    with Campaign.open(args.file, "r") as campaign:
+        fit = identify_payne(campaign, args.run, band_hz=band)
+    if args.json:
+        print(json.dumps(fit.to_json()))
+        return 0
+    low, high = fit.displacement_range_m
+    lines = [f"runs {', '.join(fit.runs)}: Kraus model of the Payne effect from the differences "
+             f"of K* (Eq. 5) between levels, {fit.points} points, displacement "
+             f"{low * 1e6:.3g}-{high * 1e6:.3g} µm, reduced chi-square "
+             f"{fit.reduced_chi_square:.2f}"]
+    for name, (value, stderr, unit) in fit.parameters.items():
+        lines.append(f"  {name:<4} = {value:<12.6g} ± {stderr:<10.4g} {unit}")
+    lines.append("not stored (a fit of several runs)")
+    print("\n".join(lines))
+    return 0

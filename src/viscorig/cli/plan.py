@@ -58,6 +58,8 @@ def plan_command(args: argparse.Namespace) -> int:
             "steps": [item.to_json() for item in forecasts if item.kind not in (
                 "prompt", "identify_table")],
             "total_low_s": low, "total_high_s": None if math.isinf(high) else high,
+            "soaks": sum(item.kind == "soak" for item in forecasts),
+            "soak_s": sum(item.low_s for item in forecasts if item.kind == "soak"),
         }, indent=2))
         return 0
     where = f"station {args.station}" if args.station else "the embedded simulated rig"
@@ -74,8 +76,14 @@ def sequence_forecast(sequence: Sequence, station, status=lambda run: None):
         from rigsim.rigfile import load_preset
 
         force_limit = load_preset(FIRST_PRESET).shaker.force_limit_n
+    chamber = station.chamber if station is not None else None
+    if station is None and sequence.soaks:
+        from viscorig.cli.stations import embedded_chamber_station
+
+        chamber = embedded_chamber_station(sequence)
+    thermal = {} if chamber is None else chamber.soak_forecast()
     return forecast_sequence(sequence, table_known=table_known, floors=floors,
-                             force_limit_n=force_limit, status=status)
+                             force_limit_n=force_limit, status=status, **thermal)
 
 
 def mounted_presets(sequence: Sequence) -> dict[str, str]:

@@ -163,9 +163,11 @@ def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     floors = simulated_floors(sequence) if opened.simulated else {}
     station = opened.station
+    chamber = station.chamber
+    thermal = {} if chamber is None else chamber.soak_forecast()
     forecasts = forecast_sequence(
         sequence, table_known=station.table is not None, floors=floors,
-        force_limit_n=station.shaker_force_limit_n, status=statuses.get,
+        force_limit_n=station.shaker_force_limit_n, status=statuses.get, **thermal,
     )  # fmt: skip
     left = [item for item in forecasts
             if not (item.kind.endswith("sweep") and statuses.get(item.name) == "complete")]
@@ -210,6 +212,7 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
         poll_interval_s=0.2,
         mount=opened.mount,
         instrument_errors=opened.instrument_errors,
+        chamber=opened.chamber,
     )
     console = Console(yes=args.yes)
     floors = _forecast(campaign, sequence, opened)

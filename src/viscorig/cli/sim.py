@@ -54,9 +54,13 @@ def register(subparsers: Any) -> None:
                        "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS (wiring "
                        "faults, they last); repeatable")
     serve.add_argument("--max-connections", type=_count, default=8, metavar="N",
-                       help="clients served at once (default 8)")
+                       help="clients served at once (default 8); when all are held, a new "
+                       "client takes the slot of the one longest without a message")
     serve.add_argument("--idle-timeout", type=positive_number, default=3600.0, metavar="S",
                        help="close a connection silent for S seconds (default 3600)")
+    serve.add_argument("--message-timeout", type=positive_number, default=10.0, metavar="S",
+                       help="close a connection whose message, begun, has not ended within S "
+                       "seconds (default 10)")
     serve.add_argument("--max-message", type=_count, default=65536, metavar="BYTES",
                        help="longest program message; longer ones get error -100 and the "
                        "connection is closed (default 65536)")
@@ -66,6 +70,15 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--without-option", action="append", default=[], metavar="OPT",
                        choices=("1D2", "AY6"),
                        help="leave an option out of *OPT? (1D2 swept sine, AY6 four channels)")
+    serve.add_argument("--chamber", choices=("tcp", "rtu"), default=None,
+                       help="also serve the rig's temperature chamber (rig file [chamber]) as a "
+                       "Eurotherm 3200 controller (unit 1) and specimen indicator (unit 2) on "
+                       "Modbus TCP (loopback) or RTU (a pseudo-terminal)")
+    serve.add_argument("--chamber-port", type=port_number, default=0, metavar="N",
+                       help="Modbus TCP port of the chamber (default: a free port)")
+    serve.add_argument("--chamber-pace", type=positive_number, default=None, metavar="X",
+                       help="simulated seconds of the chamber per wall-clock second (default: "
+                       "--pace, else 1)")
     serve.set_defaults(handler=serve_command)
 
 
@@ -113,7 +126,8 @@ def serve_command(args: argparse.Namespace) -> int:
     options = tuple(o for o in DEFAULT_OPTIONS if o not in args.without_option)
     limits = ServiceLimits(max_message_bytes=args.max_message,
                            max_connections=args.max_connections,
-                           idle_timeout_s=args.idle_timeout)
+                           idle_timeout_s=args.idle_timeout,
+                           message_timeout_s=args.message_timeout)
     floor = READ_TIMEOUT_FLOOR_S if args.read_timeout_floor is None else args.read_timeout_floor
     server = SimulatedAnalyserServer(
         rig, port=args.port, prologix=args.prologix, prologix_port=args.prologix_port,
@@ -127,6 +141,21 @@ def serve_command(args: argparse.Namespace) -> int:
         raise InputError(f"cannot serve on {args.host}: {error.strerror or error}") from None
     for fault in faults:
         server.faults.add(fault)
+    chamber_server = None
+    if args.chamber is not None:
+        from rigsim.chamber import Chamber
+        from rigsim.chamber_server import ChamberServer
+
+        chamber = Chamber(rig.chamber)
+        server.analyser.simulator.attach_chamber(chamber, advance=False)
+        pace = args.chamber_pace or args.pace or 1.0
+        chamber_server = ChamberServer(chamber, transport=args.chamber, host=args.host,
+                                       port=args.chamber_port, pace=pace)
+        try:
+            chamber_server.start()
+        except (OSError, RuntimeError) as error:
+            server.close()
+            raise InputError(f"cannot serve the chamber on {args.host}: {error}") from None
     name = rig.name or (args.rig if args.rig else args.preset or "table")
     print(f"virtual 35670A on rig {name}"
           + ("" if args.pace is None else f", {args.pace:g} simulated s per s"))
@@ -137,12 +166,17 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"Prologix (TCP):   {server.prologix_resource}  then  {server.gpib_resource}")
     if server.pty_resource:
         print(f"Prologix (USB):   {server.pty_resource}  then  {server.gpib_resource}")
+    if chamber_server is not None:
+        print(f"chamber (Modbus {args.chamber.upper()}): {chamber_server.address}  controller "
+              f"unit 1, specimen unit 2, {chamber_server.pace:g} simulated s per s")
     print("Ctrl-C stops.", flush=True)
     try:
         server.serve_forever()
     except KeyboardInterrupt:
         pass
     finally:
+        if chamber_server is not None:
+            chamber_server.close()
         server.close()
     print("stopped", file=sys.stderr)
     return 0

@@ -12,18 +12,20 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from viscorig.acquisition.console import single_line
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
+    ChamberStation,
     Channels,
     FileCheckError,
     Problem,
     PromptStep,
     Sensitivities,
     Sequence,
+    SpecimenGeometry,
     Station,
     SweepStep,
 )
@@ -48,6 +50,8 @@ class OpenStation:
     simulated: bool
     mount: Any = None
     instrument_errors: tuple[type[BaseException], ...] = ()
+    chamber: Any = None
+    """The chamber (:class:`viscorig.acquisition.chamber.ChamberMonitor`), if any."""
 
 
 def instrument_errors() -> tuple[type[BaseException], ...]:
@@ -56,6 +60,84 @@ def instrument_errors() -> tuple[type[BaseException], ...]:
     from agilent35670a import SettingOutOfRange
 
     return (DriverError, SettingOutOfRange)
+
+
+#: The embedded rig's chamber limits and safe set point, °C.
+EMBEDDED_CHAMBER_LIMITS_C = (-40.0, 100.0)
+EMBEDDED_SAFE_SET_POINT_C = 25.0
+#: The embedded rig's controllers show hundredths of a kelvin: at -20 °C the medium rubber
+#: shifts by 0.1 decade per kelvin, so tenths would cost up to 0.005 decade of shift factor.
+EMBEDDED_DECIMALS = 2
+
+
+def _chamber_parameters(sequence: Sequence):
+    """The simulated chamber of the first preset the sequence mounts that has one (else the
+    simulator's default chamber)."""
+    from rigsim.chamber import ChamberParameters
+    from rigsim.rigfile import load_preset, preset_names
+
+    names = set(preset_names())
+    for step in sequence.steps:
+        if isinstance(step, PromptStep) and step.simulated_rig in names:
+            chamber = load_preset(step.simulated_rig).chamber
+            if chamber is not None:
+                return chamber
+    return ChamberParameters()
+
+
+def embedded_chamber_station(sequence: Sequence) -> ChamberStation:
+    """The ``[chamber]`` of the embedded simulated rig for a sequence."""
+    parameters = _chamber_parameters(sequence)
+    low, high = EMBEDDED_CHAMBER_LIMITS_C
+    return ChamberStation(address="tcp://127.0.0.1:502", low_limit_c=low, high_limit_c=high,
+                          safe_set_point_c=EMBEDDED_SAFE_SET_POINT_C, unit=1, specimen_unit=2,
+                          decimals=EMBEDDED_DECIMALS,
+                          specimen_time_constant_s=parameters.specimen_time_constant_s,
+                          heating_rate_k_per_min=parameters.heating_rate_k_per_min,
+                          cooling_rate_k_per_min=parameters.cooling_rate_k_per_min)
+
+
+def chamber_errors() -> tuple[type[BaseException], ...]:
+    """The chamber driver's exception types that mean an instrument fault."""
+    from eurotherm3200 import ChamberError
+
+    return (ChamberError,)
+
+
+def open_chamber(chamber: ChamberStation, address: str | None = None,
+                 pass_time: Any = None) -> Any:
+    """Connect the chamber's controller: a :class:`~viscorig.acquisition.chamber.ChamberMonitor`.
+
+    Raises
+    ------
+    InstrumentError
+        The controller cannot be reached.
+    """
+    from eurotherm3200 import ChamberError, Eurotherm3200
+
+    from viscorig.acquisition.chamber import ChamberMonitor
+
+    try:
+        controller = Eurotherm3200.open(
+            address or chamber.address, unit=chamber.unit, specimen_unit=chamber.specimen_unit,
+            limits_c=(chamber.low_limit_c, chamber.high_limit_c), baudrate=chamber.baudrate,
+            decimals=chamber.decimals)
+    except (ChamberError, ValueError) as error:
+        raise InstrumentError(f"cannot reach the chamber: {single_line(str(error))}") from None
+    return ChamberMonitor(controller, chamber, pass_time, (ChamberError,))
+
+
+def _specimen_geometry(sequence: Sequence) -> SpecimenGeometry | None:
+    """The specimens' geometry of the first preset the sequence mounts that gives it all."""
+    from rigsim.rigfile import load_preset, preset_names
+
+    names = set(preset_names())
+    for step in sequence.steps:
+        if isinstance(step, PromptStep) and step.simulated_rig in names:
+            specimen = load_preset(step.simulated_rig).specimen
+            if None not in (specimen.diameter_m, specimen.height_m, specimen.count):
+                return SpecimenGeometry(specimen.diameter_m, specimen.height_m, specimen.count)
+    return None
 
 
 def _first_preset(sequence: Sequence) -> str:
@@ -237,15 +319,57 @@ def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator
             shaker_force_limit_n=rig.shaker.force_limit_n,
             shaker_gain_n_per_v=rig.shaker.force_n_per_v,
             source_limit_v=SIMULATED_SOURCE_LIMIT_V,
+            specimen=_specimen_geometry(sequence),
             source="embedded simulated rig",
         )
-        try:
-            yield OpenStation(station, analyser, True, server.analyser.mount, errors)
-        finally:
-            with contextlib.suppress(Exception):
-                analyser.close()
+        with contextlib.ExitStack() as stack:
+            chamber = None
+            if sequence.soaks:
+                chamber = stack.enter_context(_embedded_chamber(sequence, server, pace))
+                station = replace(station, chamber=chamber.station)
+                errors = (*errors, *chamber_errors())
+            try:
+                yield OpenStation(station, analyser, True, server.analyser.mount, errors,
+                                  chamber)
+            finally:
+                with contextlib.suppress(Exception):
+                    analyser.close()
     finally:
         server.close()
+
+
+@contextlib.contextmanager
+def _embedded_chamber(sequence: Sequence, server: Any, pace: float | None) -> Iterator[Any]:
+    """The simulated chamber around the embedded rig's specimens: its controller served on
+    loopback (Modbus TCP) and reached through the real driver; time passes on the rig's clock
+    (really only at ``pace``)."""
+    import time
+
+    from rigsim.chamber import Chamber
+    from rigsim.chamber_server import ChamberServer
+
+    chamber = Chamber(_chamber_parameters(sequence))
+    analyser = server.analyser
+    analyser.simulator.attach_chamber(chamber, advance=True)
+    paced_until = [0.0]  # the wall-clock instant the paced simulated time has reached
+
+    def pass_time(seconds: float) -> None:
+        with analyser.lock:
+            analyser.simulator.idle(seconds)
+        if pace is not None:  # against a deadline, so that the polling's own work is absorbed
+            now = time.monotonic()
+            paced_until[0] = max(paced_until[0], now) + seconds / pace
+            time.sleep(max(paced_until[0] - now, 0.0))
+
+    with ChamberServer(chamber, controller_unit=1, specimen_unit=2,
+                       decimals=EMBEDDED_DECIMALS) as chamber_server:
+        monitor = open_chamber(embedded_chamber_station(sequence), chamber_server.address,
+                               pass_time)
+        try:
+            yield monitor
+        finally:
+            with contextlib.suppress(Exception):
+                monitor.controller.close()
 
 
 @contextlib.contextmanager
@@ -259,7 +383,16 @@ def lab_station(station: Station) -> Iterator[OpenStation]:
     except errors as error:
         raise InstrumentError(f"cannot reach the analyser: {single_line(str(error))}") from None
     try:
-        yield OpenStation(station, analyser, False, None, errors)
+        chamber = None
+        if station.chamber is not None:
+            chamber = open_chamber(station.chamber)
+            errors = (*errors, *chamber_errors())
+        try:
+            yield OpenStation(station, analyser, False, None, errors, chamber)
+        finally:
+            if chamber is not None:
+                with contextlib.suppress(Exception):
+                    chamber.controller.close()
     finally:
         with contextlib.suppress(Exception):
             analyser.close()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 
 import numpy as np
@@ -59,6 +59,9 @@ class DiagnosisData:
     frfs: tuple[str, ...]
     table: dict[str, float] | None
     noise: NoiseModel
+    temperature_range_c: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Lowest and highest specimen temperature recorded during each run (its per-point
+    ``temperature_c`` dataset, a run measured in a chamber), by run name."""
 
     @property
     def run(self) -> str:
@@ -283,6 +286,26 @@ def same_specimen(a: Run, b: Run) -> bool:
     )
 
 
+#: Runs whose temperatures differ by more than this are not diagnosed together, K.
+SAME_TEMPERATURE_K = 1.0
+
+
+def _same_temperature(a: Run, b: Run) -> bool:
+    ta, tb = a.metadata.temperature_c, b.metadata.temperature_c
+    if math.isnan(ta) or math.isnan(tb):
+        return math.isnan(ta) and math.isnan(tb)
+    return abs(ta - tb) <= SAME_TEMPERATURE_K
+
+
+def recorded_temperature_range(run: Run) -> tuple[float, float] | None:
+    """Lowest and highest per-point ``temperature_c`` of a run, or None where not recorded."""
+    if "temperature_c" not in run.extra:
+        return None
+    values = np.asarray(run.extra["temperature_c"][0], dtype=float)
+    values = values[np.isfinite(values)]
+    return (float(values.min()), float(values.max())) if values.size else None
+
+
 def companions(campaign: Campaign, main: Run) -> list[Run]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
     from viscorig.identify import is_bare_table
@@ -295,6 +318,8 @@ def companions(campaign: Campaign, main: Run) -> list[Run]:
         if not other.points or is_bare_table(other) or not same_specimen(main, other):
             continue
         level_differs = abs(other.metadata.level_m_per_s2 / main.metadata.level_m_per_s2 - 1) > 0.05
+        if not _same_temperature(main, other):
+            continue  # another temperature is another material state, not a companion
         if level_differs or other.metadata.direction != main.metadata.direction:
             found.append(other)
     return found
@@ -332,5 +357,8 @@ def from_campaign(
             data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
                            data.reference_amplitude, name=data.name)
         pieces.append((name, data))
-    return combine(pieces, table=None if table is None else table.values, band_hz=band_hz,
-                   frfs=frfs)
+    combined = combine(pieces, table=None if table is None else table.values, band_hz=band_hz,
+                       frfs=frfs)
+    ranges = {piece.name: recorded_temperature_range(piece) for piece in runs}
+    return replace(combined, temperature_range_c={
+        name: span for name, span in ranges.items() if span is not None})

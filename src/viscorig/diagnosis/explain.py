@@ -10,6 +10,9 @@ from viscorig.diagnosis.findings import Finding
 from viscorig.models.sensors import CHANNELS
 from viscorig.numbers import with_uncertainty
 
+#: A recorded temperature that moves this much during a run explains a drift of its modulus, K.
+RECORDED_DRIFT_K = 0.2
+
 
 def _estimate(finding: Finding, local: str) -> tuple[float, float]:
     """Value and stderr of the added parameter with local name ``local`` (``_1``... allowed)."""
@@ -142,10 +145,22 @@ def explain(finding: Finding, data: DiagnosisData) -> str:
         )
     if effect == "thermal_drift":
         kappa, se = _estimate(finding, "kappa")
+        drift = f"The modulus drifts by {_pm(kappa, se, 3600 * 100)} % per hour of test: {why}."
+        recorded = data.temperature_range_c.get(data.run)
+        if recorded is not None and recorded[1] - recorded[0] >= RECORDED_DRIFT_K:
+            return (
+                f"{drift} The specimen's recorded temperature moved from {recorded[0]:.1f} to "
+                f"{recorded[1]:.1f} °C during the run (its temperature_c dataset): the sweep "
+                "started before the specimens had soaked. Soak longer (a narrower soak band, "
+                "more soak minutes) before sweeping.")
+        if recorded is not None:
+            return (
+                f"{drift} The specimen's recorded temperature held within "
+                f"{recorded[1] - recorded[0]:.1f} K, so it is not the rubber's temperature: "
+                "look for a transducer or amplifier warming up, or keep drift in the model.")
         return (
-            f"The modulus drifts by {_pm(kappa, se, 3600 * 100)} % per hour of test: {why}. "
-            "Let the specimens settle thermally before sweeping (a wait step), record the "
-            "temperature, or keep drift in the model."
+            f"{drift} Let the specimens settle thermally before sweeping (a wait step), record "
+            "the temperature, or keep drift in the model."
         )
     return why
 

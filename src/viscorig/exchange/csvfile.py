@@ -16,8 +16,10 @@ CSVW tools look for next to a CSV: the columns with their units and descriptions
 metadata under ``notes``.
 
 Reading accepts these files, and older ones whose first lines are ``#`` comments. A line longer
-than any row of this table, a cell that is not a number, or more rows than a run holds is an
-error naming the line; nothing is imported from a file with an error.
+than any row of this table, a cell that is not a number or not finite (``nan``, ``inf``), an
+empty cell where a value is needed, a frequency given twice, or more rows than a run holds is
+an error naming the line (and the column); nothing is imported from a file with an error. Rows
+may come in any frequency order: the run stores them by rising frequency.
 """
 
 from __future__ import annotations
@@ -165,6 +167,27 @@ def _cells(line: str, where: str) -> list[str]:
         raise InputError(f"not a CSV row ({error})", where) from None
 
 
+#: Columns whose cell may be empty (a missing value); every other cell holds a number.
+MAY_BE_EMPTY = frozenset({"time_s", "accelerance_support_real_m_per_s2_per_n",
+                          "accelerance_support_imag_m_per_s2_per_n"})
+
+
+def _check_row(row: list[float], cells: list[str], where: str) -> None:
+    """Refuse a row with a value that is not finite (``nan``, ``inf`` spelt out), an empty
+    cell where a value is needed, a frequency not above 0, or half a complex number."""
+    for name, value, cell in zip(COLUMNS, row, cells, strict=True):
+        if not cell and name not in MAY_BE_EMPTY:
+            raise InputError(f"{name} is empty; only time_s and the ẍ_v/F_v columns may be",
+                             where)
+        if cell and not math.isfinite(value):
+            raise InputError(f"{name} is {cell!r}, not a finite number (leave a missing "
+                             "value's cell empty where one may be missing)", where)
+    if not row[0] > 0:
+        raise InputError(f"frequency_hz is {row[0]:g}; a frequency is above 0 Hz", where)
+    if bool(cells[4]) != bool(cells[5]):
+        raise InputError("ẍ_v/F_v has one of its real and imaginary parts empty", where)
+
+
 def read_csv(path: Path) -> FrfSet:
     """Read a CSV written by :func:`write_csv` (or any file with the same columns).
 
@@ -179,6 +202,7 @@ def read_csv(path: Path) -> FrfSet:
     header: list[str] | None = None
     index: list[int] = []
     rows: list[list[float]] = []
+    lines_of: dict[float, int] = {}
     for number, line in _lines(path):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
@@ -204,9 +228,17 @@ def read_csv(path: Path) -> FrfSet:
             raise InputError(f"more than {MAX_RUN_POINTS} rows; a run holds at most "
                              f"{MAX_RUN_POINTS} points", f"{where}:{number}")
         try:
-            rows.append([float(cells[i]) if cells[i] else math.nan for i in index])
+            row = [float(cells[i]) if cells[i] else math.nan for i in index]
         except ValueError:
             raise InputError("a cell is not a number", f"{where}:{number}") from None
+        _check_row(row, [cells[i] for i in index], f"{where}:{number}")
+        frequency = row[0]
+        if frequency in lines_of:
+            raise InputError(f"frequency {frequency:g} Hz is given twice (lines "
+                             f"{lines_of[frequency]} and {number}); a run holds one value "
+                             "per frequency", f"{where}:{number}")
+        lines_of[frequency] = number
+        rows.append(row)
     if header is None:
         raise InputError("no header line and no data", where)
     if not rows:

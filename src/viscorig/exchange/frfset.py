@@ -2,9 +2,10 @@
 
 Every reader (UFF 58, CSV, SDF) returns an :class:`FrfSet`: accelerances in m/s²/N on one
 frequency axis in Hz, whatever units the file used. :func:`import_run` then checks that the set
-is whole (every value finite, lengths equal, within a run's bound of points) and writes it as
-one new run of a campaign file in a single commit, so bad input never changes the file and an
-import is never partial.
+is whole (every value finite, lengths equal, each frequency once, within a run's bound of
+points) and writes it as one new run of a campaign file, by rising frequency whatever order the
+file had, in a single commit, so bad input never changes the file and an import is never
+partial.
 """
 
 from __future__ import annotations
@@ -95,14 +96,27 @@ def combine(
     return FrfSet(axis, frfs[0], support, source=source)
 
 
+def _first_bad(bad: np.ndarray, frequency_hz: np.ndarray) -> str:
+    """``point 17 of 401 (23.5 Hz)``: the first point where ``bad`` holds, as a reader finds it
+    in the file's order."""
+    index = int(np.flatnonzero(bad)[0])
+    frequency = frequency_hz[index]
+    at = f" ({frequency:g} Hz)" if np.isfinite(frequency) else ""
+    return f"point {index + 1} of {bad.size}{at}"
+
+
 def check_whole(frfs: FrfSet) -> None:
-    """Refuse a set that a truncated or inconsistent file would give.
+    """Refuse a set that a truncated, damaged or hand-made file would give.
+
+    Every reader's set passes here before it becomes a run, so each hole is closed once for
+    CSV, UFF and SDF alike; the first offending point is named in the file's order.
 
     Raises
     ------
     InputError
         Lengths differ, more points than a run holds, a frequency that is not finite and
-        positive, a non-finite value of ẍ_s/F_e, or a ẍ_v/F_v that is only partly present.
+        positive, a frequency given twice, a non-finite value of ẍ_s/F_e, or a ẍ_v/F_v that
+        is only partly present.
     """
     where = frfs.source or "import"
     n = frfs.frequency_hz.size
@@ -114,17 +128,28 @@ def check_whole(frfs: FrfSet) -> None:
         raise InputError("holds no point", where)
     if n > MAX_RUN_POINTS:
         raise InputError(f"{n} points; a run holds at most {MAX_RUN_POINTS}", where)
-    bad = int(np.count_nonzero(~np.isfinite(frfs.frequency_hz) | (frfs.frequency_hz <= 0)))
-    if bad:
-        raise InputError(f"{bad} of {n} frequencies are not finite and positive", where)
-    bad = int(np.count_nonzero(~np.isfinite(frfs.accelerance_table)))
-    if bad:
-        raise InputError(f"{bad} of {n} values of ẍ_s/F_e are not finite (a truncated or "
-                         "damaged file?)", where)
-    missing = int(np.count_nonzero(~np.isfinite(frfs.accelerance_support)))
-    if 0 < missing < n:
-        raise InputError(f"{missing} of {n} values of ẍ_v/F_v are not finite (a truncated or "
-                         "damaged file?)", where)
+    frequency = frfs.frequency_hz
+    bad = ~np.isfinite(frequency) | (frequency <= 0)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} of {n} frequencies are not finite and positive, "
+                         f"the first at {_first_bad(bad, frequency)}", where)
+    order = np.argsort(frequency, kind="stable")
+    repeated = np.flatnonzero(np.diff(frequency[order]) == 0)
+    if repeated.size:
+        first, second = sorted(order[repeated[0]:repeated[0] + 2])
+        raise InputError(f"frequency {frequency[first]:g} Hz is given twice (points "
+                         f"{first + 1} and {second + 1} of {n}); a run holds one value per "
+                         "frequency", where)
+    bad = ~np.isfinite(frfs.accelerance_table)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} of {n} values of ẍ_s/F_e are not finite, the first "
+                         f"at {_first_bad(bad, frequency)} (a truncated or damaged file?)",
+                         where)
+    missing = ~np.isfinite(frfs.accelerance_support)
+    if 0 < missing.sum() < n:
+        raise InputError(f"{int(missing.sum())} of {n} values of ẍ_v/F_v are not finite, the "
+                         f"first at {_first_bad(missing, frequency)} (a truncated or damaged "
+                         "file?)", where)
 
 
 @dataclass(frozen=True)
@@ -163,14 +188,10 @@ def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: Impor
         raise InputError("a bare-table run (specimen 'none') has no ẍ_v/F_v; "
                          "give --specimen or import one FRF", run_name)
     steps = np.diff(frfs.frequency_hz)
-    if np.all(steps > 0):
-        direction, keep = "up", np.arange(frfs.frequency_hz.size)
-    elif np.all(steps < 0):
-        direction, keep = "down", np.arange(frfs.frequency_hz.size)
-    else:  # neither sweep order: store sorted
-        direction, keep = "up", np.argsort(frfs.frequency_hz, kind="stable")
-        if np.any(np.diff(frfs.frequency_hz[keep]) == 0):
-            raise InputError("the frequency axis repeats a frequency", frfs.source)
+    # stored by rising frequency whatever the file's order (check_whole refused repeats); rows
+    # that ran from high to low keep that order as the run's sweep direction
+    direction = "down" if steps.size and np.all(steps < 0) else "up"
+    keep = np.argsort(frfs.frequency_hz, kind="stable")
     resolution = float(np.median(np.abs(steps))) if steps.size else math.nan
     run_settings = RunSettings(
         specimen=settings.specimen,

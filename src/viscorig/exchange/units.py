@@ -24,6 +24,8 @@ VELOCITY_UNITS = {"m/s": 1.0, "mm/s": 1e-3, "ms^-1": 1.0}
 DISPLACEMENT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 #: force label -> factor to N
 FORCE_UNITS = {"n": 1.0, "kn": 1e3, "lbf": POUND_FORCE_N, "lb": POUND_FORCE_N}
+#: voltage label -> factor to V (an analyser channel with no engineering unit set)
+VOLTAGE_UNITS = {"v": 1.0, "mv": 1e-3}
 #: frequency label -> factor to Hz
 FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "1/s": 1.0}
 

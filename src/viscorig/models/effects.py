@@ -8,6 +8,7 @@ evaluation pipeline (:mod:`viscorig.models.base`):
 term       stage               what it adds
 ========== =================== ==================================================================
 amplitude  modify_modulus      ``K* · (x/x_ref)^(−β)``, ``x`` the displacement amplitude
+kraus      modify_modulus      ``K* + K_f(x)``: the filler network of Kraus's Payne-effect model
 drift      modify_modulus      ``K* · (1 + κ t)``, ``t`` the test time ``time_s``
 fixture    disc_stiffness      a local mode (mass ``m`` on a spring-damper) attached to the disc
 load_cell  couple              the two-DOF coupling of physics.md with a finite ``K_c``
@@ -292,6 +293,52 @@ class Amplitude(Term):
     def modify_modulus(self, ctx, p, kstar):
         ratio = displacement_amplitude(ctx) / AMPLITUDE_REFERENCE_M
         return kstar * ratio ** (-p["beta"])
+
+
+def kraus_stiffness(displacement_m: NDArray[np.float64], p: Mapping[str, float]
+                    ) -> NDArray[np.complex128]:
+    """The filler network's complex stiffness in Kraus's model of the Payne effect, N/m.
+
+    ``K' = ΔK' / (1 + r^(2m))``, ``K'' = 2 ΔK''_m r^m / (1 + r^(2m))``, ``r = x / x_c``: the
+    storage part falls from ``ΔK'`` (``K_f``) to zero as the amplitude grows past ``x_c``
+    (``x_c``), the loss part peaks at ``ΔK''_m`` (``L_f``) at ``x_c``; ``m`` (``m_k``) sets
+    how sharply.
+    """
+    r = (np.asarray(displacement_m, dtype=float) / p["x_c"]) ** p["m_k"]
+    return (p["K_f"] + 2j * p["L_f"] * r) / (1.0 + r * r)
+
+
+#: The Kraus term's parameters (shared by the term and the strain identification).
+KRAUS_PARAMETERS = (
+    Parameter("K_f", "N/m", 1.0, 1e8, 1e4,
+              description="stiffness of the filler network at small amplitude (ΔK')"),
+    Parameter("L_f", "N/m", 1e-2, 1e8, 1e3,
+              description="peak loss stiffness of the filler network, at x_c (ΔK''_m)"),
+    Parameter("x_c", "m", 1e-8, 1e-2, 1e-4,
+              description="displacement amplitude where the filler network breaks down"),
+    Parameter("m_k", "", 0.1, 4.0, 0.6,
+              description="Kraus exponent: how sharply the network breaks down"),
+)
+
+
+@register_term
+class Kraus(Term):
+    """The Payne effect of a filled rubber (Kraus): ``K* + K_f(x)``, :func:`kraus_stiffness`.
+
+    ``x = |ẍ_v|/ω²`` as for ``amplitude``; the K* parameters are then the rubber's matrix alone
+    (the filler network's stiffness at vanishing amplitude is ``K_f``). Like ``amplitude`` it is
+    separable from the modulus' frequency dependence only with runs at several levels
+    (:mod:`viscorig.strain` identifies it from the differences between them).
+    """
+
+    keyword = "kraus"
+    requires = ("reference_amplitude",)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return KRAUS_PARAMETERS
+
+    def modify_modulus(self, ctx, p, kstar):
+        return kstar + kraus_stiffness(displacement_amplitude(ctx), p)
 
 
 @register_term

@@ -21,6 +21,7 @@ from viscorig.sequences.segments import (
 )
 from viscorig.sequences.sequence import load_sequence, parse_sequence
 from viscorig.sequences.station import (
+    ChamberStation,
     Channels,
     Sensitivities,
     SpecimenGeometry,
@@ -36,6 +37,7 @@ from viscorig.sequences.steps import (
     Sequence,
     Step,
     SweepStep,
+    TemperatureStep,
     WaitStep,
 )
 
@@ -43,6 +45,7 @@ __all__ = [
     "ANALYSER_MAX_POINTS",
     "DEFAULT_SEGMENT_S",
     "OVER_LIMIT_CHOICES",
+    "ChamberStation",
     "Channels",
     "FileCheckError",
     "IdentifyTableStep",
@@ -55,6 +58,7 @@ __all__ = [
     "Step",
     "SweepStep",
     "TableParameters",
+    "TemperatureStep",
     "WaitStep",
     "load_sequence",
     "load_station",

@@ -92,7 +92,8 @@ class LineIndex:
             array = _ARRAY_TABLE.match(line)
             table = None if array else _TABLE.match(line)
             if array or table:
-                name = _key_parts((array or table)["name"])  # type: ignore[index]
+                parts = _key_parts((array or table)["name"])  # type: ignore[index]
+                name = self._nested(parts, counts)
                 if array:
                     index = counts.get(name, 0)
                     counts[name] = index + 1
@@ -106,6 +107,17 @@ class LineIndex:
                 self.lines.setdefault((*current, *_key_parts(key["key"])), number)
                 change, in_string = _opens(key["value"])
                 depth = max(change, 0)
+
+    @staticmethod
+    def _nested(name: tuple[str, ...], counts: dict[tuple, int]) -> tuple:
+        """A table name inside array tables (``steps.steps``) as a path through the current
+        element of each (``("steps", 4, "steps")``)."""
+        resolved: tuple = ()
+        for part in name[:-1]:
+            resolved = (*resolved, part)
+            if resolved in counts:
+                resolved = (*resolved, counts[resolved] - 1)
+        return (*resolved, name[-1])
 
     def line(self, path: Path) -> int | None:
         """The line of ``path``, or of its closest enclosing table; None when none is known."""

@@ -26,7 +26,9 @@ schema, not this file (a test fails when they differ). -->
 
 A sequence is a TOML file: a name, `[defaults]` for the sweeps, then a list of `[[steps]]` run
 in order. The steps are `prompt` (an instruction to the operator), `wait`, `sweep` (one run,
-measured and stored) and `identify_table`. Check a sequence before taking it to the rig:
+measured and stored), `identify_table`, `temperature` (the chamber to a set point, then a soak)
+and `repeat` (steps written once, measured per temperature and per level). Check a sequence
+before taking it to the rig:
 
 ```
 viscorig check my-test.toml                      # every problem at once, with its line
@@ -100,8 +102,10 @@ batch, until every target is met, the model turns out not to fit (the band is th
 `viscorig diagnose`), or `dwell_limit_s` is reached. `resolution_hz` is the spacing of the
 frequencies it may choose, `settle_cycles` and `integrate_cycles` the most any point may use.
 A specimen plan needs the table (an `identify_table` step after the bare-table sweep, or a
-`[table]` in the station) and, on a station, the shaker's `gain_n_per_v`: each point starts
-the analyser's level controller at the source level it needs.
+`[table]` in the station). Each point starts the analyser's level controller at the source
+level it needs, the force over the shaker's gain: the gain is measured before the run (force
+per source volt at the band's edges, the level controller off) and stored with it; a station's
+`gain_n_per_v` is then a check, with a warning when it disagrees.
 
 ```toml
 [[steps]]

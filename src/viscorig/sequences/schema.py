@@ -215,6 +215,32 @@ class Field:
             targets[str(name)] = number
         return targets
 
+    def _numbers(self, value: object) -> tuple[float, ...]:
+        if not isinstance(value, list) or not value:
+            raise FieldError(f"expected a non-empty array of numbers, got {value!r}",
+                             f"e.g. {self.name} = {self.example}")
+        numbers = []
+        for index, item in enumerate(value):
+            try:
+                numbers.append(self._number(item))
+            except FieldError as error:
+                raise FieldError(f"[{index}]: {error.message}", error.hint) from None
+        if len(set(numbers)) != len(numbers):
+            raise FieldError(f"{value!r} names a value twice", "each value once")
+        return tuple(numbers)
+
+    def _levels(self, value: object) -> tuple[tuple[float, str], ...]:
+        if not isinstance(value, list) or not value:
+            raise FieldError(f"expected a non-empty array of levels, got {value!r}",
+                             f"e.g. {self.name} = {self.example}")
+        levels = []
+        for index, item in enumerate(value):
+            try:
+                levels.append(self._level(item))
+            except FieldError as error:
+                raise FieldError(f"[{index}]: {error.message}", error.hint) from None
+        return tuple(levels)
+
     def _level(self, value: object) -> tuple[float, str]:
         try:
             level = parse_level(value)  # type: ignore[arg-type]
@@ -232,13 +258,14 @@ class Field:
         return {
             "text": "text", "name": "text", "boolean": "true/false", "integer": "whole number",
             "number": "number", "band": "[low, high]", "level": "text: number and unit",
-            "targets": "table: name = number",
+            "targets": "table: name = number", "numbers": "array of numbers",
+            "levels": "array of texts: number and unit",
             "choice": " | ".join(f'"{choice}"' for choice in self.choices),
         }[self.kind]
 
     def unit_text(self) -> str:
         """The unit as the reference shows it."""
-        if self.kind == "level":
+        if self.kind in ("level", "levels"):
             return "m/s^2, m/s2, m/s², mm/s^2, g, mg; peak unless `rms` follows"
         if self.kind == "band":
             return "Hz"
@@ -264,6 +291,10 @@ class Field:
         """The range as the reference shows it."""
         if self.kind in ("number", "integer"):
             return _interval(self.low, self.high, self.low_open, "")
+        if self.kind == "numbers":
+            return "each " + _interval(self.low, self.high, self.low_open, "")
+        if self.kind == "levels":
+            return f"each (0, {MAX_LEVEL_M_PER_S2:g}] m/s^2 peak"
         if self.kind == "targets":
             return "each " + _interval(self.low, self.high, True, "")
         if self.kind == "band":
@@ -480,9 +511,56 @@ IDENTIFY_TABLE = TableSchema("identify_table", "Identify the table's M_s, K_s, C
           example="[15.0, 25.0]"),
 ))
 
+#: The coldest and hottest set point any chamber step may name (the station's limits narrow it).
+MIN_SET_POINT_C = -100.0
+MAX_SET_POINT_C = 300.0
+
+
+def _soak_fields() -> tuple[Field, ...]:
+    return (
+        Field("ramp_c_per_min", "number", "Rate at which the controller moves its set point "
+              "(its set-point rate limit); 0 jumps to the set point.", default=0.0,
+              unit="°C/min", low=0.0, high=100.0, example="2.0"),
+        Field("soak_band_k", "number", "The specimen is soaked when its thermocouple stays "
+              "within ± this of the set point; later points outside the band are flagged "
+              "(flag 16).", default=1.0, unit="K", low=0.0, low_open=True, high=20.0,
+              example="0.5"),
+        Field("soak_minutes", "number", "How long the specimen must stay within the band "
+              "before the next step.", default=10.0, unit="min", low=0.0, high=1440.0,
+              example="10"),
+        Field("time_limit_minutes", "number", "The chamber fault is declared (exit 3, the "
+              "chamber set to the station's safe set point) when the soak is not done by "
+              "then.", default=240.0, unit="min", low=0.0, low_open=True, high=10_080.0,
+              example="120"),
+    )
+
+
+TEMPERATURE = TableSchema("temperature", "Bring the specimens to a temperature: write the "
+                          "chamber's set point (within the station's limits), ramp, and wait "
+                          "until the specimen's own thermocouple has stayed in the soak band "
+                          "for the soak time.", (
+    Field("set_point_c", "number", "The temperature wanted at the specimen.", unit="°C",
+          low=MIN_SET_POINT_C, high=MAX_SET_POINT_C, example="-20.0"),
+    *_soak_fields(),
+))
+REPEAT = TableSchema("repeat", "Repeat the steps of its own `[[steps.steps]]` list for each "
+                     "temperature of `temperatures_c` (a temperature step before each round, "
+                     "with this table's ramp and soak) and/or each level of `levels` (the "
+                     "sweeps' level). In the inner steps' text, `{temperature_c}` and "
+                     "`{level_index}` (1, 2, ...) are replaced, so each run gets its own name; "
+                     "each sweep records the round's set point as its `temperature_c`. With "
+                     "both lists, levels repeat inside each temperature.", (
+    Field("temperatures_c", "numbers", "Set points, in the order measured.", default=None,
+          unit="°C", low=MIN_SET_POINT_C, high=MAX_SET_POINT_C,
+          example="[-20.0, 0.0, 25.0, 50.0]"),
+    Field("levels", "levels", "Reference levels of the sweeps (strain amplitudes), in the "
+          "order measured.", default=None, example='["0.5 m/s^2", "2 m/s^2", "6 m/s^2"]'),
+    *_soak_fields(),
+))
+
 #: Every step type, by the ``type`` that names it.
 STEP_TYPES: dict[str, TableSchema] = {
-    schema.name: schema for schema in (PROMPT, WAIT, SWEEP, IDENTIFY_TABLE)
+    schema.name: schema for schema in (PROMPT, WAIT, SWEEP, IDENTIFY_TABLE, TEMPERATURE, REPEAT)
 }
 
 SEQUENCE = TableSchema("sequence", "The top level of a sequence file.", (
@@ -532,7 +610,8 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
         Field("force_limit_n", "number", "Peak force the shaker may give.", unit="N", low=0.0,
               high=1e5, low_open=True, example="100.0"),
         Field("gain_n_per_v", "number", "Force per source volt, if known: the source limit is "
-              "then capped at force_limit_n / gain_n_per_v.", default=None, unit="N/V",
+              "then capped at force_limit_n / gain_n_per_v. Adaptive plans measure it before "
+              "each run and check this value against it.", default=None, unit="N/V",
               low=0.0, high=1e6, low_open=True, example="50.0"),
     )),
     TableSchema("source", "The analyser's source.", (
@@ -547,6 +626,37 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
               low_open=True, example="50194.0"),
         Field("damping_ns_per_m", "number", "C_s.", unit="N s/m", low=0.0, high=1e7,
               example="5.05"),
+    ), required=False),
+    TableSchema("chamber", "Optional: the temperature chamber's controller (a Eurotherm "
+                "3200-class controller over Modbus RTU or TCP); needed by temperature steps.", (
+        Field("address", "text", "Modbus TCP `tcp://HOST:PORT` or the serial port of the RTU "
+              "line.", example='"/dev/ttyUSB0"'),
+        Field("unit", "integer", "Modbus unit address of the controller.", default=1, low=1,
+              high=247, example="1"),
+        Field("specimen_unit", "integer", "Unit address of a second 3200 whose thermocouple is "
+              "on the specimens; without it the chamber's own thermocouple stands for them.",
+              default=None, low=1, high=247, example="2"),
+        Field("baudrate", "integer", "RTU line speed (8 data bits, no parity, 1 stop bit).",
+              default=19200, low=1200, high=115200, example="19200"),
+        Field("decimals", "integer", "Decimal places the controllers are configured for (their "
+              "values are integers scaled by them): 1 is 0.1 °C, 2 is 0.01 °C.", default=1,
+              low=0, high=2, example="2"),
+        Field("low_limit_c", "number", "No set point below this is ever written.",
+              unit="°C", low=MIN_SET_POINT_C, high=MAX_SET_POINT_C, example="-40.0"),
+        Field("high_limit_c", "number", "No set point above this is ever written.",
+              unit="°C", low=MIN_SET_POINT_C, high=MAX_SET_POINT_C, example="90.0"),
+        Field("safe_set_point_c", "number", "Where the chamber is left when a sequence ends, "
+              "is interrupted or fails.", unit="°C", low=MIN_SET_POINT_C, high=MAX_SET_POINT_C,
+              example="25.0"),
+        Field("specimen_time_constant_s", "number", "How slowly the specimens follow the air "
+              "(first-order lag), for `viscorig plan`'s soak times.", default=600.0, unit="s",
+              low=0.0, high=86_400.0, example="600"),
+        Field("heating_rate_k_per_min", "number", "How fast the chamber's air can heat, for "
+              "`viscorig plan`'s soak times (not set: as fast as the ramp asks).", default=None,
+              unit="K/min", low=0.0, low_open=True, high=1000.0, example="5.0"),
+        Field("cooling_rate_k_per_min", "number", "How fast the chamber's air can cool (as "
+              "heating_rate_k_per_min).", default=None, unit="K/min", low=0.0, low_open=True,
+              high=1000.0, example="3.0"),
     ), required=False),
     TableSchema("specimen", "Optional: specimen geometry, for E' = Re(K*)/θ in reports.", (
         Field("diameter_m", "number", "Cylinder diameter.", unit="m", low=0.0, high=1.0,

@@ -10,7 +10,7 @@
     level = "1.4 m/s^2"
 
     [[steps]]
-    type = "prompt"            # prompt | wait | sweep | identify_table
+    type = "prompt"            # prompt | wait | sweep | identify_table | temperature | repeat
     message = "Mount the soft specimens, no preload."
     simulated_rig = "soft-0"
 
@@ -35,7 +35,8 @@ from typing import Any
 
 from viscorig.errors import InputError
 from viscorig.sequences import schema, segments
-from viscorig.sequences.problems import Problems, did_you_mean
+from viscorig.sequences.problems import Problems, did_you_mean, field_name
+from viscorig.sequences.repeat import expand
 from viscorig.sequences.schema import (
     DEFAULTS,
     SEQUENCE,
@@ -51,6 +52,7 @@ from viscorig.sequences.steps import (
     Sequence,
     Step,
     SweepStep,
+    TemperatureStep,
     WaitStep,
 )
 
@@ -126,17 +128,17 @@ def parse_sequence(text: str, source: str = "sequence") -> Sequence:
         raw_steps = []
 
     steps: list[Step | _Unread | None] = []
-    run_steps: dict[str, int] = {}
-    for index, raw in enumerate(raw_steps):
-        step = _parse_step(problems, index, raw, defaults, steps)
+    run_steps: dict[str, str] = {}
+    for path, raw in expand(problems, raw_steps):
+        step = _parse_step(problems, path, raw, defaults, steps)
         if step is None and isinstance(raw, Mapping) and raw.get("type") == "sweep":
             steps.append(_Unread(raw.get("run")))  # no second problem about its run
             continue
         if isinstance(step, SweepStep):
             if step.run in run_steps:
-                problems.add(("steps", index, "run"), f"duplicate run name {step.run!r} (also "
-                             f"steps[{run_steps[step.run]}])")
-            run_steps.setdefault(step.run, index)
+                problems.add((*path, "run"), f"duplicate run name {step.run!r} (also "
+                             f"{run_steps[step.run]})")
+            run_steps.setdefault(step.run, field_name(path))
         steps.append(step)
     problems.raise_if_any()
     return Sequence(name=top["name"], description=top["description"],
@@ -166,9 +168,8 @@ def _check_defaults(problems: Problems, defaults: Mapping[str, Any]) -> None:
         problems.add(("defaults", key), "unknown default", hint)
 
 
-def _parse_step(problems: Problems, index: int, raw: object, defaults: Mapping[str, Any],
+def _parse_step(problems: Problems, path: tuple, raw: object, defaults: Mapping[str, Any],
                 before: list[Step | _Unread | None]) -> Step | None:
-    path = ("steps", index)
     if not isinstance(raw, Mapping):
         problems.add(path, f"expected a table, got {schema.kind_name(raw)}")
         return None
@@ -195,6 +196,8 @@ def _parse_step(problems: Problems, index: int, raw: object, defaults: Mapping[s
         return None
     if kind == "prompt":
         return PromptStep(message=fields["message"], simulated_rig=fields["simulated_rig"])
+    if kind == "temperature":
+        return TemperatureStep(**fields.values, origin=path)
     return WaitStep(seconds=fields["seconds"], message=fields["message"])
 
 

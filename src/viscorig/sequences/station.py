@@ -29,6 +29,14 @@
     stiffness_n_per_m = 50194.0
     damping_ns_per_m = 5.05
 
+    [chamber]                  # optional: a Eurotherm 3200-class chamber controller (Modbus)
+    address = "/dev/ttyUSB1"   # or "tcp://192.168.1.30:502"
+    unit = 1
+    specimen_unit = 2          # optional: a second 3200 reading the specimen thermocouple
+    low_limit_c = -40.0
+    high_limit_c = 90.0
+    safe_set_point_c = 25.0
+
     [specimen]                 # optional geometry
     diameter_m = 0.02
     height_m = 0.012
@@ -37,6 +45,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +54,8 @@ from viscorig.sequences.problems import Problems
 from viscorig.sequences.schema import STATION_SECTIONS, STATION_TOP, ReadTable, read_table
 from viscorig.sequences.sequence import parse_toml, read_text
 
+#: A chamber controller's address: Modbus TCP, or a serial port (a path or COMn).
+CHAMBER_ADDRESS = re.compile(r"^(tcp://[^\s:/]+(:\d{1,5})?|/\S+|COM\d+)$")
 #: The analyser's source output limit, V peak.
 SOURCE_MAX_V = 5.0
 
@@ -90,6 +101,35 @@ class SpecimenGeometry:
 
 
 @dataclass(frozen=True)
+class ChamberStation:
+    """The temperature chamber's controller (``[chamber]``)."""
+
+    address: str
+    low_limit_c: float
+    high_limit_c: float
+    safe_set_point_c: float
+    unit: int = 1
+    specimen_unit: int | None = None
+    baudrate: int = 19200
+    decimals: int = 1
+    specimen_time_constant_s: float = 600.0
+    heating_rate_k_per_min: float | None = None
+    cooling_rate_k_per_min: float | None = None
+
+    def soak_forecast(self) -> dict[str, float | None]:
+        """What a soak's forecast needs to know of the chamber
+        (:func:`viscorig.acquisition.forecast_sequence`'s keywords)."""
+        return {"chamber_start_c": self.safe_set_point_c,
+                "specimen_time_constant_s": self.specimen_time_constant_s,
+                "heating_rate_k_per_min": self.heating_rate_k_per_min,
+                "cooling_rate_k_per_min": self.cooling_rate_k_per_min}
+
+    def allows(self, temperature_c: float) -> bool:
+        """Is a set point within the station's limits?"""
+        return self.low_limit_c <= temperature_c <= self.high_limit_c
+
+
+@dataclass(frozen=True)
 class Station:
     """A validated station file."""
 
@@ -102,6 +142,7 @@ class Station:
     adapter: str | None = None
     table: TableParameters | None = None
     specimen: SpecimenGeometry | None = None
+    chamber: ChamberStation | None = None
     source: str = ""
 
     def rig_attributes(self) -> dict[str, float | int]:
@@ -163,6 +204,7 @@ def parse_station(text: str, source: str = "station") -> Station:
         sections[section.name] = read_table(problems, (section.name,), document[section.name],
                                             section)
     _check_channels(problems, sections["channels"])
+    _check_chamber(problems, sections["chamber"])
     problems.raise_if_any()
     return _station(top, sections, source)
 
@@ -184,12 +226,32 @@ def _check_channels(problems: Problems, channels: ReadTable | None) -> None:
             )
 
 
+def _check_chamber(problems: Problems, chamber: ReadTable | None) -> None:
+    if chamber is None or not chamber.ok:
+        return
+    values = chamber.values
+    if not CHAMBER_ADDRESS.match(values["address"]):
+        problems.add(("chamber", "address"), f"{values['address']!r} is neither "
+                     "tcp://HOST:PORT nor a serial port", 'e.g. address = "/dev/ttyUSB1"')
+    low, high = values["low_limit_c"], values["high_limit_c"]
+    if low >= high:
+        problems.add(("chamber", "high_limit_c"), f"{high:g} °C is not above low_limit_c "
+                     f"{low:g} °C")
+    elif not low <= values["safe_set_point_c"] <= high:
+        problems.add(("chamber", "safe_set_point_c"), f"{values['safe_set_point_c']:g} °C is "
+                     f"outside the limits [{low:g}, {high:g}] °C")
+    if values["specimen_unit"] is not None and values["specimen_unit"] == values["unit"]:
+        problems.add(("chamber", "specimen_unit"), "the same unit as the controller",
+                     "leave specimen_unit out when the controller's thermocouple is the only one")
+
+
 def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
     values = {name: (None if table is None else table.values)
               for name, table in sections.items()}
     shaker, limits = values["shaker"], values["source"]
     table = values["table"]
     specimen = values["specimen"]
+    chamber = values["chamber"]
     return Station(
         resource=top["resource"],
         adapter=top.values["adapter"],
@@ -200,5 +262,6 @@ def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
         source_limit_v=limits["limit_v"],
         table=None if table is None else TableParameters(**table),
         specimen=None if specimen is None else SpecimenGeometry(**specimen),
+        chamber=None if chamber is None else ChamberStation(**chamber),
         source=source,
     )

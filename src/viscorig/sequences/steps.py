@@ -7,7 +7,7 @@ plans: each step does one thing. The runner interprets them; these classes only 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -135,7 +135,52 @@ class IdentifyTableStep:
     band_hz: tuple[float, float] | None = None
 
 
-Step = PromptStep | WaitStep | SweepStep | IdentifyTableStep
+@dataclass(frozen=True)
+class TemperatureStep:
+    """Bring the specimens to ``set_point_c``: write the set point and its ramp, then wait until
+    the specimen thermocouple has stayed within ``± soak_band_k`` for ``soak_minutes``
+    (a chamber fault after ``time_limit_minutes``)."""
+
+    set_point_c: float
+    ramp_c_per_min: float = 0.0
+    soak_band_k: float = 1.0
+    soak_minutes: float = 10.0
+    time_limit_minutes: float = 240.0
+    origin: tuple = field(default=(), compare=False, repr=False)
+    """Where the step is written in its file (a repeat's table for the steps it unrolls)."""
+
+    @property
+    def soak_s(self) -> float:
+        return 60.0 * self.soak_minutes
+
+    @property
+    def time_limit_s(self) -> float:
+        return 60.0 * self.time_limit_minutes
+
+    def duration_s(self, from_c: float, specimen_time_constant_s: float,
+                   heating_rate_k_per_min: float | None = None,
+                   cooling_rate_k_per_min: float | None = None) -> float:
+        """Predicted time of the step from a specimen at ``from_c``, s.
+
+        The air moves at the slower of the ramp and the chamber's heating or cooling rate
+        (``None``: as fast as asked); the specimens follow it with their time constant ``τ``,
+        trailing a moving air by ``rate τ``, so after the air arrives they still need
+        ``τ ln(min(gap, rate τ) / band)`` to come within the band; then the soak.
+        """
+        gap = abs(self.set_point_c - from_c)
+        rates = [rate for rate in (self.ramp_c_per_min,
+                                   heating_rate_k_per_min if self.set_point_c > from_c
+                                   else cooling_rate_k_per_min)
+                 if rate is not None and rate > 0.0]
+        rate_k_per_s = min(rates) / 60.0 if rates else math.inf
+        ramp = gap / rate_k_per_s if math.isfinite(rate_k_per_s) else 0.0
+        trailing = min(gap, rate_k_per_s * specimen_time_constant_s)
+        lag = (specimen_time_constant_s * math.log(trailing / self.soak_band_k)
+               if trailing > self.soak_band_k else 0.0)
+        return ramp + lag + self.soak_s
+
+
+Step = PromptStep | WaitStep | SweepStep | IdentifyTableStep | TemperatureStep
 
 
 @dataclass(frozen=True)
@@ -152,6 +197,11 @@ class Sequence:
     def sweeps(self) -> tuple[SweepStep, ...]:
         """The sweep steps, in order."""
         return tuple(step for step in self.steps if isinstance(step, SweepStep))
+
+    @property
+    def soaks(self) -> tuple[TemperatureStep, ...]:
+        """The temperature steps, in order."""
+        return tuple(step for step in self.steps if isinstance(step, TemperatureStep))
 
     @property
     def run_names(self) -> tuple[str, ...]:

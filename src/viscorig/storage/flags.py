@@ -23,12 +23,16 @@ class PointFlag(enum.IntFlag):
     """The source output sat at its voltage limit."""
     FORCE_ABOVE_SHAKER_LIMIT = 8
     """The measured shaker force exceeded the station's shaker force limit."""
+    OUTSIDE_SOAK_BAND = 16
+    """The specimen temperature was outside the soak band of the last temperature step (an
+    extension of the layout, docs/temperature.md)."""
 
 
 LEVEL_NOT_REACHED = PointFlag.LEVEL_NOT_REACHED
 INPUT_OVERLOAD = PointFlag.INPUT_OVERLOAD
 SOURCE_AT_LIMIT = PointFlag.SOURCE_AT_LIMIT
 FORCE_ABOVE_SHAKER_LIMIT = PointFlag.FORCE_ABOVE_SHAKER_LIMIT
+OUTSIDE_SOAK_BAND = PointFlag.OUTSIDE_SOAK_BAND
 
 #: Short names used in listings, in bit order.
 FLAG_NAMES: dict[PointFlag, str] = {
@@ -36,6 +40,7 @@ FLAG_NAMES: dict[PointFlag, str] = {
     PointFlag.INPUT_OVERLOAD: "input overload",
     PointFlag.SOURCE_AT_LIMIT: "source at limit",
     PointFlag.FORCE_ABOVE_SHAKER_LIMIT: "force above shaker limit",
+    PointFlag.OUTSIDE_SOAK_BAND: "outside the soak band",
 }
 
 

@@ -13,6 +13,7 @@ the run's own record of the limits it ran under.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -28,6 +29,7 @@ from viscorig.errors import InputError
 from viscorig.sequences import (
     Sequence,
     SweepStep,
+    TemperatureStep,
     WaitStep,
     parse_sequence,
     parse_station,
@@ -124,6 +126,25 @@ def _run_state(run: Run, step: SweepStep | None, limits: dict[str, float],
         }
 
 
+def _soaks_left(campaign: Campaign, sequence: Sequence, after: int) -> float:
+    """Predicted time of the soaks after step ``after`` (the last sweep started), s: the
+    station's chamber where the file holds a station, else the forecast's defaults."""
+    keywords: dict = {}
+    if campaign.station_text is not None:
+        with contextlib.suppress(InputError):
+            chamber = parse_station(campaign.station_text, source="station").chamber
+            keywords = {} if chamber is None else chamber.soak_forecast()
+    temperature = keywords.pop("chamber_start_c", 25.0)
+    left = 0.0
+    for index, step in enumerate(sequence.steps):
+        if isinstance(step, TemperatureStep):
+            if index > after:
+                left += step.duration_s(temperature, **{
+                    "specimen_time_constant_s": 600.0, **keywords})
+            temperature = step.set_point_c
+    return left
+
+
 def _station_limit(campaign: Campaign) -> float | None:
     text = campaign.station_text
     if text is None:
@@ -171,6 +192,9 @@ def read_snapshot(path: Path) -> dict[str, Any]:
     if to_come and sequence is not None:
         first_to_come = sequence.steps.index(to_come[0])
         left += sum(step.seconds for step in waits if sequence.steps.index(step) > first_to_come)
+        started = [sequence.steps.index(step) for step in sequence.sweeps
+                   if step.run in by_name]
+        left += _soaks_left(campaign, sequence, max(started, default=-1))
     simulated = bool(runs) and runs[-1]["simulated"]
     current = next((run for run in runs if run["status"] == "running"), None)
     state, detail = _campaign_state(runs, current, to_come)

@@ -372,15 +372,31 @@ def _pair_answer(call: Call, value: tuple[float, str]) -> str:
     return _unit_answer(call, value[1]) if call.params else format_real(float(value[0]))
 
 
+#: The unit of a bare number sent to ``SWE:DWEL`` and ``SWE:STIM``: seconds. The programming
+#: guide lists ``[S|CYCLE]`` with no word on a number without a unit; S is inferred (the first
+#: unit listed, as ``VOLT:RANG``'s documented default ``DBVRMS`` is, and SCPI's own unit of
+#: ``SWEep:DWELl``, a command the guide marks "SCPI compliance: confirmed").
+TIMING_DEFAULT_UNIT = "S"
+
+
 def _timing_setter(a: Host, name: str, limits: dict[str, tuple[float, float]],
                    floor_cycle: bool) -> Callable[[Call], None]:
-    """``SWE:DWEL`` / ``SWE:STIM``: a time in seconds or cycles with per-unit limits."""
+    """``SWE:DWEL`` / ``SWE:STIM``: a time in seconds or cycles with per-unit limits.
+
+    A number without a unit is in seconds (:data:`TIMING_DEFAULT_UNIT`, see
+    docs/virtual-analyser.md), whatever unit was in use; a step or bound keeps the unit in use.
+    """
 
     def setter(call: Call) -> None:
         _check_mode(a, SINE_ONLY, MODE_CONFLICT, "1D2")
         q = parse_quantity(one(call), ("S", "CYCLE"))
         value, unit = a.store.get(name)
-        new_unit = q.unit or unit
+        if q.unit:
+            new_unit = q.unit
+        elif q.keyword is None:
+            new_unit = TIMING_DEFAULT_UNIT
+        else:
+            new_unit = unit
         lo, hi = limits[new_unit]
         if q.keyword in ("MAX", "MIN"):
             new = hi if q.keyword == "MAX" else lo

@@ -1,0 +1,175 @@
+"""The strain-amplitude dependence of a specimen (Payne effect, Kraus's model) from runs of the
+same specimen at several levels, with standard errors.
+
+At constant acceleration a run's displacement amplitude falls as 1/f², so within one run the
+amplitude dependence looks like frequency dependence. Between runs at different levels the
+frequencies are the same and only the amplitude differs: the difference of their K* (Eq. 5,
+``K* = F_v/X_v + ω² M_v``; ``M_v`` cancels, and so does the matrix rubber, whatever its model)
+is the difference of the filler network's stiffness at the two amplitudes,
+``K_f(x_a) − K_f(x_b)`` of :func:`viscorig.models.effects.kraus_stiffness`. Those differences,
+at every frequency common to the runs and against the run at the lowest level, are fitted by
+weighted least squares (weights from the analyser's normalized variance of the support FRF);
+standard errors from the Jacobian, scaled by the reduced chi-square.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.models.effects import KRAUS_PARAMETERS, kraus_stiffness
+from viscorig.storage import Campaign
+
+__all__ = ["PayneFit", "identify_payne"]
+
+
+@dataclass(frozen=True)
+class PayneFit:
+    """What :func:`identify_payne` found.
+
+    Attributes
+    ----------
+    runs
+        The runs, lowest level first (the reference of the differences).
+    parameters
+        name -> (value, standard error, unit): ``K_f``, ``L_f``, ``x_c``, ``m_k``.
+    points
+        Differences fitted (complex values).
+    reduced_chi_square
+        Of the weighted fit (1 when the misfit is the noise).
+    displacement_range_m
+        Smallest and largest displacement amplitude of the runs.
+    """
+
+    runs: tuple[str, ...]
+    parameters: dict[str, tuple[float, float, str]]
+    points: int
+    reduced_chi_square: float
+    displacement_range_m: tuple[float, float]
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "runs": list(self.runs), "model": "kraus", "points": self.points,
+            "reduced_chi_square": self.reduced_chi_square,
+            "displacement_range_m": list(self.displacement_range_m),
+            "parameters": {name: {"value": value, "stderr": stderr, "unit": unit}
+                           for name, (value, stderr, unit) in self.parameters.items()},
+        }
+
+
+@dataclass(frozen=True)
+class _Level:
+    name: str
+    frequency_hz: NDArray[np.float64]
+    kstar_difference_base: NDArray[np.complex128]  # F_v / X_v  (M_v cancels in differences)
+    sigma: NDArray[np.float64]
+    displacement_m: NDArray[np.float64]
+
+
+def _level(campaign: Campaign, name: str, band_hz: tuple[float, float] | None) -> _Level:
+    run = campaign.run(name)
+    if run.points == 0:
+        raise InputError("has no points", f"{campaign.path}: run {name}")
+    support = np.asarray(run.accelerance_support, dtype=complex)
+    if not np.any(np.isfinite(support)):
+        raise InputError("has no support FRF (a bare-table run?)", f"{campaign.path}: run {name}")
+    f = np.asarray(run.frequency_hz, dtype=float)
+    keep = np.isfinite(support) & (np.abs(support) > 0) & (run.flags == 0)
+    if band_hz is not None:
+        keep &= (f >= band_hz[0]) & (f <= band_hz[1])
+    omega = 2.0 * np.pi * f
+    dynamic = -(omega**2) / np.where(keep, support, 1.0)
+    variance = (np.full(f.size, np.nan) if run.variance_support is None
+                else np.asarray(run.variance_support, dtype=float))
+    sigma = np.abs(dynamic) * np.sqrt(np.where(np.isfinite(variance), variance, np.nan))
+    displacement = np.abs(np.asarray(run.reference_amplitude, dtype=float)) / omega**2
+    return _Level(name, f[keep], dynamic[keep], sigma[keep], displacement[keep])
+
+
+def identify_payne(campaign: Campaign, runs: Sequence[str],
+                   band_hz: tuple[float, float] | None = None) -> PayneFit:
+    """Identify Kraus's Payne-effect parameters from runs of one specimen at several levels
+    (module text).
+
+    Parameters
+    ----------
+    campaign
+        The campaign file.
+    runs
+        Two or more runs of the same specimen, at the same temperature, at different levels.
+    band_hz
+        Fit only this band.
+
+    Raises
+    ------
+    InputError
+        Fewer than two runs, no common frequency, a run without support FRF.
+    """
+    from scipy.optimize import least_squares
+
+    if len(set(runs)) < 2:
+        raise InputError("needs two or more runs at different levels", "runs")
+    levels = [_level(campaign, name, band_hz) for name in dict.fromkeys(runs)]
+    levels.sort(key=lambda level: float(np.median(level.displacement_m)))
+    base = levels[0]
+    pairs = []
+    for other in levels[1:]:
+        common, i, j = np.intersect1d(np.round(base.frequency_hz, 6),
+                                      np.round(other.frequency_hz, 6), return_indices=True)
+        if common.size == 0:
+            raise InputError(f"no frequency in common with run {base.name!r}",
+                             f"{campaign.path}: run {other.name}")
+        pairs.append((base.displacement_m[i], other.displacement_m[j],
+                      other.kstar_difference_base[j] - base.kstar_difference_base[i],
+                      np.hypot(base.sigma[i], other.sigma[j])))
+    x_low = np.concatenate([pair[0] for pair in pairs])
+    x_high = np.concatenate([pair[1] for pair in pairs])
+    measured = np.concatenate([pair[2] for pair in pairs])
+    sigma = np.concatenate([pair[3] for pair in pairs]) / math.sqrt(2.0)  # per component
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        sigma = np.full(measured.size, float(np.std(measured)) or 1.0)
+    names = [p.name for p in KRAUS_PARAMETERS]
+
+    def unpack(theta: NDArray[np.float64]) -> dict[str, float]:
+        return {"K_f": math.exp(theta[0]), "L_f": math.exp(theta[1]),
+                "x_c": math.exp(theta[2]), "m_k": float(theta[3])}
+
+    def residual(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        p = unpack(theta)
+        model = kraus_stiffness(x_high, p) - kraus_stiffness(x_low, p)
+        error = (model - measured) / sigma
+        return np.concatenate([error.real, error.imag])
+
+    span = float(np.max(np.abs(measured.real))) or 1.0
+    best = None
+    for x_c in np.geomspace(max(x_low.min(), 1e-8), x_high.max(), 5):
+        for m in (0.5, 1.0, 1.5):
+            start = np.array([math.log(2 * span), math.log(0.2 * span), math.log(x_c), m])
+            fit = least_squares(residual, start, method="trf", x_scale="jac",
+                                bounds=([math.log(1.0), math.log(1e-2), math.log(1e-8), 0.1],
+                                        [math.log(1e8), math.log(1e8), math.log(1e-2), 4.0]))
+            if best is None or fit.cost < best.cost:
+                best = fit
+    assert best is not None
+    dof = max(best.fun.size - best.x.size, 1)
+    chi2 = float(2.0 * best.cost / dof)
+    jac = best.jac
+    covariance = np.linalg.pinv(jac.T @ jac) * max(chi2, 1e-300)
+    theta_err = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    values = unpack(best.x)
+    # log-parameters: stderr of the value is value * stderr of its logarithm
+    errors = {"K_f": values["K_f"] * theta_err[0], "L_f": values["L_f"] * theta_err[1],
+              "x_c": values["x_c"] * theta_err[2], "m_k": float(theta_err[3])}
+    units = {p.name: p.unit for p in KRAUS_PARAMETERS}
+    displacement = np.concatenate([x_low, x_high])
+    return PayneFit(
+        runs=tuple(level.name for level in levels),
+        parameters={name: (values[name], errors[name], units[name]) for name in names},
+        points=int(measured.size), reduced_chi_square=chi2,
+        displacement_range_m=(float(displacement.min()), float(displacement.max())),
+    )

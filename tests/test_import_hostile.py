@@ -1,0 +1,199 @@
+"""`viscorig import` against hand-made hostile FRF files: values that are not finite, rows from
+high to low frequency, a frequency given twice.
+
+The CSV files are written here with the standard library from a Voigt rig computed here (no
+project code makes them); the UFF files are a valid export changed the way another tool could
+write them. Each refusal must be one line naming the row (and the column) with exit status 2,
+leaving no campaign file behind; a file in falling frequency order must be stored rising.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyuff
+from campaigndata import paper_campaign
+from reliability_campaign import cli, one_clear_line
+
+from viscorig.exchange.uff import uff_records
+from viscorig.storage import Campaign
+
+HEADER = ["frequency_hz", "time_s", "accelerance_table_real_m_per_s2_per_n",
+          "accelerance_table_imag_m_per_s2_per_n", "accelerance_support_real_m_per_s2_per_n",
+          "accelerance_support_imag_m_per_s2_per_n", "flags"]
+F = np.linspace(20.0, 120.0, 401)
+
+
+def _voigt_rows(frequency_hz: np.ndarray) -> list[list[str]]:
+    """Rows of a table on a Voigt damper (the paper's soft damper's order of magnitude)."""
+    omega = 2 * np.pi * frequency_hz
+    k, c, m_s, m_v = 150e3, 115.0, 3.4, 0.25
+    support = -(omega**2) / (k + 1j * omega * c - omega**2 * m_v)
+    table = -(omega**2) / (50e3 + k + 1j * omega * (5.0 + c) - omega**2 * (m_s + m_v))
+    return [[repr(float(f)), "", *(repr(float(v)) for v in (t.real, t.imag, s.real, s.imag)),
+             "0"]
+            for f, t, s in zip(frequency_hz, table, support, strict=True)]
+
+
+def _write(path: Path, rows: list[list[str]]) -> Path:
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(HEADER)
+        writer.writerows(rows)
+    return path
+
+
+def _import(tmp_path: Path, *source: object, run: str = "x"):
+    return cli(["import", tmp_path / "c.h5", "--run", run, *source, "--specimen", "soft"])
+
+
+def test_a_csv_of_nan_values_is_refused_naming_the_row_and_column(tmp_path: Path) -> None:
+    rows = [[row[0], "", "nan", "nan", "nan", "nan", "0"] for row in _voigt_rows(F)]
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "nan.csv", rows))
+    line = one_clear_line(err)
+    assert status == 2
+    assert "nan.csv:2: accelerance_table_real_m_per_s2_per_n is 'nan'" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+@pytest.mark.parametrize(("column", "text"), [(3, "inf"), (4, "-inf"), (5, "NaN"), (1, "inf")])
+def test_one_non_finite_cell_is_refused_naming_its_row(tmp_path: Path, column: int,
+                                                       text: str) -> None:
+    rows = _voigt_rows(F)
+    rows[56][column] = text
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "one.csv", rows))
+    line = one_clear_line(err)
+    assert status == 2
+    assert f"one.csv:58: {HEADER[column]} is '{text}'" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_rows_from_high_to_low_frequency_are_stored_rising(tmp_path: Path) -> None:
+    rows = _voigt_rows(F)
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "down.csv", rows[::-1]))
+    assert status == 0, err
+    run = Campaign.open(tmp_path / "c.h5").run("x")
+    assert np.all(np.diff(run.frequency_hz) > 0)
+    np.testing.assert_array_equal(run.frequency_hz, F)
+    expected = np.array([complex(float(r[2]), float(r[3])) for r in rows])
+    np.testing.assert_array_equal(run.accelerance_table, expected)
+    assert run.metadata.direction == "down"  # the order the file listed them in
+
+
+def test_rows_in_no_order_are_stored_rising(tmp_path: Path) -> None:
+    rows = _voigt_rows(F)
+    shuffled = [rows[i] for i in np.random.default_rng(1).permutation(len(rows))]
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "mixed.csv", shuffled))
+    assert status == 0, err
+    run = Campaign.open(tmp_path / "c.h5").run("x")
+    np.testing.assert_array_equal(run.frequency_hz, F)
+
+
+def test_a_frequency_given_twice_is_refused_naming_both_rows(tmp_path: Path) -> None:
+    rows = _voigt_rows(F)
+    rows.insert(300, list(rows[10]))
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "twice.csv", rows))
+    line = one_clear_line(err)
+    assert status == 2
+    assert f"frequency {F[10]:g} Hz is given twice (lines 12 and 302)" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("campaign") / "paper.h5"
+    paper_campaign(path, runs=("soft-0",))
+    return path
+
+
+def _uff(tmp_path: Path, campaign_file: Path, change) -> Path:
+    run = Campaign.open(campaign_file).run("soft-0")
+    records = uff_records(run)
+    change(records)
+    path = tmp_path / "changed.uff"
+    pyuff.UFF(str(path)).write_sets(records, mode="overwrite")
+    return path
+
+
+def test_a_uff_frf_with_a_nan_point_is_refused_naming_the_point(tmp_path: Path,
+                                                                  campaign_file: Path) -> None:
+    # pyuff writes NaN as 0: the NaN is put in the ASCII text, as an editor or a tool could
+    run = Campaign.open(campaign_file).run("soft-0")
+    path = tmp_path / "nan.uff"
+    pyuff.UFF(str(path)).write_sets(uff_records(run, binary=False), mode="overwrite")
+    lines = path.read_text().splitlines()
+    second = [i for i, line in enumerate(lines) if line.strip() == "58"][1]
+    eighth = next(i for i in range(second, len(lines))
+                  if lines[i].split()[:1] == [f"{run.frequency_hz[7]:.5e}"])
+    lines[eighth] = f"{run.frequency_hz[7]:13.5e}{'NaN':>20}{'NaN':>20}"
+    path.write_text("\n".join(lines) + "\n")
+    status, _, err = _import(tmp_path, "--uff", path)
+    line = one_clear_line(err)
+    assert status == 2
+    assert "1 of 401 values of ẍ_v/F_v are not finite, the first at point 8 of 401" in line, line
+
+
+def test_a_uff_with_a_repeated_frequency_is_refused(tmp_path: Path, campaign_file: Path) -> None:
+    def change(records):
+        for record in records[1:]:
+            x = np.array(record["x"], dtype=float)
+            x[5] = x[4]
+            record["x"] = x
+
+    status, _, err = _import(tmp_path, "--uff", _uff(tmp_path, campaign_file, change))
+    line = one_clear_line(err)
+    assert status == 2 and "is given twice (points 5 and 6 of" in line, line
+
+
+def test_a_uff_from_high_to_low_frequency_is_stored_rising(tmp_path: Path,
+                                                           campaign_file: Path) -> None:
+    def change(records):
+        for record in records[1:]:
+            record["x"] = np.array(record["x"], dtype=float)[::-1]
+            record["data"] = np.array(record["data"], dtype=complex)[::-1]
+            record["abscissa_min"] = float(record["x"][0])
+
+    status, _, err = _import(tmp_path, "--uff", _uff(tmp_path, campaign_file, change))
+    assert status == 0, err
+    stored = Campaign.open(tmp_path / "c.h5").run("x")
+    original = Campaign.open(campaign_file).run("soft-0")
+    assert np.all(np.diff(stored.frequency_hz) > 0)
+    np.testing.assert_allclose(stored.frequency_hz, original.frequency_hz, rtol=1e-5)
+    np.testing.assert_allclose(stored.accelerance_support, original.accelerance_support,
+                               rtol=1e-10)
+
+
+def _sdf(tmp_path: Path, frequency_hz: np.ndarray, table: np.ndarray) -> Path:
+    from sdfwrite import FOUR_CHANNELS, SdfLayout, Trace, sdf_bytes
+
+    path = tmp_path / "FRF.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(frequency_hz, FOUR_CHANNELS, [Trace(1, 0, table)])))
+    return path
+
+
+def _table(frequency_hz: np.ndarray) -> np.ndarray:
+    rows = _voigt_rows(frequency_hz)
+    return np.array([complex(float(r[2]), float(r[3])) for r in rows])
+
+
+def test_an_sdf_response_with_a_nan_point_is_refused_naming_the_point(tmp_path: Path) -> None:
+    table = _table(F)
+    table[12] = complex(np.nan, 0.0)
+    status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, F, table))
+    line = one_clear_line(err)
+    assert status == 2
+    assert f"values of ẍ_s/F_e are not finite, the first at point 13 of 401 ({F[12]:g} Hz)" \
+        in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> None:
+    falling = F[::-1].copy()
+    status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))
+    assert status == 0, err
+    run = Campaign.open(tmp_path / "c.h5").run("x")
+    np.testing.assert_allclose(run.frequency_hz, F, rtol=1e-12)
+    np.testing.assert_allclose(run.accelerance_table, _table(F), rtol=1e-12)
