@@ -14,20 +14,37 @@ an exact model, and with two fixture modes on the disc that the model leaves out
 both runs share), the change's ± from :mod:`viscorig.compare` against the true change, beside
 the rms of error/stderr the two fits would give taken as independent.
 
-Run: ``python studies/coverage.py [REPLICATES] [--changes]`` (default 200; about 40 ms of
-simulation and a few ms of fitting per run: a minute or two per 200 on this machine;
-``--changes`` prints only the table of changes).
+Run: ``python studies/coverage.py [REPLICATES] [--changes] [--jobs N] [--scheduler
+tcp://HOST:PORT]`` (default 200; about 40 ms of simulation and a few ms of fitting per run: a
+minute or two per 200 on this machine; ``--changes`` prints only the table of changes). The
+replicates run in ``N`` local processes (default 1), or on a Dask cluster's workers
+(``pip install "viscorig[dask]"``; ``tests/coverage.py`` and ``tests/simdata.py`` are
+uploaded to them).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from coverage import FIXTURES, NOISES, change_coverage, change_replicate, coverage, replicate
+import coverage as helpers
+from coverage import (
+    FIXTURES,
+    NOISES,
+    change_coverage,
+    change_replicate,
+    coverage,
+    replicate,
+)
+
+from viscorig.executor import DaskExecutor, LocalExecutor, executor
+
+#: Where the replicates run (set by the command line; this process by default).
+WORKERS: LocalExecutor | DaskExecutor = LocalExecutor(1)
 
 
 def changes(replicates: int = 200) -> None:
@@ -40,8 +57,9 @@ def changes(replicates: int = 200) -> None:
     for label, fixtures in (("exact model", None), ("fixture modes left out", FIXTURES)):
         for frfs, text in ((None, "both"), (("table",), "X_s/F_e")):
             start = time.perf_counter()
-            table = change_coverage(change_replicate(NOISES["white"], seed, fixtures, frfs)
-                                    for seed in range(replicates))
+            table = change_coverage(WORKERS.map(
+                change_replicate, [(NOISES["white"], seed, fixtures, frfs)
+                                   for seed in range(replicates)]))
             for name, row in table.items():
                 print(f"| {label} | {text} | {name} | {row['rms_over_floor']:.1f} | "
                       f"{row['within_1']:.0%} | {row['within_2']:.0%} | {row['rms']:.2f} | "
@@ -58,7 +76,8 @@ def main(replicates: int = 200) -> None:
     for label, noise in NOISES.items():
         for frfs, text in ((None, "both"), (("table",), "X_s/F_e")):
             start = time.perf_counter()
-            table = coverage(replicate(noise, seed, frfs) for seed in range(replicates))
+            table = coverage(WORKERS.map(replicate, [(noise, seed, frfs)
+                                                     for seed in range(replicates)]))
             for name, row in table.items():
                 print(f"| {label} | {text} | {name} | {row['within_1']:.0%} | "
                       f"{row['within_2']:.0%} | {row['rms']:.2f} |")
@@ -66,8 +85,17 @@ def main(replicates: int = 200) -> None:
 
 
 if __name__ == "__main__":
-    arguments = [a for a in sys.argv[1:] if a != "--changes"]
-    count = int(arguments[0]) if arguments else 200
-    if "--changes" not in sys.argv:
-        main(count)
-    changes(count)
+    parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
+    parser.add_argument("replicates", type=int, nargs="?", default=200)
+    parser.add_argument("--changes", action="store_true", help="only the table of changes")
+    parser.add_argument("--jobs", type=int, default=1, help="local processes")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run the replicates on this Dask cluster's workers instead")
+    args = parser.parse_args()
+    with executor(args.jobs, args.scheduler) as WORKERS:
+        if isinstance(WORKERS, DaskExecutor):
+            for helper in ("simdata.py", "coverage.py"):  # what the replicates import
+                WORKERS.upload(Path(helpers.__file__).with_name(helper))
+        if not args.changes:
+            main(args.replicates)
+        changes(args.replicates)

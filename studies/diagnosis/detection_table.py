@@ -17,7 +17,9 @@ Run (about an hour on two cores for the full set)::
     python studies/diagnosis/detection_table.py --presets --out studies/diagnosis/results.jsonl
     python studies/diagnosis/detection_table.py --quick          # a few minutes
 
-``--jobs N`` runs N processes; the table is printed as Markdown and written beside ``--out``.
+``--jobs N`` runs N local processes, ``--scheduler tcp://HOST:PORT`` the workers of a Dask
+cluster instead (``pip install "viscorig[dask]"``; this folder's ``heldout.py`` is uploaded to
+them); the table is printed as Markdown and written beside ``--out``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ import heldout  # noqa: E402
 from heldout import EFFECTS, TABLE, Case, clean_cases, detection_cases, measure  # noqa: E402
 
 from viscorig.diagnosis import diagnose  # noqa: E402
+from viscorig.executor import DaskExecutor, executor  # noqa: E402
 from viscorig.fitting import FrfData  # noqa: E402
 
 #: Share of seeds a strength must be found in to count as detected.
@@ -104,7 +107,7 @@ def run_case(case: Case, with_variance: bool | None = None) -> dict:
     }
 
 
-def _run_adaptive(planted: list[Case], jobs: int, log: Path | None) -> list[dict]:
+def _run_adaptive(planted: list[Case], jobs, log: Path | None) -> list[dict]:
     """Planted cases strongest first, one strength of every group (effect, channel, noise) per
     round; a group stops below the first strength found in fewer than 90 % of its seeds (the
     weaker ones are then not run: the table needs only where detection ends)."""
@@ -134,9 +137,10 @@ def _run_adaptive(planted: list[Case], jobs: int, log: Path | None) -> list[dict
     return results
 
 
-def _run_all(cases: list[Case], jobs: int, log: Path | None = None) -> list[dict]:
+def _run_all(cases: list[Case], jobs, log: Path | None = None) -> list[dict]:
     """Every case's result; with ``log`` (JSON lines), results already there are read back and
-    each new one is appended as it comes, so a stopped study resumes where it was."""
+    each new one is appended as it comes, so a stopped study resumes where it was. ``jobs``:
+    a number of local processes, or an executor of :mod:`viscorig.executor`."""
     done: dict[str, dict] = {}
     if log is not None and log.exists():
         for line in log.read_text().splitlines():
@@ -146,22 +150,17 @@ def _run_all(cases: list[Case], jobs: int, log: Path | None = None) -> list[dict
     todo = [case for case in cases if case.name not in done]
     sink = None if log is None else log.open("a")
     try:
-        if jobs <= 1:
-            results = map(run_case, todo)
-            pool = None
-        else:
-            from multiprocessing import get_context
-
-            pool = get_context("spawn").Pool(jobs)
-            results = pool.imap_unordered(run_case, todo, chunksize=2)
-        for item in results:
-            done[item["case"]] = item
-            if sink is not None:
-                sink.write(json.dumps(item) + "\n")
-                sink.flush()
-        if pool is not None:
-            pool.close()
-            pool.join()
+        own = isinstance(jobs, int)
+        workers = executor(jobs) if own else jobs
+        try:
+            for item in workers.unordered(run_case, todo):
+                done[item["case"]] = item
+                if sink is not None:
+                    sink.write(json.dumps(item) + "\n")
+                    sink.flush()
+        finally:
+            if own:
+                workers.close()
     finally:
         if sink is not None:
             sink.close()
@@ -272,6 +271,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="relative rms noise levels (0.01 is 1 %%)")
     parser.add_argument("--presets", action="store_true", help="also the paper-like presets")
     parser.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1)))
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run the cases on this Dask cluster's workers instead")
+    parser.add_argument("--cases", type=int, default=None,
+                        help="run only the first N clean and N planted cases (a timing sample)")
     parser.add_argument("--out", type=Path, default=None,
                         help="results (JSON lines, one case each; a rerun resumes from it)")
     args = parser.parse_args(argv)
@@ -284,9 +287,14 @@ def main(argv: list[str] | None = None) -> int:
         presets = tuple(heldout.PRESET_MODELS)
         cases += list(clean_cases(noise, levels, range(math.ceil(clean_seeds / 6)), presets))
     planted = list(detection_cases(noise, levels, range(seeds), args.effects))
+    if args.cases is not None:
+        cases, planted = cases[: args.cases], planted[: args.cases]
     start = time.perf_counter()
-    results = _run_all(cases, args.jobs, args.out)
-    results += _run_adaptive(planted, args.jobs, args.out)
+    with executor(args.jobs, args.scheduler) as workers:
+        if isinstance(workers, DaskExecutor):
+            workers.upload(Path(heldout.__file__))
+        results = _run_all(cases, workers, args.out)
+        results += _run_adaptive(planted, workers, args.out)
     text = table(results)
     print(text)
     print(f"{len(results)} cases in {time.perf_counter() - start:.0f} s")

@@ -159,9 +159,9 @@ def temperature_step(session: Session, step: TemperatureStep, record: StepRecord
 class ChamberEngine(RunEngine):
     """The run engine with a chamber (module text)."""
 
-    def __init__(self, campaign, rig, console, chamber: ChamberMonitor) -> None:
+    def __init__(self, campaign, rig, console, chamber: ChamberMonitor, **engine: Any) -> None:
         self.chamber = chamber
-        super().__init__(campaign, rig, console)
+        super().__init__(campaign, rig, console, **engine)
 
     def run(self, plan: Plan, *, signals: bool = True) -> Any:
         """Run ``plan``; whatever the ending, leave the chamber at the safe set point."""

@@ -259,3 +259,106 @@ def _span(values: np.ndarray, unit: str, *, upper_only: bool = False) -> str:
     if upper_only:
         return f"{finite.max():.3g} {unit}"
     return f"{finite.min():.3g}-{finite.max():.3g} {unit}"
+
+
+class PageConsole(Console):
+    """The console of the bench page: the same messages, prompts and progress as the terminal's,
+    kept for a web page to read (:meth:`snapshot`) and answered from it (:meth:`answer`).
+
+    Every method is safe to call from any thread; prompts block the engine's thread until the
+    page answers, or until ``stop_asked()`` turns true.
+
+    Parameters
+    ----------
+    out
+        Where messages are also written (default stdout); progress is never redrawn there.
+    keep
+        Messages kept for the page.
+    """
+
+    def __init__(self, *, out: TextIO | None = None, keep: int = 200) -> None:
+        super().__init__(out=out, interactive=False)
+        import collections
+        import threading
+
+        self._lock = threading.Condition()
+        self.messages: collections.deque[tuple[float, str]] = collections.deque(maxlen=keep)
+        self.prompt_id = 0
+        self.prompt_text: str | None = None
+        self._answer: str | None = None
+        self.stop_asked = lambda: False
+        """Set by the owner: a prompt stops waiting (and the run stops) when it turns true."""
+
+    def say(self, text: str) -> None:
+        with self._lock:
+            self.messages.append((time.time(), single_line(text)))
+        super().say(text)
+
+    def prompt(self, message: str) -> None:
+        """Show an operator instruction on the page and wait for its answer.
+
+        Raises
+        ------
+        KeyboardInterrupt
+            Answered "abort", or a stop was asked for while it waited.
+        """
+        self.say(f">>> {message}")
+        with self._lock:
+            self.prompt_id += 1
+            self.prompt_text = message
+            self._answer = None
+            try:
+                while self._answer is None:
+                    if self.stop_asked():
+                        raise KeyboardInterrupt
+                    self._lock.wait(0.1)
+                answer = self._answer
+            finally:
+                self.prompt_text = None
+        if answer == "abort":
+            raise KeyboardInterrupt
+
+    def answer(self, prompt_id: int, answer: str) -> str | None:
+        """Answer the open prompt ``prompt_id`` with ``"done"`` or ``"abort"``; return what is
+        wrong with the answer (None when it was taken)."""
+        if answer not in ("done", "abort"):
+            return 'answer must be "done" or "abort"'
+        with self._lock:
+            if self.prompt_text is None or prompt_id != self.prompt_id:
+                return f"prompt {prompt_id} is not open"
+            self._answer = answer
+            self._lock.notify_all()
+        return None
+
+    def wake(self) -> None:
+        """Let a waiting prompt look at ``stop_asked`` now."""
+        with self._lock:
+            self._lock.notify_all()
+
+    def start_run(self, run: str, points_done: int, points_total: int, flags: int = 0) -> None:
+        with self._lock:
+            super().start_run(run, points_done, points_total, flags)
+
+    def poll(self, frequency_hz: float, run_left_s: float) -> None:
+        with self._lock:
+            self.progress.frequency_hz = frequency_hz
+            self.progress.run_left_s = run_left_s
+
+    def segment(self, done: SegmentDone) -> None:
+        with self._lock:
+            super().segment(done)
+            self.progress.run_left_s = done.seconds_left
+
+    def snapshot(self) -> dict[str, object]:
+        """What the page shows: the open prompt, progress and the last messages."""
+        with self._lock:
+            p = self.progress
+            return {
+                "prompt": (None if self.prompt_text is None
+                           else {"id": self.prompt_id, "text": self.prompt_text}),
+                "run": p.run, "points_done": p.points_done, "points_total": p.points_total,
+                "flagged": p.flagged,
+                "frequency_hz": p.frequency_hz if math.isfinite(p.frequency_hz) else None,
+                "run_left_s": p.run_left_s if math.isfinite(p.run_left_s) else None,
+                "messages": [{"time": t, "text": m} for t, m in self.messages][-50:],
+            }

@@ -11,9 +11,23 @@ place that knows when to stop.
 Lifecycle (:class:`EngineState`)::
 
     idle ──► running ──► done
-                │  ╰───► refused   (a step refused to measure: nothing of it was measured)
-                │  ╰───► faulted   (the analyser failed: every committed segment is kept)
-                ╰──► stopping ──► stopped   (Ctrl-C or SIGTERM)
+              │ ▲  │ ╰───► refused   (a step refused to measure: nothing of it was measured)
+              │ │  │ ╰───► faulted   (the analyser failed: every committed segment is kept)
+              │ │  ╰──► stopping ──► stopped   (Ctrl-C, SIGTERM, :meth:`RunEngine.request_stop`)
+              │ ╰── paused ◄── pausing     (:meth:`RunEngine.request_pause`, then resume)
+              ╰──► held ──► running        (a hold condition, until it clears)
+
+Pausing and holds. :meth:`RunEngine.request_pause` (from any thread) lets the segment being
+measured finish and be committed; at the checkpoint that follows, the engine switches the
+source off (the analyser's abort) and waits. :meth:`RunEngine.request_resume` goes on; the
+analyser is configured again first (the source starts from its start level and the controller
+levels again) and the plan continues from where it was, as if nothing had happened. Hold
+conditions (:mod:`viscorig.acquisition.holds`, pluggable) see every committed segment and every
+analyser error of a measurement: one that answers with a reason holds the run at the next
+checkpoint (or, for an error, at once: the segment in flight is dropped and measured again
+after the hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the
+technician resumes. Each pause, hold and resume is written to the campaign's journal
+(:mod:`viscorig.storage.journal`) with its reason.
 
 Stopping. The first Ctrl-C (or SIGTERM) while the analyser measures only asks it to stop: the
 next poll aborts the analyser and the segment in flight is dropped, so no partial segment is
@@ -44,6 +58,13 @@ from viscorig.acquisition.sweep import SweepInterrupted, SweepSettings, Wiring, 
 from viscorig.storage import Campaign
 
 __all__ = ["EngineState", "Msg", "Plan", "RunEngine", "RunRefused", "StopRequest"]
+
+#: Messages that read or write the campaign file: run under the engine's file lock, so that
+#: another thread (the bench page's notes) can write to the same file between them.
+FILE_COMMANDS = frozenset({"status", "read_run", "fits", "open_run", "resume_run", "annotate",
+                           "commit", "close_run", "store_fit", "compute"})
+#: How often a paused or held engine looks at its requests and conditions, s.
+WAIT_POLL_S = 0.1
 
 
 class RunRefused(Exception):  # noqa: N818 (an outcome, not a fault)
@@ -79,6 +100,9 @@ class EngineState(enum.Enum):
 
     IDLE = "idle"
     RUNNING = "running"
+    PAUSING = "pausing"
+    PAUSED = "paused"
+    HELD = "held"
     STOPPING = "stopping"
     DONE = "done"
     REFUSED = "refused"
@@ -86,10 +110,16 @@ class EngineState(enum.Enum):
     STOPPED = "stopped"
 
 
+_ENDINGS = {EngineState.STOPPING, EngineState.DONE, EngineState.REFUSED, EngineState.FAULTED,
+            EngineState.STOPPED}
 _ENGINE_TRANSITIONS = {
     EngineState.IDLE: {EngineState.RUNNING},
-    EngineState.RUNNING: {EngineState.STOPPING, EngineState.DONE, EngineState.REFUSED,
-                          EngineState.FAULTED, EngineState.STOPPED},
+    EngineState.RUNNING: {*_ENDINGS, EngineState.PAUSING, EngineState.PAUSED, EngineState.HELD},
+    EngineState.PAUSING: {*_ENDINGS, EngineState.RUNNING, EngineState.PAUSED, EngineState.HELD},
+    EngineState.PAUSED: {EngineState.RUNNING, EngineState.STOPPING, EngineState.STOPPED,
+                         EngineState.FAULTED},
+    EngineState.HELD: {EngineState.RUNNING, EngineState.PAUSED, EngineState.STOPPING,
+                       EngineState.STOPPED, EngineState.FAULTED},
     EngineState.STOPPING: {EngineState.STOPPED, EngineState.FAULTED, EngineState.REFUSED},
     EngineState.DONE: set(),
     EngineState.REFUSED: set(),
@@ -154,13 +184,38 @@ class RunEngine:
         The analyser, its wiring and the simulated rig's mount.
     console
         Messages, prompts and progress.
+    holds
+        Hold conditions (:mod:`viscorig.acquisition.holds`); none by default.
+    hold_resume
+        ``"auto"``: resume by itself when the condition that held the run clears;
+        ``"technician"``: wait for :meth:`request_resume`.
+    file_lock
+        Held while the engine reads or writes the campaign file (share it with any other
+        writer of the same file in this process).
     """
 
-    def __init__(self, campaign: Campaign, rig: Rig, console: Console) -> None:
+    def __init__(self, campaign: Campaign, rig: Rig, console: Console, *,
+                 holds: list | None = None, hold_resume: str = "technician",
+                 file_lock: threading.RLock | None = None) -> None:
         self.campaign = campaign
         self.rig = rig
         self.console = console
         self.stop = StopRequest(console)
+        self.holds = list(holds or [])
+        self.hold_resume = hold_resume
+        self.file_lock = file_lock if file_lock is not None else threading.RLock()
+        self.held_because: str | None = None
+        """Why the run is held (None when it is not)."""
+        self.current_run = ""
+        """The run being measured ("" between runs)."""
+        self.committed: tuple[str, int] = ("", 0)
+        """The run of the last commit and the points it held after it."""
+        self._control = threading.Condition()
+        self._pause_wanted = False
+        self._resume_wanted = False
+        self._pending_hold: list[tuple[Any, str]] = []
+        self._relevel = False
+        self._last_configure: tuple[tuple, dict] | None = None
         self.state = EngineState.IDLE
         self.history: list[tuple[EngineState, float]] = [(self.state, time.time())]
         self._identity: str | None = None
@@ -175,10 +230,123 @@ class RunEngine:
         return tuple(sorted(self._handlers))
 
     def _move(self, state: EngineState) -> None:
-        if state not in _ENGINE_TRANSITIONS[self.state]:
-            raise RuntimeError(f"engine: {self.state.value} -> {state.value} is not allowed")
-        self.state = state
-        self.history.append((state, time.time()))
+        with self._control:
+            if state not in _ENGINE_TRANSITIONS[self.state]:
+                raise RuntimeError(f"engine: {self.state.value} -> {state.value} is not allowed")
+            self.state = state
+            self.history.append((state, time.time()))
+            self._control.notify_all()
+
+    # -- requests from any thread ----------------------------------------------------------
+    def request_pause(self) -> bool:
+        """Pause at the next checkpoint (the segment in flight is finished and committed).
+        Returns whether the request was taken (the engine is running)."""
+        with self._control:
+            if self.state is not EngineState.RUNNING:
+                return False
+            self._pause_wanted = True
+            self._move(EngineState.PAUSING)
+            return True
+
+    def request_resume(self) -> bool:
+        """Go on after a pause or a hold. Returns whether the request was taken."""
+        with self._control:
+            if self.state not in (EngineState.PAUSED, EngineState.HELD, EngineState.PAUSING):
+                return False
+            if self.state is EngineState.PAUSING:  # not paused yet: simply do not pause
+                self._pause_wanted = False
+                self._move(EngineState.RUNNING)
+                return True
+            self._resume_wanted = True
+            self._control.notify_all()
+            return True
+
+    def request_stop(self, reason: str = "") -> None:
+        """Stop as Ctrl-C does: the analyser is aborted at its next poll (the segment in flight
+        is dropped), a pause, hold or prompt ends at once; committed points are kept. A
+        ``reason`` is written to the journal."""
+        with self._control:
+            self.stop.requested.set()
+            self._control.notify_all()
+        if reason:
+            self._log("abort", reason)
+
+    def _log(self, kind: str, text: str) -> None:
+        """Write a journal entry (a failure to write it is said, never fatal)."""
+        try:
+            with self.file_lock:
+                self.campaign.add_journal_entry(kind, text, self.current_run)
+        except Exception as error:  # the file's own commits report their failures
+            self.console.warn(f"journal: {error}")
+
+    def _source_off(self) -> None:
+        """Stop the analyser's source (its abort); a silent analyser is left as it is."""
+        with contextlib.suppress(Exception):
+            self.rig.analyser.abort()
+
+    def _wait(self, done: Callable[[], bool]) -> None:
+        """Wait until ``done()`` or a stop request.
+
+        Raises
+        ------
+        KeyboardInterrupt
+            A stop was asked for.
+        """
+        while True:  # done() may ask the analyser: never under the control lock
+            if self.stop.asked():
+                raise KeyboardInterrupt
+            if done():
+                return
+            with self._control:
+                self._control.wait(WAIT_POLL_S)
+
+    def _pause(self) -> None:
+        with self._control:
+            if not self._pause_wanted:  # resumed before the pause took hold
+                return
+            self._pause_wanted = False
+            self._resume_wanted = False
+            self._move(EngineState.PAUSED)
+        self._source_off()
+        self.console.say("paused: the segment in flight was committed, the source is off")
+        self._log("pause", "paused by the technician; the source is off")
+        self._wait(lambda: self._resume_wanted)
+        self._go_on("resume", "resumed by the technician")
+
+    def _hold(self, claims: list[tuple[Any, str]], fault: bool) -> None:
+        """Hold for every (condition, reason) of ``claims`` until all have cleared (or the
+        technician resumes; a fault's condition must have cleared even then)."""
+        conditions = [condition for condition, _ in claims]
+        reason = "; ".join(text for _, text in claims)
+        self._source_off()
+        with self._control:
+            self._resume_wanted = False
+            self.held_because = reason
+            self._move(EngineState.HELD)
+        self.console.warn(f"held: {reason}")
+        self._log("hold", reason)
+
+        def may_go_on() -> bool:
+            if self._resume_wanted:
+                self._resume_wanted = False
+                if not fault or all(c.cleared() for c in conditions):
+                    return True
+                self.held_because = f"{reason}; still not cleared"
+            return self.hold_resume == "auto" and all(c.cleared() for c in conditions)
+
+        self._wait(may_go_on)
+        self.held_because = None
+        self._go_on("hold_cleared", f"{reason}: cleared, going on")
+
+    def _go_on(self, kind: str, text: str) -> None:
+        with self._control:
+            self._resume_wanted = False
+            self._move(EngineState.RUNNING)
+            self._relevel = True
+            if self._pause_wanted:  # asked while held: pause at the next checkpoint
+                self._move(EngineState.PAUSING)
+        self.console.say(text)
+        self._log(kind, text)
 
     # -- running a plan ------------------------------------------------------------------------
     def run(self, plan: Plan, *, signals: bool = True) -> Any:
@@ -207,6 +375,8 @@ class RunEngine:
             except BaseException:
                 self._move(EngineState.FAULTED)
                 raise
+        if self.state is EngineState.PAUSING:  # asked too late: nothing was left to pause
+            self._pause_wanted = False
         self._move(EngineState.DONE)
         return result
 
@@ -224,11 +394,16 @@ class RunEngine:
                 raise RuntimeError(f"engine: unknown message {msg.command!r} from "
                                    f"{msg.step or 'a plan'}")
             try:
-                reply = handler(*msg.args, **msg.kwargs)
+                if msg.command in FILE_COMMANDS:
+                    with self.file_lock:
+                        reply = handler(*msg.args, **msg.kwargs)
+                else:
+                    reply = handler(*msg.args, **msg.kwargs)
             except BaseException as caught:  # into the plan: its cleanup runs, then it ends
                 if isinstance(caught, KeyboardInterrupt | SweepInterrupted):
                     self.stop.requested.set()
-                    if self.state is EngineState.RUNNING:
+                    if self.state in (EngineState.RUNNING, EngineState.PAUSING,
+                                      EngineState.PAUSED, EngineState.HELD):
                         self._move(EngineState.STOPPING)
                 error = caught
                 reply = None
@@ -259,9 +434,14 @@ class RunEngine:
             self.console.say(f"(simulated rig: {preset} mounted)")
 
     def _do_checkpoint(self) -> None:
-        """A safe place to stop: stop here when asked."""
+        """A safe place to stop, pause or hold: do it here when asked."""
         if self.stop.asked():
             raise KeyboardInterrupt
+        if self._pending_hold:
+            claims, self._pending_hold = self._pending_hold, []
+            self._hold(claims, fault=False)
+        if self._pause_wanted:
+            self._pause()
 
     def _do_progress(self, what: str, *args: Any) -> None:
         """Progress for the console: ``start_run``, ``segment``, ``campaign_left``."""
@@ -281,6 +461,8 @@ class RunEngine:
         return callable(getattr(self.rig.analyser, member, None))
 
     def _do_configure(self, settings: SweepSettings, **grid: Any) -> None:
+        self._last_configure = ((settings,), grid)
+        self._relevel = False
         configure(self.rig.analyser, self.rig.wiring, settings, **grid)
 
     def _do_probe(self, settings: SweepSettings) -> tuple:
@@ -288,7 +470,26 @@ class RunEngine:
         return measure_probe(self.rig.analyser, self.rig.wiring, settings, hooks)
 
     def _do_measure(self, request: MeasureRequest) -> MeasuredSegment:
-        """Measure one analyser sweep: a linear band, or chosen points in manual sweep mode."""
+        """Measure one analyser sweep: a linear band, or chosen points in manual sweep mode.
+        After a pause or a hold the analyser is configured again first (it levels anew); an
+        analyser error that a hold condition claims holds the run, then the sweep is measured
+        again."""
+        while True:
+            if self._relevel and self._last_configure is not None:
+                args, grid = self._last_configure
+                self._do_configure(*args, **grid)
+            self._relevel = False
+            try:
+                return self._measure_once(request)
+            except (KeyboardInterrupt, SweepInterrupted):
+                raise
+            except Exception as error:
+                claimed = [(c, r) for c in self.holds if (r := c.fault(error)) is not None]
+                if not claimed:
+                    raise
+                self._hold(claimed, fault=True)
+
+    def _measure_once(self, request: MeasureRequest) -> MeasuredSegment:
         analyser = self.rig.analyser
         cumulative = np.cumsum(request.durations_s)
 
@@ -328,18 +529,32 @@ class RunEngine:
 
     def _do_open_run(self, run: str, settings) -> None:
         self.campaign.start_run(run, settings)
+        self.current_run = run
 
     def _do_resume_run(self, run: str) -> int:
+        self.current_run = run
         return self.campaign.resume_run(run)
 
     def _do_annotate(self, run: str, attributes: dict, dataset: str | None = None) -> None:
         self.campaign.annotate(run, attributes, dataset=dataset)
 
     def _do_commit(self, run: str, segment, attributes: dict | None = None) -> int:
-        return self.campaign.append_segment(run, segment, attributes)
+        total = self.campaign.append_segment(run, segment, attributes)
+        self.committed = (run, total)
+        for condition in self.holds:
+            reason = condition.observe(segment)
+            if reason is not None:  # held at the checkpoint that follows
+                self._pending_hold.append((condition, reason))
+        return total
 
     def _do_close_run(self, run: str, status: str) -> None:
         self.campaign.finish_run(run, status)
+        self._pending_hold = []
+        for condition in self.holds:  # a new run starts counting afresh
+            reset = getattr(condition, "reset", None)
+            if callable(reset):
+                reset()
+        self.current_run = ""
 
     def _do_store_fit(self, run: str, result) -> str:
         from viscorig.identify import store_fit  # scipy: only when needed

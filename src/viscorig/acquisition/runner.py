@@ -74,6 +74,8 @@ class Runner:
     floors
         The floor of each adaptive run's rig where known (:mod:`viscorig.acquisition.forecast`),
         for the time left.
+    holds, hold_resume, file_lock
+        Automatic holds and the lock of the campaign file (:class:`RunEngine`).
     """
 
     def __init__(
@@ -85,6 +87,10 @@ class Runner:
         console: Console,
         options: RunnerOptions | None = None,
         floors: Mapping[str, Floor | None] | None = None,
+        *,
+        holds: list | None = None,
+        hold_resume: str = "technician",
+        file_lock=None,
     ) -> None:
         self.campaign = campaign
         self.analyser = analyser
@@ -98,14 +104,17 @@ class Runner:
         if self.options.chamber is None:
             rig = Rig(analyser, wiring, self.options.mount, self.options.real_time_waits,
                       self.options.poll_interval_s)
-            self.engine = RunEngine(campaign, rig, console)
+            self.engine = RunEngine(campaign, rig, console, holds=holds,
+                                    hold_resume=hold_resume, file_lock=file_lock)
         else:
             from viscorig.acquisition.chamber import ChamberedAnalyser, ChamberEngine
 
             rig = Rig(ChamberedAnalyser(analyser, self.options.chamber), wiring,
                       self.options.mount, self.options.real_time_waits,
                       self.options.poll_interval_s)
-            self.engine = ChamberEngine(campaign, rig, console, self.options.chamber)
+            self.engine = ChamberEngine(campaign, rig, console, self.options.chamber,
+                                        holds=holds, hold_resume=hold_resume,
+                                        file_lock=file_lock)
         self.console.time_label = "test time left" if self.options.time_base == "test" else "left"
 
     @property

@@ -63,7 +63,7 @@ COMMANDS: dict[str, Command] = {
     "check": Command("check", "list every problem of a sequence (and station) file at once"),
     "plan": Command("plan", "predict each step's test time and the total, touching no instrument"),
     "watch": Command("watch", "live view of a campaign file in the browser, on loopback"),
-    "bench": Command("bench", "check the test station in a minute before a campaign"),
+    "bench": Command("bench", "check the station; serve the bench page (queue, run, pause, notes)"),
 }
 
 

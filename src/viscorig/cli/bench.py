@@ -1,7 +1,9 @@
-"""``viscorig bench check``: a one-minute self-test of the station before a campaign.
+"""``viscorig bench check``: a one-minute self-test of the station before a campaign;
+``viscorig bench serve``: the bench page (:mod:`viscorig.bench`).
 
     viscorig bench check --station lab.toml     # the rig in the lab
     viscorig bench check                        # the embedded simulated rig (soft specimens)
+    viscorig bench serve --port 0 --no-browser  # prints http://127.0.0.1:PORT/?token=TOKEN
 
 One line per check, each with its verdict and, when it fails, what to do; exit status 0 only
 when every check passes (1 otherwise; 2 for bad input, 3 when the analyser cannot be reached).
@@ -16,8 +18,11 @@ from collections.abc import Iterator
 from typing import Any
 
 from viscorig.cli import summary_of
+from viscorig.cli.arguments import port_number, positive_number
 from viscorig.errors import InputError, InstrumentError
 
+#: The bench page's port a technician can bookmark.
+DEFAULT_SERVE_PORT = 8766
 #: Rig mounted on the embedded simulated rig unless --preset says otherwise: the bench check
 #: expects transducers on all four inputs, so specimens are mounted.
 DEFAULT_PRESET = "soft-0"
@@ -38,6 +43,26 @@ def register(subparsers: Any) -> None:
     check.add_argument("--preset", metavar="NAME", default=None,
                        help=f"simulated rig preset without --station (default {DEFAULT_PRESET})")
     check.set_defaults(handler=check_command)
+    serve = commands.add_parser(
+        "serve", help="the bench page: queue, run, pause, answer prompts, watch, take notes",
+        description="Serve the bench page on 127.0.0.1 and open it in the browser: queue "
+        "sequences (each checked and planned before anything moves), start, answer the "
+        "operator prompts, pause, resume, abort, watch the live view and store notes in the "
+        "campaign file. The first line printed is the address with its token; the page is a "
+        "client of a JSON API any script can use with 'Authorization: Bearer TOKEN' "
+        "(docs/bench.md). Ctrl-C stops the server (a run in progress is aborted, its data "
+        "kept).")
+    serve.add_argument("--station", metavar="STATION.toml", default=None,
+                       help="the lab's station file (default: the embedded simulated rig); its "
+                       "[bench] table sets the address and the automatic holds")
+    serve.add_argument("--port", type=port_number, default=DEFAULT_SERVE_PORT,
+                       help=f"TCP port (default {DEFAULT_SERVE_PORT}; 0: any free one)")
+    serve.add_argument("--no-browser", action="store_true",
+                       help="only serve and print the address; open no browser")
+    serve.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
+                       help="embedded simulated rig only: simulated seconds per wall-clock "
+                       "second (default: as fast as the computer allows)")
+    serve.set_defaults(handler=serve_command)
 
 
 @contextlib.contextmanager
@@ -103,3 +128,40 @@ def check_command(args: argparse.Namespace) -> int:
     print(f"bench check: {len(verdicts) - len(failed)} of {len(verdicts)} checks passed"
           + ("" if not failed else "; fix the failures before the campaign"))
     return 0 if not failed else 1
+
+
+def serve_command(args: argparse.Namespace) -> int:
+    """``viscorig bench serve``: print the address with its token first, serve until Ctrl-C."""
+    from viscorig.bench import BenchService
+    from viscorig.bench.app import BenchServer
+    from viscorig.cli.watch import open_in_browser
+    from viscorig.sequences import load_station
+
+    address = "127.0.0.1"
+    if args.station is not None:
+        if args.sim_pace is not None:
+            raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
+        address = load_station(args.station).bench.address
+    service = BenchService(args.station, sim_pace=args.sim_pace)
+    try:
+        server = BenchServer(service, args.port, address)
+    except OSError as error:
+        raise InputError(f"cannot serve on {address}:{args.port} ({error.strerror or error}); "
+                         "choose another --port, or --port 0 for any free one",
+                         "--port") from None
+    try:  # Ctrl-C is how the server is stopped, whenever it comes
+        print(server.url, flush=True)
+        if address != "127.0.0.1":
+            print(f"WARNING: served on {address} as the station's [bench] address allows: "
+                  "other machines reach it (with the token)", flush=True)
+        if not args.no_browser and not open_in_browser(server.url):
+            print("no browser could be opened here: open the address above in one", flush=True)
+        server.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        service.shutdown()
+        server.socket.close()
+    print("bench page stopped" + (f"; {service.message}" if service.message else ""),
+          flush=True)
+    return 0

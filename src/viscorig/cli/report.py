@@ -20,6 +20,7 @@ from pathlib import Path
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
+from viscorig.executor import check_scheduler
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
 
@@ -43,6 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--ladder", action="store_true", help=argparse.SUPPRESS)  # the default
     parser.add_argument("--jobs", type=positive_int, default=None,
                         help="processes climbing ladders at once (default: one per core)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="climb the ladders on the workers of this Dask cluster (optional "
+                        "extra viscorig[dask]; the workers must see FILE at the same path)")
     parser.set_defaults(handler=handler)
 
 
@@ -60,10 +64,12 @@ def positive_int(text: str) -> int:
 def handler(args: argparse.Namespace) -> int:
     """Run ``report``."""
     band = parse_band(args.band) or PAPER_BAND_HZ
+    if args.scheduler is not None:
+        check_scheduler(args.scheduler)
     path = Path(args.file)
     out = Path(args.out) if args.out else path.with_name(path.stem + "-report")
     page = build_report(path, out, band_hz=band, diagnosis=not args.no_diagnosis,
-                        ladder=not args.no_ladder, jobs=args.jobs)
+                        ladder=not args.no_ladder, jobs=args.jobs, scheduler=args.scheduler)
     figures = len(list(out.glob("*.png")))
     print(f"{page}  ({figures} figures as PNG and SVG in {out})")
     return 0

@@ -114,7 +114,7 @@ def run_command(args: argparse.Namespace) -> int:
             f"'viscorig resume {out}', or choose another --out", str(out))
     if not out.parent.is_dir():
         raise InputError("folder does not exist", str(out))
-    with _open_station(sequence, station, args.sim_pace) as opened:
+    with open_station(sequence, station, args.sim_pace) as opened:
         campaign = Campaign.create(
             out, sequence_text=checked.sequence_text, sequence_file=str(args.sequence),
             station_text=checked.station_text, station_file=args.station or "",
@@ -149,7 +149,7 @@ def resume_command(args: argparse.Namespace) -> int:
         print(f"{args.file}: every run of sequence '{sequence.name}' is complete; "
               "nothing to do")
         return 0
-    with _open_station(sequence, station, args.sim_pace) as opened:
+    with open_station(sequence, station, args.sim_pace) as opened:
         print(f"continuing {args.file}  ({_where(opened)})", flush=True)
         return _run(campaign, sequence, opened, args)
 
@@ -190,7 +190,9 @@ def _where(opened) -> str:
 
 
 @contextlib.contextmanager
-def _open_station(sequence: Sequence, station, pace: float | None):
+def open_station(sequence: Sequence, station, pace: float | None):
+    """The station a sequence runs on: the lab's (a station file), else the embedded
+    simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can)."""
     from viscorig.cli.stations import lab_station, simulated_station
 
     if station is None:
@@ -201,19 +203,24 @@ def _open_station(sequence: Sequence, station, pace: float | None):
             yield opened
 
 
-def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespace) -> int:
+def runner_options(opened, over_limit: str | None) -> RunnerOptions:
+    """How a sequence runs on an open station (the simulated rig's clock is test time)."""
     simulated = opened.simulated
-    fast = simulated and args.sim_pace is None
-    options = RunnerOptions(
+    return RunnerOptions(
         simulated=simulated,
         time_base="test" if simulated else "wall",
         real_time_waits=not simulated,
-        over_limit=args.over_limit,
+        over_limit=over_limit,
         poll_interval_s=0.2,
         mount=opened.mount,
         instrument_errors=opened.instrument_errors,
         chamber=opened.chamber,
     )
+
+
+def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespace) -> int:
+    fast = opened.simulated and args.sim_pace is None
+    options = runner_options(opened, args.over_limit)
     console = Console(yes=args.yes)
     floors = _forecast(campaign, sequence, opened)
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,

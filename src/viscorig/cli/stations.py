@@ -52,6 +52,8 @@ class OpenStation:
     instrument_errors: tuple[type[BaseException], ...] = ()
     chamber: Any = None
     """The chamber (:class:`viscorig.acquisition.chamber.ChamberMonitor`), if any."""
+    server: Any = None
+    """The embedded simulated analyser's server (its ``faults``), None for a lab station."""
 
 
 def instrument_errors() -> tuple[type[BaseException], ...]:
@@ -60,6 +62,14 @@ def instrument_errors() -> tuple[type[BaseException], ...]:
     from agilent35670a import SettingOutOfRange
 
     return (DriverError, SettingOutOfRange)
+
+
+def not_answering_errors() -> tuple[type[BaseException], ...]:
+    """The driver's exception types that mean the analyser stopped answering (a timeout, a
+    connection lost): an automatic hold waits for it to answer again."""
+    from agilent35670a.errors import ConnectionLost, InstrumentTimeout
+
+    return (InstrumentTimeout, ConnectionLost)
 
 
 #: The embedded rig's chamber limits and safe set point, °C.
@@ -330,7 +340,7 @@ def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator
                 errors = (*errors, *chamber_errors())
             try:
                 yield OpenStation(station, analyser, True, server.analyser.mount, errors,
-                                  chamber)
+                                  chamber, server=server)
             finally:
                 with contextlib.suppress(Exception):
                     analyser.close()

@@ -25,6 +25,7 @@ from scipy.optimize import least_squares
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.fitting import FitResult
+from viscorig.fitting.jacobian import predict_many
 from viscorig.models import Model
 
 #: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
@@ -198,18 +199,16 @@ def ml_fit(
         return np.where(np.isfinite(e), e, 1e6)
 
     def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        # Forward differences of the raw residual, whitened once for all columns.
+        # Forward differences of the raw residual, every column in one evaluation of the model
+        # (predict_many), whitened once for all columns.
         base = cached_ratio(x)
-        columns = {frf: np.empty((base[frf].size, x.size), dtype=complex) for frf in base}
-        for j in range(x.size):
-            step = _STEP * max(1.0, abs(x[j]))
-            if x[j] + step > upper[j]:
-                step = -step
-            moved = x.copy()
-            moved[j] += step
-            shifted = ratio(moved)
-            for frf in base:
-                columns[frf][:, j] = (shifted[frf] - base[frf]) / step
+        steps = _STEP * np.maximum(1.0, np.abs(x))
+        steps = np.where(x + steps > upper, -steps, steps)
+        moved = x[None, :] + np.diag(steps)
+        shifted = predict_many(model, ctx, values, free, to_values(moved))
+        with np.errstate(all="ignore"):
+            columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - base[frf]).T / steps
+                       for frf in base}
         matrix = data.whiten(columns, exact)
         return np.where(np.isfinite(matrix), matrix, 0.0)
 
@@ -260,15 +259,15 @@ def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> 
 
     residuals = ratio(values)
     whitened = data.whiten(residuals)
-    columns = {frf: np.empty((r.size, len(free)), dtype=complex) for frf, r in residuals.items()}
-    for j, (name, is_log) in enumerate(zip(free, log, strict=True)):
-        value = values[name]
-        step = 1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
-        moved = dict(values)
-        moved[name] = value * np.exp(step) if is_log else value + step
-        shifted = ratio(moved)
-        for frf in residuals:
-            columns[frf][:, j] = (shifted[frf] - residuals[frf]) / step
+    current = np.array([values[name] for name in free], dtype=float)
+    steps = np.array([1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
+                      for name, is_log, value in zip(free, log, current, strict=True)])
+    moved = np.where(log, current * np.exp(steps), current + steps)
+    rows = np.where(np.eye(len(free), dtype=bool), moved[None, :], current[None, :])
+    shifted = predict_many(model, ctx, values, free, rows) if free else {}
+    with np.errstate(all="ignore"):
+        columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - residuals[frf]).T / steps
+                   for frf in shifted}
     jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
     jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
     weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))

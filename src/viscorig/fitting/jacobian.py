@@ -57,3 +57,76 @@ def stiffness_derivatives(
                 matrix[:, j] = columns[frf][name]
         result[frf] = matrix
     return result
+
+
+#: Models whose terms were found to evaluate with per-point parameter arrays (id -> verdict).
+#: A term written for scalars only (``float(p["x"])``) is found out once and then evaluated
+#: one parameter set at a time.
+_BATCHABLE: dict[int, tuple[Model, bool]] = {}
+
+
+def _tiled(ctx: Context, count: int) -> Context:
+    """``ctx`` repeated ``count`` times end to end."""
+    return Context(
+        np.tile(ctx.frequency_hz, count),
+        None if ctx.time_s is None else np.tile(ctx.time_s, count),
+        None if ctx.reference_amplitude is None else np.tile(ctx.reference_amplitude, count),
+    )
+
+
+def predict_many(
+    model: Model,
+    ctx: Context,
+    values: Mapping[str, float],
+    names: Sequence[str],
+    rows: NDArray[np.float64],
+) -> dict[str, NDArray[np.complex128]]:
+    """The model's predictions for several parameter sets at once (a finite-difference
+    Jacobian's, say): ``values`` with ``names`` set to each row of ``rows`` (sets × names).
+
+    Returns FRF name -> sets × points. The sets are evaluated in one pass of the pipeline, on
+    the points repeated once per set with each parameter a per-point array, so the cost of a
+    Jacobian is one evaluation of a longer model instead of one evaluation per column. A model
+    with a term that does not take per-point parameters falls back to one pass per set (found
+    once per model, by comparing the first set with a plain evaluation).
+    """
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    count, points = rows.shape[0], ctx.frequency_hz.size
+    known = _BATCHABLE.get(id(model))
+    batchable = None if known is None or known[0] is not model else known[1]
+    if batchable is not False and count > 1:
+        batch = dict(values)
+        for j, name in enumerate(names):
+            batch[name] = np.repeat(rows[:, j], points)
+        try:
+            with np.errstate(all="ignore"):
+                joined = model.predict(_tiled(ctx, count), batch)
+            out = {frf: np.asarray(h).reshape(count, points) for frf, h in joined.items()}
+        except (TypeError, ValueError, IndexError):
+            out = None
+        if batchable is None:
+            batchable = out is not None and _agrees(model, ctx, values, names, rows[0], out)
+            if len(_BATCHABLE) > 4096:
+                _BATCHABLE.clear()
+            _BATCHABLE[id(model)] = (model, batchable)
+        if batchable and out is not None:
+            return out
+    single = []
+    for row in rows:
+        current = dict(values)
+        current.update(zip(names, (float(v) for v in row), strict=True))
+        with np.errstate(all="ignore"):
+            single.append(model.predict(ctx, current))
+    return {frf: np.stack([s[frf] for s in single]) for frf in single[0]}
+
+
+def _agrees(model: Model, ctx: Context, values: Mapping[str, float], names: Sequence[str],
+            row: NDArray[np.float64], out: Mapping[str, NDArray[np.complex128]]) -> bool:
+    current = dict(values)
+    current.update(zip(names, (float(v) for v in row), strict=True))
+    with np.errstate(all="ignore"):
+        plain = model.predict(ctx, current)
+    return set(plain) == set(out) and all(
+        np.allclose(out[frf][0], plain[frf], rtol=1e-12, atol=0.0, equal_nan=True)
+        for frf in plain
+    )

@@ -38,7 +38,7 @@ from viscorig.fitting.arms import (
     reduced_start,
 )
 from viscorig.fitting.data import FrfData
-from viscorig.fitting.jacobian import stiffness_derivatives
+from viscorig.fitting.jacobian import predict_many, stiffness_derivatives
 from viscorig.fitting.noise import NoiseModel
 from viscorig.fitting.noise_estimation import estimate_noise
 from viscorig.fitting.result import FitResult
@@ -48,6 +48,9 @@ from viscorig.models import Maxwell, Model, parse_spec
 
 __all__ = ["CORRELATION_WARNING", "WEIGHTINGS", "fit", "resolve_frfs"]
 
+#: Relative step of the forward differences where no analytic Jacobian exists (√ε, as
+#: scipy's ``"2-point"``).
+_STEP = float(np.sqrt(np.finfo(float).eps))
 #: How the points of a fit are weighted: by their noise (the project's estimate, generalised
 #: least squares under the noise model) or uniformly (the paper's method).
 WEIGHTINGS = ("noise", "uniform")
@@ -386,11 +389,30 @@ def _fit_concrete(
         )
         return np.concatenate([complex_jacobian.real, complex_jacobian.imag])
 
+    def differences(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
+        # Forward differences, every column from one evaluation of the model (predict_many),
+        # with the steps of scipy's "2-point" (√ε relative, turned back at a bound).
+        base = residual(x)
+        if not x.size:
+            return np.zeros((base.size, 0))
+        steps = _STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        outside = (x + steps < lower) | (x + steps > upper)
+        steps = np.where(outside, -steps, steps)
+        steps = (x + steps) - x
+        rows = coordinates.to_values(x[None, :] + np.diag(steps))
+        shifted = predict_many(model, ctx, current, free, rows)
+        with np.errstate(all="ignore"):
+            ratio = np.concatenate([shifted[n] / h for n, h in zip(frfs, measured, strict=True)],
+                                   axis=1) - 1.0
+        moved = np.concatenate([ratio.real, ratio.imag], axis=1)
+        return ((moved - base[None, :]) / steps[:, None]).T
+
     analytic = stiffness_derivatives(model, ctx, values, free) is not None
 
     x0 = coordinates.to_x(np.array([values[name] for name in free]))
     lower, upper = coordinates.bounds()
     x0 = np.clip(x0, lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
+    derivative = jacobian if analytic else differences
     weighted = weighting == "noise" and bool(free)
     weights = None
     if weighted:  # each point by its noise, from the same start
@@ -400,17 +422,17 @@ def _fit_concrete(
             return residual(x) * weights
 
         def weighted_jacobian(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
-            return jacobian(x) * weights[:, None]
+            return derivative(x) * weights[:, None]
 
         solution = _least_squares(
-            weighted_residual, weighted_jacobian if analytic else None, x0, (lower, upper),
-            tolerance, max_evaluations or 50 + 20 * len(free), bounded_fallback,
+            weighted_residual, weighted_jacobian, x0, (lower, upper),
+            tolerance, max_evaluations or 50 + 20 * len(free), bounded_fallback, analytic,
         )  # fmt: skip
         solution.jac = solution.jac / weights[:, None]  # back to ∂r/∂x
     else:
         solution = _least_squares(
-            residual, jacobian if analytic else None, x0, (lower, upper), tolerance,
-            max_evaluations or 50 + 20 * len(free), bounded_fallback,
+            residual, derivative, x0, (lower, upper), tolerance,
+            max_evaluations or 50 + 20 * len(free), bounded_fallback, analytic,
         )  # fmt: skip
     fitted = coordinates.to_values(solution.x)
     values.update(zip(free, fitted, strict=True))
@@ -478,6 +500,7 @@ def _least_squares(
     tolerance: float,
     max_evaluations: int,
     bounded_fallback: bool = True,
+    analytic: bool = True,
 ) -> OptimizeResult:
     """Minimise ``|residual|²`` from ``x0`` within ``bounds``.
 
@@ -487,12 +510,13 @@ def _least_squares(
     that make the trust-region method slow on a busy machine. If it leaves the bounds or ends
     worse than it began, the bounded trust-region method (``trf``) solves from ``x0``; without
     ``bounded_fallback`` the start is kept instead (the Maxwell order search, where an order
-    that does not converge quickly is a degenerate one).
+    that does not converge quickly is a degenerate one). A Jacobian of finite differences
+    (``analytic`` false) goes to ``trf`` directly.
     """
     lower, upper = bounds
     options = {"x_scale": "jac", "ftol": tolerance, "xtol": tolerance, "gtol": tolerance}
     with np.errstate(all="ignore"):
-        if jacobian is not None and x0.size <= residual(x0).size:
+        if jacobian is not None and analytic and x0.size <= residual(x0).size:
             start_cost = 0.5 * float(np.sum(residual(x0) ** 2))
             solution = least_squares(
                 residual, x0, jac=jacobian, method="lm", max_nfev=max_evaluations, **options

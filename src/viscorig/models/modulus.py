@@ -125,9 +125,13 @@ class Maxwell(ModulusTerm):
         return k, c
 
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
-        k, c = self.arms(p)
-        iwt = 1j * ctx.omega[:, None] * (c / k)[None, :]
-        return p["K_0"] + (k[None, :] * iwt / (1.0 + iwt)).sum(axis=1)
+        # Arm by arm, so that a parameter may also be an array of one value per point (a
+        # Jacobian's parameter sets evaluated at once, viscorig.fitting.jacobian.predict_many).
+        arms = 0.0
+        for i in range(1, (self.order or 0) + 1):
+            iwt = 1j * ctx.omega * (p[f"C_{i}"] / p[f"K_{i}"])
+            arms = arms + p[f"K_{i}"] * iwt / (1.0 + iwt)
+        return p["K_0"] + arms
 
     def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
         # Arm i: iω k c / (k + iω c); ∂/∂k = (iωc)²/(k + iωc)², ∂/∂c = iω k²/(k + iωc)².

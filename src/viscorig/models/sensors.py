@@ -202,7 +202,7 @@ class Gain(ChannelTerm):
         )
 
     def transfer(self, omega, value):
-        return np.full(omega.shape, complex(value))
+        return np.ones(omega.shape, dtype=complex) * value
 
 
 @register_term

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from viscorig.compare import Estimates
 from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
+from viscorig.executor import default_jobs, executor
 from viscorig.fitting import FitResult, estimate_noise
 from viscorig.identify import (
     PAPER_BAND_HZ,
@@ -42,7 +43,6 @@ from viscorig.identify import (
     summarize,
 )
 from viscorig.models import Context, Model, parse_spec
-from viscorig.report.parallel import default_jobs, parallel_map
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Fit, Run
 
@@ -333,6 +333,49 @@ def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
                          modulus_band(curve.estimates, grid, 1.0), curve.estimates)
 
 
+class ReadOnce:
+    """A campaign whose runs are each read from the file once.
+
+    The report reads every run for Tables 1 and 2, for what it shows, and for each ladder
+    again with the run's companions (every run of the campaign is looked at to find them):
+    sixty reads of seven runs. Everything else is the campaign's own.
+    """
+
+    def __init__(self, campaign: Campaign) -> None:
+        self._campaign = campaign
+        self._runs: dict[str, Run] = {}
+
+    def run(self, name: str) -> Run:
+        """Run ``name``, read on the first call only."""
+        if name not in self._runs:
+            self._runs[name] = self._campaign.run(name)
+        return self._runs[name]
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._campaign, name)
+
+
+#: Campaigns read in this process, by (path, modification time, size): a ladder climbed here
+#: (``--jobs 1``, or a forked worker) reads no run the report has read already.
+_READ: dict[tuple[str, int, int], ReadOnce] = {}
+
+
+def read_once(path: str, campaign: Campaign | None = None) -> ReadOnce:
+    """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
+    unless ``campaign`` is given)."""
+    from pathlib import Path
+
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return ReadOnce(Campaign.open(path))  # which says what is wrong with the path
+    key = (str(Path(path).resolve()), stat.st_mtime_ns, stat.st_size)
+    if key not in _READ:
+        _READ.clear()  # one campaign at a time
+        _READ[key] = ReadOnce(campaign if campaign is not None else Campaign.open(path))
+    return _READ[key]
+
+
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
           ) -> Climb | str:
     """Diagnose one run from ``spec`` and climb the ladder; plain data, or why it failed.
@@ -343,7 +386,7 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
-            campaign = Campaign.open(path)
+            campaign = read_once(path)
             data = _diagnosis.from_campaign(campaign, run_name, band_hz=band_hz)
             first = _diagnosis.diagnose(data, spec)
             steps = first.auto() if ladder else [first]
@@ -378,11 +421,15 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
 
 
 def _climb_all(path: str, requests: list[tuple[str, tuple[float, float], str]], ladder: bool,
-               jobs: int) -> dict[str, Climb | str]:
-    """:func:`climb` for every request, in ``jobs`` processes (in this one when 1)."""
-    results = parallel_map(climb, [(path, name, band, spec, ladder)
-                                   for name, band, spec in requests], jobs)
-    return {name: result for (name, _, _), result in zip(requests, results, strict=True)}
+               jobs: int, scheduler: str | None = None) -> tuple[dict[str, Climb | str], int]:
+    """:func:`climb` for every request, in ``jobs`` processes (in this one when 1) or on the
+    Dask cluster at ``scheduler``; the results, and how many workers shared them."""
+    with executor(min(jobs, len(requests)), scheduler) as workers:
+        results = workers.map(climb, [(path, name, band, spec, ladder)
+                                      for name, band, spec in requests])
+        count = workers.workers
+    return ({name: result for (name, _, _), result in zip(requests, results, strict=True)},
+            count)
 
 
 def analyse_campaign(
@@ -392,6 +439,7 @@ def analyse_campaign(
     diagnosis: bool = True,
     ladder: bool = True,
     jobs: int | None = None,
+    scheduler: str | None = None,
 ) -> CampaignAnalysis:
     """Fit, diagnose and gather what the report shows, every fit made once.
 
@@ -407,10 +455,14 @@ def analyse_campaign(
         Climb the ladder of effects to the best model (seconds per run); else diagnose once.
     jobs
         Processes climbing ladders at once (default: one per core).
+    scheduler
+        ``tcp://HOST:PORT`` of a Dask cluster whose workers climb the ladders instead
+        (:mod:`viscorig.executor`).
     """
     from viscorig.fitting import fit
 
     started = time.perf_counter()
+    campaign = read_once(str(campaign.path), campaign)
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
     runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
@@ -456,7 +508,8 @@ def analyse_campaign(
             analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
         requests.append((run.name, band, spec))
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
-    climbs = _climb_all(str(campaign.path), requests, ladder, jobs) if requests else {}
+    climbs, workers = ({}, 1) if not requests else _climb_all(
+        str(campaign.path), requests, ladder, jobs, scheduler)
     for analysis in analyses:
         outcome = climbs.get(analysis.name)
         if isinstance(outcome, str):
@@ -487,11 +540,12 @@ def analyse_campaign(
         notes.append("diagnosis sections left out: "
                      + ("the diagnosis package is not installed" if _diagnosis is None
                         else "switched off"))
+    _READ.clear()  # the runs read are not kept past the analysis
     spent = sum(c.seconds for c in climbs.values() if isinstance(c, Climb))
     return CampaignAnalysis(str(campaign.path), analyses, table, rig.theta, band_hz,
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
-                            min(jobs, max(1, len(requests))))
+                            min(workers, max(1, len(requests))))
 
 
 def storage_and_loss(curves: ModulusCurves, theta_m: float | None

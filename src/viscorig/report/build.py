@@ -29,10 +29,11 @@ def build_report(
     diagnosis: bool = True,
     ladder: bool = True,
     jobs: int | None = None,
+    scheduler: str | None = None,
 ) -> Path:
     """Write ``out_dir/index.html`` and every figure as ``.png`` and ``.svg``; return the page.
 
-    ``diagnosis``, ``ladder`` and ``jobs`` as in
+    ``diagnosis``, ``ladder``, ``jobs`` and ``scheduler`` as in
     :func:`~viscorig.report.analysis.analyse_campaign`.
 
     Raises
@@ -51,7 +52,7 @@ def build_report(
     jobs = default_jobs() if jobs is None else max(1, jobs)
     with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
         analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder,
-                                    jobs=jobs)
+                                    jobs=jobs, scheduler=scheduler)
     _log.info("analysis: %.1f s (diagnosis %.1f s over %d process(es))", analysis.seconds,
               analysis.diagnosis_seconds, analysis.jobs)
     started = time.perf_counter()

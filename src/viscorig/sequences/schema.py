@@ -668,4 +668,26 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
               "the arrangement.", default=None, unit="m", low=0.0, high=100.0, low_open=True,
               example="0.0131"),
     ), required=False),
+    TableSchema("bench", "Optional: the bench page (viscorig bench serve) and its automatic "
+                "holds.", (
+        Field("address", "text", "Interface the bench page is served on; anything but "
+              "127.0.0.1 lets other machines reach it (with the token).", default="127.0.0.1",
+              example='"127.0.0.1"'),
+        Field("hold_resume", "choice", "After an automatic hold clears: resume by itself "
+              '("auto") or wait for the technician.', default="technician",
+              choices=("auto", "technician"), example='"technician"'),
+        Field("hold_level_points", "integer", "Hold when the level is not held for this many "
+              "points in a row.", default=5, low=1, high=10000, example="5"),
+        Field("hold_overload_points", "integer", "Hold when an input overloads on this many "
+              "points in a row.", default=3, low=1, high=10000, example="3"),
+        Field("hold_force_fraction", "number", "Hold when the force reaches this fraction of "
+              "the shaker's limit.", default=0.97, low=0.0, high=1.0, low_open=True,
+              example="0.97"),
+        Field("hold_temperature_points", "integer", "With a chamber: hold when the specimen "
+              "is outside its soak band on this many points in a row.", default=3, low=1,
+              high=10000, example="3"),
+        Field("hold_retry_s", "number", "With hold_resume = \"auto\": wait this long before "
+              "trying again after a level, overload or force hold.", default=60.0, unit="s",
+              low=0.0, high=86400.0, example="60.0"),
+    ), required=False),
 )

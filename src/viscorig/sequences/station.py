@@ -130,6 +130,19 @@ class ChamberStation:
 
 
 @dataclass(frozen=True)
+class BenchSettings:
+    """The bench page's address and its automatic holds (the station's ``[bench]``)."""
+
+    address: str = "127.0.0.1"
+    hold_resume: str = "technician"
+    hold_level_points: int = 5
+    hold_overload_points: int = 3
+    hold_force_fraction: float = 0.97
+    hold_temperature_points: int = 3
+    hold_retry_s: float = 60.0
+
+
+@dataclass(frozen=True)
 class Station:
     """A validated station file."""
 
@@ -144,6 +157,7 @@ class Station:
     specimen: SpecimenGeometry | None = None
     chamber: ChamberStation | None = None
     source: str = ""
+    bench: BenchSettings = BenchSettings()
 
     def rig_attributes(self) -> dict[str, float | int]:
         """The ``/rig`` attributes of a campaign file that this station knows."""
@@ -263,5 +277,6 @@ def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
         table=None if table is None else TableParameters(**table),
         specimen=None if specimen is None else SpecimenGeometry(**specimen),
         chamber=None if chamber is None else ChamberStation(**chamber),
+        bench=BenchSettings() if values["bench"] is None else BenchSettings(**values["bench"]),
         source=source,
     )

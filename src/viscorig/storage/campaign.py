@@ -36,6 +36,7 @@ Additions to the contract, both readable by any HDF5 tool:
 - Next to the file, while a writer has it: ``.NAME.lock``, the writer lock and a JSON record of
   who holds it (:mod:`viscorig.storage.writelock`); during a commit, ``.NAME.commit``, the new
   file before it replaces the old one (:mod:`viscorig.storage.atomic`).
+- ``/journal``: the bench's notes and run events with their time (:mod:`viscorig.storage.journal`).
 - Bounds a reader enforces before reading any value (:mod:`viscorig.storage.layout`): at most
   100,000 points per run and 1,000,000 per file, 1,000 runs, 1,000 fits per run, 64 objects per
   run or fit, 256 attributes per object, 16 values and 64 KiB per attribute, 1 MiB per setup
@@ -59,7 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from viscorig.errors import InputError
-from viscorig.storage import layout, reading, room, untrusted, writelock
+from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import Fit, Run, RunSettings, Segment
 from viscorig.version import __version__
@@ -490,6 +491,27 @@ class Campaign:
                 raise InputError(f"{type(value).__name__} is not text, a number or a boolean",
                                  f"{self.path}: attribute {key!r}")
         return checked
+
+    def add_journal_entry(self, kind: str, text: str, run: str = "") -> journal.JournalEntry:
+        """Append a note or a run event to ``/journal`` (:mod:`viscorig.storage.journal`) in one
+        commit; return the entry as stored.
+
+        Raises
+        ------
+        InputError
+            An unknown kind, an empty or too long text, or a full journal.
+        """
+        text = journal.check_entry(kind, text, f"{self.path}: /{journal.JOURNAL_GROUP}")
+        entry = journal.JournalEntry(utc_now(), kind, str(run), text)
+        with self._commit() as h5:
+            journal.append(h5, entry, self.path)
+        return entry
+
+    @property
+    def journal(self) -> list[journal.JournalEntry]:
+        """Every entry of ``/journal``, in the order written (none when there is no journal)."""
+        with self._reading() as h5, reading.guarded(self.path, f"/{journal.JOURNAL_GROUP}"):
+            return journal.read(h5, self.path)
 
     def add_fit(
         self,

@@ -1,0 +1,419 @@
+"""The bench page's web application: the JSON API of ``viscorig bench serve`` and its page.
+
+Built on Starlette and served by uvicorn on 127.0.0.1 (another address only when the station's
+``[bench] address`` says so). Every request passes :class:`Guard` first:
+
+- its ``Host`` must name this server (a page of another site cannot reach it by DNS
+  rebinding), and a request that carries an ``Origin`` must come from this server's own;
+- it must carry the token: ``Authorization: Bearer TOKEN``, or the cookie the page sets when it
+  is opened with ``/?token=TOKEN``;
+- at most :data:`RATE_PER_S` requests a second are served (429 beyond; requests without the
+  token are counted apart, so that a flood of them never slows the page), and no body may
+  exceed :data:`MAX_BODY_BYTES` (413).
+
+One client controls the bench at a time (the first to send a command; a client is its browser's
+cookie, or a script's ``X-Bench-Client`` header): a second one is read-only (409, and its page
+says so) until the first has been silent for :data:`CONTROL_LEASE_S`. Closing the browser never
+stops a run. Every refusal is a 4xx whose JSON body is ``{"error": "one line"}``.
+"""
+
+from __future__ import annotations
+
+import hmac
+import json
+import secrets
+import threading
+import time
+from functools import cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import HTMLResponse, JSONResponse, Response
+from starlette.routing import Route
+
+from viscorig.bench.service import BenchError, BenchService
+
+#: Requests served per second, all clients together; a burst of that many is allowed.
+RATE_PER_S = 50
+#: Largest request body, bytes.
+MAX_BODY_BYTES = 64 * 1024
+#: A controlling client silent this long loses control, s.
+CONTROL_LEASE_S = 15.0
+#: The page's and the live view's policies: nothing from elsewhere, frames only from here.
+_PAGE_POLICY = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+                "connect-src 'self'; img-src data:; frame-src 'self'; base-uri 'none'; "
+                "form-action 'none'; frame-ancestors 'none'")
+_LIVE_POLICY = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+                "connect-src 'self'; img-src data:; base-uri 'none'; form-action 'none'; "
+                "frame-ancestors 'self'")
+
+
+@cache
+def page_html() -> str:
+    """The bench page, as shipped with the package."""
+    return resources.files("viscorig.bench").joinpath("page.html").read_text(encoding="utf-8")
+
+
+def error(status: int, message: str) -> JSONResponse:
+    """A refusal: ``{"error": message}`` (one line)."""
+    return JSONResponse({"error": " ".join(str(message).split())}, status_code=status,
+                        headers={"Cache-Control": "no-store"})
+
+
+class RateLimit:
+    """A token bucket: ``rate`` requests a second, bursts of ``rate``."""
+
+    def __init__(self, rate: float) -> None:
+        self.rate = float(rate)
+        self.tokens = float(rate)
+        self.last = time.monotonic()
+        self._lock = threading.Lock()
+
+    def take(self) -> bool:
+        with self._lock:
+            now = time.monotonic()
+            self.tokens = min(self.rate, self.tokens + (now - self.last) * self.rate)
+            self.last = now
+            if self.tokens < 1.0:
+                return False
+            self.tokens -= 1.0
+            return True
+
+
+class Control:
+    """Which client controls the bench (module text)."""
+
+    def __init__(self, lease_s: float = CONTROL_LEASE_S) -> None:
+        self.lease_s = lease_s
+        self.holder: str | None = None
+        self.seen = 0.0
+        self._lock = threading.Lock()
+
+    def _free(self, now: float) -> bool:
+        return self.holder is None or now - self.seen > self.lease_s
+
+    def touch(self, client: str) -> str:
+        """A request of ``client``: "you", "another client" or "free" (who controls)."""
+        with self._lock:
+            now = time.monotonic()
+            if self.holder == client:
+                self.seen = now
+                return "you"
+            return "free" if self._free(now) else "another client"
+
+    def take(self, client: str) -> bool:
+        """May ``client`` command? (It then controls the bench.)"""
+        with self._lock:
+            now = time.monotonic()
+            if self.holder == client or self._free(now):
+                self.holder, self.seen = client, now
+                return True
+            return False
+
+
+class Guard:
+    """The checks every request passes before the application (module text); pure ASGI."""
+
+    def __init__(self, app: Any, token: str, hosts: set[str], cookie: str) -> None:
+        self.app = app
+        self.token = token
+        self.hosts = hosts
+        self.cookie = cookie
+        self.rate = RateLimit(RATE_PER_S)
+        self.strangers = RateLimit(RATE_PER_S)
+        """Requests without the token count apart: a flood of them never slows the page."""
+
+    async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
+        if scope["type"] == "websocket":  # none is served: refused before anything
+            await send({"type": "websocket.close", "code": 1008})
+            return
+        if scope["type"] != "http":  # the server's lifespan events
+            await self.app(scope, receive, send)
+            return
+        refusal = self._refusal(scope)
+        if refusal is not None:
+            await refusal(scope, receive, send)
+            return
+        await self.app(scope, self._bounded(receive), send)
+
+    def _refusal(self, scope: dict) -> Response | None:
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1")
+                   for k, v in scope.get("headers", [])}
+        authorised = self._authorised(scope, headers)
+        if not (self.rate if authorised else self.strangers).take():
+            return error(429, f"too many requests: at most {RATE_PER_S} a second")
+        host = headers.get("host", "").strip().lower()
+        if host not in self.hosts:
+            return error(403, f"host {host!r} is not this server")
+        origin = headers.get("origin")
+        if origin is not None and origin.lower() not in {f"http://{h}" for h in self.hosts}:
+            return error(403, f"origin {origin!r} is not this server: requests from other "
+                         "pages are refused")
+        if headers.get("sec-fetch-site") == "cross-site":
+            return error(403, "requests from other sites are refused")
+        length = headers.get("content-length")
+        if length is not None and (not length.isdigit() or int(length) > MAX_BODY_BYTES):
+            return error(413, f"request body over {MAX_BODY_BYTES} bytes")
+        if not authorised:
+            return error(401, "missing or wrong token: open the address 'viscorig bench serve' "
+                         "printed, or send 'Authorization: Bearer TOKEN'")
+        return None
+
+    def _authorised(self, scope: dict, headers: dict[str, str]) -> bool:
+        offered = []
+        authorization = headers.get("authorization", "")
+        if authorization.lower().startswith("bearer "):
+            offered.append(authorization[7:].strip())
+        for part in headers.get("cookie", "").split(";"):
+            name, _, value = part.strip().partition("=")
+            if name == self.cookie:
+                offered.append(value)
+        if scope.get("path") == "/" and scope.get("method") == "GET":
+            query = scope.get("query_string", b"").decode("latin-1")
+            for part in query.split("&"):
+                name, _, value = part.partition("=")
+                if name == "token":
+                    offered.append(value)
+        return any(hmac.compare_digest(value.encode(), self.token.encode())
+                   for value in offered)
+
+    @staticmethod
+    def _bounded(receive: Any) -> Any:
+        received = [0]
+
+        async def bounded() -> dict:
+            message = await receive()
+            if message["type"] == "http.request":
+                received[0] += len(message.get("body", b""))
+                if received[0] > MAX_BODY_BYTES:
+                    raise BenchError(f"request body over {MAX_BODY_BYTES} bytes", 413)
+            return message
+
+        return bounded
+
+
+def create_app(service: BenchService, token: str, port: int,
+               address: str = "127.0.0.1") -> Guard:
+    """The application of :class:`BenchService` at ``address:port`` with ``token``."""
+    from viscorig.watch.server import page_html as live_html
+    from viscorig.watch.snapshot import Snapshots
+
+    cookie = f"viscorig_bench_{port}"
+    client_cookie = f"viscorig_client_{port}"
+    control = Control()
+    live: dict[str, Snapshots] = {}
+
+    def client_of(request: Request) -> str:
+        return (request.cookies.get(client_cookie)
+                or "script:" + request.headers.get("x-bench-client", "")[:64])
+
+    async def body(request: Request) -> dict[str, Any]:
+        try:
+            raw = await request.body()
+        except BenchError as bad:
+            raise bad from None
+        if not raw:
+            return {}
+        try:
+            value = json.loads(raw)
+        except (ValueError, UnicodeDecodeError):
+            raise BenchError("body: not JSON", 400) from None
+        if not isinstance(value, dict):
+            raise BenchError("body: a JSON object", 400)
+        return value
+
+    async def page(request: Request) -> Response:
+        response = HTMLResponse(page_html(), headers={
+            "Cache-Control": "no-store", "Content-Security-Policy": _PAGE_POLICY,
+            "X-Content-Type-Options": "nosniff", "Referrer-Policy": "no-referrer"})
+        response.set_cookie(cookie, token, httponly=True, samesite="strict", path="/")
+        if client_cookie not in request.cookies:
+            response.set_cookie(client_cookie, secrets.token_urlsafe(12), httponly=True,
+                                samesite="strict", path="/")
+        return response
+
+    async def state(request: Request) -> Response:
+        answer = service.state()
+        answer["control"] = control.touch(client_of(request))
+        return JSONResponse(answer, headers={"Cache-Control": "no-store"})
+
+    def command(action):
+        async def endpoint(request: Request) -> Response:
+            try:
+                data = await body(request)
+                if not control.take(client_of(request)):
+                    return error(409, "read-only: another client controls the bench")
+                result = action(request, data)
+            except BenchError as refused:
+                return error(refused.status, str(refused))
+            return JSONResponse(result or {"ok": True}, headers={"Cache-Control": "no-store"})
+        return endpoint
+
+    def queue_add(request: Request, data: dict) -> dict:
+        item = service.add(data.get("sequence"), data.get("out"))
+        return {"id": item.id, "problems": item.problems, "plan_s": item.plan_s}
+
+    def queue_remove(request: Request, data: dict) -> None:
+        service.remove(request.path_params["item"])
+
+    def queue_move(request: Request, data: dict) -> None:
+        service.move(request.path_params["item"], data.get("position"))
+
+    async def journal(request: Request) -> Response:
+        from viscorig.storage import Campaign
+
+        path = service.campaign_path
+        entries = []
+        if path is not None and Path(path).exists():
+            try:
+                entries = [e.__dict__ for e in Campaign.open(path).journal][-200:]
+            except Exception as failure:
+                return error(409, f"{path}: {failure}")
+        return JSONResponse({"campaign": None if path is None else str(path),
+                             "entries": entries}, headers={"Cache-Control": "no-store"})
+
+    async def live_page(request: Request) -> Response:
+        return HTMLResponse(live_html(), headers={
+            "Cache-Control": "no-store", "Content-Security-Policy": _LIVE_POLICY,
+            "X-Content-Type-Options": "nosniff"})
+
+    async def live_state(request: Request) -> Response:
+        path = service.campaign_path
+        if path is None:
+            return JSONResponse({"version": "", "error": "no campaign yet"})
+        snapshots = live.get(str(path))
+        if snapshots is None:
+            live.clear()
+            snapshots = live[str(path)] = Snapshots(Path(path))
+        version, snapshot = snapshots.latest()
+        known = request.query_params.get("version", "")
+        answer: dict[str, Any] = {"version": version, "error": snapshots.error}
+        if known == str(version) and snapshot is not None:
+            answer["unchanged"] = True
+        else:
+            answer["snapshot"] = snapshot
+        return Response(json.dumps(answer, allow_nan=False, separators=(",", ":")),
+                        media_type="application/json", headers={"Cache-Control": "no-store"})
+
+    async def not_found(request: Request, exc: Exception) -> Response:
+        return error(404, f"{request.method} {request.url.path}: no such endpoint")
+
+    async def not_allowed(request: Request, exc: Exception) -> Response:
+        return error(405, f"{request.method} {request.url.path}: method not allowed")
+
+    async def refused(request: Request, exc: Exception) -> Response:
+        return error(getattr(exc, "status", 400), str(exc))
+
+    async def failed(request: Request, exc: Exception) -> Response:
+        return error(500, f"internal error ({type(exc).__name__}); the run goes on")
+
+    simple = {
+        "start": lambda request, data: service.start(),
+        "pause": lambda request, data: service.pause(),
+        "resume": lambda request, data: service.resume(),
+        "abort": lambda request, data: service.abort(),
+        "answer": lambda request, data: service.answer(data.get("prompt_id"),
+                                                       data.get("answer")),
+        "notes": lambda request, data: service.note(data.get("text")),
+    }
+    routes = [
+        Route("/", page, methods=["GET"]),
+        Route("/api/state", state, methods=["GET"]),
+        Route("/api/journal", journal, methods=["GET"]),
+        Route("/api/queue", command(queue_add), methods=["POST"]),
+        Route("/api/queue/{item}", command(queue_remove), methods=["DELETE"]),
+        Route("/api/queue/{item}/move", command(queue_move), methods=["POST"]),
+        *(Route(f"/api/{name}", command(action), methods=["POST"])
+          for name, action in simple.items()),
+        Route("/live/", live_page, methods=["GET"]),
+        Route("/live/state.json", live_state, methods=["GET"]),
+    ]
+    hosts = {f"{address}:{port}"}
+    if address == "127.0.0.1":
+        hosts.add(f"localhost:{port}")
+    app = Starlette(routes=routes, exception_handlers={
+        404: not_found, 405: not_allowed, BenchError: refused, Exception: failed})
+    return Guard(app, token, hosts, cookie)
+
+
+class BenchServer:
+    """The bench's web server on ``address:port`` (0: any free port), with a fresh token.
+
+    :meth:`run` serves in the calling thread until Ctrl-C; :meth:`start` serves from a
+    background thread until :meth:`close` (tests, embedding).
+
+    Raises
+    ------
+    OSError
+        The address or port cannot be bound.
+    """
+
+    def __init__(self, service: BenchService, port: int = 0,
+                 address: str = "127.0.0.1") -> None:
+        import socket
+
+        import uvicorn
+
+        self.service = service
+        self.address = address
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self.socket.bind((address, port))
+        except OSError:
+            self.socket.close()
+            raise
+        self.socket.listen(64)
+        self.port = int(self.socket.getsockname()[1])
+        self.token = secrets.token_urlsafe(24)
+        config = uvicorn.Config(create_app(service, self.token, self.port, address),
+                                log_level="warning", access_log=False, server_header=False,
+                                limit_concurrency=64, timeout_keep_alive=5)
+        self.server = uvicorn.Server(config)
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        """The address with its token (what ``bench serve`` prints first)."""
+        return f"http://{self.address}:{self.port}/?token={self.token}"
+
+    @property
+    def base(self) -> str:
+        """The address without the token."""
+        return f"http://{self.address}:{self.port}"
+
+    def run(self) -> None:
+        """Serve until Ctrl-C; then abort a run in progress (its data kept)."""
+        try:
+            self.server.run(sockets=[self.socket])
+        finally:
+            self.service.shutdown()
+            self.socket.close()
+
+    def start(self) -> BenchServer:
+        """Serve from a background thread."""
+        self._thread = threading.Thread(target=self.server.run,
+                                        kwargs={"sockets": [self.socket]},
+                                        name="viscorig-bench-server", daemon=True)
+        self._thread.start()
+        deadline = time.monotonic() + 10
+        while not self.server.started and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return self
+
+    def close(self) -> None:
+        """Stop serving, abort a run in progress, release the port."""
+        self.server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        self.service.shutdown()
+        self.socket.close()
+
+    def __enter__(self) -> BenchServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

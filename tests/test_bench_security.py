@@ -1,0 +1,120 @@
+"""The bench server refuses what it must, while a run goes on unharmed: no token, a wrong token,
+another origin or host, a second controlling client, a 10 MB body, a hundred requests a second.
+Every refusal is a 4xx with a one-line JSON error, never a traceback."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import httpx
+import pytest
+from benchrig import Client, bench_server, small_sequence, wait_until
+
+from viscorig.bench.app import MAX_BODY_BYTES, RATE_PER_S
+from viscorig.storage import Campaign
+
+
+def one_line_error(answer: httpx.Response, status: int) -> str:
+    assert answer.status_code == status, (answer.status_code, answer.text)
+    message = answer.json()["error"]
+    assert message and "\n" not in message and "Traceback" not in answer.text
+    return message
+
+
+def refuse_everything(server, owner: Client) -> None:
+    """Every refusal, one after another; ``owner`` controls the bench already."""
+    with httpx.Client(base_url=server.base, timeout=10.0) as anyone:
+        # no token, a wrong token (header and cookie), the token of another port
+        assert "token" in one_line_error(anyone.get("/api/state"), 401)
+        one_line_error(anyone.post("/api/abort"), 401)
+        one_line_error(anyone.get("/api/state", headers={
+            "Authorization": "Bearer " + server.token[:-1] + "x"}), 401)
+        one_line_error(anyone.get("/api/state", headers={
+            "Cookie": f"viscorig_bench_{server.port + 1}={server.token}"}), 401)
+        one_line_error(anyone.get("/?token=wrong"), 401)
+        bearer = {"Authorization": f"Bearer {server.token}"}
+        # another origin (a page of another site in the same browser), another host name
+        assert "origin" in one_line_error(anyone.post("/api/abort", headers={
+            **bearer, "Origin": "http://evil.example"}), 403)
+        one_line_error(anyone.post("/api/pause", headers={
+            **bearer, "Origin": f"http://localhost.evil.example:{server.port}"}), 403)
+        one_line_error(anyone.get("/api/state", headers={**bearer, "Host": "rebound.example"}),
+                       403)
+        one_line_error(anyone.post("/api/abort", headers={
+            **bearer, "Sec-Fetch-Site": "cross-site"}), 403)
+        # 10 MB: declared, and streamed without a length
+        big = b"{" + b" " * (10 * 1024 * 1024) + b"}"
+        one_line_error(anyone.post("/api/notes", content=big, headers=bearer), 413)
+
+        def chunks():
+            for _ in range(160):
+                yield b" " * 65536
+
+        one_line_error(anyone.post("/api/notes", content=chunks(), headers=bearer), 413)
+        one_line_error(owner.http.post("/api/notes", content=b"not json"), 400)
+        one_line_error(owner.http.post("/api/nothing"), 404)
+        one_line_error(owner.http.put("/api/state"), 405)
+
+    # a second client may read, not command, and is told so
+    second = Client(server, "second")
+    assert second.state()["control"] == "another client"
+    assert owner.state()["control"] == "you"
+    assert "read-only" in one_line_error(second.post("/api/pause"), 409)
+    one_line_error(second.post("/api/abort"), 409)
+
+    # a hundred requests a second: bounded; the owner's requests go on after
+    time.sleep(0.5)
+    started = time.monotonic()
+    with ThreadPoolExecutor(20) as pool:
+        codes = list(pool.map(lambda _: second.http.get("/api/state").status_code, range(100)))
+    spent = time.monotonic() - started
+    served = codes.count(200)
+    assert set(codes) <= {200, 429}
+    assert served <= RATE_PER_S + spent * RATE_PER_S + 1, (served, spent)
+    assert codes.count(429) > 0
+    # a flood without the token is refused on its own account: the owner is not slowed
+    with httpx.Client(base_url=server.base, timeout=10.0) as stranger, ThreadPoolExecutor(
+            20) as pool:
+        codes = list(pool.map(lambda _: stranger.get("/api/state").status_code, range(100)))
+    assert set(codes) <= {401, 429} and codes.count(429) > 0
+    assert owner.http.get("/api/state").status_code == 200
+    second.close()
+    time.sleep(0.5)  # the bucket refills for the owner's next requests
+
+
+def test_refusals_of_an_idle_bench(tmp_path) -> None:
+    small_sequence(tmp_path)
+    with bench_server(tmp_path) as server:
+        owner = Client(server, "owner")
+        assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
+                          ).status_code == 200
+        refuse_everything(server, owner)
+        assert owner.state()["queue"][0]["out"].endswith("run.h5")
+        owner.close()
+    assert not (tmp_path / "run.h5").exists()
+
+
+@pytest.mark.slow
+def test_refusals_leave_a_run_unharmed(tmp_path) -> None:
+    small_sequence(tmp_path)
+    with bench_server(tmp_path, sim_pace=60.0) as server:
+        owner = Client(server, "owner")
+        assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
+                          ).status_code == 200
+        assert owner.post("/api/start").status_code == 200
+        prompt = wait_until(lambda: owner.state()["prompt"], what="a prompt")
+        assert owner.post("/api/answer", {"prompt_id": prompt["id"], "answer": "done"}
+                          ).status_code == 200
+        wait_until(lambda: owner.state()["points_done"] > 0, what="measuring")
+        refuse_everything(server, owner)
+        assert owner.state()["state"] in ("measuring", "complete")
+        final = wait_until(lambda: (s := owner.state())["state"] not in (
+            "measuring", "checking", "waiting_for_operator") and s, 60, "the end of the run")
+        assert final["state"] == "complete", final["message"]
+        owner.close()
+    with Campaign.open(tmp_path / "run.h5") as campaign:
+        run = campaign.run("soft-0")
+        assert run.metadata.status == "complete" and run.points == 81
+        assert campaign.journal == []  # no refused request reached the file
+    assert MAX_BODY_BYTES < 10 * 1024 * 1024
