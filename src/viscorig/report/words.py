@@ -8,21 +8,15 @@ finding of a run, built from the rungs of its diagnosis ladder.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 from collections.abc import Sequence
 
-#: ``rms_error`` within this factor of the noise floor counts as "at the noise floor" (the
-#: diagnosis's own threshold).
-AT_FLOOR_RATIO = 1.25
-#: ... within this factor, "close to the noise floor".
-CLOSE_RATIO = 2.0
-#: ΔBIC (whitened) below minus this is beyond noise (the diagnosis's threshold).
-SIGNIFICANT_DELTA_BIC = 20.0
+# "at the noise floor" and "beyond noise" are the diagnosis's own thresholds
+from viscorig.diagnosis import AT_FLOOR_RATIO, SIGNIFICANT_DELTA_BIC
 
-with contextlib.suppress(ImportError):  # the diagnosis's own thresholds, when installed
-    from viscorig.diagnosis import AT_FLOOR_RATIO, SIGNIFICANT_DELTA_BIC
+#: ``rms_error`` within this factor of the noise floor reads "close to the noise floor".
+CLOSE_RATIO = 2.0
 
 def times(ratio: float) -> str:
     """``3.9×``, ``240×``: a ratio to a tenth below 10, whole above."""
