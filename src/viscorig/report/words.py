@@ -12,11 +12,13 @@ import math
 import re
 from collections.abc import Sequence
 
-# "at the noise floor" and "beyond noise" are the diagnosis's own thresholds
-from viscorig.diagnosis import AT_FLOOR_RATIO, SIGNIFICANT_DELTA_BIC
+# "at the noise floor" is the diagnosis's own threshold
+from viscorig.diagnosis import AT_FLOOR_RATIO
 
 #: ``rms_error`` within this factor of the noise floor reads "close to the noise floor".
 CLOSE_RATIO = 2.0
+#: ΔBIC (whitened) below minus this is beyond noise.
+SIGNIFICANT_DELTA_BIC = 20.0
 
 def times(ratio: float) -> str:
     """``3.9×``, ``240×``: a ratio to a tenth below 10, whole above."""
