@@ -27,3 +27,5 @@ def test_example_notebook_runs_and_says_what_it_should():
     assert "<Diagnosis soft-0 " in text and "rungs" in text
     assert "<Comparison soft-10 against soft-0: K_v +" in text
     assert any("Candidate effects on voigt" in page for page in html)  # the diagnosis's view
+    assert "<MasterCurve eca: 21 temperatures, reference 25.00 °C" in text
+    assert any("Prony series: " in page and "shift factors" in page for page in html)

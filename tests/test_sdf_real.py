@@ -2,18 +2,17 @@
 and against an independent parser (sdfascii); hostile variants of them.
 
 The files are not part of the repository (tests/data/sdf/README.md names them, their source,
-licence and SHA-256): the tests read them from ``$VISCORIG_SDF_DATA``, else from
-``shared/data/sdf`` beside the checkout, and are skipped where neither holds them."""
+licence and SHA-256): :func:`realdata.real_data` finds them."""
 
 from __future__ import annotations
 
 import hashlib
-import os
 import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import real_data
 from sdfstation import SENSITIVITY_A_V_PER_M_S2, SENSITIVITY_F_V_PER_N, STATION
 
 from viscorig.cli import main
@@ -22,14 +21,9 @@ from viscorig.exchange import read_sdf, read_sdf_file, read_sdf_frfs
 from viscorig.sequences import parse_station
 from viscorig.storage import Campaign
 
-DATA = Path(os.environ.get("VISCORIG_SDF_DATA")
-            or Path(__file__).resolve().parents[2] / "shared" / "data" / "sdf")
+DATA = real_data("sdf", "HP35665A.DAT", "HP35670A.DAT", "ASCII3KH.TXT", "ASCII3KH.X")
 FRF_35665A = DATA / "HP35665A.DAT"
 SPECTRUM_35670A = DATA / "HP35670A.DAT"
-if not all((DATA / name).is_file() for name in ("HP35665A.DAT", "HP35670A.DAT", "ASCII3KH.TXT",
-                                                 "ASCII3KH.X")):
-    pytest.skip(f"the real SDF files of tests/data/sdf/README.md are not in {DATA}",
-                allow_module_level=True)
 
 
 

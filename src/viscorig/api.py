@@ -6,6 +6,7 @@
 >>> fit = campaign.identify("soft-0", "maxwell")         # a fit (not stored unless store=True)
 >>> d = campaign.diagnose("soft-0", auto=True)           # where it fails; the ladder climbed
 >>> campaign.compare("soft-0", "soft-10")                # what preload changed, with ±
+>>> campaign.master("dma-sweep").to_json()               # master curve, shifts, Prony series
 >>> run.to_pandas(), fit.to_xarray()                     # frequency_hz as index / coordinate
 
 Every object has a short ``repr`` and, in Jupyter, an HTML view (``_repr_html_``) that says the
@@ -112,6 +113,23 @@ class Campaign:
         if store:
             source = f"stored fit {store_fit(self.stored, run, result)}"
         return Fit(self[run], ModelCurve.from_fit(result, source), result)
+
+    def master(self, *runs: str, reference_temperature_c: float | None = None,
+               disc_mass_kg: float | None = None, kstar: str = "support"):
+        """The master curve of a DMA run, or of rig runs of one specimen at several temperatures
+        (as ``viscorig master``): shift factors with ±, WLF and Arrhenius, checks, Prony series.
+
+        Returns a :class:`viscorig.materials.master.MasterCurve`; ``.to_json()`` is the object
+        ``master --json`` prints, ``.text()`` what it prints without ``--json``.
+        """
+        from viscorig.materials.master import build_master
+        from viscorig.materials.sources import modulus_table
+
+        names = [name for group in runs for name in ([group] if isinstance(group, str)
+                                                      else group)]
+        table = modulus_table(self.stored, names, disc_mass_kg, kstar)
+        with np.errstate(all="ignore"):
+            return build_master(table, tuple(names), reference_temperature_c)
 
     def diagnose(self, run: str, model: str | None = None, *, auto: bool = False,
                  band_hz: tuple[float, float] | None = _DEFAULT_BAND,

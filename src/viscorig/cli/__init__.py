@@ -54,10 +54,14 @@ COMMANDS: dict[str, Command] = {
     ),
     "report": Command("report", "HTML report with figures (PNG, SVG) of a campaign file"),
     "export": Command(
-        "exchange", "write a run's FRFs to a universal file (dataset 58) or CSV"
+        "exchange",
+        "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)",
     ),
     "import": Command(
-        "exchange", "add a run to a campaign from UFF 58, CSV or SDF files (35670A family)"
+        "exchange", "add a run to a campaign from UFF 58, CSV, SDF (35670A family) or DMA files"
+    ),
+    "master": Command(
+        "master", "master curve, shift factors and Prony series of a material over temperature"
     ),
     "sim": Command("sim", "simulated rig and analyser"),
     "check": Command("check", "list every problem of a sequence (and station) file at once"),

@@ -4,7 +4,10 @@
 (ẍ_s/F_e and ẍ_v/F_v, m/s²/N): a universal file with one dataset 58 per FRF (binary 58 by
 default, so values survive to the last bit; ``--uff-ascii`` for plain ASCII), or a CSV with the
 units in the column names and the point flags, which spreadsheets and pandas.read_csv open as
-it is, with its metadata beside it in NAME.csv-metadata.json (CSV on the Web).
+it is, with its metadata beside it in NAME.csv-metadata.json (CSV on the Web). With ``--material
+abaqus|ansys|lsdyna`` instead of ``--format``, it writes the master curve of a DMA run (or of rig
+runs of one specimen) as an FE material card: the Prony series and the shift function, with a
+comment block naming data, units, reference temperature and the fit's error.
 
 ``import FILE.h5 --run NAME (--uff PATH | --csv PATH | --sdf PATH [--sdf PATH2])
 [--station STATION.toml]`` adds a new, complete run to a campaign file (created when missing):
@@ -17,7 +20,9 @@ channel roles and sensitivities, and refused without one; other units than accel
 force are refused. One FRF alone gives a run whose ẍ_v/F_v is missing. What the files do not
 say (specimen, preload, hardness) is given with options. Everything is read and checked before
 the campaign file is touched, an existing run is never overwritten, and a truncated or
-inconsistent file is refused whole: an import is never partial.
+inconsistent file is refused whole: an import is never partial. ``--dma PATH`` stores a DMA
+temperature/frequency sweep (CSV) as a DMA run instead (``/dma/NAME``, read by ``viscorig
+master``).
 """
 
 from __future__ import annotations
@@ -55,9 +60,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=_paragraph(1), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     export.add_argument("file", help="campaign file (.h5)")
-    export.add_argument("--run", required=True, help="run name, e.g. soft-0")
-    export.add_argument("--format", choices=("uff", "csv"), required=True,
-                        help="uff: dataset 58 records, one per FRF; csv: one row per point")
+    export.add_argument("--run", required=True, action="append",
+                        help="run name, e.g. soft-0 (with --material: a DMA run, or give once "
+                        "per rig run of one specimen)")
+    what = export.add_mutually_exclusive_group(required=True)
+    what.add_argument("--format", choices=("uff", "csv"),
+                      help="uff: dataset 58 records, one per FRF; csv: one row per point")
+    what.add_argument("--material", choices=("abaqus", "ansys", "lsdyna"),
+                      help="the master curve's Prony series and shift function as an FE "
+                      "material card (see 'viscorig master')")
+    export.add_argument("--reference-temperature", type=float, default=None, metavar="C",
+                        help="with --material: temperature of the master curve, °C")
+    export.add_argument("--poisson-ratio", type=float, default=0.49,
+                        help="with --material: constant Poisson's ratio relating shear, bulk "
+                        "and Young's moduli (default 0.49)")
+    export.add_argument("--disc-mass", type=float, default=None, metavar="KG",
+                        help="with --material and rig runs: disc mass M_v")
+    export.add_argument("--kstar", choices=("support", "fit"), default="support",
+                        help="with --material and rig runs: K* from the support FRF (Eq. 5) "
+                        "or from the newest stored fit")
     export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
     export.add_argument("--uff-ascii", action="store_true",
                         help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "
@@ -77,6 +98,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     source.add_argument("--sdf", metavar="PATH", action="append",
                         help="SDF file of a 35665A/35670A-family analyser (give twice: "
                         "ẍ_s/F_e, then ẍ_v/F_v)")
+    source.add_argument("--dma", metavar="PATH",
+                        help="DMA temperature/frequency sweep (CSV, text, or an Excel workbook "
+                        "such as Eplexor's export), stored as a DMA run")
+    imports.add_argument("--modulus", choices=("E", "G"), default=None,
+                         help="with --dma: tensile (E) or shear (G) modulus (default: told "
+                         "from the column names)")
     imports.add_argument("--station", metavar="STATION.toml",
                          help="station file: its [channels] and [sensitivity] convert "
                          "volt-over-volt SDF responses and say which FRF is which")
@@ -94,10 +121,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def export_handler(args: argparse.Namespace) -> int:
     """Run ``export``."""
     path = Path(args.file)
-    run = Campaign.open(path).run(args.run)
     out = Path(args.out)
     if out.resolve() == path.resolve():
         raise InputError("would overwrite the campaign file", "--out")
+    if args.material:
+        return _export_material(args, out)
+    if len(args.run) != 1:
+        raise InputError(f"{len(args.run)} runs; --format exports one", "--run")
+    run = Campaign.open(path).run(args.run[0])
     if args.format == "uff":
         count = write_uff(run, out, path.name, binary=not args.uff_ascii)
         kind = "ASCII" if args.uff_ascii else "binary"
@@ -109,11 +140,39 @@ def export_handler(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_material(args: argparse.Namespace, out: Path) -> int:
+    """``export --material``: build the master curve, write its card."""
+    from viscorig.cli.master import master_of
+    from viscorig.materials.fecards import write_card
+
+    master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
+                       args.kstar)
+    name = "VISCORIG_" + "_".join(args.run).upper().replace("-", "_").replace(".", "_")
+    write_card(master, args.material, out, name[:80], args.poisson_ratio)
+    fit = master.prony_fit
+    print(f"{out}: {args.material} material card of {', '.join(args.run)}: "
+          f"{master.prony.terms}-term Prony series, reference "
+          f"{master.reference_temperature_c:.2f} °C, rms ln error storage "
+          f"{fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f}")
+    return 0
+
+
 def import_handler(args: argparse.Namespace) -> int:
     """Run ``import``."""
+    if args.modulus is not None and not args.dma:
+        raise InputError("only with --dma", "--modulus")
     if args.station and not args.sdf:
         raise InputError("a station converts SDF files only; the other formats carry "
                          "their units", "--station")
+    if args.dma:
+        from viscorig.materials.dmafile import read_dma_file
+        from viscorig.materials.dmastore import import_dma
+
+        table = read_dma_file(Path(args.dma), args.modulus)
+        points = import_dma(Path(args.file), args.run, table)
+        print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
+              f"{table.sets.size} temperatures, modulus {table.modulus}")
+        return 0
     if args.uff:
         frfs = read_uff(Path(args.uff))
     elif args.csv:

@@ -123,11 +123,19 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
         except InputError as error:
             rows.append([name, f"cannot be read: {error.detail}"])
             problems.append(str(error))
-    if len(rows) == 1:
+    dma = dma_runs(campaign, problems)
+    if len(rows) == 1 and not dma:
         lines.append("no runs")
-    else:
+    elif len(rows) > 1:
         lines.append("")
         lines.extend(table(rows))
+    if dma:
+        lines.extend(["", *table([["DMA run", "points", "temperatures", "°C", "Hz", "modulus",
+                                   "source"]] + [
+            [d["name"], str(d["points"]), str(d["temperatures"]),
+             f"{d['temperature_c'][0]:.1f}..{d['temperature_c'][1]:.1f}",
+             f"{d['frequency_hz'][0]:.3g}..{d['frequency_hz'][1]:.3g}", d["modulus"],
+             d["source"]] for d in dma])])
     if plans:
         lines.extend(["", *plans])
     if fits:
@@ -201,6 +209,32 @@ def run_json(run: Run, fits: list[Fit]) -> dict[str, Any]:
     }
 
 
+def dma_runs(campaign: Campaign, problems: list[str]) -> list[dict[str, Any]]:
+    """The DMA runs of the file (``/dma``), each summarised; unreadable ones go to problems."""
+    from viscorig.materials.dmastore import dma_run_names, read_dma
+
+    out: list[dict[str, Any]] = []
+    try:
+        names = dma_run_names(campaign)
+    except InputError as error:
+        problems.append(str(error))
+        return out
+    for name in names:
+        try:
+            table_ = read_dma(campaign, name)
+        except InputError as error:
+            problems.append(str(error))
+            continue
+        out.append({"name": name, "points": table_.points,
+                    "temperatures": int(table_.sets.size),
+                    "temperature_c": [float(table_.temperature_c.min()),
+                                      float(table_.temperature_c.max())],
+                    "frequency_hz": [float(table_.frequency_hz.min()),
+                                     float(table_.frequency_hz.max())],
+                    "modulus": table_.modulus, "source": table_.source})
+    return out
+
+
 def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
     """The ``show --json`` object of a campaign file, and the problems met on the way."""
     campaign = Campaign.open(path)
@@ -226,6 +260,7 @@ def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
         except InputError as error:
             document["runs"].append({"name": name, "error": error.detail})
             problems.append(str(error))
+    document["dma_runs"] = dma_runs(campaign, problems)
     return document, problems
 
 

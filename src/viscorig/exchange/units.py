@@ -49,3 +49,14 @@ def factor(label: str, table: dict[str, float], quantity: str, where: str) -> fl
             return value
     known = ", ".join(sorted({k for k in table}))
     raise InputError(f"unit {label!r} is not a unit of {quantity} (known: {known})", where)
+
+#: modulus (stress) label -> factor to Pa
+MODULUS_UNITS = {
+    "pa": 1.0, "kpa": 1e3, "mpa": 1e6, "gpa": 1e9, "n/m^2": 1.0, "n/m2": 1.0, "n/mm^2": 1e6,
+    "n/mm2": 1e6, "n/mm²": 1e6, "psi": 6894.757293168, "ksi": 6894757.293168,
+}
+#: temperature label -> offset to °C (value + offset); kelvin is the only offset scale known
+TEMPERATURE_OFFSETS = {"c": 0.0, "°c": 0.0, "degc": 0.0, "deg.c": 0.0, "celsius": 0.0,
+                       "k": -273.15, "kelvin": -273.15}
+#: angular frequency label -> factor to Hz
+ANGULAR_FREQUENCY_UNITS = {"rad/s": 0.15915494309189535}

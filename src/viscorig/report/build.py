@@ -12,7 +12,8 @@ from viscorig.errors import InputError
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report.analysis import analyse_campaign
 from viscorig.report.figures import campaign_figures
-from viscorig.report.page import build_page
+from viscorig.report.materials import analyse_materials, material_figures, material_section
+from viscorig.report.page import build_page, figure_html, materials_page
 from viscorig.report.parallel import default_jobs
 from viscorig.storage import Campaign
 
@@ -42,13 +43,20 @@ def build_report(
         The campaign cannot be read, has no run, or ``out_dir`` cannot be written.
     """
     campaign = Campaign.open(campaign_path)
-    if not campaign.run_names:
+    materials = analyse_materials(campaign)
+    if not campaign.run_names and not materials:
         raise InputError("has no run to report", str(campaign_path))
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise InputError(f"cannot create the report folder ({error.strerror})",
                          str(out_dir)) from None
+    section = material_section(materials, material_figures(materials, out_dir), figure_html)
+    title = f"viscorig report: {Path(campaign_path).name}"
+    if not campaign.run_names:
+        page = out_dir / PAGE_NAME
+        page.write_text(materials_page(title, section, str(campaign_path)), encoding="utf-8")
+        return page
     jobs = default_jobs() if jobs is None else max(1, jobs)
     with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
         analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder,
@@ -59,6 +67,5 @@ def build_report(
     figures = campaign_figures(analysis, out_dir, jobs)
     _log.info("%d figures (PNG and SVG): %.1f s", len(figures), time.perf_counter() - started)
     page = out_dir / PAGE_NAME
-    page.write_text(build_page(analysis, figures, f"viscorig report: {Path(campaign_path).name}"),
-                    encoding="utf-8")
+    page.write_text(build_page(analysis, figures, title, section), encoding="utf-8")
     return page

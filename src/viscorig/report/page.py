@@ -78,6 +78,11 @@ def _num(value: float, digits: str = ".4g") -> str:
     return "–" if value is None or not math.isfinite(value) else format(value, digits)
 
 
+def figure_html(saved: SavedFigure | None) -> str:
+    """One saved figure as an ``<figure>`` with the PNG inline."""
+    return _figure(saved)
+
+
 def _figure(saved: SavedFigure | None) -> str:
     if saved is None:
         return ""
@@ -462,8 +467,9 @@ def _how(analysis: CampaignAnalysis) -> str:
             f"{'es' if analysis.jobs > 1 else ''})")
 
 
-def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], title: str) -> str:
-    """The whole page."""
+def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], title: str,
+               materials: str = "") -> str:
+    """The whole page; ``materials`` is the HTML of the materials section, if any."""
     now = datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
     contents = ['<li><a href="#glance">At a glance</a></li>',
                 '<li><a href="#preload">Preload</a></li>',
@@ -505,8 +511,22 @@ def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], titl
               *moduli, _figure(figures.get("preload")),
               '<h2 id="runs">Runs</h2>', overview(analysis)]
     parts += [run_section(run, figures) for run in analysis.runs]
+    if materials:
+        parts.append(materials)
     parts.append("</body></html>")
     return "\n".join(part for part in parts if part)
+
+
+def materials_page(title: str, materials: str, path: str) -> str:
+    """A page for a campaign file that holds materials (DMA runs) and no rig run."""
+    now = datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
+    return "\n".join([
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_e(title)}</title><style>{STYLE}</style></head><body>",
+        f"<h1>{_e(title)}</h1>",
+        f'<p class="lead">Campaign file <code>{_e(path)}</code>; report made {now} by viscorig '
+        f"{__version__}.</p>", materials, "</body></html>"])
 
 
 def overview(analysis: CampaignAnalysis) -> str:

@@ -345,6 +345,16 @@ class Campaign:
             raise InputError(f"cannot read the campaign file to change it ({error.strerror})",
                              str(self.path)) from None
 
+    def commit(self) -> contextlib.AbstractContextManager[h5py.File]:
+        """One atomic change of the file, for the documented extensions of the layout (such as
+        the ``/dma`` runs of :mod:`viscorig.materials.dmastore`): the h5py file to change, whole
+        or not at all."""
+        return self._commit()
+
+    def reading(self) -> contextlib.AbstractContextManager[h5py.File]:
+        """The file opened read-only, every open failure an InputError naming it."""
+        return self._reading()
+
     def start_run(self, name: str, settings: RunSettings) -> None:
         """Create ``/runs/<name>`` with status "running" and empty datasets.
 

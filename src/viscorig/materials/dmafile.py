@@ -1,0 +1,380 @@
+"""Reading the CSV tables DMA users exchange into a :class:`ModulusTable`.
+
+Layouts read:
+
+- one row of column names, then one row of units (the layout pyvisco reads:
+  ``f,E_stor,E_loss,T,Set`` / ``Hz,MPa,MPa,C,-``);
+- units inside the names: ``E' [MPa]``, ``Frequency (Hz)``, ``T/°C``;
+- comma, semicolon or tab between cells; decimal point, or decimal comma with semicolons or
+  tabs; a UTF-8 byte-order mark; ``#`` comment lines before the header.
+
+Columns are found by their usual names: frequency (``f``, ``freq``, ``frequency``; or angular
+frequency ``omega`` in rad/s), temperature (``T``, ``temp``, ``temperature``), storage and loss
+modulus (``E'``, ``E''``, ``E_stor``, ``E_loss``, ``storage modulus``...; ``G...`` for shear),
+or ``|E*|`` with ``tan δ``, and a set number (``set``). Without a set column, points are grouped
+by temperature (within 1 K of each other, in file order). Units: Pa, kPa, MPa, GPa, psi, N/mm²;
+Hz, kHz, rad/s; °C or K. A column without a unit is refused where a unit matters (moduli,
+frequency in rad/s vs Hz is told by the name), except temperature (°C) and frequency (Hz).
+
+Excel workbooks (``.xls`` through xlrd, ``.xlsx`` through openpyxl, the optional extra
+``excel``) are read the same way from their "Exported Data" sheet (Eplexor's export) or their
+first sheet: :func:`read_dma_file` chooses by the suffix.
+
+Every problem is one :class:`InputError` naming the file, the row and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from viscorig.errors import InputError
+from viscorig.exchange.units import (
+    ANGULAR_FREQUENCY_UNITS,
+    FREQUENCY_UNITS,
+    MODULUS_UNITS,
+    TEMPERATURE_OFFSETS,
+    factor,
+    normalised,
+)
+from viscorig.materials.table import ModulusTable
+
+#: Largest file read (a DMA table of 100 000 points is under 10 MB).
+MAX_FILE_BYTES = 32 * 1024 * 1024
+MAX_POINTS = 100_000
+
+#: Column role -> accepted names (normalised: lower case, no spaces, ``_``/``-`` removed).
+ROLES: dict[str, tuple[str, ...]] = {
+    "frequency": ("f", "freq", "frequency", "frequencyhz", "frq"),
+    "angular": ("omega", "w", "angularfrequency", "angfrequency", "ω"),
+    "temperature": ("t", "temp", "temperature", "tc", "θ"),
+    "storage": ("estor", "e'", "e′", "estorage", "storagemodulus", "e1", "eprime",
+                "gstor", "g'", "g′", "gstorage", "storagemodulusg", "g1", "gprime",
+                "storageshearmodulus", "shearstoragemodulus", "tensilestoragemodulus"),
+    "loss": ("eloss", "e''", "e\"", "e′′", "e″", "elossmodulus", "lossmodulus", "e2",
+             "edoubleprime", "gloss", "g''", "g\"", "g′′", "g″", "g2", "gdoubleprime",
+             "lossshearmodulus", "shearlossmodulus", "tensilelossmodulus"),
+    "complex": ("e*", "|e*|", "ecomplex", "complexmodulus", "estar", "|e|",
+                "g*", "|g*|", "gcomplex", "gstar", "|g|", "complexshearmodulus"),
+    "tan_delta": ("tand", "tandelta", "tanδ", "tandel", "tan(delta)", "tan(δ)", "lossfactor",
+                  "eta", "η"),
+    "set": ("set", "setno", "setnumber", "segment", "sweep", "step"),
+}
+_SHEAR_HINT = re.compile(r"^\s*g|shear", re.IGNORECASE)
+_UNIT_IN_NAME = re.compile(r"^(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\)|/\s*([^/()\[\]]+))\s*$")
+
+
+@dataclass(frozen=True)
+class _Column:
+    index: int
+    name: str
+    unit: str | None
+
+
+def _key(name: str) -> str:
+    return re.sub(r"[\s_\-.]", "", name).lower()
+
+
+def _split_unit(name: str) -> tuple[str, str | None]:
+    """``"E' [MPa]"`` -> ``("E'", "MPa")``; a name without a unit -> ``(name, None)``."""
+    match = _UNIT_IN_NAME.match(name)
+    if match and match.group(1).strip():
+        unit = next(group for group in match.groups()[1:] if group is not None)
+        return match.group(1).strip(), unit.strip()
+    return name.strip(), None
+
+
+def _role(name: str) -> str | None:
+    key = _key(name)
+    for role, names in ROLES.items():
+        if key in names:
+            return role
+    return None
+
+
+def _dialect(text: str, where: str) -> tuple[str, bool]:
+    """Delimiter and whether numbers use a decimal comma, told from the first lines."""
+    lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")][:5]
+    if not lines:
+        raise InputError("no table in the file", where)
+    for delimiter in ("\t", ";", ","):
+        counts = {line.count(delimiter) for line in lines}
+        if min(counts) >= 1 and len(counts) == 1:
+            break
+    else:
+        delimiter = max(("\t", ";", ","), key=lines[0].count)
+    decimal_comma = delimiter != "," and any(
+        re.search(r"\d,\d", line) for line in lines[1:])
+    return delimiter, decimal_comma
+
+
+def _number(cell: str, decimal_comma: bool) -> float:
+    text = cell.strip()
+    if decimal_comma:
+        text = text.replace(".", "").replace(",", ".") if text.count(",") == 1 and \
+            text.count(".") >= 1 else text.replace(",", ".")
+    return float(text)
+
+
+def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
+    """Read a DMA table from a CSV file (see the module text for the layouts).
+
+    Parameters
+    ----------
+    path
+        The file.
+    modulus
+        ``"E"`` or ``"G"``; ``None`` tells it from the column names (``G'``... is shear).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, a needed column is missing, a unit is unknown, or a cell is
+        not a number: one line naming the file, row and column.
+    """
+    where = str(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(f"{size} bytes; a DMA table holds at most {MAX_FILE_BYTES}", where)
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError:
+        try:
+            text = path.read_bytes().decode("cp1252")
+        except UnicodeDecodeError:
+            raise InputError("not a text file (neither UTF-8 nor Windows-1252)", where) from None
+    except FileNotFoundError:
+        raise InputError("no such file", where) from None
+    except OSError as error:
+        raise InputError(f"cannot be read ({error.strerror})", where) from None
+    delimiter, decimal_comma = _dialect(text, where)
+    if "\x00" in text:
+        raise InputError("not a text table (holds NUL bytes)", where)
+    try:
+        rows = [(number, row) for number, row in enumerate(
+            csv.reader(io.StringIO(text), delimiter=delimiter), start=1)
+            if row and any(cell.strip() for cell in row)
+            and not row[0].lstrip().startswith("#")]
+    except csv.Error as error:
+        raise InputError(f"not a readable table ({error})", where) from None
+    return _from_rows(rows, decimal_comma, modulus, where)
+
+
+#: Workbook suffixes read by :func:`read_dma_workbook`.
+WORKBOOK_SUFFIXES = (".xls", ".xlsx", ".xlsm")
+#: The sheet DMA software exports its measurement to (Eplexor), preferred when present.
+EXPORT_SHEETS = ("Exported Data",)
+
+
+def read_dma_file(path: Path, modulus: str | None = None) -> ModulusTable:
+    """A DMA table from a CSV/text file or an Excel workbook (by the file's suffix)."""
+    if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
+        return read_dma_workbook(Path(path), modulus)
+    return read_dma_csv(Path(path), modulus)
+
+
+def _cell_text(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
+    """Read a DMA table from an Excel workbook (``.xls`` with xlrd, ``.xlsx`` with openpyxl).
+
+    The sheet read is "Exported Data" (Eplexor's export) when there is one, else the first
+    sheet; its rows are read as a CSV table is (column names, optionally a units row, then one
+    row per point).
+
+    Raises
+    ------
+    InputError
+        The reader package is missing, the workbook cannot be read, or the table is bad (row and
+        column named as for a CSV file; rows are numbered as the spreadsheet shows them).
+    """
+    where = str(path)
+    if not path.is_file():
+        raise InputError("no such file", where)
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise InputError(f"{path.stat().st_size} bytes; a DMA table holds at most "
+                         f"{MAX_FILE_BYTES}", where)
+    suffix = path.suffix.lower()
+    package = "xlrd" if suffix == ".xls" else "openpyxl"
+    try:
+        reader = __import__(package)
+    except ImportError:
+        raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
+                         "'viscorig[excel]')", where) from None
+    try:
+        if suffix == ".xls":
+            book = reader.open_workbook(str(path), on_demand=True)
+            names = book.sheet_names()
+            chosen = next((n for n in EXPORT_SHEETS if n in names), names[0])
+            sheet = book.sheet_by_name(chosen)
+            grid = [sheet.row_values(r) for r in range(min(sheet.nrows, MAX_POINTS + 10))]
+        else:
+            book = reader.load_workbook(str(path), read_only=True, data_only=True)
+            names = book.sheetnames
+            chosen = next((n for n in EXPORT_SHEETS if n in names), names[0])
+            sheet = book[chosen]
+            grid = [list(row) for row in sheet.iter_rows(max_row=MAX_POINTS + 10,
+                                                         values_only=True)]
+    except InputError:
+        raise
+    except Exception as error:  # any failure of the reader is a bad file
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"not a readable workbook ({reason})", where) from None
+    rows = [(number, [_cell_text(v) for v in row]) for number, row in enumerate(grid, start=1)
+            if any(_cell_text(v).strip() for v in row)]
+    return _from_rows(rows, False, modulus, f"{where} (sheet {chosen!r})")
+
+
+def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: str | None,
+               where: str) -> ModulusTable:
+    """The table of parsed rows: names, optionally units, then one row per point."""
+    if not rows:
+        raise InputError("no table in the file", where)
+    header_row, header = rows[0]
+    columns: dict[str, _Column] = {}
+    for index, cell in enumerate(header):
+        name, unit = _split_unit(cell)
+        role = _role(name)
+        if role is not None and role not in columns:
+            columns[role] = _Column(index, cell.strip(), unit)
+    body = rows[1:]
+    if body and not _numeric_row(body[0][1], decimal_comma):
+        _units_row_number, units_row = body[0]
+        body = body[1:]
+        for role, column in list(columns.items()):
+            if column.index < len(units_row) and units_row[column.index].strip() not in ("", "-"):
+                columns[role] = _Column(column.index, column.name,
+                                        units_row[column.index].strip())
+    _require(columns, header_row, where)
+    if len(body) > MAX_POINTS:
+        raise InputError(f"{len(body)} rows; a DMA table holds at most {MAX_POINTS}", where)
+    values = {role: np.empty(len(body)) for role in columns}
+    for i, (row_number, row) in enumerate(body):
+        for role, column in columns.items():
+            cell = row[column.index] if column.index < len(row) else ""
+            try:
+                values[role][i] = _number(cell, decimal_comma)
+            except ValueError:
+                raise InputError(f"{cell.strip()!r} is not a number",
+                                 f"{where}: row {row_number}, column {column.name!r}") from None
+    return _table(columns, values, body, modulus, where)
+
+
+def _numeric_row(row: list[str], decimal_comma: bool) -> bool:
+    try:
+        _number(row[0], decimal_comma)
+    except (ValueError, IndexError):
+        return False
+    return True
+
+
+def _require(columns: dict[str, _Column], header_row: int, where: str) -> None:
+    here = f"{where}: row {header_row}"
+    if "frequency" not in columns and "angular" not in columns:
+        raise InputError("no frequency column (f, freq, frequency or omega)", here)
+    if "temperature" not in columns:
+        raise InputError("no temperature column (T, temp or temperature)", here)
+    has_parts = "storage" in columns and "loss" in columns
+    has_polar = "complex" in columns and "tan_delta" in columns
+    if not (has_parts or has_polar):
+        raise InputError("no storage and loss modulus columns (E', E'' or E_stor, E_loss; or "
+                         "|E*| and tan delta)", here)
+
+
+def _unit_factor(column: _Column, table: dict[str, float], quantity: str, where: str,
+                 default: str | None) -> float:
+    unit = column.unit if column.unit not in (None, "", "-") else default
+    if unit is None:
+        raise InputError(f"no unit for {quantity} (give it in the name, e.g. "
+                         f"\"{column.name} [MPa]\", or in a units row)",
+                         f"{where}: column {column.name!r}")
+    return factor(unit, table, quantity, f"{where}: column {column.name!r}")
+
+
+def _table(columns: dict[str, _Column], values: dict[str, np.ndarray], body: list,
+           modulus: str | None, where: str) -> ModulusTable:
+    if "frequency" in columns:
+        column = columns["frequency"]
+        unit = column.unit if column.unit not in (None, "", "-") else "Hz"
+        if normalised(unit) in ANGULAR_FREQUENCY_UNITS:
+            frequency = values["frequency"] * ANGULAR_FREQUENCY_UNITS[normalised(unit)]
+        else:
+            frequency = values["frequency"] * factor(unit, FREQUENCY_UNITS, "frequency",
+                                                     f"{where}: column {column.name!r}")
+    else:
+        column = columns["angular"]
+        frequency = values["angular"] * _unit_factor(
+            column, ANGULAR_FREQUENCY_UNITS, "angular frequency", where, "rad/s")
+    column = columns["temperature"]
+    unit = column.unit if column.unit not in (None, "", "-") else "C"
+    offset = TEMPERATURE_OFFSETS.get(normalised(unit).replace("º", "°"))
+    if offset is None:
+        raise InputError(f"unit {unit!r} is not a temperature unit (°C or K)",
+                         f"{where}: column {column.name!r}")
+    temperature = values["temperature"] + offset
+    if "storage" in columns and "loss" in columns:
+        storage = values["storage"] * _unit_factor(columns["storage"], MODULUS_UNITS,
+                                                   "modulus", where, None)
+        loss = values["loss"] * _unit_factor(columns["loss"], MODULUS_UNITS, "modulus",
+                                             where, None)
+        named = columns["storage"].name
+    else:
+        magnitude = values["complex"] * _unit_factor(columns["complex"], MODULUS_UNITS,
+                                                     "modulus", where, None)
+        delta = np.arctan(values["tan_delta"])
+        storage, loss = magnitude * np.cos(delta), magnitude * np.sin(delta)
+        named = columns["complex"].name
+    if modulus is None:
+        modulus = "G" if _SHEAR_HINT.search(named) else "E"
+    if "set" in columns:
+        _, sets = np.unique(values["set"], return_inverse=True)
+    else:
+        sets = _sets_by_temperature(temperature)
+    table = ModulusTable(frequency_hz=frequency, temperature_c=temperature, storage_pa=storage,
+                         loss_pa=loss, set_index=sets.astype(np.int64), modulus=modulus,
+                         source=Path(where).name)
+    _check_rows(table, body, columns, where)
+    return table
+
+
+def _sets_by_temperature(temperature: np.ndarray, tolerance_k: float = 1.0) -> np.ndarray:
+    """Consecutive points within ``tolerance_k`` of their set's first point share a set."""
+    sets = np.zeros(temperature.size, dtype=np.int64)
+    start = temperature[0] if temperature.size else 0.0
+    for i in range(1, temperature.size):
+        if abs(temperature[i] - start) > tolerance_k:
+            sets[i:] += 1
+            start = temperature[i]
+    return sets
+
+
+def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], where: str) -> None:
+    """Name the row and column of the first value no master curve can use."""
+    checks = (
+        ("frequency" if "frequency" in columns else "angular", table.frequency_hz,
+         "frequency must be a positive finite number"),
+        ("temperature", table.temperature_c + 273.15, "temperature must be above absolute zero"),
+        ("storage" if "storage" in columns else "complex", table.storage_pa,
+         "storage modulus must be a positive finite number"),
+        ("loss" if "loss" in columns else "tan_delta", table.loss_pa,
+         "loss modulus must be a positive finite number"),
+    )
+    for role, value, what in checks:
+        good = np.isfinite(value) & (value > 0)
+        bad = np.flatnonzero(~good)
+        if bad.size:
+            row_number = body[int(bad[0])][0]
+            raise InputError(what, f"{where}: row {row_number}, column {columns[role].name!r}")
+    if table.points < 2:
+        raise InputError(f"{table.points} data row(s); a master curve needs more", where)

@@ -1,0 +1,333 @@
+"""The master curve of a material: shift factors, shift functions, Prony and fractional models,
+and the checks of superposition and Kramers-Kronig consistency, as one result.
+
+:func:`build_master` is what ``viscorig master`` and ``open_campaign(...).master(...)`` call;
+:meth:`MasterCurve.to_json` is the JSON contract of ``master --json`` (design.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+from viscorig.materials.joint import refine_jointly
+from viscorig.materials.kkcheck import KramersKronigCheck, check_kramers_kronig
+from viscorig.materials.prony import (
+    FractionalModel,
+    ModelFit,
+    PronySeries,
+    fit_fractional,
+    fit_prony,
+    model_fit,
+)
+from viscorig.materials.shift import ShiftFactors, estimate_shift_factors
+from viscorig.materials.shiftfunctions import (
+    ShiftFunction,
+    best_shift_function,
+    fit_shift_function,
+)
+from viscorig.materials.superposition import SuperpositionCheck, check_superposition
+from viscorig.materials.table import ModulusTable
+
+#: Without a shift function, a set within this many kelvin of the reference temperature asked
+#: for is taken as the reference itself (with one, the shifts are moved to it exactly).
+SAME_TEMPERATURE_K = 0.5
+
+
+@dataclass(frozen=True)
+class MasterCurve:
+    """Everything ``master`` finds; see :func:`build_master`.
+
+    Attributes
+    ----------
+    table
+        The data.
+    runs
+        Names of the runs it came from.
+    reference_temperature_c
+        Temperature of the master curve (``log10 aT = 0``).
+    temperature_c, log10_at, log10_at_stderr
+        Shift factor of each set (ascending temperature), relative to the reference.
+    shift_functions
+        Every shift function fitted (WLF, Arrhenius), relative to the reference.
+    shift_function
+        The better one (lowest AIC), or ``None``.
+    reduced_frequency_hz
+        ``f·aT`` of every point of the table.
+    prony, prony_fit, ladder
+        The Prony series, its errors, and the errors of every number of terms tried.
+    fractional, fractional_fit
+        The fractional model and its errors.
+    superposition, kramers_kronig, shifts
+        The checks, and the first shift estimate (spline master curve, and the data's scatter
+        about it).
+    jointly_refined
+        Whether the shifts were then refined together with the Prony series (they are unless
+        that made the fit worse).
+    """
+
+    table: ModulusTable
+    runs: tuple[str, ...]
+    reference_temperature_c: float
+    temperature_c: NDArray[np.float64]
+    log10_at: NDArray[np.float64]
+    log10_at_stderr: NDArray[np.float64]
+    shift_functions: tuple[ShiftFunction, ...]
+    shift_function: ShiftFunction | None
+    reduced_frequency_hz: NDArray[np.float64]
+    prony: PronySeries
+    prony_fit: ModelFit
+    ladder: list[dict]
+    fractional: FractionalModel
+    fractional_fit: ModelFit
+    superposition: SuperpositionCheck
+    kramers_kronig: KramersKronigCheck
+    shifts: ShiftFactors
+    jointly_refined: bool = False
+
+    def log10_at_of(self, temperature_c: float) -> float:
+        """``log10 aT`` at any temperature from the shift function (NaN without one)."""
+        if self.shift_function is None:
+            return math.nan
+        return float(self.shift_function(temperature_c))
+
+    def flagged_points(self) -> list[dict]:
+        """The points the Kramers-Kronig check names."""
+        kk = self.kramers_kronig
+        out = []
+        for name, mask, residual in (("storage", kk.flagged_storage, kk.residual_storage),
+                                     ("loss", kk.flagged_loss, kk.residual_loss)):
+            for i in np.flatnonzero(mask):
+                out.append({"point": int(i) + 1, "modulus": name,
+                            "temperature_c": float(self.table.temperature_c[i]),
+                            "frequency_hz": float(self.table.frequency_hz[i]),
+                            "log_deviation": float(residual[i])})
+        return sorted(out, key=lambda p: -abs(p["log_deviation"]))
+
+    def text(self) -> str:
+        """The master curve in a few lines for a person (what ``viscorig master`` prints)."""
+        master = self
+        m = master.table.modulus
+        lines = [f"{', '.join(master.runs)}: {master.table.points} points, "
+                 f"{master.temperature_c.size} temperatures, modulus {m}, reference "
+                 f"{master.reference_temperature_c:.2f} °C",
+                 "shift factors (reduced frequency f·aT):"]
+        for t, a, e in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
+                           strict=True):
+            lines.append(f"  {t:8.2f} °C   log10 aT = {a:+8.3f} ± {e:.3f}")
+        for function in master.shift_functions:
+            data = function.to_json()
+            values = ", ".join(
+                f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+                + ("" if v["unit"] == "1" else f" {v['unit']}")
+                for k, v in data["parameters"].items())
+            chi = function.reduced_chi2
+            fit = "" if math.isnan(chi) else f" (χ²/dof {chi:.2f}"
+            fit += ("" if not fit else ", describes the shifts)" if data["describes_shifts"]
+                    else ", does not describe the shifts within their errors)")
+            best = "  <- better" if function is master.shift_function else ""
+            lines.append(f"{function.kind}: {values}{fit}{best}")
+        lines.append(master.superposition.verdict)
+        flagged = master.flagged_points()
+        if flagged:
+            named = "; ".join(f"{p['modulus']} at {p['temperature_c']:.1f} °C, "
+                              f"{p['frequency_hz']:.4g} Hz ({p['log_deviation']:+.2f})"
+                              for p in flagged[:8])
+            more = f" and {len(flagged) - 8} more" if len(flagged) > 8 else ""
+            lines.append(f"Kramers-Kronig: {len(flagged)} point(s) no linear viscoelastic "
+                         f"material gives: {named}{more}")
+        else:
+            lines.append("Kramers-Kronig: every point is consistent with a linear viscoelastic "
+                         "material")
+        fit = master.prony_fit
+        lines.append(f"Prony series: {master.prony.terms} terms, {m}_inf = "
+                     f"{master.prony.long_term_modulus_pa:.4g} Pa, {m}_0 = "
+                     f"{master.prony.instantaneous_modulus_pa:.4g} Pa; rms log error "
+                     f"storage {fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f} "
+                     f"(data scatter {master.shifts.storage_scatter:.3f}, "
+                     f"{master.shifts.loss_scatter:.3f})")
+        frac = master.fractional_fit
+        lines.append(f"fractional model (4 parameters): rms log error storage "
+                     f"{frac.storage_rms_log_error:.3f}, loss {frac.loss_rms_log_error:.3f}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"<MasterCurve {', '.join(self.runs) or self.table.source}: "
+                f"{self.temperature_c.size} temperatures, reference "
+                f"{self.reference_temperature_c:.2f} °C, {self.prony.terms}-term Prony series>")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(self.text())}</pre>"
+
+    def to_json(self) -> dict:
+        """The ``master --json`` object (design.md contract, then more keys)."""
+        best = self.shift_function
+        fractional_better = (self.fractional_fit.storage_rms_log_error
+                             <= self.prony_fit.storage_rms_log_error
+                             and self.fractional_fit.loss_rms_log_error
+                             <= self.prony_fit.loss_rms_log_error)
+        flagged = self.flagged_points()
+        return {
+            "run": list(self.runs),
+            "modulus": self.table.modulus,
+            "reference_temperature_c": self.reference_temperature_c,
+            "shift_method": ("spline master curve of both moduli, then refined together with "
+                             "the Prony series" if self.jointly_refined
+                             else "spline master curve of both moduli"),
+            "shift_factors": [
+                {"temperature_c": float(t), "log10_aT": float(a), "log10_aT_stderr": float(e)}
+                for t, a, e in zip(self.temperature_c, self.log10_at, self.log10_at_stderr,
+                                   strict=True)],
+            "shift_function": (best.to_json() if best is not None
+                               else {"kind": "none", "parameters": {}}),
+            "shift_functions": [f.to_json() for f in self.shift_functions],
+            "prony": self.prony.to_json(),
+            "fit": {
+                "storage_rms_log_error": self.prony_fit.storage_rms_log_error,
+                "loss_rms_log_error": self.prony_fit.loss_rms_log_error,
+                "terms": self.prony.terms,
+                "storage_scatter": self.shifts.storage_scatter,
+                "loss_scatter": self.shifts.loss_scatter,
+                "log": "natural",
+                "ladder": self.ladder,
+            },
+            "fractional": {
+                "parameters": self.fractional.to_json(),
+                "storage_rms_log_error": self.fractional_fit.storage_rms_log_error,
+                "loss_rms_log_error": self.fractional_fit.loss_rms_log_error,
+                "better_than_prony": bool(fractional_better),
+            },
+            "superposition": self.superposition.to_json(),
+            "kramers_kronig": {
+                "consistent": self.kramers_kronig.consistent,
+                "points_checked": self.table.points,
+                "threshold_storage": self.kramers_kronig.threshold_storage,
+                "threshold_loss": self.kramers_kronig.threshold_loss,
+                "flagged": flagged,
+            },
+            "points": self.table.points,
+            "source": self.table.source,
+        }
+
+
+def _sweep_scatter(shifts: ShiftFactors, member: NDArray[np.int64]
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each point's scatter: the overall scatter about the spline master curve, or its sweep's
+    robust scatter (1.4826 × median |residual|, so one bad point does not hide itself) where
+    that is larger: a noisier sweep (a soft rubber's small loss, hot) is judged by its own
+    noise."""
+    out = []
+    for residual, overall in ((shifts.residual_storage, shifts.storage_scatter),
+                              (shifts.residual_loss, shifts.loss_scatter)):
+        per_sweep = np.array([1.4826 * np.median(np.abs(residual[member == k]))
+                              if np.any(member == k) else overall
+                              for k in range(int(member.max()) + 1)])
+        out.append(np.maximum(per_sweep, overall)[member])
+    return out[0], out[1]
+
+
+def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int:
+    if reference_c is None:
+        middle = 0.5 * (temperatures[0] + temperatures[-1])
+        return int(np.argmin(np.abs(temperatures - middle)))
+    return int(np.argmin(np.abs(temperatures - reference_c)))
+
+
+def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
+                 reference_temperature_c: float | None = None) -> MasterCurve:
+    """Build the master curve of ``table`` (see the module text).
+
+    Parameters
+    ----------
+    table
+        Two or more isothermal sets.
+    runs
+        Names of the runs the table came from (for the result).
+    reference_temperature_c
+        Temperature of the master curve; default the measured temperature nearest the middle of
+        the range. A temperature between the measured ones is reached through the fitted shift
+        function (its error added to every shift's).
+
+    Raises
+    ------
+    InputError
+        Too few sets, or a reference temperature that needs a shift function none could be
+        fitted for.
+    """
+    # trial steps of the nonlinear fits overflow on the way; their results are checked
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        return _build(table, runs, reference_temperature_c)
+
+
+def _build(table: ModulusTable, runs: tuple[str, ...],
+           reference_temperature_c: float | None) -> MasterCurve:
+    table.check(table.source or "modulus table")
+    if not (reference_temperature_c is None or (math.isfinite(reference_temperature_c)
+                                                and reference_temperature_c > -273.15)):
+        raise InputError(f"{reference_temperature_c} is not a temperature in °C",
+                         "--reference-temperature")
+    temperatures = np.sort(table.set_temperatures_c())
+    sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
+    anchor = _anchor(temperatures, reference_temperature_c)
+    shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
+    anchor_c = float(shifts.temperature_c[shifts.reference])
+    scatter = (shifts.storage_scatter, shifts.loss_scatter)
+    position = {s: i for i, s in enumerate(shifts.sets.tolist())}
+    member = np.array([position[s] for s in table.set_index.tolist()])
+    omega = 2 * np.pi * table.frequency_hz * 10.0 ** (shifts.log10_at[member]
+                                                      + shifts.point_offset)
+    prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
+    log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
+    sweep_scatter = _sweep_scatter(shifts, member)
+    joint = refine_jointly(table.frequency_hz, member, shifts.point_offset, table.storage_pa,
+                           table.loss_pa, sweep_scatter, prony, shifts.log10_at,
+                           shifts.reference)
+    joint_fit = model_fit(joint.series.complex_modulus(2 * np.pi * table.frequency_hz * 10.0 ** (
+        joint.log10_at[member] + shifts.point_offset)), table.storage_pa, table.loss_pa, scatter,
+        2 * prony.terms + 1)
+    refined = bool(joint_fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
+    if refined:
+        prony, prony_fit = joint.series, joint_fit
+        log10_at, covariance = joint.log10_at.copy(), joint.covariance
+    stderr = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    functions = [fit_shift_function(kind, shifts.temperature_c, log10_at, covariance, anchor_c)
+                 for kind in ("wlf", "arrhenius")]
+    fitted = [f for f in functions if f is not None]
+    reference_c = anchor_c if reference_temperature_c is None else float(reference_temperature_c)
+    best = best_shift_function(fitted)
+    if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K or (
+            abs(reference_c - anchor_c) > 1e-9 and best is not None):
+        if best is None:
+            raise InputError(f"{reference_c} °C is not a measured temperature and no shift "
+                             "function could be fitted to reach it; give one of "
+                             + ", ".join(f"{t:.1f}" for t in temperatures),
+                             "--reference-temperature")
+        offset, offset_error = float(best(reference_c)), best.stderr_at(reference_c)
+        log10_at -= offset
+        stderr = np.sqrt(stderr**2 + offset_error**2)
+        fitted = [f.rereferenced(reference_c) for f in fitted]
+        # the reduced frequency falls by 10^offset: the series' times grow by it
+        prony = PronySeries(prony.long_term_modulus_pa, prony.moduli_pa,
+                            prony.tau_s * 10.0**offset)
+    else:
+        reference_c = anchor_c
+    best = best_shift_function(fitted)
+    reduced = table.frequency_hz * 10.0 ** (log10_at[member] + shifts.point_offset)
+    omega = 2 * np.pi * reduced
+    fractional, fractional_fit = fit_fractional(omega, table.storage_pa, table.loss_pa, scatter)
+    return MasterCurve(
+        table=table, runs=tuple(runs), reference_temperature_c=reference_c,
+        temperature_c=shifts.temperature_c, log10_at=log10_at, log10_at_stderr=stderr,
+        shift_functions=tuple(fitted), shift_function=best, reduced_frequency_hz=reduced,
+        prony=prony, prony_fit=prony_fit, ladder=ladder, fractional=fractional,
+        fractional_fit=fractional_fit, superposition=check_superposition(table),
+        kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
+                                            sweep_scatter),
+        shifts=shifts, jointly_refined=refined,
+    )

@@ -1,0 +1,239 @@
+"""Shift factors of time-temperature superposition, estimated from the data with standard errors.
+
+Criterion: every isothermal set ``s`` is moved along the log-frequency axis by ``log10 aT_s``
+(reduced frequency ``f·aT``; ``aT > 1`` below the reference temperature) so that all sets lie
+on one smooth master curve, for the storage and the loss modulus at once. The master curve is a
+cubic B-spline in ``log10(f·aT)`` for ``ln E'`` and another for ``ln E''``; for given shifts
+its coefficients are a linear least-squares solution, so only the shifts are searched (variable
+projection). The residuals of ``ln E'`` and ``ln E''`` are each weighted by their own scatter,
+estimated from the fit itself (two passes).
+
+Standard errors come from the Jacobian of the projected residuals (the marginal covariance of
+the shifts, spline coefficients eliminated), scaled by the weighted residual variance. They are
+large where neighbouring sets barely overlap or where the modulus is flat over a set, because
+there the criterion hardly changes with the shift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import BSpline
+from scipy.optimize import least_squares
+
+from viscorig.errors import InputError
+from viscorig.materials.table import ModulusTable
+
+#: Spacing of the spline's knots along log10 reduced frequency (decades).
+KNOT_SPACING_DECADES = 0.5
+#: Largest shift searched between neighbouring sets (decades).
+MAX_STEP_DECADES = 8.0
+
+
+@dataclass(frozen=True)
+class ShiftFactors:
+    """Shift factors of each set and the smooth master curve they put the data on.
+
+    Attributes
+    ----------
+    temperature_c
+        Mean temperature of each set (°C), ascending.
+    sets
+        Set number of each entry.
+    log10_at, log10_at_stderr
+        Shift factor of each set and its standard error (0 at the reference set).
+    covariance
+        Covariance matrix of ``log10_at`` (zeros in the reference set's row and column).
+    reference
+        Index (into the arrays) of the set the shifts are relative to.
+    storage_scatter, loss_scatter
+        Rms of ``ln(measured / master curve)`` of E' and E'' (the data's own scatter).
+    residual_storage, residual_loss
+        ``ln(measured / master curve)`` at every point of the table.
+    point_offset
+        What each point's shift adds to its set's, for its own temperature (0 for most data).
+    """
+
+    temperature_c: NDArray[np.float64]
+    sets: NDArray[np.int64]
+    log10_at: NDArray[np.float64]
+    log10_at_stderr: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    reference: int
+    storage_scatter: float
+    loss_scatter: float
+    residual_storage: NDArray[np.float64]
+    residual_loss: NDArray[np.float64]
+    point_offset: NDArray[np.float64]
+
+    def of_points(self, table: ModulusTable) -> NDArray[np.float64]:
+        """``log10 aT`` of every point of ``table``: its set's, plus the correction for a point
+        measured off its set's mean temperature."""
+        lookup = dict(zip(self.sets.tolist(), self.log10_at, strict=True))
+        return np.array([lookup[s] for s in table.set_index.tolist()]) + self.point_offset
+
+
+def _ordered_sets(table: ModulusTable) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    sets = table.sets
+    temperatures = table.set_temperatures_c()
+    order = np.argsort(temperatures, kind="stable")
+    return sets[order], temperatures[order]
+
+
+def _pair_step(x_a: NDArray, y_a: NDArray, x_b: NDArray, y_b: NDArray) -> float:
+    """Shift (decades) that puts set b on set a, by a grid search on the overlap.
+
+    ``y_*`` hold ``ln E'`` and ``ln E''`` as two columns; each column is compared after
+    removing nothing: both moduli must agree where the sets overlap.
+    """
+    order = np.argsort(x_a)
+    x_a, y_a = x_a[order], y_a[order]
+    steps = np.arange(-2.0, MAX_STEP_DECADES + 1e-9, 0.01)
+    u = x_b[None, :] - steps[:, None]
+    inside = (u >= x_a[0]) & (u <= x_a[-1])
+    cost = np.zeros(steps.size)
+    for k in range(2):
+        diff = np.interp(u, x_a, y_a[:, k]) - y_b[None, :, k]
+        cost += np.where(inside, diff**2, 0.0).sum(axis=1)
+    count = inside.sum(axis=1)
+    cost = np.where(count >= 2, cost / np.maximum(count, 1) / (1.0 + 0.05 * count), np.inf)
+    best = float(steps[int(np.argmin(cost))]) if np.isfinite(cost).any() else np.nan
+    if not np.isfinite(best):
+        # no overlap at any shift: continue the curve's slope (a start only; the fit decides)
+        slope_a = np.polyfit(x_a, y_a[:, 0], 1)[0] if x_a.size > 1 else 0.0
+        best = (y_a[0, 0] - y_b[-1, 0]) / slope_a if slope_a else 0.0
+        best = float(np.clip(best, 0.0, MAX_STEP_DECADES))
+    return float(best)
+
+
+def _basis(u: NDArray[np.float64], knots: NDArray[np.float64]) -> NDArray[np.float64]:
+    return BSpline.design_matrix(u, knots, 3, extrapolate=True).toarray()
+
+
+def _knots(u: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
+    lo, hi = float(u.min()) - 1e-6, float(u.max()) + 1e-6
+    inner = max(2, int(np.ceil((hi - lo) / spacing)) + 1)
+    breaks = np.linspace(lo, hi, inner)
+    return np.concatenate([[lo] * 3, breaks, [hi] * 3])
+
+
+class _Problem:
+    """The variable-projection residual of the shifts."""
+
+    def __init__(self, table: ModulusTable, sets: NDArray[np.int64], reference: int) -> None:
+        self.x = np.log10(table.frequency_hz)
+        self.y = np.stack([np.log(table.storage_pa), np.log(table.loss_pa)], axis=1)
+        position = {s: i for i, s in enumerate(sets.tolist())}
+        self.member = np.array([position[s] for s in table.set_index.tolist()])
+        self.free = np.array([i for i in range(sets.size) if i != reference])
+        self.sets = sets.size
+        self.weights = np.ones(2)
+        self.knots: NDArray[np.float64] | None = None
+        #: per-point correction of the shift where a point's temperature is not its set's
+        self.offset = np.zeros(self.x.size)
+
+    def shifts(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
+        full = np.zeros(self.sets)
+        full[self.free] = free
+        return full
+
+    def reduced(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.x + self.shifts(free)[self.member] + self.offset
+
+    def fitted(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Master-curve values of ``ln E'``, ``ln E''`` at every point (two columns)."""
+        basis = _basis(self.reduced(free), self.knots)
+        # normal equations; a small ridge keeps knots without data from making them singular
+        normal = basis.T @ basis + 1e-8 * np.eye(basis.shape[1])
+        coefficients = np.linalg.solve(normal, basis.T @ self.y)
+        return basis @ coefficients
+
+    def residual(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
+        return ((self.y - self.fitted(free)) * self.weights).ravel(order="F")
+
+
+def estimate_shift_factors(
+    table: ModulusTable, reference_set: int | None = None,
+    knot_spacing: float = KNOT_SPACING_DECADES,
+) -> ShiftFactors:
+    """Estimate the shift factor of every set of ``table`` (see the module text).
+
+    Parameters
+    ----------
+    table
+        At least two sets of at least two points each.
+    reference_set
+        Set number whose shift is 0; default the set nearest the middle temperature.
+    knot_spacing
+        Spline knot spacing in decades of reduced frequency.
+
+    Raises
+    ------
+    InputError
+        Fewer than two sets, or a set of a single point.
+    """
+    sets, temperatures = _ordered_sets(table)
+    where = table.source or "modulus table"
+    if sets.size < 2:
+        raise InputError("one temperature only; a master curve needs two or more", where)
+    counts = np.array([(table.set_index == s).sum() for s in sets])
+    if counts.min() < 2:
+        bad = float(temperatures[int(np.argmin(counts))])
+        raise InputError(f"the sweep at {bad:.1f} °C has a single point; a set needs two or "
+                         "more frequencies", where)
+    if reference_set is None:
+        middle = 0.5 * (temperatures[0] + temperatures[-1])
+        reference = int(np.argmin(np.abs(temperatures - middle)))
+    else:
+        reference = int(np.flatnonzero(sets == reference_set)[0])
+    problem = _Problem(table, sets, reference)
+    # start: neighbour by neighbour, colder to warmer, then relative to the reference
+    start = np.zeros(sets.size)
+    for i in range(1, sets.size):
+        a, b = table.set_index == sets[i - 1], table.set_index == sets[i]
+        start[i] = start[i - 1] - _pair_step(problem.x[a], problem.y[a], problem.x[b],
+                                             problem.y[b])
+    start -= start[reference]
+    free = start[problem.free]
+    for _ in range(2):  # knots follow the span; weights follow the scatter
+        problem.knots = _knots(problem.reduced(free), knot_spacing)
+        solution = least_squares(problem.residual, free, method="trf", x_scale=1.0,
+                                 max_nfev=40, xtol=1e-6, ftol=1e-8)
+        free = solution.x
+        raw = problem.y - problem.fitted(free)
+        dof = max(1.0, raw.shape[0] - (problem.knots.size - 4) - free.size / 2)
+        scatter = np.sqrt((raw**2).sum(axis=0) / dof)
+        problem.weights = 1.0 / np.maximum(scatter, 1e-6)
+    solution = least_squares(problem.residual, free, method="trf", max_nfev=60, xtol=1e-8,
+                             ftol=1e-10)
+    deviation = table.temperature_c - temperatures[problem.member]
+    if np.abs(deviation).max() > 0.01 and sets.size >= 2:
+        # points measured off their set's mean temperature (a specimen warming during a sweep):
+        # each is moved by the local slope d(log10 aT)/dT of the shifts found, then refitted
+        slope = np.gradient(problem.shifts(solution.x), temperatures)
+        problem.offset = slope[problem.member] * deviation
+        solution = least_squares(problem.residual, solution.x, method="trf", max_nfev=60,
+                                 xtol=1e-8, ftol=1e-10)
+    free = solution.x
+    residual = problem.residual(free)
+    jac = solution.jac
+    parameters = free.size + 2 * (problem.knots.size - 4)
+    variance = float(residual @ residual) / max(1, residual.size - parameters)
+    try:
+        cov_free = np.linalg.pinv(jac.T @ jac) * variance
+    except np.linalg.LinAlgError:
+        cov_free = np.full((free.size, free.size), np.inf)
+    covariance = np.zeros((sets.size, sets.size))
+    covariance[np.ix_(problem.free, problem.free)] = cov_free
+    raw = problem.y - problem.fitted(free)
+    shifts = problem.shifts(free)
+    return ShiftFactors(
+        temperature_c=temperatures, sets=sets, log10_at=shifts,
+        log10_at_stderr=np.sqrt(np.clip(np.diag(covariance), 0.0, None)),
+        covariance=covariance, reference=reference,
+        storage_scatter=float(np.sqrt(np.mean(raw[:, 0] ** 2))),
+        loss_scatter=float(np.sqrt(np.mean(raw[:, 1] ** 2))),
+        residual_storage=raw[:, 0], residual_loss=raw[:, 1], point_offset=problem.offset,
+    )

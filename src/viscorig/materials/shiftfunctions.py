@@ -1,0 +1,187 @@
+"""Shift functions ``log10 aT(T)``: WLF and Arrhenius, fitted to estimated shift factors with ±.
+
+- WLF: ``log10 aT = −C1 (T − T_ref) / (C2 + T − T_ref)`` (``C1`` dimensionless, ``C2`` in K).
+- Arrhenius: ``log10 aT = E_a / (R ln 10) · (1/T − 1/T_ref)`` (``T`` in K, ``E_a`` in J/mol).
+
+Both give ``aT > 1`` below the reference temperature. Each is fitted by generalised least
+squares with the full covariance of the shift factors (they are correlated through the master
+curve they share). Where the weighted residual ``χ²/dof`` exceeds 1 the function does not
+describe the shifts within their errors; its parameter errors are then scaled by
+``sqrt(χ²/dof)`` and the result says so. The better function is the one of lower AIC
+(``χ² + 2k``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import curve_fit
+
+GAS_CONSTANT_J_PER_MOL_K = 8.314462618
+KELVIN = 273.15
+
+
+def wlf(temperature_c: ArrayLike, reference_c: float, c1: float, c2_k: float) -> NDArray:
+    """WLF ``log10 aT`` at ``temperature_c``."""
+    dt = np.asarray(temperature_c, dtype=float) - reference_c
+    return -c1 * dt / (c2_k + dt)
+
+
+def arrhenius(temperature_c: ArrayLike, reference_c: float, ea_j_per_mol: float) -> NDArray:
+    """Arrhenius ``log10 aT`` at ``temperature_c``."""
+    t = np.asarray(temperature_c, dtype=float) + KELVIN
+    return ea_j_per_mol / (GAS_CONSTANT_J_PER_MOL_K * math.log(10.0)) * (
+        1.0 / t - 1.0 / (reference_c + KELVIN))
+
+
+#: name -> (parameter names, units)
+PARAMETERS = {"wlf": (("C1", "C2_K"), ("1", "K")), "arrhenius": (("Ea_J_per_mol",), ("J/mol",))}
+
+
+@dataclass(frozen=True)
+class ShiftFunction:
+    """One fitted shift function.
+
+    Attributes
+    ----------
+    kind
+        ``"wlf"`` or ``"arrhenius"``.
+    reference_temperature_c
+        Where ``log10 aT = 0``.
+    values, stderr
+        Parameter values and standard errors, in the order of :data:`PARAMETERS`.
+    covariance
+        Their covariance.
+    chi2, dof
+        Weighted residual sum of squares of the shifts and its degrees of freedom.
+    """
+
+    kind: str
+    reference_temperature_c: float
+    values: tuple[float, ...]
+    stderr: tuple[float, ...]
+    covariance: NDArray[np.float64] = field(repr=False)
+    chi2: float
+    dof: int
+
+    @property
+    def aic(self) -> float:
+        """``χ² + 2k``."""
+        return self.chi2 + 2 * len(self.values)
+
+    @property
+    def reduced_chi2(self) -> float:
+        """``χ²/dof`` (NaN without degrees of freedom)."""
+        return self.chi2 / self.dof if self.dof > 0 else math.nan
+
+    def __call__(self, temperature_c: ArrayLike) -> NDArray[np.float64]:
+        """``log10 aT`` at ``temperature_c``."""
+        return _function(self.kind)(temperature_c, self.reference_temperature_c, *self.values)
+
+    def stderr_at(self, temperature_c: float) -> float:
+        """Standard error of ``log10 aT`` at one temperature, from the parameters' covariance."""
+        gradient = _gradient(lambda p: float(
+            _function(self.kind)(temperature_c, self.reference_temperature_c, *p)), self.values)
+        return float(np.sqrt(max(0.0, gradient @ self.covariance @ gradient)))
+
+    def rereferenced(self, reference_c: float) -> ShiftFunction:
+        """The same function with ``log10 aT = 0`` at ``reference_c`` (WLF: ``C1' = C1 C2 /
+        (C2 + ΔT)``, ``C2' = C2 + ΔT``; Arrhenius: same ``E_a``), errors propagated."""
+        if self.kind == "arrhenius":
+            return ShiftFunction("arrhenius", reference_c, self.values, self.stderr,
+                                 self.covariance, self.chi2, self.dof)
+        shift = reference_c - self.reference_temperature_c
+
+        def moved(p: NDArray) -> NDArray:
+            return np.array([p[0] * p[1] / (p[1] + shift), p[1] + shift])
+
+        jac = np.stack([_gradient(lambda p, k=k: float(moved(np.asarray(p))[k]), self.values)
+                        for k in range(2)])
+        covariance = jac @ self.covariance @ jac.T
+        values = tuple(float(v) for v in moved(np.asarray(self.values)))
+        return ShiftFunction("wlf", reference_c, values,
+                             tuple(float(v) for v in np.sqrt(np.diag(covariance))),
+                             covariance, self.chi2, self.dof)
+
+    def to_json(self) -> dict:
+        """``{"kind", "parameters": {name: {"value", "stderr", "unit"}}, ...}``."""
+        names, units = PARAMETERS[self.kind]
+        return {
+            "kind": self.kind,
+            "reference_temperature_c": self.reference_temperature_c,
+            "parameters": {
+                name: {"value": value, "stderr": error, "unit": unit}
+                for name, value, error, unit in zip(names, self.values, self.stderr, units,
+                                                    strict=True)
+            },
+            "chi2_per_dof": None if math.isnan(self.reduced_chi2) else self.reduced_chi2,
+            "describes_shifts": bool(not self.reduced_chi2 > 2.0),
+        }
+
+
+def _function(kind: str) -> Callable[..., NDArray]:
+    return {"wlf": wlf, "arrhenius": arrhenius}[kind]
+
+
+def _gradient(function: Callable[[NDArray], float], values: tuple[float, ...]) -> NDArray:
+    values_array = np.asarray(values, dtype=float)
+    gradient = np.empty(values_array.size)
+    for k in range(values_array.size):
+        step = 1e-6 * max(abs(values_array[k]), 1e-3)
+        up, down = values_array.copy(), values_array.copy()
+        up[k] += step
+        down[k] -= step
+        gradient[k] = (function(up) - function(down)) / (2 * step)
+    return gradient
+
+
+def fit_shift_function(
+    kind: str, temperature_c: NDArray[np.float64], log10_at: NDArray[np.float64],
+    covariance: NDArray[np.float64], reference_c: float,
+) -> ShiftFunction | None:
+    """Fit ``kind`` to shift factors whose reference (zero-variance) entry is at ``reference_c``.
+
+    Returns ``None`` when there are fewer shifts than parameters or the fit fails.
+    """
+    keep = np.diag(covariance) > 0
+    t, y = temperature_c[keep], log10_at[keep]
+    cov = covariance[np.ix_(keep, keep)]
+    names, _ = PARAMETERS[kind]
+    if t.size < len(names):
+        return None
+    if kind == "wlf":
+        low = reference_c - float(np.min(temperature_c))
+        start = [17.44, max(51.6, low + 20.0)]
+        bounds = ([1e-3, max(low, 0.0) + 1e-3], [1e3, 1e5])
+    else:
+        start, bounds = [2e5], ([1e2], [5e6])
+
+    def model(temperature: NDArray, *p: float) -> NDArray:
+        return _function(kind)(temperature, reference_c, *p)
+
+    try:
+        values, pcov = curve_fit(model, t, y, p0=start, sigma=cov, absolute_sigma=True,
+                                 bounds=bounds, maxfev=5000)
+    except (RuntimeError, ValueError, np.linalg.LinAlgError):
+        return None
+    residual = y - model(t, *values)
+    try:
+        chi2 = float(residual @ np.linalg.solve(cov, residual))
+    except np.linalg.LinAlgError:
+        return None
+    dof = t.size - len(names)
+    if dof > 0 and chi2 / dof > 1.0:
+        pcov = pcov * (chi2 / dof)
+    return ShiftFunction(kind, reference_c, tuple(float(v) for v in values),
+                         tuple(float(v) for v in np.sqrt(np.clip(np.diag(pcov), 0, None))),
+                         pcov, chi2, dof)
+
+
+def best_shift_function(functions: list[ShiftFunction | None]) -> ShiftFunction | None:
+    """The fitted function of lowest AIC, or ``None`` if none was fitted."""
+    fitted = [f for f in functions if f is not None]
+    return min(fitted, key=lambda f: f.aic) if fitted else None

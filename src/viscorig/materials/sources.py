@@ -1,0 +1,39 @@
+"""The modulus table of named runs of a campaign file: DMA runs (``/dma``) or rig runs
+(``/runs``), several rig runs of one specimen making one table."""
+
+from __future__ import annotations
+
+from viscorig.errors import InputError
+from viscorig.materials.dmastore import dma_run_names, read_dma
+from viscorig.materials.rigdata import rig_modulus_table
+from viscorig.materials.table import ModulusTable, concatenate
+from viscorig.storage import Campaign
+
+
+def modulus_table(campaign: Campaign, runs: list[str], disc_mass_kg: float | None = None,
+                  kstar_source: str = "support") -> ModulusTable:
+    """One table of the named runs (see the module text).
+
+    Raises
+    ------
+    InputError
+        No runs, a name that is neither a run nor a DMA run, a run named twice, or a run that
+        cannot give a modulus (what is missing is named).
+    """
+    if not runs:
+        raise InputError("no run given", "--run")
+    if len(set(runs)) != len(runs):
+        raise InputError("a run is named twice", "--run")
+    dma, rig = set(dma_run_names(campaign)), set(campaign.run_names)
+    tables = []
+    for name in runs:
+        if name in dma:
+            tables.append(read_dma(campaign, name))
+        elif name in rig:
+            tables.append(rig_modulus_table(campaign, name, disc_mass_kg, kstar_source))
+        else:
+            known = ", ".join(sorted(dma | rig)) or "none"
+            raise InputError(f"no such run (runs: {known})", f"{campaign.path}: {name}")
+    if len(tables) == 1:
+        return tables[0]
+    return concatenate(tables, source=f"{campaign.path.name}: {', '.join(runs)}")

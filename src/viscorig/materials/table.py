@@ -1,0 +1,130 @@
+"""A modulus table: storage and loss modulus per (frequency, temperature) point, SI units.
+
+The one form every source of material data takes before a master curve is built from it: a DMA
+file (:mod:`viscorig.materials.dmafile`), a DMA run stored in a campaign file
+(:mod:`viscorig.materials.dmastore`), or rig runs of one specimen at several temperatures
+(:mod:`viscorig.materials.rigdata`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from viscorig.errors import InputError
+
+#: What the modulus is: tensile/Young's ("E") or shear ("G").
+MODULUS_KINDS = ("E", "G")
+
+
+@dataclass(frozen=True)
+class ModulusTable:
+    """Storage and loss modulus of one material over frequency and temperature.
+
+    Attributes
+    ----------
+    frequency_hz, temperature_c, storage_pa, loss_pa
+        One value per point (Hz, °C, Pa, Pa).
+    set_index
+        The isothermal sweep each point belongs to (0, 1, ...): points of one set share one
+        shift factor.
+    modulus
+        ``"E"`` or ``"G"``.
+    source
+        Where the data came from (a file name, run names), for messages and FE-card comments.
+    """
+
+    frequency_hz: NDArray[np.float64]
+    temperature_c: NDArray[np.float64]
+    storage_pa: NDArray[np.float64]
+    loss_pa: NDArray[np.float64]
+    set_index: NDArray[np.int64]
+    modulus: str = "E"
+    source: str = ""
+    set_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        n = np.asarray(self.frequency_hz).size
+        for name in ("temperature_c", "storage_pa", "loss_pa", "set_index"):
+            if np.asarray(getattr(self, name)).size != n:
+                raise ValueError(f"{name} has {np.asarray(getattr(self, name)).size} values, "
+                                 f"frequency_hz {n}")
+        if self.modulus not in MODULUS_KINDS:
+            raise InputError(f"modulus {self.modulus!r} is not one of E, G", self.source or None)
+
+    @property
+    def points(self) -> int:
+        """Number of points."""
+        return int(np.asarray(self.frequency_hz).size)
+
+    @property
+    def sets(self) -> NDArray[np.int64]:
+        """The set numbers, in increasing order."""
+        return np.unique(self.set_index)
+
+    def set_temperatures_c(self) -> NDArray[np.float64]:
+        """Mean temperature of each set (°C), in the order of :attr:`sets`."""
+        return np.array([self.temperature_c[self.set_index == s].mean() for s in self.sets])
+
+    def check(self, where: str) -> None:
+        """Refuse a table no master curve can be built from, naming the first bad point.
+
+        Raises
+        ------
+        InputError
+            A non-finite or non-positive frequency or modulus, a non-finite temperature, or
+            fewer than two points.
+        """
+        if self.points < 2:
+            raise InputError(f"{self.points} point(s); a master curve needs more", where)
+        checks = (
+            ("frequency_hz", self.frequency_hz > 0, "frequency must be a positive number"),
+            ("temperature_c", np.isfinite(self.temperature_c) & (self.temperature_c > -273.15),
+             "temperature must be a number above -273.15 °C"),
+            ("storage_pa", self.storage_pa > 0, "storage modulus must be a positive number"),
+            ("loss_pa", self.loss_pa > 0, "loss modulus must be a positive number"),
+        )
+        for name, good, what in checks:
+            good = np.asarray(good) & np.isfinite(getattr(self, name))
+            if not good.all():
+                index = int(np.flatnonzero(~good)[0])
+                raise InputError(f"{what}, not {getattr(self, name)[index]!r} (point {index + 1})",
+                                 f"{where}: {name}")
+
+    def select(self, keep: NDArray[np.bool_]) -> ModulusTable:
+        """The points where ``keep`` is true."""
+        return ModulusTable(
+            frequency_hz=self.frequency_hz[keep], temperature_c=self.temperature_c[keep],
+            storage_pa=self.storage_pa[keep], loss_pa=self.loss_pa[keep],
+            set_index=self.set_index[keep], modulus=self.modulus, source=self.source,
+            set_names=self.set_names,
+        )
+
+
+def concatenate(tables: list[ModulusTable], source: str) -> ModulusTable:
+    """One table of several (runs of one specimen), each table's sets renumbered after the last.
+
+    Raises
+    ------
+    InputError
+        The tables do not all hold the same kind of modulus.
+    """
+    kinds = {table.modulus for table in tables}
+    if len(kinds) > 1:
+        raise InputError(f"runs hold different moduli ({', '.join(sorted(kinds))})", source)
+    offset, sets, names = 0, [], []
+    for table in tables:
+        _, renumbered = np.unique(table.set_index, return_inverse=True)
+        sets.append(renumbered + offset)
+        offset += int(renumbered.max()) + 1 if renumbered.size else 0
+        names.extend(table.set_names or [table.source] * int(np.unique(renumbered).size))
+    return ModulusTable(
+        frequency_hz=np.concatenate([t.frequency_hz for t in tables]),
+        temperature_c=np.concatenate([t.temperature_c for t in tables]),
+        storage_pa=np.concatenate([t.storage_pa for t in tables]),
+        loss_pa=np.concatenate([t.loss_pa for t in tables]),
+        set_index=np.concatenate(sets).astype(np.int64),
+        modulus=kinds.pop(), source=source, set_names=tuple(names),
+    )

@@ -1,0 +1,187 @@
+"""The report's section on materials: the master curve of every DMA run of the campaign, and of
+every specimen measured by rig runs at two or more temperatures.
+
+Per material: the master curve with the ± of each point's shift, the Prony series through it;
+the shift factors with their ± and the fitted WLF and Arrhenius; the fit's residuals
+``ln(model/measured)`` of E' and E'' against reduced frequency; and in words the superposition
+verdict, the points the Kramers-Kronig check names and the figures of the fit. A material that
+cannot be built (what is missing) is one sentence instead.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from viscorig.errors import InputError
+from viscorig.materials.dmastore import dma_run_names
+from viscorig.materials.master import MasterCurve, build_master
+from viscorig.materials.sources import modulus_table
+from viscorig.report.figures import SavedFigure, save
+from viscorig.storage import Campaign
+
+
+@dataclass(frozen=True)
+class Material:
+    """One material of the campaign: its runs, and its master curve or why there is none."""
+
+    runs: tuple[str, ...]
+    master: MasterCurve | None
+    problem: str = ""
+
+
+def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
+    """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures."""
+    groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
+    by_specimen: dict[tuple[str, float], list[tuple[float, str]]] = {}
+    for name in campaign.run_names:
+        attributes = campaign.run_attributes(name)
+        specimen = str(attributes.get("specimen", ""))
+        temperature = float(attributes.get("temperature_c", math.nan) or math.nan)
+        if specimen.lower() in ("none", "") or not math.isfinite(temperature):
+            continue
+        key = (specimen, round(float(attributes.get("preload_strain", 0.0) or 0.0), 4))
+        by_specimen.setdefault(key, []).append((temperature, name))
+    for members in by_specimen.values():
+        if len({round(t, 1) for t, _ in members}) >= 2:
+            groups.append(tuple(name for _, name in sorted(members)))
+    return groups
+
+
+def analyse_materials(campaign: Campaign) -> list[Material]:
+    """The master curve of every candidate group (see :func:`candidate_groups`)."""
+    out = []
+    for runs in candidate_groups(campaign):
+        try:
+            with np.errstate(all="ignore"):
+                master = build_master(modulus_table(campaign, list(runs)), runs)
+            out.append(Material(runs, master))
+        except InputError as error:
+            out.append(Material(runs, None, str(error)))
+    return out
+
+
+def master_figure(master: MasterCurve) -> Figure:
+    """Master curve with the ± of each point's shift; shift factors with WLF and Arrhenius."""
+    table = master.table
+    m = table.modulus
+    figure = Figure(figsize=(11, 3.8), layout=None)
+    left, right = figure.subplots(1, 2)
+    figure.subplots_adjust(left=0.07, right=0.98, top=0.9, bottom=0.15, wspace=0.22)
+    lookup = dict(zip(master.shifts.sets.tolist(), master.log10_at_stderr, strict=True))
+    spread = np.array([lookup[s] for s in table.set_index.tolist()])
+    fr = master.reduced_frequency_hz
+    band = np.vstack([fr * (1 - 10 ** -spread), fr * (10**spread - 1)])
+    left.errorbar(fr, table.storage_pa, xerr=band, fmt="o", ms=3, color="#1f4e79", alpha=0.6,
+                  label=f"{m}' measured (± shift)")
+    left.errorbar(fr, table.loss_pa, xerr=band, fmt="s", ms=3, color="#c0392b", alpha=0.6,
+                  label=f"{m}'' measured (± shift)")
+    grid = np.logspace(np.log10(fr.min()) - 0.3, np.log10(fr.max()) + 0.3, 400)
+    model = master.prony.complex_modulus(2 * np.pi * grid)
+    left.loglog(grid, model.real, "-", color="black", lw=1,
+                label=f"Prony series, {master.prony.terms} terms")
+    left.loglog(grid, model.imag, "-", color="black", lw=1)
+    left.set_xlabel(f"reduced frequency f·aT [Hz] at {master.reference_temperature_c:.1f} °C")
+    left.set_ylabel(f"{m}', {m}'' [Pa]")
+    left.set_title("master curve")
+    left.legend(fontsize=7)
+    left.grid(True, which="major", alpha=0.3)
+    right.errorbar(master.temperature_c, master.log10_at, yerr=master.log10_at_stderr,
+                   fmt="o", color="black", capsize=3, ms=4, label="log10 aT ± stderr")
+    t = np.linspace(master.temperature_c.min(), master.temperature_c.max(), 200)
+    for function in master.shift_functions:
+        chi = function.reduced_chi2
+        right.plot(t, function(t), "-", lw=1,
+                   label=f"{function.kind}" + ("" if math.isnan(chi) else f", χ²/dof {chi:.2g}"))
+    right.set_xlabel("temperature [°C]")
+    right.set_ylabel("log10 aT")
+    right.set_title("shift factors")
+    right.legend(fontsize=7)
+    right.grid(True, alpha=0.3)
+    return figure
+
+
+def residual_figure(master: MasterCurve) -> Figure:
+    """``ln(model/measured)`` of both moduli against reduced frequency, with the scatter."""
+    table = master.table
+    fr = master.reduced_frequency_hz
+    model = master.prony.complex_modulus(2 * np.pi * fr)
+    figure = Figure(figsize=(11, 2.8), layout=None)
+    ax = figure.subplots()
+    figure.subplots_adjust(left=0.07, right=0.98, top=0.88, bottom=0.2)
+    ax.semilogx(fr, np.log(model.real / table.storage_pa), "o", ms=3, color="#1f4e79",
+                label="storage")
+    ax.semilogx(fr, np.log(model.imag / table.loss_pa), "s", ms=3, color="#c0392b",
+                label="loss")
+    for value, colour in ((master.shifts.storage_scatter, "#1f4e79"),
+                          (master.shifts.loss_scatter, "#c0392b")):
+        ax.axhspan(-value, value, color=colour, alpha=0.08)
+    ax.axhline(0, color="black", lw=0.8)
+    ax.set_xlabel("reduced frequency f·aT [Hz]")
+    ax.set_ylabel("ln(model/measured)")
+    ax.set_title("Prony series residuals (bands: the data's scatter about one smooth curve)")
+    ax.legend(fontsize=7)
+    return figure
+
+
+def material_figures(materials: list[Material], folder: Path | None
+                     ) -> dict[str, SavedFigure]:
+    """Every material's two figures, saved as PNG and SVG."""
+    figures = {}
+    for material in materials:
+        if material.master is None:
+            continue
+        stem = "material-" + "-".join(material.runs)[:60]
+        figures[f"{stem}-master"] = save(master_figure(material.master), folder,
+                                         f"{stem}-master", "Master curve and shift factors.")
+        figures[f"{stem}-residuals"] = save(residual_figure(material.master), folder,
+                                            f"{stem}-residuals",
+                                            "Residuals of the Prony series.")
+    return figures
+
+
+def material_section(materials: list[Material], figures: dict[str, SavedFigure],
+                     figure_html) -> str:
+    """The section's HTML (``figure_html`` renders one saved figure)."""
+    if not materials:
+        return ""
+    parts = ['<h2 id="materials">Materials over temperature and frequency</h2>']
+    for material in materials:
+        names = ", ".join(material.runs)
+        parts.append(f"<h3>{html.escape(names)}</h3>")
+        if material.master is None:
+            parts.append(f'<p class="note">No master curve: {html.escape(material.problem)}</p>')
+            continue
+        master = material.master
+        fit = master.prony_fit
+        best = master.shift_function
+        words = [f"{master.temperature_c.size} temperatures, reference "
+                 f"{master.reference_temperature_c:.1f} °C.",
+                 master.superposition.verdict[0].upper() + master.superposition.verdict[1:] + "."]
+        if best is not None:
+            values = ", ".join(f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+                               for k, v in best.to_json()["parameters"].items())
+            fits = "describes" if best.to_json()["describes_shifts"] else "does not describe"
+            words.append(f"Shift function: {best.kind} ({values}); it {fits} the shift factors "
+                         "within their errors.")
+        flagged = master.flagged_points()
+        words.append(f"Kramers-Kronig: {len(flagged)} point(s) named" + (
+            ": " + "; ".join(f"{p['modulus']} at {p['temperature_c']:.1f} °C, "
+                             f"{p['frequency_hz']:.3g} Hz" for p in flagged[:5])
+            if flagged else ", every point consistent with a linear material") + ".")
+        words.append(f"Prony series of {master.prony.terms} terms: rms ln error storage "
+                     f"{fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f} "
+                     f"(data scatter {master.shifts.storage_scatter:.3f}, "
+                     f"{master.shifts.loss_scatter:.3f}); fractional model: "
+                     f"{master.fractional_fit.storage_rms_log_error:.3f}, "
+                     f"{master.fractional_fit.loss_rms_log_error:.3f}.")
+        parts.append("<p>" + html.escape(" ".join(words)) + "</p>")
+        stem = "material-" + "-".join(material.runs)[:60]
+        parts.append(figure_html(figures.get(f"{stem}-master")))
+        parts.append(figure_html(figures.get(f"{stem}-residuals")))
+    return "\n".join(parts)

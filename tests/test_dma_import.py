@@ -1,0 +1,165 @@
+"""DMA tables in: the CSV layouts DMA users exchange, the /dma run of a campaign file, and one
+clear line for bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from materialdata import dma_sweep
+from realdata import real_data
+
+from viscorig.cli import main
+from viscorig.errors import InputError
+from viscorig.materials.dmafile import read_dma_csv
+from viscorig.materials.dmastore import dma_run_names, read_dma
+from viscorig.storage import Campaign
+
+SWEEP = "pyvisco_freq_user_raw.csv"
+
+
+@pytest.fixture
+def sweep_csv(tmp_path) -> Path:
+    """A sweep in pyvisco's layout (names row, units row) made by the test's own generator:
+    21 temperatures from -50 to 100 °C, 10 frequencies from 0.1 to 100 Hz."""
+    data = dma_sweep(np.linspace(-50.0, 100.0, 21), np.logspace(-1, 2, 10))
+    rows = ["f,E_stor,E_loss,T,Set", "Hz,MPa,MPa,C,-"]
+    rows += [f"{f:.17g},{e1 / 1e6:.17g},{e2 / 1e6:.17g},{t:.17g},{k}" for f, e1, e2, t, k in zip(
+        data["frequency_hz"], data["storage_pa"], data["loss_pa"], data["temperature_c"],
+        data["set_index"], strict=True)]
+    path = tmp_path / "sweep.csv"
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def real_sweep() -> Path:
+    """pyvisco's example DMA sweep (tests/data/dma/README.md); skips the test without it."""
+    return real_data("dma", SWEEP) / SWEEP
+
+
+def test_pyvisco_layout_names_then_units_row():
+    table = read_dma_csv(real_sweep())
+    assert table.points == 210 and table.sets.size == 21 and table.modulus == "E"
+    assert table.frequency_hz[0] == 0.1 and table.storage_pa[0] == pytest.approx(8097.175545e6)
+    assert table.loss_pa[0] == pytest.approx(93.07449045e6)
+    assert table.set_temperatures_c()[0] == pytest.approx(-49.91, abs=0.01)
+
+
+def test_units_in_names_semicolons_decimal_comma_and_bom(tmp_path):
+    path = tmp_path / "eplexor.csv"
+    text = ("Temperature (°C);Frequency (Hz);G' [kPa];G'' [kPa]\n"
+            "20,0;1,0;1500,5;300,25\n20,1;10,0;1700,0;350,0\n"
+            "30,0;1,0;1200,0;260,0\n30,1;10,0;1400,0;290,0\n")
+    path.write_bytes("\ufeff".encode() + text.encode("utf-8"))
+    table = read_dma_csv(path)
+    assert table.modulus == "G"
+    assert table.storage_pa.tolist() == [1500.5e3, 1700e3, 1200e3, 1400e3]
+    assert table.loss_pa[0] == pytest.approx(300.25e3)
+    assert table.set_index.tolist() == [0, 0, 1, 1]  # grouped by temperature
+
+
+def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
+    path = tmp_path / "trios.txt"
+    path.write_text("omega (rad/s)\tT (K)\t|E*| (MPa)\ttan delta\n"
+                    "6.283185307\t293.15\t5.0\t0.75\n62.83185307\t293.15\t6.0\t0.5\n")
+    table = read_dma_csv(path)
+    assert table.frequency_hz == pytest.approx([1.0, 10.0])
+    assert table.temperature_c == pytest.approx([20.0, 20.0])
+    assert table.storage_pa[0] == pytest.approx(5e6 * 0.8) and table.loss_pa[0] == \
+        pytest.approx(5e6 * 0.6)
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,x,1,20\n", "row 4, column 'E_stor'"),
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,-3,1,20\n", "row 4, column 'E_stor'"),
+    ("f,E_stor,T\nHz,MPa,C\n1,10,20\n2,11,20\n", "no storage and loss modulus columns"),
+    ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "no unit for modulus"),
+    ("f,E_stor,E_loss,T\nHz,furlong,MPa,C\n1,10,1,20\n2,11,1,20\n", "furlong"),
+])
+def test_bad_tables_name_file_row_and_column(tmp_path, text, expected):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(InputError) as error:
+        read_dma_csv(path)
+    assert expected in str(error.value) and "bad.csv" in str(error.value)
+
+
+def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv):
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
+    assert "210 points, 21 temperatures" in capsys.readouterr().out
+    campaign = Campaign.open(path)
+    assert dma_run_names(campaign) == ["eca"] and campaign.run_names == []
+    table = read_dma(campaign, "eca")
+    assert np.array_equal(table.storage_pa, read_dma_csv(sweep_csv).storage_pa)
+    # the rest of the tool still reads the file; a second import never overwrites
+    assert main(["show", str(path)]) == 0
+    listing = capsys.readouterr().out
+    assert "DMA run" in listing and "eca" in listing and "-50.0..100.0" in listing
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 2
+    assert "DMA run exists" in capsys.readouterr().err
+
+
+def test_import_refuses_a_bad_file_in_one_line_and_creates_nothing(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("f;E';E'';T\nHz;MPa;MPa;C\n1;10;1;20\n2;11;oops;20\n")
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "x", "--dma", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "row 4" in err and "Traceback" not in err
+    assert not path.exists()
+
+
+@pytest.mark.parametrize("content", [
+    b"\x00\x01\x02binary\xff\xfe" * 100,
+    b"f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1," + b"9" * 200_000 + b"\n",
+    b"f;E';E'';T\r\nHz;MPa;MPa;C\r\n1;10;1;20\r\n2;11;1\r\n",
+    b"",
+])
+def test_hostile_dma_files_are_refused_in_one_line(tmp_path, capsys, content):
+    bad = tmp_path / "hostile.csv"
+    bad.write_bytes(content)
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "x", "--dma", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "hostile.csv" in err and "Traceback" not in err
+    assert not path.exists()
+
+
+def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys, sweep_csv):
+    openpyxl = pytest.importorskip("openpyxl")
+    csv_table = read_dma_csv(sweep_csv)
+    book = openpyxl.Workbook()
+    book.active.title = "Data header"
+    book.active.append(["Measurement type:", "Temp. Freq. Sweep"])
+    sheet = book.create_sheet("Exported Data")
+    sheet.append(["Nr", "F stat.", "Time", "f", "T", "E'", "E''", "|E*|", "tan delta", "T2"])
+    sheet.append([None, "N", "s", "Hz", "°C", "MPa", "MPa", "MPa", None, "°C"])
+    for i in range(csv_table.points):
+        sheet.append([i + 1, -1.0, 10.0 * i, csv_table.frequency_hz[i],
+                      csv_table.temperature_c[i], csv_table.storage_pa[i] / 1e6,
+                      csv_table.loss_pa[i] / 1e6, 0.0, 0.0, 0.0])
+    path = tmp_path / "eplexor.xlsx"
+    book.save(path)
+    path_h5 = tmp_path / "c.h5"
+    assert main(["import", str(path_h5), "--run", "epl", "--dma", str(path)]) == 0
+    table = read_dma(Campaign.open(path_h5), "epl")
+    assert table.sets.size == 21  # no set column: grouped by temperature
+    assert np.allclose(table.storage_pa, csv_table.storage_pa, rtol=1e-12)
+    assert np.allclose(table.loss_pa, csv_table.loss_pa, rtol=1e-12)
+    capsys.readouterr()
+    sheet.cell(row=7, column=6, value="n/a")
+    book.save(path)
+    assert main(["import", str(tmp_path / "d.h5"), "--run", "x", "--dma", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "sheet 'Exported Data'" in err and "row 7" in err and "column \"E'\"" in err
+
+
+def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys, sweep_csv):
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "g", "--dma", str(sweep_csv), "--modulus", "G"]) == 0
+    assert "modulus G" in capsys.readouterr().out
+    assert read_dma(Campaign.open(path), "g").modulus == "G"
+    assert main(["import", str(path), "--run", "h", "--uff", str(sweep_csv), "--modulus", "E"]) == 2
+    assert "--modulus: only with --dma" in capsys.readouterr().err

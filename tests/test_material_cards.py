@@ -1,0 +1,149 @@
+"""FE material cards: each card written by ``viscorig export --material`` is read back by a
+parser written here (from the tools' documented layouts), evaluated at every measured point,
+and compared with the data."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import materialdata as gen
+import numpy as np
+import pytest
+
+from viscorig.cli import main
+from viscorig.materials.dmastore import import_dma
+from viscorig.materials.table import ModulusTable
+
+TEMPERATURES = np.arange(-30.0, 71.0, 10.0)
+FREQUENCIES = np.logspace(-1, 2, 10)
+POISSON = 0.45
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cards") / "dma.h5"
+    data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=7)
+    import_dma(path, "rubber", ModulusTable(**data, source="generated.csv"))
+    return path, data
+
+
+def _numbers(line: str) -> list[float]:
+    return [float(v) for v in line.replace(",", " ").split()]
+
+
+def _wlf(t, tref, c1, c2):
+    return -c1 * (t - tref) / (c2 + t - tref)
+
+
+def _abaqus(text: str):
+    lines = [line for line in text.splitlines() if not line.startswith("**")]
+    e0, nu = _numbers(lines[lines.index("*ELASTIC, MODULI=INSTANTANEOUS") + 1])
+    start = lines.index("*VISCOELASTIC, TIME=PRONY") + 1
+    terms = []
+    for line in lines[start:]:
+        if line.startswith("*"):
+            break
+        g, k, tau = _numbers(line)
+        assert g == k
+        terms.append((g, tau))
+    tref, c1, c2 = _numbers(lines[lines.index("*TRS, DEFINITION=WLF") + 1])
+
+    def young(f, t):
+        w = 2 * np.pi * f * 10 ** _wlf(t, tref, c1, c2)
+        return e0 * (1 - sum(g / (1 + 1j * w * tau) for g, tau in terms))
+    return young, nu
+
+
+def _ansys(text: str):
+    lines = [line for line in text.splitlines() if not line.startswith("!")]
+    e0 = float(next(line for line in lines if line.startswith("MP,EX")).split(",")[-1])
+    nu = float(next(line for line in lines if line.startswith("MP,PRXY")).split(",")[-1])
+    shear = lines.index(next(line for line in lines if line.startswith("TB,PRONY")
+                             and line.endswith("SHEAR")))
+    count = int(lines[shear].split(",")[4])
+    values = []
+    for line in lines[shear + 1:]:
+        if not line.startswith("TBDATA"):
+            break
+        values += [float(v) for v in line.split(",")[2:]]
+    assert len(values) == 2 * count
+    shift = lines[lines.index(next(line for line in lines if line.startswith("TB,SHIFT"))) + 1]
+    tref, c1, c2 = (float(v) for v in shift.split(",")[2:])
+    pairs = list(zip(values[::2], values[1::2], strict=True))
+
+    def young(f, t):
+        # ANSYS's shift A = 1/aT: log10 A = C1 (T - Tr)/(C2 + T - Tr)
+        a = 10 ** (c1 * (t - tref) / (c2 + t - tref))
+        w = 2 * np.pi * f / a
+        return e0 * (1 - sum(alpha / (1 + 1j * w * tau) for alpha, tau in pairs))
+    return young, nu
+
+
+def _lsdyna(text: str):
+    cards = [line for line in text.splitlines() if line and not line.startswith(("$", "*"))]
+    tref, a, b = _numbers(cards[0])[5:8]
+    terms = [_numbers(line) for line in cards[2:]]
+
+    def shear(f, t):
+        # WLF written with the natural logarithm: ln aT = -A (T - TREF)/(B + T - TREF)
+        at = math.e ** (-a * (t - tref) / (b + t - tref))
+        w = 2 * np.pi * f * at
+        return sum(g * (1j * w) / (beta + 1j * w) for g, beta, _, _ in terms)
+    return shear, terms
+
+
+def _rms(model, measured):
+    return (float(np.sqrt(np.mean(np.log(model.real / measured["storage_pa"]) ** 2))),
+            float(np.sqrt(np.mean(np.log(model.imag / measured["loss_pa"]) ** 2))))
+
+
+def _stated(text: str, which: str = "this card") -> tuple[float, float]:
+    line = next(line for line in text.splitlines() if which in line)
+    found = re.search(r"storage ([0-9.]+), loss ([0-9.]+)", line)
+    return float(found.group(1)), float(found.group(2))
+
+
+def _export(path, kind, out, capsys):
+    assert main(["export", str(path), "--run", "rubber", "--material", kind, "--out", str(out),
+                 "--poisson-ratio", str(POISSON), "--reference-temperature", "20"]) == 0
+    capsys.readouterr()
+    return out.read_text()
+
+
+@pytest.mark.parametrize("kind", ["abaqus", "ansys"])
+def test_abaqus_and_ansys_cards_reproduce_the_data(campaign, tmp_path, capsys, kind):
+    path, data = campaign
+    text = _export(path, kind, tmp_path / f"card.{kind}", capsys)
+    young, nu = (_abaqus if kind == "abaqus" else _ansys)(text)
+    assert nu == POISSON
+    storage, loss = _rms(young(data["frequency_hz"], data["temperature_c"]), data)
+    assert storage <= 0.05 and loss <= 0.12
+    stated = _stated(text)
+    assert storage == pytest.approx(stated[0], abs=2e-3)
+    assert loss == pytest.approx(stated[1], abs=2e-3)
+    assert "reference temperature: 20.0000 C" in text
+
+
+def test_lsdyna_card_reproduces_the_error_it_states(campaign, tmp_path, capsys):
+    path, data = campaign
+    text = _export(path, "lsdyna", tmp_path / "card.k", capsys)
+    shear, terms = _lsdyna(text)
+    assert len(terms) <= 7 and terms[0][1] == 0.0  # long-term term, then at most six
+    # shear and bulk series share their relative terms (constant Poisson's ratio)
+    ratios = [k / g for g, _, k, _ in terms]
+    assert np.allclose(ratios, 2 * (1 + POISSON) / (3 * (1 - 2 * POISSON)))
+    young = 2 * (1 + POISSON) * shear(data["frequency_hz"], data["temperature_c"])
+    storage, loss = _rms(young, data)
+    stated = _stated(text)
+    assert storage == pytest.approx(stated[0], abs=2e-3)
+    assert loss == pytest.approx(stated[1], abs=2e-3)
+
+
+def test_export_material_refuses_bad_values_in_one_line(campaign, tmp_path, capsys):
+    path, _ = campaign
+    out = tmp_path / "x.inp"
+    assert main(["export", str(path), "--run", "rubber", "--material", "abaqus", "--out",
+                 str(out), "--poisson-ratio", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "--poisson-ratio" in err and err.count("\n") == 1 and not out.exists()
