@@ -1,6 +1,10 @@
 """FE material cards: each card written by ``viscorig export --material`` is read back by a
 parser written here (from the tools' documented layouts), evaluated at every measured point,
-and compared with the data."""
+and compared with the data.
+
+Each reader encodes the vendor's convention as its documentation states it; where the
+documentation found does not settle a point, the reader says so and follows the card (the card
+and ``docs/materials.md`` list those points as unconfirmed)."""
 
 from __future__ import annotations
 
@@ -37,6 +41,11 @@ def _wlf(t, tref, c1, c2):
 
 
 def _abaqus(text: str):
+    """Abaqus: one line ``g_i, k_i, tau_i`` per term after ``*VISCOELASTIC, TIME=PRONY``, ratios
+    of the instantaneous moduli (Abaqus Keywords Reference, *VISCOELASTIC, TIME=PRONY data
+    lines); ``*TRS, DEFINITION=WLF`` line ``theta0, C1, C2`` (Keywords Reference, *TRS) with
+    ``log10 A = -C1 (T - theta0)/(C2 + T - theta0)`` and reduced time ``dtau/dt = 1/A`` (Abaqus
+    Theory Guide, Viscoelasticity), so the reduced frequency is ``omega A``."""
     lines = [line for line in text.splitlines() if not line.startswith("**")]
     e0, nu = _numbers(lines[lines.index("*ELASTIC, MODULI=INSTANTANEOUS") + 1])
     start = lines.index("*VISCOELASTIC, TIME=PRONY") + 1
@@ -56,6 +65,11 @@ def _abaqus(text: str):
 
 
 def _ansys(text: str):
+    """ANSYS: ``TB,PRONY,MAT,NTEMP,NPTS,SHEAR`` with NPTS terms (Command Reference, TB), data
+    in TBDATA commands of up to six values (Command Reference, TBDATA). Not settled by the
+    documentation found: the order ``a_i, tau_i`` of the pairs and the sign of the WLF shift,
+    read here as the card writes them (``log10 A = +C1 (T - Tr)/(C2 + T - Tr)``, ``A``
+    multiplying the time, so the reduced frequency is ``omega / A``)."""
     lines = [line for line in text.splitlines() if not line.startswith("!")]
     e0 = float(next(line for line in lines if line.startswith("MP,EX")).split(",")[-1])
     nu = float(next(line for line in lines if line.startswith("MP,PRXY")).split(",")[-1])
@@ -81,6 +95,12 @@ def _ansys(text: str):
 
 
 def _lsdyna(text: str):
+    """LS-DYNA *MAT_GENERAL_VISCOELASTIC: card 1 ``MID RO BULK PCF EF TREF A B``, card 2 the
+    relaxation-curve fit (``LCID ...``), then at most six cards ``GI BETAI KI BETAKI`` with
+    ``G(t) = sum GI exp(-BETAI t)`` (LS-DYNA Keyword User's Manual, MAT_076, field by field as
+    in Ansys's PyDyNA keyword classes). Not settled by the documentation found: the WLF form,
+    read here as the card writes it (natural logarithm, ``ln aT = -A (T - TREF)/(B + T - TREF)``).
+    """
     cards = [line for line in text.splitlines() if line and not line.startswith(("$", "*"))]
     tref, a, b = _numbers(cards[0])[5:8]
     terms = [_numbers(line) for line in cards[2:]]
@@ -129,7 +149,9 @@ def test_lsdyna_card_reproduces_the_error_it_states(campaign, tmp_path, capsys):
     path, data = campaign
     text = _export(path, "lsdyna", tmp_path / "card.k", capsys)
     shear, terms = _lsdyna(text)
-    assert len(terms) <= 7 and terms[0][1] == 0.0  # long-term term, then at most six
+    # MAT_076 reads at most six GI cards: the long-term term (BETAI = 0), then at most five
+    assert len(terms) <= 6 and terms[0][1] == 0.0
+    assert "UNCONFIRMED: the WLF form" in text
     # shear and bulk series share their relative terms (constant Poisson's ratio)
     ratios = [k / g for g, _, k, _ in terms]
     assert np.allclose(ratios, 2 * (1 + POISSON) / (3 * (1 - 2 * POISSON)))
@@ -147,3 +169,22 @@ def test_export_material_refuses_bad_values_in_one_line(campaign, tmp_path, caps
                  str(out), "--poisson-ratio", "0.5"]) == 2
     err = capsys.readouterr().err
     assert "--poisson-ratio" in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_lsdyna_card_refuses_a_reference_temperature_mat076_cannot_take(campaign, tmp_path,
+                                                                        capsys):
+    path, _ = campaign
+    out = tmp_path / "cold.k"
+    code = main(["export", str(path), "--run", "rubber", "--material", "lsdyna", "--out",
+                 str(out), "--reference-temperature", "-10"])
+    err = capsys.readouterr().err
+    assert code == 2 and "TREF > 0" in err and "--reference-temperature" in err
+    assert err.count("\n") == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["abaqus", "ansys", "lsdyna"])
+def test_every_card_names_its_conventions(campaign, tmp_path, capsys, kind):
+    path, _ = campaign
+    text = _export(path, kind, tmp_path / f"conv.{kind}", capsys)
+    conventions = [line for line in text.splitlines() if "convention:" in line]
+    assert conventions and all(line[0] in "*!$" for line in conventions)

@@ -2,27 +2,44 @@
 and LS-DYNA read them.
 
 Every card is in SI units (Pa, s, °C for temperatures) and begins with a comment block naming
-the data, the units, the reference temperature, the shift function and the fit's error. The
+the data, the units, the reference temperature, the shift function, the fit's error, and which
+of the card's conventions the vendor's public documentation confirms and which it does not. The
 moduli of the series become shear and bulk relaxation functions by a constant Poisson's ratio
 ``ν`` (``G = E/(2(1+ν))``, ``K = E/(3(1−2ν))``; from a shear modulus the other way round), so the
 relative (normalised) series of shear and bulk are the same.
 
-Conventions written out, because each tool names them differently:
+Conventions, and the documentation each rests on (``docs/materials.md`` lists the sources):
 
-- Abaqus: ``*ELASTIC, MODULI=INSTANTANEOUS`` (``E_0``, ``ν``), ``*VISCOELASTIC, TIME=PRONY``
-  lines ``g_i, k_i, τ_i`` with ``g_i = k_i = E_i/E_0``, ``*TRS, DEFINITION=WLF`` line
-  ``T_ref, C1, C2`` (``log10 aT = −C1 (T−T_ref)/(C2+T−T_ref)``), or ``DEFINITION=ARRHENIUS``.
-- ANSYS: ``MP,EX`` and ``MP,PRXY`` (instantaneous), ``TB,PRONY,,,N,SHEAR`` and ``...,BULK`` with
-  ``TBDATA`` pairs ``a_i, τ_i`` (``a_i = E_i/E_0``), ``TB,SHIFT,,,3,WLF`` with ``T_ref, C1, C2``
-  (ANSYS's shift ``A = 1/aT``, so ``log10 A = C1 (T−T_ref)/(C2+T−T_ref)`` with the same
-  positive ``C1``), or ``TB,SHIFT,,,2,TN`` with ``T_ref`` and ``E_a/R`` (Arrhenius).
-- LS-DYNA: ``*MAT_GENERAL_VISCOELASTIC`` (MAT_076): card 1 ``MID, RO, BULK, PCF, EF, TREF, A,
-  B``, card 2 zeros (no relaxation curve), then one card per term ``G_i, β_i, K_i, βk_i``
-  (comma-separated free format) with decay constants ``β = 1/τ``; the long-term moduli are a
-  term of ``β = 0``; ``BULK`` is left 0 since the bulk series is given. The shift is WLF with
-  ``A = C1 ln 10`` and ``B = C2`` (LS-DYNA writes WLF with the natural logarithm). At most
-  :data:`LSDYNA_MAX_TERMS` terms fit on the cards: a longer series is refitted with that many
-  terms, and the card says so with its error.
+- Abaqus. ``*VISCOELASTIC, TIME=PRONY``: one data line per term, ``g_i^P, k_i^P, τ_i`` (shear
+  modulus ratio, bulk modulus ratio, relaxation time), any number of terms (Abaqus Keywords
+  Reference, *VISCOELASTIC, data lines for TIME=PRONY). The ratios are of the instantaneous
+  moduli given by ``*ELASTIC, MODULI=INSTANTANEOUS``. ``*TRS, DEFINITION=WLF``: one data line
+  ``θ0, C1, C2`` (Abaqus Keywords Reference, *TRS); the shift function ``A`` divides the time
+  (``dτ/dt = 1/A``) and ``log10 A = −C1 (θ−θ0)/(C2+θ−θ0)`` (Abaqus Theory Guide,
+  Viscoelasticity; Abaqus Materials Guide, Thermorheologically simple temperature effects), so
+  the project's ``C1, C2`` go in unchanged. ``DEFINITION=ARRHENIUS``: ``ln A = (E0/R)(1/(θ−θZ) −
+  1/(θ0−θZ))`` with ``θZ`` the absolute zero of the temperature scale (Materials Guide, same
+  section); the fields of its data line after ``θ0`` are not confirmed.
+- ANSYS. ``TB,PRONY,MAT,NTEMP,NPTS,TBOPT`` with ``TBOPT`` ``SHEAR`` or ``BULK`` and ``NPTS`` the
+  number of terms (Command Reference, TB); ``TBDATA`` carries six values a command (Command
+  Reference, TBDATA); the pairs ``a_i, τ_i`` (``a_i`` relative to the instantaneous modulus) are
+  not confirmed from the manual. ``TB,SHIFT,,,3,WLF`` with ``Tr, C1, C2``: the order is
+  confirmed only by a third-party example, and ANSYS's sign (its ``A`` multiplies the time, so
+  ``log10 A = +C1 (T−Tr)/(C2+T−Tr)`` with the same positive ``C1``) is not confirmed.
+  ``TB,SHIFT,,,2,TN`` with ``Tr`` and ``H/R``: unconfirmed form; ``Tr`` is given in °C and
+  ``TOFFST,273.15`` states the offset from absolute zero (Command Reference, TOFFST), as the
+  card's temperatures are in °C.
+- LS-DYNA. ``*MAT_GENERAL_VISCOELASTIC`` (MAT_076): card 1 ``MID, RO, BULK, PCF, EF, TREF, A,
+  B`` (``EF`` is the elastic flag, 0 = viscoelastic; ``TREF`` must be greater than zero), card 2
+  ``LCID, NT, BSTART, TRAMP, LCIDK, NTK, BSTARTK, TRAMPK`` (zero: no relaxation curve to fit),
+  then at most six cards ``GI, BETAI, KI, BETAKI`` (LS-DYNA Keyword User's Manual, MAT_076, as
+  transcribed field by field in Ansys's PyDyNA keyword classes). Decay constants ``β = 1/τ``; the
+  long-term moduli are a card of ``β = 0``, so :data:`LSDYNA_MAX_TERMS` decaying terms fit and a
+  longer series is refitted with that many, the card stating that series' error. The WLF form
+  written (``A = C1 ln 10``, ``B = C2``, natural logarithm, same sign as Abaqus) is not
+  confirmed; neither is the Arrhenius form, so no shift is written for an Arrhenius fit and the
+  card says so, with its error at the reference-temperature series alone. ``BULK`` is left 0
+  since the bulk series is given: not confirmed either.
 """
 
 from __future__ import annotations
@@ -38,11 +55,13 @@ from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.prony import PronySeries, fit_prony_terms
-from viscorig.materials.shiftfunctions import GAS_CONSTANT_J_PER_MOL_K
+from viscorig.materials.shiftfunctions import GAS_CONSTANT_J_PER_MOL_K, KELVIN
 
 FORMATS = ("abaqus", "ansys", "lsdyna")
-#: Terms of *MAT_GENERAL_VISCOELASTIC given on cards (more need a relaxation curve).
-LSDYNA_MAX_TERMS = 6
+#: Cards ``GI, BETAI, KI, BETAKI`` that *MAT_GENERAL_VISCOELASTIC reads (LS-DYNA manual, MAT_076).
+LSDYNA_MAX_CARDS = 6
+#: Decaying terms on those cards: one card holds the long-term moduli (``β = 0``).
+LSDYNA_MAX_TERMS = LSDYNA_MAX_CARDS - 1
 DEFAULT_POISSON = 0.49
 
 
@@ -59,12 +78,15 @@ def _young(master: MasterCurve, poisson: float) -> float:
     return 1.0 if master.table.modulus == "E" else 2 * (1 + poisson)
 
 
-def card_error(master: MasterCurve, series: PronySeries) -> tuple[float, float]:
+def card_error(master: MasterCurve, series: PronySeries,
+               shifted: bool = True) -> tuple[float, float]:
     """Rms ``ln(card/measured)`` of E' and E'' over every point, as the card reproduces them:
     the series shifted by the shift function (the measured shift factors where none was
-    fitted)."""
+    fitted), or not shifted at all where the card holds no shift (``shifted=False``)."""
     table = master.table
-    if master.shift_function is None:
+    if not shifted:
+        reduced = table.frequency_hz
+    elif master.shift_function is None:
         reduced = master.reduced_frequency_hz
     else:
         reduced = table.frequency_hz * 10.0 ** master.shift_function(table.temperature_c)
@@ -74,7 +96,8 @@ def card_error(master: MasterCurve, series: PronySeries) -> tuple[float, float]:
 
 
 def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str,
-             note: str = "") -> list[str]:
+             note: str = "", conventions: tuple[str, ...] = (),
+             shifted: bool = True) -> list[str]:
     fit = master.prony_fit
     function = master.shift_function
     shift = "none fitted" if function is None else ", ".join(
@@ -94,14 +117,29 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
         f"Prony series: {master.prony.terms} terms; fit over every point with the measured shift "
         f"factors: rms ln(model/measured) storage {fit.storage_rms_log_error:.4f}, loss "
         f"{fit.loss_rms_log_error:.4f}",
-        "this card (series {} terms, shifted by the shift function) over every point: rms "
-        "ln(card/measured) storage {:.4f}, loss {:.4f}".format(series.terms,
-                                                               *card_error(master, series)),
+        "this card (series {} terms, {}) over every point: rms ln(card/measured) storage "
+        "{:.4f}, loss {:.4f}".format(series.terms,
+                                     "shifted by the shift function" if shifted
+                                     else "no shift function written",
+                                     *card_error(master, series, shifted)),
         f"Poisson's ratio {poisson} assumed constant (shear and bulk share the relative series)",
     ]
     if note:
         lines.append(note)
+    lines += [f"convention: {line}" for line in conventions]
     return [f"{mark} {line}" for line in lines]
+
+
+ABAQUS_CONVENTIONS = (
+    "*VISCOELASTIC, TIME=PRONY lines g_i, k_i, tau_i (Abaqus Keywords Reference, *VISCOELASTIC)",
+    "*TRS, DEFINITION=WLF line theta0, C1, C2; log10 A = -C1 (T - theta0)/(C2 + T - theta0), "
+    "time divided by A (Keywords Reference, *TRS; Theory Guide, Viscoelasticity)",
+)
+ABAQUS_ARRHENIUS = (
+    "*TRS, DEFINITION=ARRHENIUS: ln A = (E0/R)(1/(T - thetaZ) - 1/(theta0 - thetaZ)) (Materials "
+    "Guide, thermorheologically simple temperature effects); UNCONFIRMED: the data line after "
+    "theta0 (written E0, R, thetaZ) and where Abaqus takes thetaZ from",
+)
 
 
 def abaqus_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON) -> str:
@@ -109,21 +147,23 @@ def abaqus_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
     series = master.prony
     e0 = series.instantaneous_modulus_pa * _young(master, poisson)
     relative = series.moduli_pa / series.instantaneous_modulus_pa
-    lines = _comment(master, series, poisson, "**")
+    function = master.shift_function
+    conventions = ABAQUS_CONVENTIONS
+    if function is not None and function.kind == "arrhenius":
+        conventions += ABAQUS_ARRHENIUS
+    lines = _comment(master, series, poisson, "**", conventions=conventions)
     lines += [f"*MATERIAL, NAME={name}", "*ELASTIC, MODULI=INSTANTANEOUS",
               f"{e0:.10e}, {poisson}", "*VISCOELASTIC, TIME=PRONY"]
     lines += [f"{g:.10e}, {g:.10e}, {t:.10e}" for g, t in zip(relative, series.tau_s,
                                                               strict=True)]
-    function = master.shift_function
     if function is not None and function.kind == "wlf":
         c1, c2 = function.values
         lines += ["*TRS, DEFINITION=WLF",
                   f"{master.reference_temperature_c:.6f}, {c1:.10e}, {c2:.10e}"]
     elif function is not None and function.kind == "arrhenius":
-        # Abaqus: ln aT = -(E0/R)(1/(T - T0z) - 1/(Tref - T0z)); E0 given with R and T0z
         lines += ["*TRS, DEFINITION=ARRHENIUS",
                   f"{master.reference_temperature_c:.6f}, {function.values[0]:.10e}, "
-                  f"{GAS_CONSTANT_J_PER_MOL_K}, -273.15"]
+                  f"{GAS_CONSTANT_J_PER_MOL_K}, {-KELVIN}"]
     return "\n".join(lines) + "\n"
 
 
@@ -135,6 +175,20 @@ def _tbdata(values: list[float]) -> list[str]:
     return out
 
 
+ANSYS_CONVENTIONS = (
+    "TB,PRONY,MAT,NTEMP,NPTS,SHEAR|BULK with NPTS terms (Command Reference, TB); TBDATA six "
+    "values a command (Command Reference, TBDATA); UNCONFIRMED: the pairs a_i, tau_i",
+)
+ANSYS_WLF = (
+    "TB,SHIFT,,,3,WLF with Tr, C1, C2 (order from a third-party example only); UNCONFIRMED: "
+    "ANSYS's sign, written as log10 A = +C1 (T - Tr)/(C2 + T - Tr) with A multiplying the time",
+)
+ANSYS_TN = (
+    "TB,SHIFT,,,2,TN with Tr (C) and H/R (K), TOFFST,273.15 (Command Reference, TOFFST); "
+    "UNCONFIRMED: the Tool-Narayanaswamy form and that it takes the offset from TOFFST",
+)
+
+
 def ansys_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
                material: int = 1) -> str:
     """The ANSYS APDL commands of the material."""
@@ -144,20 +198,23 @@ def ansys_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
     for a, t in zip(series.moduli_pa / series.instantaneous_modulus_pa, series.tau_s,
                     strict=True):
         pairs += [float(a), float(t)]
-    lines = _comment(master, series, poisson, "!")
+    function = master.shift_function
+    conventions = ANSYS_CONVENTIONS
+    if function is not None:
+        conventions += ANSYS_WLF if function.kind == "wlf" else ANSYS_TN
+    lines = _comment(master, series, poisson, "!", conventions=conventions)
     lines += [f"! material {name}", f"MP,EX,{material},{e0:.10e}",
               f"MP,PRXY,{material},{poisson}"]
     for part in ("SHEAR", "BULK"):
         lines.append(f"TB,PRONY,{material},,{series.terms},{part}")
         lines += _tbdata(pairs)
-    function = master.shift_function
     if function is not None and function.kind == "wlf":
         c1, c2 = function.values
         lines += [f"TB,SHIFT,{material},,3,WLF",
                   f"TBDATA,1,{master.reference_temperature_c:.6f},{c1:.10e},{c2:.10e}"]
     elif function is not None and function.kind == "arrhenius":
-        lines += [f"TB,SHIFT,{material},,2,TN",
-                  f"TBDATA,1,{master.reference_temperature_c + 273.15:.6f},"
+        lines += [f"TOFFST,{KELVIN}", f"TB,SHIFT,{material},,2,TN",
+                  f"TBDATA,1,{master.reference_temperature_c:.6f},"
                   f"{function.values[0] / GAS_CONSTANT_J_PER_MOL_K:.10e}"]
     return "\n".join(lines) + "\n"
 
@@ -172,8 +229,8 @@ def _lsdyna_series(master: MasterCurve) -> tuple[PronySeries, str]:
     shorter, fit = fit_prony_terms(omega, table.storage_pa, table.loss_pa, scatter,
                                    LSDYNA_MAX_TERMS)
     note = (f"the {series.terms}-term series is refitted with {LSDYNA_MAX_TERMS} terms, the most "
-            f"the cards hold: rms ln(model/measured) storage {fit.storage_rms_log_error:.4f}, "
-            f"loss {fit.loss_rms_log_error:.4f}")
+            f"the {LSDYNA_MAX_CARDS} cards hold with the long-term one: rms ln(model/measured) "
+            f"storage {fit.storage_rms_log_error:.4f}, loss {fit.loss_rms_log_error:.4f}")
     return shorter, note
 
 
@@ -182,17 +239,47 @@ def _fields(values: list[float | int]) -> str:
     return ",".join(str(v) if isinstance(v, int) else f"{v:.9e}" for v in values)
 
 
+LSDYNA_CONVENTIONS = (
+    "*MAT_GENERAL_VISCOELASTIC card 1 MID RO BULK PCF EF TREF A B, card 2 LCID NT BSTART TRAMP "
+    "LCIDK NTK BSTARTK TRAMPK, at most six cards GI BETAI KI BETAKI (LS-DYNA Keyword User's "
+    "Manual, MAT_076); UNCONFIRMED: BULK = 0 when the KI are given",
+)
+LSDYNA_WLF = (
+    "UNCONFIRMED: the WLF form of A, B; written A = C1 ln 10, B = C2 for "
+    "ln aT = -A (T - TREF)/(B + T - TREF)",
+)
+LSDYNA_ARRHENIUS = (
+    "UNCONFIRMED: MAT_076's Arrhenius form; no shift function is written (TREF = A = B = 0), "
+    "the card holds the series at the reference temperature",
+)
+
+
 def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
                 material: int = 1, density_kg_per_m3: float = 1100.0) -> str:
-    """The LS-DYNA keyword deck of the material (*MAT_GENERAL_VISCOELASTIC)."""
+    """The LS-DYNA keyword deck of the material (*MAT_GENERAL_VISCOELASTIC).
+
+    Raises
+    ------
+    InputError
+        A WLF shift at a reference temperature not above 0 °C (MAT_076 needs ``TREF > 0``).
+    """
+    function = master.shift_function
+    wlf = function is not None and function.kind == "wlf"
+    if wlf and not master.reference_temperature_c > 0.0:
+        raise InputError(f"{master.reference_temperature_c:g} C: LS-DYNA's "
+                         "*MAT_GENERAL_VISCOELASTIC needs a reference temperature TREF > 0",
+                         "--reference-temperature")
     series, note = _lsdyna_series(master)
     shear, bulk = _split(master, poisson)
-    lines = ["*KEYWORD", *_comment(master, series, poisson, "$", note),
+    conventions = LSDYNA_CONVENTIONS
+    if function is not None:
+        conventions += LSDYNA_WLF if wlf else LSDYNA_ARRHENIUS
+    lines = ["*KEYWORD", *_comment(master, series, poisson, "$", note, conventions,
+                                   shifted=function is None or wlf),
              f"$ material {name}; density {density_kg_per_m3} kg/m^3 (a placeholder to set)",
              "*MAT_GENERAL_VISCOELASTIC"]
-    function = master.shift_function
     tref, a, b = 0.0, 0.0, 0.0
-    if function is not None and function.kind == "wlf":
+    if wlf:
         tref, a, b = (master.reference_temperature_c, function.values[0] * math.log(10.0),
                       function.values[1])
     lines.append("$ MID, RO, BULK, PCF, EF, TREF, A, B")
