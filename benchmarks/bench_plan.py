@@ -44,7 +44,7 @@ from viscorig.planning import (
     AdaptiveSettings,
     InformationModel,
     design_bound,
-    estimate_noise,
+    fit_noise_forecast,
     point_noise_power,
     shared_noise,
 )
@@ -66,7 +66,7 @@ def settings(targets: dict[str, float], **changes) -> AdaptiveSettings:
 
 def bound_for(points, result, targets: dict[str, float], values=None):
     power, source = point_noise_power(points)
-    noise = estimate_noise(points, power, source)
+    noise = fit_noise_forecast(points, power, source)
     return design_bound(result.model, values or result.values, result.free, noise, LEVEL, BAND,
                         targets, force_limit_n=100.0), noise  # fmt: skip
 
@@ -170,7 +170,7 @@ def presets() -> None:
         flagged = int(np.count_nonzero(paper.flags & 8))
         result = fit("voigt", paper.frf_data(), fixed=TABLE, weighting="uniform")
         power, source = point_noise_power(paper)
-        noise = estimate_noise(paper, power, source)
+        noise = fit_noise_forecast(paper, power, source)
         info = InformationModel(result.model, result.values, result.free, noise, LEVEL, 100.0)
         covariance = np.linalg.inv(info.of_points(paper.frequency_hz, paper.integrate_s))
         noise_only = {n: float(np.sqrt(covariance[i, i]))
@@ -195,7 +195,7 @@ def hard_rubber_physics() -> None:
     result = fit(spec, paper.frf_data(), noise=shared_noise(paper), fixed=TABLE,
                  weighting="noise")
     power, source = point_noise_power(paper)
-    noise = estimate_noise(paper, power, source)
+    noise = fit_noise_forecast(paper, power, source)
     info = InformationModel(result.model, result.values, result.free, noise, LEVEL, 100.0)
     covariance = np.linalg.pinv(info.of_points(paper.frequency_hz, paper.integrate_s))
     targets = {n: float(np.sqrt(covariance[result.free.index(n), result.free.index(n)]))

@@ -63,6 +63,7 @@ def relative(fit: dict, name: str) -> float:
     return parameter["stderr"] / abs(parameter["value"])
 
 
+@pytest.mark.slow
 def test_an_adaptive_step_meets_its_targets_and_identify_reads_them_back(
     tmp_path, voigt_rig, capsys
 ) -> None:
@@ -111,6 +112,7 @@ def test_an_adaptive_step_meets_its_targets_and_identify_reads_them_back(
     assert main(["summary", out, "--json"]) == 0
 
 
+@pytest.mark.slow
 def test_a_plan_stopped_by_a_fault_resumes_from_the_points_the_file_holds(
     tmp_path, voigt_rig, capsys
 ) -> None:
@@ -141,6 +143,7 @@ def test_a_plan_stopped_by_a_fault_resumes_from_the_points_the_file_holds(
     assert np.all(np.diff(run.time_s) > 0)
 
 
+@pytest.mark.slow
 def test_an_adaptive_step_keeps_to_its_dwell_limit(tmp_path, voigt_rig, capsys) -> None:
     sequence, station, out = files(tmp_path, voigt_rig, "dwell_limit_s = 60",
                                    {"K_v": 1e-6, "C_v": 1e-5})
@@ -151,6 +154,7 @@ def test_an_adaptive_step_keeps_to_its_dwell_limit(tmp_path, voigt_rig, capsys) 
     assert "adaptive plan: dwell limit" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp_path,
                                                                                capsys) -> None:
     """The virtual analyser as a separate network service (``viscorig sim serve``), as a lab's
@@ -175,6 +179,7 @@ def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp
     assert run.points > np.unique(run.frequency_hz).size >= 40  # look, coverage, repeats
 
 
+@pytest.mark.slow
 def test_the_example_sequence_on_the_embedded_rig_reads_as_any_run(tmp_path, capsys) -> None:
     """``sequences/adaptive.toml`` on the embedded simulated rig (the virtual analyser through
     the driver): a Voigt plan on the paper's soft rubber stops once the band is covered, and

@@ -85,6 +85,7 @@ def test_a_fit_as_tables_matches_its_own_prediction(path: Path):
     assert dataset.attrs["model"] == fit.model
 
 
+@pytest.mark.slow
 def test_short_reprs_and_html_views(path: Path):
     campaign = viscorig.open_campaign(path)
     run = campaign["soft-0"]

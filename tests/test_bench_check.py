@@ -16,7 +16,7 @@ import pytest
 from reliability_campaign import cli, one_clear_line, station_text
 from simserve import sim_serve
 
-from viscorig.benchcheck.checks import Readings, Rig, Roles, judge
+from viscorig.benchcheck.checks import Readings, RigFacts, Roles, judge
 
 ROLES = Roles(1, 2, 3, 4)
 
@@ -36,6 +36,7 @@ def test_the_embedded_simulated_rig_passes_every_check() -> None:
     assert out.strip().splitlines()[-1] == "bench check: 8 of 8 checks passed"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("fault", "named"), [
     ("unplug=3", "FAIL  input 3 (device force): reads nothing at 10, 25, 45 Hz (no signal "
                  "above its own noise); check the cable or the ICP supply"),
@@ -66,6 +67,7 @@ def test_an_injected_fault_is_named(tmp_path: Path, fault: str, named: str) -> N
         assert blamed <= {culprit}, out
 
 
+@pytest.mark.slow
 def test_a_station_without_table_parameters_skips_the_role_check(tmp_path: Path) -> None:
     with sim_serve("--preset", "soft-0", "--seed", "2") as (_, _, resource, _):
         station = tmp_path / "station.toml"
@@ -139,7 +141,7 @@ def physical_readings(gains: dict[int, complex] | None = None,
     ({}, (3, 4), ["transducer roles: inputs 3 and 4 read each other's transducer"]),
 ])
 def test_the_judgement_names_the_fault(gains, swap, expected) -> None:
-    verdicts = judge(physical_readings(gains, swap), ROLES, Rig(TABLE, GAIN))
+    verdicts = judge(physical_readings(gains, swap), ROLES, RigFacts(TABLE, GAIN))
     failed = [f"{v.name}: {v.found}" for v in verdicts if not v.passed]
     assert len(failed) == len(expected), failed
     for found, wanted in zip(failed, expected, strict=True):
@@ -151,7 +153,7 @@ def test_a_noisy_input_and_a_loop_that_does_not_close_are_named() -> None:
     readings.noise_density = {**readings.noise_density, 2: 0.5}
     readings.noise_range_dbvrms = {**readings.noise_range_dbvrms, 3: 7.0}
     readings.level_reached_m_per_s2 = 0.2
-    failed = {v.name: v for v in judge(readings, ROLES, Rig(TABLE, GAIN)) if not v.passed}
+    failed = {v.name: v for v in judge(readings, ROLES, RigFacts(TABLE, GAIN)) if not v.passed}
     assert set(failed) == {"input 2 noise", "input 3 noise", "level loop"}
     assert "above 0.01 m/s²/√Hz" in failed["input 2 noise"].found
     assert "hum" in failed["input 3 noise"].advice

@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from viscorig import __version__
 from viscorig.cli import main
+from viscorig.version import __version__
 
 
 def test_version_is_printed(capsys: pytest.CaptureFixture[str]) -> None:

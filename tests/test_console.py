@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -126,6 +127,7 @@ def run_in_terminal(args: list[str], cwd: Path, columns: int) -> str:
     return b"".join(chunks).decode("utf-8", errors="replace")
 
 
+@pytest.mark.slow
 def test_on_an_80_column_terminal_the_redrawn_line_never_wraps(tmp_path) -> None:
     """Before, the line was 106-112 columns: on 80 columns it wrapped and scrolled."""
     (tmp_path / "short.toml").write_text(SHORT)
@@ -139,6 +141,7 @@ def test_on_an_80_column_terminal_the_redrawn_line_never_wraps(tmp_path) -> None
     assert any(re.match(r"table  [\d.]+ Hz  test time left \d+:\d\d  ", piece) for piece in drawn)
 
 
+@pytest.mark.slow
 def test_through_a_pipe_each_segment_is_one_plain_record(tmp_path) -> None:
     (tmp_path / "short.toml").write_text(SHORT)
     result = subprocess.run([sys.executable, "-m", "viscorig", "run", "short.toml", "--yes",

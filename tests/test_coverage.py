@@ -30,6 +30,7 @@ from viscorig.fitting import Known, fit
 REPLICATES = 30
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("noise", sorted(NOISES))
 def test_standard_errors_cover_the_truth(noise: str) -> None:
     """Goal of the design: 68 % ± 12 % within one standard error, 95 % ± 5 % within two, for
@@ -66,6 +67,7 @@ def test_the_table_uncertainty_is_what_k_v_was_missing() -> None:
 CHANGE_REPLICATES = 24
 
 
+@pytest.mark.slow
 def test_a_preload_change_on_one_table_is_honest() -> None:
     """A specimen without and with preload on one table identified once (its own noisy run,
     inherited by both fits): the change's ± counts the table once and covers the simulator's
@@ -81,6 +83,7 @@ def test_a_preload_change_on_one_table_is_honest() -> None:
         assert row["stderr_ratio"] < 0.85, (name, row)  # the table cancels in part
 
 
+@pytest.mark.slow
 def test_a_misfit_both_runs_share_does_not_count_as_uncertainty_of_the_change() -> None:
     """The same, with two fixture modes on the disc that the Voigt model leaves out (the fits
     are some 5× the noise floor and their ± are those of their band-average): paired point by

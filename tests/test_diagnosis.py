@@ -69,6 +69,7 @@ def test_clean_data_has_no_significant_finding_and_sits_at_the_noise_floor(seed:
     assert all("No clear sign" in finding.explanation for finding in diagnosis.findings)
 
 
+@pytest.mark.slow
 def test_fixture_mode_is_found_within_a_hertz() -> None:
     diagnosis = single(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), step_hz=0.25)
     assert top(diagnosis) == "fixture_resonance"
@@ -134,6 +135,7 @@ def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:
     assert_at_floor_after(diagnosis)
 
 
+@pytest.mark.slow
 def test_an_effect_that_does_not_pay_in_the_final_model_is_taken_out() -> None:
     """Backward elimination: on clean data a local mode put in by hand does not pay for itself,
     the planted one does."""
@@ -194,6 +196,7 @@ def on_run_clock(run: SimulatedRun, start_s: float) -> SimulatedRun:
     return run
 
 
+@pytest.mark.slow
 def test_amplitude_dependence_is_found_with_two_levels(tmp_path: Path) -> None:
     rig = rig_text(VOIGT, noise=QUIET, extra=AMPLITUDE)
     low = simulate_run(rig, seed=3, step_hz=0.5, level_m_per_s2=1.0)

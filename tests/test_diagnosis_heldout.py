@@ -84,6 +84,7 @@ def test_auto_with_three_planted_effects_ends_within_one_and_a_half_times_the_tr
         assert {"load_cell", "delay(x_v)"} <= set(terms) and "fixture(5" in final.model
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("noise", "level", "seed"), [("white", 0.003, 11), ("heavy", 0.01, 1)])
 def test_a_paper_like_preset_diagnosed_from_its_own_model_has_nothing_missing(
     noise: str, level: float, seed: int

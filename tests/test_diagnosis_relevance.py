@@ -43,6 +43,7 @@ def test_thresholds_are_chi_square_quantiles() -> None:
     assert scan_threshold(5000, 1e-3) > scan_threshold(500, 1e-3) > threshold(1, 1e-3)
 
 
+@pytest.mark.slow
 def test_scan_threshold_meets_its_false_alarm_rate() -> None:
     """The Rice upcrossing formula against a brute-force maximum of a smooth Gaussian process."""
     import numpy as np

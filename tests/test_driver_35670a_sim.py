@@ -226,6 +226,7 @@ def test_pause_resume_and_abort_a_running_sweep(action: str) -> None:
             assert time.time() - started > 1.35  # the paced sweep (0.94 s) plus the 0.5 s pause
 
 
+@pytest.mark.slow
 def test_a_long_sweep_behind_the_prologix_adapter_with_a_short_read_timeout() -> None:
     """About 18 minutes of instrument time (201 points of the paper's 100 + 100 cycles at
     20-70 Hz, the analyser's own time per point, an auto-calibration) paced 400 times faster,

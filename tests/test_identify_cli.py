@@ -114,6 +114,7 @@ def test_summary_prints_both_tables_beside_the_paper(
     assert float(soft.split()[1]) == pytest.approx(149986.61, rel=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("arguments", "words"),
     [

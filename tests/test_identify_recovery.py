@@ -197,6 +197,7 @@ def test_maxwell_orders_compared_from_projected_starts_match_full_fits() -> None
     assert weighted.candidates == result.candidates
 
 
+@pytest.mark.slow
 def test_maxwell_with_effect_terms_never_keeps_a_dead_arm() -> None:
     """A stiff two-arm rubber behind a load cell, with a fixture mode, paper-like noise; fitted
     with the order open. A three-arm fit can mimic two arms with K_0 switched off and its

@@ -1,6 +1,6 @@
-"""No import cycle inside the driver or the simulator: every module's imports (at the top, in
-functions, or for type checking only) form a graph without loops, so each part can be read and
-tested on its own."""
+"""No import cycle inside the core, the driver or the simulator: every module's imports (at the
+top, in functions, or for type checking only) form a graph without loops, so each part can be
+read and tested on its own."""
 
 from __future__ import annotations
 
@@ -10,7 +10,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = {"agilent35670a": ROOT / "drivers" / "agilent35670a", "rigsim": ROOT / "sim" / "rigsim"}
+PACKAGES = {
+    "agilent35670a": ROOT / "drivers" / "agilent35670a",
+    "rigsim": ROOT / "sim" / "rigsim",
+    "viscorig": ROOT / "src" / "viscorig",
+}
 
 
 def module_name(package: str, folder: Path, path: Path) -> str:

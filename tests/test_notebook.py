@@ -9,6 +9,7 @@ import pytest
 NOTEBOOK = Path(__file__).resolve().parents[1] / "examples" / "campaign-in-a-notebook.ipynb"
 
 
+@pytest.mark.slow
 def test_example_notebook_runs_and_says_what_it_should():
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")

@@ -15,7 +15,7 @@ from viscorig.planning import (
     ANALYSER,
     AdaptivePlan,
     AdaptiveSettings,
-    MeasureRequest,
+    NextPoints,
     State,
     shared_noise,
     sweep_segments,
@@ -96,7 +96,7 @@ def test_the_plan_is_a_generator_of_requests():
     plan = AdaptivePlan(_settings(targets={"K_v": 1e-4, "C_v": 5e-4}))
     steps = plan.steps()
     request = next(steps)
-    assert isinstance(request, MeasureRequest) and request.state == State.LOOK
+    assert isinstance(request, NextPoints) and request.state == State.LOOK
     assert {p.purpose for p in request.points} == {"look"}
     with pytest.raises(StopIteration) as stop:
         while True:
@@ -213,7 +213,12 @@ def test_a_model_that_misfits_stops_once_the_band_is_covered():
 def test_the_expected_time_brackets_what_the_plan_takes():
     from planning_rig import paper_sweep
 
-    from viscorig.planning import design_bound, estimate_noise, expected_time_s, point_noise_power
+    from viscorig.planning import (
+        design_bound,
+        expected_time_s,
+        fit_noise_forecast,
+        point_noise_power,
+    )
 
     targets = {"K_v": 2e-6, "C_v": 1e-5}
     settings = _settings(targets=targets)
@@ -222,7 +227,7 @@ def test_the_expected_time_brackets_what_the_plan_takes():
     result = fit("voigt", earlier.frf_data(), fixed=TABLE)
     power, source = point_noise_power(earlier)
     bound = design_bound(result.model, result.values, result.free,
-                         estimate_noise(earlier, power, source), 1.4, (20.0, 120.0), targets,
+                         fit_noise_forecast(earlier, power, source), 1.4, (20.0, 120.0), targets,
                          force_limit_n=100.0)  # fmt: skip
     low, high = expected_time_s(settings, bound.plan_time_s)
     outcome = AdaptivePlan(settings).run(SimulatedRig(VOIGT_RIG, 1.4, seed=11))

@@ -7,7 +7,7 @@ import pytest
 from planning_rig import TABLE, VOIGT_RIG, SimulatedRig, paper_sweep
 
 from viscorig.fitting import fit
-from viscorig.planning import InformationModel, design_bound, estimate_noise, point_noise_power
+from viscorig.planning import InformationModel, design_bound, fit_noise_forecast, point_noise_power
 
 
 @pytest.fixture(scope="module")
@@ -15,7 +15,7 @@ def rig_model():
     points = paper_sweep(SimulatedRig(VOIGT_RIG, 1.4, seed=2), step_hz=1.0)
     result = fit("voigt", points.frf_data(), fixed=TABLE)
     power, source = point_noise_power(points)
-    return result, estimate_noise(points, power, source)
+    return result, fit_noise_forecast(points, power, source)
 
 
 def _bound(rig_model, targets, **options):

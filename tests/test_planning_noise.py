@@ -16,7 +16,7 @@ from viscorig.fitting import fit
 from viscorig.planning import (
     InformationModel,
     MeasuredPoints,
-    estimate_noise,
+    fit_noise_forecast,
     log_grid,
     measured_amplitudes,
     model_amplitudes,
@@ -49,7 +49,7 @@ def test_noise_estimated_from_analyser_variance_predicts_repeats(look):
     power, source = point_noise_power(points)
     assert source == "analyser variance"
     info = InformationModel(result.model, result.values, result.free,
-                            estimate_noise(points, power, source), 1.4, 100.0)  # fmt: skip
+                            fit_noise_forecast(points, power, source), 1.4, 100.0)  # fmt: skip
     for frequency in (22.0, 38.0, 60.0, 118.0):
         for cycles in (5, 50):
             measured = _scatter(rig, frequency, cycles)
@@ -72,7 +72,7 @@ def test_without_the_analysers_variance_the_cores_estimate_from_data_is_used():
     power, source = point_noise_power(bare)
     assert source == "differences"
     info = InformationModel(result.model, result.values, result.free,
-                            estimate_noise(bare, power, source), 1.4, 100.0)  # fmt: skip
+                            fit_noise_forecast(bare, power, source), 1.4, 100.0)  # fmt: skip
     for frequency in (38.0, 118.0):
         measured = _scatter(rig, frequency, 20)
         predicted = info.noise_power([frequency], [20 / frequency])
@@ -113,7 +113,7 @@ def test_the_noise_follows_the_level_within_what_one_level_can_tell(look, level)
     _, points, result = look
     power, source = point_noise_power(points)
     info = InformationModel(result.model, result.values, result.free,
-                            estimate_noise(points, power, source), level, 100.0)  # fmt: skip
+                            fit_noise_forecast(points, power, source), level, 100.0)  # fmt: skip
     rig = SimulatedRig(VOIGT_RIG, level, seed=6)
     for frequency in (22.0, 60.0, 118.0):
         measured = _scatter(rig, frequency, 20)

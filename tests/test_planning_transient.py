@@ -19,7 +19,7 @@ from viscorig.models import parse_spec
 from viscorig.planning import (
     InformationModel,
     Mode,
-    estimate_noise,
+    fit_noise_forecast,
     identified_modes,
     log_grid,
     point_noise_power,
@@ -34,7 +34,7 @@ def context():
     result = fit("voigt", look.frf_data(), fixed=TABLE)
     power, source = point_noise_power(look)
     info = InformationModel(result.model, result.values, result.free,
-                            estimate_noise(look, power, source), 1.4, 100.0)  # fmt: skip
+                            fit_noise_forecast(look, power, source), 1.4, 100.0)  # fmt: skip
     modes = identified_modes(result.model, result.values, (20.0, 120.0))
     return point_context(info, modes)
 

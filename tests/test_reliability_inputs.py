@@ -162,6 +162,7 @@ COMMANDS = (
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(case=damages(), command=st.sampled_from(COMMANDS))
@@ -261,6 +262,7 @@ def test_bad_command_line_values_are_one_line_and_exit_status_2(
     tally.add("inputs fuzzed")
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(band=st.one_of(

@@ -181,6 +181,7 @@ def check_one(target: str, how: str, junk: bytes, times: int) -> str:
 junk_bytes = st.binary(min_size=1, max_size=40)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(target=st.sampled_from(TARGETS[:6]), how=st.sampled_from(BLOCK_DAMAGE), junk=junk_bytes,
        times=st.sampled_from([1, 9]))

@@ -59,6 +59,7 @@ def _listening_addresses(port: int) -> set[str]:
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="needs Linux /proc/net/tcp")
 def test_sim_serve_command_listens_on_loopback_only() -> None:
     process = subprocess.Popen(

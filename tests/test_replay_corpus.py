@@ -127,6 +127,7 @@ def replay(client: Client, entry: dict) -> str | None:
     return None
 
 
+@pytest.mark.slow
 def test_the_corpus_is_accepted_as_the_manual_says() -> None:
     corpus = load_corpus()
     accepted_by_manual = [e for e in corpus if not e["expect"].startswith("err:")]

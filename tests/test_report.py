@@ -32,6 +32,7 @@ def report_dir(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) ->
     return out
 
 
+@pytest.mark.slow
 def test_report_page_is_self_contained_with_every_figure(report_dir: Path):
     page = (report_dir / "index.html").read_text(encoding="utf-8")
     for stem in ("frf-table", "frf-soft-0", "frf-soft-10", "residual-soft-0", "moduli-soft",
@@ -78,6 +79,7 @@ def quick_report(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) 
     return out
 
 
+@pytest.mark.slow
 def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
     pytest.importorskip("viscorig.diagnosis")
     path = paper_campaign(tmp_path / "c.h5", runs=("table", "hard-10"))
@@ -112,6 +114,7 @@ def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
     assert all(f"took out <code>{t}</code>" in page for t in removed)
 
 
+@pytest.mark.slow
 def test_shading_is_only_where_the_model_shown_fails(quick_report: Path, campaign_file: Path):
     from viscorig.report.figures import BAND, frf_figure
 
@@ -193,7 +196,7 @@ def test_report_and_summary_print_the_same_numbers(report_dir: Path, campaign_fi
         assert change in tables, change
     for run in document["runs"]:  # Table 2's f_r with the ± summary gives it
         f_r = run["system"]["f_r"]
-        from viscorig.report.words import with_uncertainty
+        from viscorig.numbers import with_uncertainty
 
         assert with_uncertainty(f_r["value"], f_r["stderr"], "Hz") in tables
     assert "shared (run 'table'), counted once" in tables
@@ -248,6 +251,7 @@ def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, 
     assert len(errors) == 2 and "has no run" in errors[1]
 
 
+@pytest.mark.slow
 def test_report_of_a_campaign_still_being_measured(tmp_path: Path):
     path = tmp_path / "live.h5"
     campaign = Campaign.create(path, sequence_text="", durable=False)

@@ -168,6 +168,7 @@ def test_preload_stiffens_every_rubber() -> None:
         assert np.all(k10.real > k0.real)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.text(max_size=400))
 def test_fuzz_text_raises_only_rig_file_error(text: str) -> None:

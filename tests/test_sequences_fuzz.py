@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import math
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_sequences import document as sequence_document
@@ -86,6 +87,7 @@ def test_mutated_sequences_give_a_sequence_or_an_input_error(source: str) -> Non
                 assert layout.NAME.match(step.run), step
 
 
+@pytest.mark.slow
 @FUZZ
 @given(mutated(station_document()))
 def test_mutated_stations_give_a_station_or_an_input_error(source: str) -> None:

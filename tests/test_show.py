@@ -51,7 +51,7 @@ def test_lists_runs_flags_and_fits(campaign_path: Path, capsys: pytest.CaptureFi
     assert soft.split()[:4] == ["soft-10", "running", "6", "20.00-21.25"]
     assert "soft 25 Shore A (25 Shore A)" in soft and "0.104" in soft
     assert "table/0001  table  12-16.75 Hz  rms_error 0.0021  noise_floor 0.0019" in out
-    assert "M_s = 3.41 ± 0.02 kg" in out
+    assert "M_s = 3.410 ± 0.020 kg" in out
 
 
 def test_crashed_writer_leaves_a_file_show_reads(campaign_path: Path,

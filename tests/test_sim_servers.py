@@ -291,6 +291,7 @@ def test_cli_serves_until_interrupted(rm) -> None:
         assert process.wait(10) == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("args", "message"), [
     (("--rig", "/no/such/rig.toml"), "cannot read rig file"),
     (("--preset", "nonesuch"), "no rig preset"),

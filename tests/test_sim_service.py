@@ -105,6 +105,7 @@ def test_connections_are_bounded_and_a_new_one_takes_the_idlest_slot() -> None:
             sock.close()
 
 
+@pytest.mark.slow
 def test_an_idle_connection_is_closed_and_a_busy_one_is_not() -> None:
     with sim_serve("--preset", "table", "--idle-timeout", "0.5") as (_, host, _, port):
         idle = connect(host, port)

@@ -77,6 +77,7 @@ def test_writers_refuse_hostile_files_too(good: Path, tmp_path: Path, name: str)
     assert not list(tmp_path.glob(".campaign.h5.*"))  # no lock or staging file left
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["3e8 points", "1e12 points"])
 def test_memory_stays_bounded_whatever_the_file_declares(good: Path, tmp_path: Path,
                                                          name: str) -> None:

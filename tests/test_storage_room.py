@@ -51,6 +51,7 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@pytest.mark.slow
 def test_run_under_ulimit_f_stops_cleanly_and_resume_continues_once_allowed(tmp_path: Path):
     sequence, path = tmp_path / "s.toml", tmp_path / "c.h5"
     sequence.write_text(SEQUENCE)
@@ -158,6 +159,7 @@ with Campaign.open("c.h5") as c:
 """
 
 
+@pytest.mark.slow
 @namespaces
 def test_full_disk_stops_cleanly_and_resume_continues_once_space_returns(tmp_path: Path):
     sequence, disk = tmp_path / "s.toml", tmp_path / "disk"
@@ -195,6 +197,7 @@ done
 """
 
 
+@pytest.mark.slow
 @namespaces
 def test_readers_work_on_a_read_only_mount_and_writers_say_why_they_cannot(tmp_path: Path):
     from campaigndata import paper_campaign

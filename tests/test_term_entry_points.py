@@ -53,6 +53,7 @@ def fit(campaign: Path, model: str, path: Path | None) -> dict:
     return json.loads(result.stdout)
 
 
+@pytest.mark.slow
 def test_installed_term_is_fitted_from_the_command_line(installed: Path, campaign: Path):
     plain = fit(campaign, "voigt", None)
     friction = fit(campaign, "voigt+dry_friction", installed)
@@ -77,6 +78,7 @@ def test_term_is_unknown_without_the_package(campaign: Path):
     assert "unknown term 'dry_friction'" in result.stderr
 
 
+@pytest.mark.slow
 def test_a_broken_entry_point_is_named_and_breaks_nothing_else(tmp_path: Path, campaign: Path):
     info = tmp_path / "broken_terms-1.0.dist-info"
     info.mkdir()

@@ -171,6 +171,7 @@ def start_run(folder: Path, *extra: str) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True)
 
 
+@pytest.mark.slow
 def test_run_live_serves_the_campaign_while_it_runs(tmp_path) -> None:
     process = start_run(tmp_path, "--live", "--no-browser", "--sim-pace", "100")
     line = ""
@@ -195,6 +196,7 @@ def test_run_live_serves_the_campaign_while_it_runs(tmp_path) -> None:
     assert "live view: http://127.0.0.1:" in line and not (tmp_path / ".live.h5.commit").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
 def test_the_live_page_in_chromium_shows_points_arriving_during_a_simulated_run(tmp_path):
     """Another process measures; the page, loaded in headless Chromium, follows it."""

@@ -20,6 +20,7 @@ import contextlib
 import re
 import socket
 import threading
+from typing import cast
 
 import pyvisa
 from pyvisa import constants
@@ -174,19 +175,23 @@ class Connection:
                 backend = (self.backend,) if self.backend else ()
                 self._manager = pyvisa.ResourceManager(*backend)
             if self.adapter_name:
-                self._adapter = self._manager.open_resource(self.adapter_name)
+                # both sessions are message based: the names are INTFC and INSTR resources
+                adapter = cast(pyvisa.resources.MessageBasedResource,
+                               self._manager.open_resource(self.adapter_name))
+                self._adapter = adapter
                 # pyvisa-py reads through the adapter's session: its timeout is the one that acts
-                self._adapter.timeout = self._timeout_s * 1000.0
-                _disable_nagle(self._adapter)
-                self._adapter.write_raw(f"++read_tmo_ms {PROLOGIX_READ_TIMEOUT_MS}\n".encode())
-            self._instrument = self._manager.open_resource(self.resource_name)
+                adapter.timeout = self._timeout_s * 1000.0
+                _disable_nagle(adapter)
+                adapter.write_raw(f"++read_tmo_ms {PROLOGIX_READ_TIMEOUT_MS}\n".encode())
+            instrument = cast(pyvisa.resources.MessageBasedResource,
+                              self._manager.open_resource(self.resource_name))
+            self._instrument = instrument
         except (VisaIOError, OSError, ValueError) as error:
             self._close_quietly()
             raise ConnectionLost(f"cannot open: {error}", self.description) from error
         except Exception as error:  # pyvisa-py raises a bare Exception when a socket cannot connect
             self._close_quietly()
             raise ConnectionLost(f"cannot open: {error}", self.description) from error
-        instrument = self._instrument
         instrument.timeout = self._timeout_s * 1000.0
         if self.is_socket:
             _disable_nagle(instrument)

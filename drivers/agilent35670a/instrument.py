@@ -761,21 +761,20 @@ def _joined(pieces: list[SweepSegment]) -> SweepSegment:
     """One segment of several one-point measurements, in order."""
     first = pieces[0]
 
-    def stack(get: Callable[[SweepSegment], np.ndarray]) -> np.ndarray:
-        return np.concatenate([get(p) for p in pieces])
-
-    frf_43 = None if first.frf_43 is None else stack(lambda p: p.frf_43)
+    frf_43 = [p.frf_43 for p in pieces if p.frf_43 is not None]
     return SweepSegment(
-        frequency_hz=stack(lambda p: p.frequency_hz),
-        frf_21=stack(lambda p: p.frf_21),
-        frf_43=frf_43,
-        amplitude_eu={ch: stack(lambda p, c=ch: p.amplitude_eu[c]) for ch in first.amplitude_eu},
-        variance={ch: stack(lambda p, c=ch: p.variance[c]) for ch in first.variance},
+        frequency_hz=np.concatenate([p.frequency_hz for p in pieces]),
+        frf_21=np.concatenate([p.frf_21 for p in pieces]),
+        frf_43=None if first.frf_43 is None else np.concatenate(frf_43),
+        amplitude_eu={ch: np.concatenate([p.amplitude_eu[ch] for p in pieces])
+                      for ch in first.amplitude_eu},
+        variance={ch: np.concatenate([p.variance[ch] for p in pieces]) for ch in first.variance},
         eu_labels=first.eu_labels,
         overload_channels=tuple(sorted({c for p in pieces for c in p.overload_channels})),
         half_range_channels=tuple(sorted({c for p in pieces for c in p.half_range_channels})),
         started_at_s=first.started_at_s,
         finished_at_s=pieces[-1].finished_at_s,
-        no_data=stack(lambda p: p.no_data if p.no_data is not None else np.zeros(len(p), bool)),
-        extras={name: stack(lambda p, n=name: p.extras[n]) for name in first.extras},
+        no_data=np.concatenate([p.no_data if p.no_data is not None else np.zeros(len(p), bool)
+                                for p in pieces]),
+        extras={name: np.concatenate([p.extras[name] for p in pieces]) for name in first.extras},
     )

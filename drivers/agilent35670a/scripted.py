@@ -174,7 +174,7 @@ class ScriptedSCPIServer:
 
     def _split_messages(self, buffer: bytearray) -> list[bytes]:
         """Cut complete messages out of the buffer; in Prologix mode remove ESC escapes."""
-        messages = []
+        messages: list[bytes] = []
         while True:
             end = _unescaped_newline(buffer) if self.prologix else buffer.find(b"\n")
             if end < 0:

@@ -119,6 +119,7 @@ class Eurotherm3200:
         low, high = limits_c
         if not (math.isfinite(low) and math.isfinite(high) and low < high):
             raise ValueError(f"limits_c must be [low, high] with low < high, not {limits_c!r}")
+        client: ModbusTcpClient | ModbusSerialClient
         if link.kind == "tcp":
             client = ModbusTcpClient(link.host, port=int(link.port), timeout=timeout_s,
                                      retries=retries, reconnect_delay=0.0)
@@ -219,8 +220,9 @@ class Eurotherm3200:
             raise NoReplyError(f"{where}: no reply")
         if reply.isError():
             code = getattr(reply, "exception_code", None)
-            raise SetPointRefusedError(f"{where}: the controller refused {value:g} "
-                                  f"({_EXCEPTIONS.get(code, f'exception {code}')})")
+            what = _EXCEPTIONS.get(code, f"exception {code}") if isinstance(code, int) \
+                else f"exception {code}"
+            raise SetPointRefusedError(f"{where}: the controller refused {value:g} ({what})")
 
     # ------------------------------------------------------------------ the chamber
 

@@ -11,12 +11,8 @@ so ``import viscorig`` stays light.
 """
 
 import logging
-from importlib.metadata import PackageNotFoundError, version
 
-try:
-    __version__ = version("viscorig")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0"
+from viscorig.version import __version__
 
 # A library logs and leaves the output to the application (the command line sets -v/-q).
 logging.getLogger(__name__).addHandler(logging.NullHandler())

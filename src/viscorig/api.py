@@ -19,24 +19,29 @@ from __future__ import annotations
 import html
 import math
 from collections.abc import Iterator, Sequence
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from viscorig.compare import compare_fits, kstar_changes
+from viscorig.diagnosis import diagnose_run
 from viscorig.errors import InputError
+from viscorig.identify import identify_run, is_bare_table, store_fit, table_parameters
+from viscorig.numbers import with_uncertainty
+from viscorig.report import build_report, words
+from viscorig.report.analysis import ModelCurve, RunAnalysis, climb_from
+from viscorig.report.figures import frf_figure
+from viscorig.report.headline import describe_specimen, headline
+from viscorig.report.page import diagnosis_section
+from viscorig.storage import Campaign as StoredCampaign
 
 _DEFAULT_BAND = None  # every point, as identify and diagnose do
 
 
 def _e(text: object) -> str:
     return html.escape(str(text))
-
-
-def _words():
-    from viscorig.report import words
-
-    return words
 
 
 class Campaign:
@@ -78,7 +83,6 @@ class Campaign:
     @property
     def table(self) -> dict[str, float] | None:
         """The table's ``M_s, K_s, C_s`` every specimen fit holds fixed (``None`` if unknown)."""
-        from viscorig.identify import table_parameters
 
         source = table_parameters(self.stored)
         return None if source is None else dict(source.values)
@@ -99,8 +103,6 @@ class Campaign:
         store
             Add the fit to the file (open the campaign with ``mode="a"``).
         """
-        from viscorig.identify import identify_run, store_fit
-        from viscorig.report.analysis import ModelCurve
 
         if store and self.stored.mode != "a":
             raise InputError("opened read-only; open_campaign(path, mode='a') to store fits",
@@ -136,7 +138,6 @@ class Campaign:
 
         With ``auto`` the diagnosis returned is the last rung's, and ``.ladder`` holds them all.
         """
-        from viscorig.diagnosis import diagnose_run
 
         with np.errstate(all="ignore"):
             first = diagnose_run(self.stored, run, model, band_hz=band_hz,
@@ -155,7 +156,6 @@ class Campaign:
         are :mod:`viscorig.compare`'s, as the report and ``summary`` give them: the table both
         fits inherit counted once, a misfit both runs share paired out point by point.
         """
-        from viscorig.compare import compare_fits, kstar_changes
 
         fits = [x if isinstance(x, Fit) else self.identify(x, model, band_hz=band_hz)
                 for x in (before, after)]
@@ -172,7 +172,6 @@ class Campaign:
 
     def report(self, out_dir: str | Path, **options: Any) -> Path:
         """Write the HTML report (:func:`viscorig.report.build_report`); return the page."""
-        from viscorig.report import build_report
 
         return build_report(self.path, Path(out_dir), **options)
 
@@ -216,14 +215,12 @@ class Run:
     @property
     def bare(self) -> bool:
         """A bare-table run (no specimen)."""
-        from viscorig.identify import is_bare_table
 
         return is_bare_table(self.stored)
 
     @property
     def fits(self) -> list[Fit]:
         """The fits stored for this run, oldest first."""
-        from viscorig.report.analysis import ModelCurve
 
         out = []
         for stored in self.campaign.stored.fits(self.name):
@@ -243,7 +240,6 @@ class Run:
 
     def describe(self) -> str:
         """Specimen, hardness, preload and status in a few words."""
-        from viscorig.report.headline import describe_specimen
 
         return f"{describe_specimen(self.stored, self.bare)}, {self.stored.metadata.status}"
 
@@ -269,15 +265,12 @@ class Run:
         return to_xarray(self.stored.frequency_hz, columns, units, self._attributes())
 
     def _attributes(self) -> dict[str, Any]:
-        from dataclasses import asdict
 
         return {"run": self.name, **asdict(self.stored.metadata)}
 
     def plot(self):
         """The FRFs (magnitude and phase) with flagged points and the latest stored fit, as a
         matplotlib Figure."""
-        from viscorig.report.analysis import RunAnalysis
-        from viscorig.report.figures import frf_figure
 
         analysis = RunAnalysis(self.stored, self.bare, (0.0, 0.0))
         fits = self.fits
@@ -408,18 +401,18 @@ class Fit:
         return to_xarray(f, columns, units, self._attributes(), scalars)
 
     def __repr__(self) -> str:
-        w = _words()
-        shown = [f"{name} = {w.with_uncertainty(v, e, u)}"
+        w = words
+        shown = [f"{name} = {with_uncertainty(v, e, u)}"
                  for name, (v, e, u) in self.parameters.items() if name in self.curve.free][:4]
         more = ", ..." if len(self.curve.free) > 4 else ""
         return (f"<Fit {self.run.name} {self.model}: "
                 f"{w.error_words(self.rms_error, self.noise_floor)}; {', '.join(shown)}{more}>")
 
     def _repr_html_(self) -> str:
-        w = _words()
+        w = words
         rows = "".join(
             f"<tr><td style=\"text-align:left\">{_e(name)}</td><td>"
-            f"{_e(w.with_uncertainty(v, e if name in self.curve.free else math.nan, u))}</td>"
+            f"{_e(with_uncertainty(v, e if name in self.curve.free else math.nan, u))}</td>"
             f"<td style=\"text-align:left\">{'' if name in self.curve.free else 'fixed'}</td>"
             "</tr>" for name, (v, e, u) in self.parameters.items())
         return (f"<b>Fit of {_e(self.run.name)}</b>: <code>{_e(self.model)}</code> "
@@ -477,7 +470,6 @@ class Diagnosis:
     @property
     def fit(self) -> Fit:
         """The fit of the model diagnosed."""
-        from viscorig.report.analysis import ModelCurve
 
         curve = ModelCurve.from_fit(self.internal.fit, "diagnosed here")
         curve.noise_floor = self.noise_floor
@@ -502,7 +494,7 @@ class Diagnosis:
         """The candidate effects as a DataFrame, best first, with the evidence in words."""
         from viscorig.frames import pandas as load_pandas
 
-        w = _words()
+        w = words
         pandas = load_pandas()
         return pandas.DataFrame([
             {"effect": f.effect, "model": f.model, "rms_error": f.rms_error,
@@ -511,12 +503,11 @@ class Diagnosis:
              "explanation": f.explanation} for f in self.findings])
 
     def _climb(self):
-        from viscorig.report.analysis import climb_from
 
         return climb_from(self._ladder or [self.internal], climbed=self._ladder is not None)
 
     def __repr__(self) -> str:
-        w = _words()
+        w = words
         significant = self.internal.significant
         best = (f"; most likely missing: {significant[0].effect} ({significant[0].model})"
                 if significant else "; nothing significant missing")
@@ -525,9 +516,6 @@ class Diagnosis:
                 f"{w.error_words(self.rms_error, self.noise_floor)}{best}>")
 
     def _repr_html_(self) -> str:
-        from viscorig.report.analysis import RunAnalysis
-        from viscorig.report.headline import headline
-        from viscorig.report.page import diagnosis_section
 
         climb = self._climb()
         band = (float(self.internal.data.data.frequency_hz.min()),
@@ -588,7 +576,6 @@ def open_campaign(path: str | Path, mode: str = "r") -> Campaign:
     InputError
         The file is missing, not HDF5, or not a viscorig campaign.
     """
-    from viscorig.storage import Campaign as StoredCampaign
 
     return Campaign(StoredCampaign.open(path, mode))
 

@@ -58,6 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 from viscorig.estimates import TABLE_2_QUANTITIES, Quantity, derived, gradient
 from viscorig.fitting.uncertainty import MISFIT_RATIO, bartlett_meat
 from viscorig.models import Context, Model, parse_spec
+from viscorig.numbers import with_uncertainty
 
 #: A change is called a change when it exceeds this many standard uncertainties.
 CHANGE_SIGMAS = 2.0
@@ -272,13 +273,8 @@ class Change:
 
     def percent(self) -> str:
         """``"+9.3 ± 0.4 %"``: the change and its uncertainty, to the uncertainty's first
-        significant digit (two when it is a 1 or a 2), at most three decimals."""
-        value, error = 100 * self.relative, 100 * self.relative_stderr
-        if not math.isfinite(error) or error == 0:
-            return f"{value:+.2f} %"
-        exponent = math.floor(math.log10(error))
-        digits = max(0, min(3, (1 if error / 10**exponent < 3 else 0) - exponent))
-        return f"{value:+.{digits}f} ± {max(error, 10**-digits):.{digits}f} %"
+        significant digit (two when it is a 1 or a 2)."""
+        return with_uncertainty(100 * self.relative, 100 * self.relative_stderr, "%", signed=True)
 
     def words(self, condition: str = "") -> str:
         """``"K_v rose 9.3 ± 0.4 % with preload"``, or that it did not change beyond its

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
 from viscorig.models import Context
+from viscorig.numbers import with_uncertainty
 
 
 def kstar_from_table(
@@ -147,10 +148,9 @@ class Quantity:
     stderr: float
     unit: str = ""
 
-    def text(self, digits: str = ".4g") -> str:
-        """``"39.41 ± 0.02 Hz"`` (the uncertainty to two significant digits)."""
-        unit = f" {self.unit}" if self.unit else ""
-        return f"{self.value:{digits}} ± {self.stderr:.2g}{unit}"
+    def text(self) -> str:
+        """``"39.41 ± 0.02 Hz"``, written by :func:`viscorig.numbers.with_uncertainty`."""
+        return with_uncertainty(self.value, self.stderr, self.unit)
 
     def to_json(self) -> dict[str, float | str]:
         """``{"value", "stderr", "unit"}`` as in the fits' JSON."""
@@ -253,18 +253,3 @@ def modulus_band(result, frequency_hz: ArrayLike, theta_m: float) -> ModulusBand
     return ModulusBand(f, centre[:n], sigma[:n], centre[n:], sigma[n:])
 
 
-def kstar_from_support_with_uncertainty(
-    frequency_hz: ArrayLike,
-    accelerance_support: ArrayLike,
-    noise_power: ArrayLike,
-    disc_mass: Quantity,
-) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
-    """Eq. (5) point by point with uncertainty: ``K*``, and the standard uncertainties of its
-    real and imaginary parts, from the noise of the support FRF (``noise_power`` is the noise
-    model's ``E|ε_i|²``, split equally between its real and imaginary parts) and ``M_v``'s."""
-    kstar = kstar_from_support(frequency_hz, accelerance_support, disc_mass.value)
-    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
-    dynamic = accelerance_to_dynamic_stiffness(frequency_hz, accelerance_support)
-    noise = np.abs(dynamic) ** 2 * np.asarray(noise_power, dtype=float) / 2.0
-    real = np.sqrt(noise + (omega**2 * disc_mass.stderr) ** 2)
-    return kstar, real, np.sqrt(noise)

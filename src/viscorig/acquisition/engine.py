@@ -55,7 +55,6 @@ from viscorig.acquisition.console import Console
 from viscorig.acquisition.probe import measure_probe
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
 from viscorig.acquisition.sweep import SweepInterrupted, SweepSettings, Wiring, configure
-from viscorig.errors import InstrumentError
 from viscorig.storage import Campaign
 
 __all__ = ["EngineState", "Msg", "Plan", "RunEngine", "RunRefused", "StopRequest"]
@@ -608,6 +607,3 @@ class _Hooks:
         return self.engine.stop.asked()
 
 
-def instrument_fault(error: BaseException, kinds: tuple[type[BaseException], ...]) -> bool:
-    """Does ``error`` mean an instrument fault (ours, or one of the driver's ``kinds``)?"""
-    return isinstance(error, InstrumentError) or (bool(kinds) and isinstance(error, kinds))

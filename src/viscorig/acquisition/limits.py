@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.analyser import ANALYSER_SOURCE_MAX_V
 from viscorig.storage import (
     FORCE_ABOVE_SHAKER_LIMIT,
     INPUT_OVERLOAD,
@@ -21,8 +22,6 @@ from viscorig.storage import (
     SOURCE_AT_LIMIT,
 )
 
-#: The analyser's highest source output, V peak.
-ANALYSER_SOURCE_MAX_V = 5.0
 #: A force within this many dB below the shaker limit counts as "at the limit": the analyser's
 #: input limit held it there. Further below, a missed level means the source limit was binding.
 AT_FORCE_LIMIT_DB = 0.5

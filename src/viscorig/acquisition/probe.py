@@ -30,11 +30,11 @@ from viscorig.acquisition.sweep import (
     Wiring,
     configure,
 )
+from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.errors import InstrumentError
 from viscorig.sequences import SweepStep, point_durations_s
 
 #: Frequencies the analyser sets are multiples of this (Hz).
-FREQUENCY_STEP_HZ = 0.015625
 #: Settle and integration of a probe point before an adaptive plan, whose own are bounds:
 #: enough to settle a damping ratio of a few hundredths, integrated as the plan's first look.
 ADAPTIVE_PROBE_CYCLES = (100, 10)

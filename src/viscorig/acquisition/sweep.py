@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from viscorig.acquisition.limits import AT_FORCE_LIMIT_DB, point_flags
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment
+from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     Station,
@@ -30,8 +31,8 @@ from viscorig.storage.flags import OUTSIDE_SOAK_BAND
 TIME_BASES = ("wall", "test")
 #: Source level the auto-level controller starts a run from, V peak (at most the limit).
 START_LEVEL_V = 0.1
-#: The analyser sets frequencies in steps of 15.625 mHz; half a step tells points apart.
-FREQUENCY_MATCH_HZ = 0.0078125
+#: Half the analyser's frequency step tells points apart.
+FREQUENCY_MATCH_HZ = FREQUENCY_STEP_HZ / 2
 
 
 class SweepInterrupted(Exception):  # noqa: N818 (an outcome, not a fault)

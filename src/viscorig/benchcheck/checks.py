@@ -26,7 +26,7 @@ from itertools import combinations
 
 import numpy as np
 
-__all__ = ["Limits", "Readings", "Rig", "Roles", "Verdict", "judge"]
+__all__ = ["Limits", "Readings", "RigFacts", "Roles", "Verdict", "judge"]
 
 #: A healthy input reads its transducer within these bounds (magnitude ratio, phase).
 GAIN_TOLERANCE = (0.7, 1.4)
@@ -72,7 +72,7 @@ class Roles:
 
 
 @dataclass(frozen=True)
-class Rig:
+class RigFacts:
     """What the station file knows of the rig: the table (mass kg, stiffness N/m, damping
     N·s/m) and the shaker's gain (N/V); ``None`` where it is not known."""
 
@@ -130,7 +130,7 @@ class Readings:
     overloads: Mapping[int, list[str]] = field(default_factory=dict)
 
 
-def judge(readings: Readings, roles: Roles, rig: Rig,
+def judge(readings: Readings, roles: Roles, rig: RigFacts,
           limits: Limits = Limits()) -> list[Verdict]:
     """Every check of the station, in the order a technician fixes things."""
     verdicts = [_identity(readings)]
@@ -208,7 +208,7 @@ class _Solution:
     residual: float
 
 
-def _solve(amplitude: Mapping[int, np.ndarray], roles: Roles, rig: Rig,
+def _solve(amplitude: Mapping[int, np.ndarray], roles: Roles, rig: RigFacts,
            frequency_hz: np.ndarray, source_vpk: float) -> _Solution | None:
     e, s, v, d = (roles.excitation_force, roles.table_acceleration, roles.device_force,
                   roles.device_acceleration)
@@ -264,7 +264,7 @@ def _what_is_wrong(g: complex) -> tuple[str, str]:
             "check its sensitivity in the station file, the transducer and its wiring")
 
 
-def _roles(readings: Readings, roles: Roles, rig: Rig, silent: set[int]) -> list[Verdict]:
+def _roles(readings: Readings, roles: Roles, rig: RigFacts, silent: set[int]) -> list[Verdict]:
     names = roles.by_input()
     if silent:
         unusable = ", ".join(str(k) for k in sorted(silent))

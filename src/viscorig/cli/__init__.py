@@ -4,6 +4,9 @@ Each command lives in a module of this package that exposes ``register(subparser
 its sub-parser(s) and sets ``handler`` to a function ``handler(args) -> int``. A command is listed
 in :data:`COMMANDS` only once it works. Only the module of the command being run is imported, so
 that the program starts quickly whatever the other commands need (scipy, matplotlib, pyvisa).
+For the same reason the command modules import their work (and the driver and the simulated
+rig, which only the command line wires in) inside their handlers: ``viscorig --help`` and
+``viscorig check`` load none of it.
 
 Every command takes ``-v``/``-q`` (before or after its name): they set the level of the standard
 ``logging`` module for the ``viscorig`` logger, whose records go to stderr as ``viscorig: ...``
@@ -26,8 +29,8 @@ from viscorig.runtime import limit_blas_threads
 
 limit_blas_threads()
 
-from viscorig import __version__  # noqa: E402  (after the BLAS setting, before numpy loads)
 from viscorig.errors import ViscorigError  # noqa: E402
+from viscorig.version import __version__  # noqa: E402  (after the BLAS setting, before numpy loads)
 
 
 class Command(NamedTuple):

@@ -99,7 +99,7 @@ def check_command(args: argparse.Namespace) -> int:
     """Measure, judge, print one line per check."""
     from viscorig.acquisition import Wiring
     from viscorig.benchcheck import judge, measure
-    from viscorig.benchcheck.checks import Rig, Roles
+    from viscorig.benchcheck.checks import RigFacts, Roles
 
     with _opened(args) as opened:
         station = opened.station
@@ -119,7 +119,7 @@ def check_command(args: argparse.Namespace) -> int:
         except opened.instrument_errors as error:
             raise InstrumentError(f"{opened.analyser.resource}: {error}") from None
     table = station.table
-    rig = Rig(None if table is None else (table.mass_kg, table.stiffness_n_per_m,
+    rig = RigFacts(None if table is None else (table.mass_kg, table.stiffness_n_per_m,
                                           table.damping_ns_per_m), gain)
     verdicts = judge(readings, roles, rig)
     for verdict in verdicts:

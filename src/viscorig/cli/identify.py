@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
@@ -23,6 +24,7 @@ from viscorig.identify import (
     store_fit,
     table_parameters,
 )
+from viscorig.numbers import with_uncertainty
 from viscorig.storage import Campaign
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
@@ -111,12 +113,12 @@ def format_result(
     width = max(len(name) for name in result.parameters)
     for name, estimate in result.parameters.items():
         if name in result.free:
-            error = f"± {estimate.stderr:.4g}"
+            shown = with_uncertainty(estimate.value, estimate.stderr)
         elif name in result.inherited:
-            error = f"± {estimate.stderr:.4g} (inherited)"
+            shown = f"{with_uncertainty(estimate.value, estimate.stderr)} (inherited)"
         else:
-            error = "fixed"
-        lines.append(f"  {name:<{width}} = {estimate.value:<14.6g} {error:<24} {estimate.unit}")
+            shown = f"{with_uncertainty(estimate.value, math.nan)} fixed"
+        lines.append(f"  {name:<{width}} = {shown:<36} {estimate.unit}".rstrip())
     if result.fits_noise:
         text = "± are standard uncertainties: the noise (white and drift"
         text += ", the table's uncertainty" if result.inherited else ""

@@ -121,7 +121,7 @@ def preset_floor(preset: str, step: SweepStep, seed: int = 1) -> Floor:
     from viscorig.acquisition.adaptive import adaptive_settings
     from viscorig.cli.simpoints import SimulatedRig
     from viscorig.fitting import fit
-    from viscorig.planning import design_bound, estimate_noise, point_noise_power, shared_noise
+    from viscorig.planning import design_bound, fit_noise_forecast, point_noise_power, shared_noise
 
     rig = load_preset(preset)
     simulated = SimulatedRig(rig, step.level_m_per_s2, seed=seed,
@@ -136,7 +136,7 @@ def preset_floor(preset: str, step: SweepStep, seed: int = 1) -> Floor:
     result = fit(settings.spec, points.frf_data(preset), fixed=dict(fixed or {}),
                  noise=shared_noise(points), weighting="noise")
     power, source = point_noise_power(points, result.noise)
-    noise = estimate_noise(points, power, source)
+    noise = fit_noise_forecast(points, power, source)
     bound = design_bound(result.model, result.values, result.free, noise, step.level_m_per_s2,
                          step.band_hz, settings.targets, resolution_hz=settings.resolution_hz,
                          force_limit_n=rig.shaker.force_limit_n,

@@ -18,6 +18,7 @@ import numpy as np
 
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
+from viscorig.numbers import with_uncertainty
 from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
 
 
@@ -76,8 +77,8 @@ def fit_lines(fit: Fit) -> list[str]:
         + (f"  weighted by {fit.weighting}" if fit.weighting else "")
     ]
     for name, parameter in fit.parameters.items():
-        stderr = "" if math.isnan(parameter.stderr) else f" ± {parameter.stderr:.3g}"
-        lines.append(f"      {name} = {parameter.value:.6g}{stderr} {parameter.unit}".rstrip())
+        shown = with_uncertainty(parameter.value, parameter.stderr)
+        lines.append(f"      {name} = {shown} {parameter.unit}".rstrip())
     return lines
 
 

@@ -28,6 +28,7 @@ from viscorig.identify import (
     preload_variations,
     summarize,
 )
+from viscorig.numbers import with_uncertainty
 from viscorig.paper import (
     PAPER_TABLE_1,
     PAPER_TABLE_PARAMETERS,
@@ -69,14 +70,12 @@ def handler(args: argparse.Namespace) -> int:
     return 0
 
 
-def _pm(value: float, stderr: float, digits: str = ".6g") -> str:
-    if not math.isfinite(stderr):
-        return f"{value:{digits}}"
-    return f"{value:{digits}} ± {stderr:.2g}"
+def _pm(value: float, stderr: float) -> str:
+    return with_uncertainty(value, stderr)
 
 
-def _q(quantity: Quantity, digits: str) -> str:
-    return _pm(quantity.value, quantity.stderr, digits)
+def _q(quantity: Quantity) -> str:
+    return with_uncertainty(quantity.value, quantity.stderr)
 
 
 def _change(change: Change) -> str:
@@ -120,8 +119,8 @@ def format_summary(
         ratio = run.fit.rms_error / run.fit.noise_floor
         text = (
             f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
-            f"{_pm(p['C_v'].value, p['C_v'].stderr, '.5g'):>18} "
-            f"{_pm(p['M_v'].value, p['M_v'].stderr, '.4g'):>18} {ratio:>9.2f}"
+            f"{_pm(p['C_v'].value, p['C_v'].stderr):>18} "
+            f"{_pm(p['M_v'].value, p['M_v'].stderr):>18} {ratio:>9.2f}"
         )
         if not run.fit.fits_noise:
             text += "*"
@@ -145,8 +144,8 @@ def format_summary(
             p = run.weighted.parameters
             lines.append(
                 f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
-                f"{_pm(p['C_v'].value, p['C_v'].stderr, '.5g'):>18} "
-                f"{_pm(p['M_v'].value, p['M_v'].stderr, '.4g'):>18}"
+                f"{_pm(p['C_v'].value, p['C_v'].stderr):>18} "
+                f"{_pm(p['M_v'].value, p['M_v'].stderr):>18}"
                 + ("" if run.weighted.fits_noise else "*")
             )
     lines += ["", "Table 2: system natural frequency, damping factor, half-power bandwidth"]
@@ -163,8 +162,8 @@ def format_summary(
         s, m = run.system_uncertain, run.measured
         bandwidth = "n/a" if math.isnan(m.bandwidth_hz) else f"{m.bandwidth_hz:.3f}"
         text = (
-            f"  {run.run:<10} {_q(s['f_r'], '.4f'):>16} {_q(s['xi'], '.5f'):>18} "
-            f"{_q(s['B_r'], '.4f'):>17} {m.peak_hz:>9.2f} {bandwidth:>9}"
+            f"  {run.run:<10} {_q(s['f_r']):>16} {_q(s['xi']):>18} "
+            f"{_q(s['B_r']):>17} {m.peak_hz:>9.2f} {bandwidth:>9}"
         )
         paper = paper_values(run.run)
         if paper is not None:

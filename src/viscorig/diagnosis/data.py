@@ -24,7 +24,7 @@ from viscorig.storage import Campaign, Run
 
 
 @dataclass(frozen=True)
-class Segment:
+class RunSlice:
     """One run inside the diagnosed data: its name, points, level and sweep direction."""
 
     run: str
@@ -61,7 +61,7 @@ class DiagnosisData:
     """
 
     data: FrfData
-    segments: tuple[Segment, ...]
+    segments: tuple[RunSlice, ...]
     frfs: tuple[str, ...]
     table: dict[str, float] | None
     noise: NoiseModel
@@ -311,7 +311,7 @@ def combine(
     for name, data in pieces:
         data.checked(frfs, None)
         n = data.frequency_hz.size
-        segments.append(Segment(name, slice(start, start + n), _level(data), _direction(
+        segments.append(RunSlice(name, slice(start, start + n), _level(data), _direction(
             data.frequency_hz)))
         noises.append(estimate_noise(data, frfs))
         start += n

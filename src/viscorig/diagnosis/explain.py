@@ -8,6 +8,7 @@ import math
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.findings import Finding, inherited_confusion
 from viscorig.models.sensors import CHANNELS
+from viscorig.numbers import with_uncertainty
 
 #: A recorded temperature that moves this much during a run explains a drift of its modulus, K.
 RECORDED_DRIFT_K = 0.2
@@ -22,22 +23,9 @@ def _estimate(finding: Finding, local: str) -> tuple[float, float]:
     return math.nan, math.nan
 
 
-def _pm(value: float, stderr: float, scale: float = 1.0, digits: int | None = None) -> str:
-    """``value ± stderr`` in a unit ``scale`` times smaller, to the stderr's precision."""
-    v, s = value * scale, stderr * scale
-    if digits is None:
-        digits = 1 if not (math.isfinite(s) and s > 0) else max(0, 1 - math.floor(math.log10(s)))
-    if not math.isfinite(s):
-        return f"{v:.{digits}f}"
-    return f"{v:.{digits}f} ± {s:.{digits}f}"
-
-
-def _pm_g(value: float, stderr: float) -> str:
-    """``value ± stderr`` in ``g`` format, the value to the digits its stderr leaves."""
-    if not (math.isfinite(stderr) and stderr > 0 and value != 0):
-        return f"{value:.3g}"
-    digits = max(2, math.ceil(math.log10(abs(value) / stderr)) + 1)
-    return f"{value:.{digits}g} ± {stderr:.2g}"
+def _pm(value: float, stderr: float, scale: float = 1.0) -> str:
+    """``value ± stderr`` in a unit ``scale`` times smaller."""
+    return with_uncertainty(value * scale, stderr * scale)
 
 
 def _channel_of(term: str):
@@ -64,7 +52,7 @@ def _sensor(finding: Finding) -> str:
         lag = 1e6 / (2 * math.pi * corner)
         return (
             f"The {channel.label} ({channel.quantity}) is low-pass filtered with a corner near "
-            f"{_pm(corner, se, digits=0)} Hz, a lag of about {lag:.0f} µs that also lowers its "
+            f"{_pm(corner, se)} Hz, a lag of about {lag:.0f} µs that also lowers its "
             f"magnitude at high frequency (an anti-alias filter or a long cable): {why}. Check "
             f"its conditioning against the {partner.label}'s, or add `{term}` to the model."
         )
@@ -141,7 +129,8 @@ def _explain(finding: Finding, data: DiagnosisData) -> str:
     if effect == "load_cell_compliance":
         k_c, se = _estimate(finding, "K_c")
         return (
-            f"The link between table and device is not rigid (K_c = {_pm_g(k_c, se)} N/m): "
+            "The link between table and device is not rigid "
+            f"(K_c = {with_uncertainty(k_c, se, 'N/m')}): "
             f"{why}. Stiffen the load cell's linkage (stinger, bolts) or keep load_cell in the "
             "model; use the support FRF (Eq. 5) for K*, which does not need a rigid link."
         )
@@ -150,7 +139,8 @@ def _explain(finding: Finding, data: DiagnosisData) -> str:
         f_g, f_se = _estimate(finding, "f_g")
         return (
             f"The inertial frame under the table moves on its isolators (a mode near "
-            f"{_pm(f_g, f_se)} Hz of a frame of about {_pm_g(mass, mass_se)} kg): {why}. It "
+            f"{_pm(f_g, f_se)} Hz of a frame of about {with_uncertainty(mass, mass_se, 'kg')}): "
+            f"{why}. It "
             "makes the table and the specimens read stiffer; fit the bare-table run with "
             "`frame` too, or keep `frame` in the model, and measure well above the frame's mode."
         )

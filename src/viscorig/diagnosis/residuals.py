@@ -23,7 +23,7 @@ from scipy.stats import norm
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
 from viscorig.fitting import FitResult
-from viscorig.models.effects import running_median
+from viscorig.models.effects import edge_held_median
 
 #: Smoothed whitened residual power above which a point belongs to a failure band.
 FAILURE_LEVEL = 6.0
@@ -134,7 +134,7 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     steps = np.diff(f)
     step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
     half = int(np.clip(round(NARROW_HZ / step), 2, max(f.size // 3, 2)))
-    excess = np.abs(dz - (running_median(dz.real, half) + 1j * running_median(dz.imag, half)))
+    excess = np.abs(dz - (edge_held_median(dz.real, half) + 1j * edge_held_median(dz.imag, half)))
     peak = int(np.argmax(excess))
     wide = f[excess > 0.5 * excess[peak]]
     if f[-1] - f[0] < NARROW_HZ or (

@@ -44,6 +44,7 @@ from viscorig.estimates import kstar_from_support, kstar_from_table
 from viscorig.models import Fixture, Frame, Model
 from viscorig.models.effects import compliance_estimate
 from viscorig.models.sensors import force_channel, response_channel
+from viscorig.numbers import with_uncertainty
 
 #: Most local modes tried per diagnosis step.
 MAX_FIXTURES = 3
@@ -166,11 +167,8 @@ def screen_fixtures(scan: ScanResult) -> list[Candidate]:
 
 
 def _pm(value: float, stderr: float) -> str:
-    """``value ± stderr`` to the stderr's first two digits."""
-    if not (np.isfinite(stderr) and stderr > 0):
-        return f"{value:+.3g}"
-    digits = max(0, 1 - int(np.floor(np.log10(stderr))))
-    return f"{value:+.{digits}f} ± {stderr:.{digits}f}"
+    """``value ± stderr`` with the value's sign."""
+    return with_uncertainty(value, stderr, signed=True)
 
 
 def _frf_words(frf: str) -> str:

@@ -33,12 +33,12 @@ from typing import IO
 
 import numpy as np
 
-from viscorig import __version__
 from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.exchange.frfset import FrfSet
 from viscorig.storage import FLAG_NAMES, Run
 from viscorig.storage.layout import MAX_RUN_POINTS
+from viscorig.version import __version__
 
 COLUMNS = (
     "frequency_hz",

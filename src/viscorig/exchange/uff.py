@@ -39,13 +39,13 @@ from typing import Any
 import numpy as np
 import pyuff
 
-from viscorig import __version__
 from viscorig.errors import InputError
 from viscorig.exchange import units
 from viscorig.exchange.atomicfile import write_via_path
 from viscorig.exchange.frfset import FrfSet, combine
 from viscorig.storage import Run
 from viscorig.storage.layout import MAX_RUN_POINTS
+from viscorig.version import __version__
 
 FRF_FUNCTION_TYPE = 4
 FREQUENCY_DATA_TYPE = 18

@@ -12,8 +12,13 @@ parameters enter the standard errors is in :mod:`viscorig.fitting.uncertainty`.
 
 from viscorig.fitting.baseline import nelder_mead_fit
 from viscorig.fitting.data import MIN_POINTS, FrfData
-from viscorig.fitting.noise import FrfNoise, NoiseModel, local_noise_power, noise_floor
-from viscorig.fitting.noise_estimation import estimate_frf_noise, estimate_noise
+from viscorig.fitting.noise import FrfNoise, NoiseModel
+from viscorig.fitting.noise_estimation import (
+    estimate_frf_noise,
+    estimate_noise,
+    local_noise_power,
+    noise_floor,
+)
 from viscorig.fitting.nonlinear import CORRELATION_WARNING, WEIGHTINGS, fit
 from viscorig.fitting.result import Estimate, FitResult
 from viscorig.fitting.starts import disc_stiffness_samples, linear_start, table_linear_fit

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from viscorig.fitting.result import FitResult
 from viscorig.models import Context, Maxwell, Model
+from viscorig.numbers import with_uncertainty
 
 #: An arm whose contribution to ``K*`` stays below this fraction of ``|K*|`` over the band is
 #: dead (0.1 %: far below what a damper characterisation can use).
@@ -86,7 +87,7 @@ def dead_arms(result: FitResult) -> dict[int, str]:
                 dead[i] = f"arm {i} is not identified ({name} = {value:.3g}, at its bound)"
                 break
             if not stderr <= DEAD_ARM_STDERR * abs(value):
-                dead[i] = f"arm {i} is not identified ({name} = {value:.3g} ± {stderr:.3g})"
+                dead[i] = f"arm {i} is not identified ({name} = {with_uncertainty(value, stderr)})"
                 break
     kstar = np.abs(model.kstar(Context(result.frequency_hz), values))
     if order > 1 and values["K_0"] < DEAD_ARM_CONTRIBUTION * kstar.min():

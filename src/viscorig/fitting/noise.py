@@ -447,25 +447,3 @@ class NoiseModel:
     def describe(self) -> list[str]:
         """One line per block."""
         return [block.describe() for blocks in self.blocks.values() for block in blocks]
-
-
-def local_noise_power(
-    frf: NDArray[np.complex128],
-    window: int = 31,
-    frequency_hz: NDArray[np.float64] | None = None,
-    time_s: NDArray[np.float64] | None = None,
-) -> NDArray[np.float64]:
-    """``E|ε_i|²`` at each point of one FRF (white plus correlated), from the data alone.
-
-    Kept for callers that hold one FRF as an array; see
-    :func:`viscorig.fitting.noise_estimation.estimate_frf_noise` for the model behind it.
-    """
-    from viscorig.fitting.noise_estimation import estimate_frf_noise
-
-    return estimate_frf_noise(frf, frequency_hz, time_s, window=window).power()
-
-
-def noise_floor(frfs: list[NDArray[np.complex128]], window: int = 31) -> float:
-    """Noise floor of the error measure: ``sqrt(mean σ_i²)`` over every point of every FRF."""
-    power = np.concatenate([local_noise_power(frf, window) for frf in frfs])
-    return float(np.sqrt(np.mean(power)))

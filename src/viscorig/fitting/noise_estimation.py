@@ -76,6 +76,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import median_filter
 
+from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 
 #: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
@@ -111,7 +112,6 @@ _TAU_GRID = np.geomspace(0.3, 30.0, 13)
 #: Fewest points for an estimate of the correlated part.
 MIN_CORRELATION_POINTS = 40
 #: The analyser sets frequencies in steps of this (Hz): a linear sweep's steps differ by up to one.
-FREQUENCY_STEP_HZ = 0.015625
 
 
 def regular_grid(frequency_hz: NDArray[np.float64]) -> bool:
@@ -520,3 +520,23 @@ def shared_drift(noises: Sequence[FrfNoise]) -> list[FrfNoise]:
                             strongest.correlation_length, noise.axis, noise.axis_unit,
                             noise.resolution, noise.source, noise.outliers))
     return out
+
+
+def local_noise_power(
+    frf: NDArray[np.complex128],
+    window: int = 31,
+    frequency_hz: NDArray[np.float64] | None = None,
+    time_s: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """``E|ε_i|²`` at each point of one FRF (white plus correlated), from the data alone.
+
+    For callers that hold one FRF as an array; :func:`estimate_frf_noise` is the model
+    behind it.
+    """
+    return estimate_frf_noise(frf, frequency_hz, time_s, window=window).power()
+
+
+def noise_floor(frfs: list[NDArray[np.complex128]], window: int = 31) -> float:
+    """Noise floor of the error measure: ``sqrt(mean σ_i²)`` over every point of every FRF."""
+    power = np.concatenate([local_noise_power(frf, window) for frf in frfs])
+    return float(np.sqrt(np.mean(power)))

@@ -30,6 +30,7 @@ import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -207,8 +208,12 @@ def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
                          f"{MAX_FILE_BYTES}", where)
     suffix = path.suffix.lower()
     package = "xlrd" if suffix == ".xls" else "openpyxl"
-    try:
-        reader = __import__(package)
+    reader: Any
+    try:  # imported here: the excel extra is optional
+        if package == "xlrd":
+            import xlrd as reader
+        else:
+            import openpyxl as reader
     except ImportError:
         raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
                          "'viscorig[excel]')", where) from None

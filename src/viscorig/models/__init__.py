@@ -18,13 +18,13 @@ from viscorig.models.base import (
     ModulusTerm,
     Parameter,
     Term,
-    parse_spec,
     register_term,
     stage_methods,
 )
 from viscorig.models.effects import EFFECTS, Amplitude, Drift, Fixture, Frame, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
 from viscorig.models.sensors import CHANNELS, Delay, Gain, Highpass, Lowpass
+from viscorig.models.spec import parse_spec
 
 __all__ = [
     "CHANNELS",

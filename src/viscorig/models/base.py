@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 
@@ -133,14 +133,6 @@ class Context:
                     raise ValueError(f"{name} must have one value per frequency point")
                 object.__setattr__(self, name, value)
         object.__setattr__(self, "omega", 2.0 * np.pi * frequency)
-
-    def subset(self, index: ArrayLike) -> Context:
-        """The context at the selected points."""
-        return Context(
-            self.frequency_hz[index],
-            None if self.time_s is None else self.time_s[index],
-            None if self.reference_amplitude is None else self.reference_amplitude[index],
-        )
 
 
 class Term:
@@ -551,43 +543,6 @@ class Model:
 
     def __repr__(self) -> str:
         return f"<Model {self.spec}>"
-
-
-_TERM_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\(\s*([^()]*?)\s*\))?\s*$")
-
-
-def parse_spec(spec: str) -> Model:
-    """Build a model from a spec string such as ``"maxwell(3)+load_cell+fixture(58)"``.
-
-    Raises
-    ------
-    InputError
-        Unknown term, malformed term, no or several K* terms.
-    """
-    if not isinstance(spec, str) or not spec.strip():
-        raise InputError("empty model spec", "model spec")
-    terms: list[Term] = []
-    for part in spec.split("+"):
-        match = _TERM_PATTERN.match(part)
-        if match is None:
-            raise InputError(f"malformed term '{part.strip()}' in '{spec}'", "model spec")
-        keyword, argument = match.group(1).lower(), match.group(2)
-        if keyword not in TERMS:  # perhaps a term of another package (viscorig.terms)
-            from viscorig.models.entry_points import load_entry_point_terms
-
-            problems = "".join(f"; not loaded: {text}" for text in load_entry_point_terms())
-            if keyword not in TERMS:
-                known = ", ".join(sorted(TERMS))
-                raise InputError(
-                    f"unknown term '{keyword}' in '{spec}' (known: {known}{problems})",
-                    "model spec",
-                )
-        terms.append(TERMS[keyword].from_argument(argument or None))
-    model = Model(terms)
-    if model.modulus_term is None:
-        moduli = ", ".join(k for k, cls in TERMS.items() if cls.kind == "modulus")
-        raise InputError(f"'{spec}' has no K* term (one of: {moduli})", "model spec")
-    return model
 
 
 def _format_number(value: float) -> str:

@@ -209,7 +209,7 @@ def narrow_peak(
     steps = np.diff(f)
     step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
     half = int(np.clip(round(width_hz / step / 2), 3, max(f.size // 4, 3)))
-    smooth = running_median(r.real, half) + 1j * running_median(r.imag, half)
+    smooth = edge_held_median(r.real, half) + 1j * edge_held_median(r.imag, half)
     excess = np.abs(r - smooth)
     inside = (f >= band_hz[0]) & (f <= band_hz[1])
     if not np.any(inside):
@@ -218,7 +218,7 @@ def narrow_peak(
     return float(f[i]), float(excess[i])
 
 
-def running_median(values: NDArray[np.float64], half: int) -> NDArray[np.float64]:
+def edge_held_median(values: NDArray[np.float64], half: int) -> NDArray[np.float64]:
     """Median over ``±half`` points (shrinking at the ends), vectorised with a sliding window."""
     padded = np.pad(values, half, mode="edge")
     windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
@@ -388,11 +388,3 @@ EFFECTS: dict[str, tuple[str, str]] = {
 }
 
 
-def effect_of(keyword: str) -> str:
-    """Effect name of a term keyword (``fixture`` -> ``fixture_resonance``)."""
-    if keyword in ("maxwell", "fractional"):
-        return "frequency_dependent_modulus"
-    for effect, (term, _) in EFFECTS.items():
-        if term == keyword:
-            return effect
-    raise KeyError(keyword)

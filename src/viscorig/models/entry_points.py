@@ -20,6 +20,8 @@ import logging
 from importlib.metadata import EntryPoint, entry_points
 from types import ModuleType
 
+from viscorig.models.base import TERMS, Term, register_term
+
 #: The entry-point group viscorig reads terms from.
 GROUP = "viscorig.terms"
 
@@ -29,8 +31,6 @@ _problems: list[str] | None = None
 
 def _register(point: EntryPoint) -> str | None:
     """Load one entry point; ``None`` when it worked, else why not (one line)."""
-    from viscorig.models.base import TERMS, Term, register_term
-
     try:
         loaded = point.load()
     except Exception as error:  # a broken third-party package must not break the others

@@ -2,7 +2,7 @@
 
 A small state machine in the manner of a Bluesky plan: explicit states, small steps, each
 recorded with its metadata, and no instrument in sight. The plan asks for points through
-:class:`MeasureRequest` and is given :class:`~viscorig.planning.points.MeasuredPoints` back;
+:class:`NextPoints` and is given :class:`~viscorig.planning.points.MeasuredPoints` back;
 :meth:`AdaptivePlan.run` drives it with any *measure* callable (the simulated rig in tests and
 benchmarks, the analyser driver in a sequence step), :meth:`AdaptivePlan.steps` exposes it as
 a generator for a runner that interleaves storage and display.
@@ -65,17 +65,17 @@ from viscorig.planning.instrument import (
     AnalyserLimits,
     PointTiming,
 )
-from viscorig.planning.noise import estimate_noise, point_noise_power, shared_noise
+from viscorig.planning.noise import fit_noise_forecast, point_noise_power, shared_noise
 from viscorig.planning.points import MeasuredPoints, MeasureFunction, PlannedPoint
 from viscorig.planning.transient import Mode, identified_modes, settle_s
 
 __all__ = [
     "AdaptivePlan",
     "AdaptiveSettings",
-    "MeasureRequest",
+    "NextPoints",
     "PlanOutcome",
+    "PlanStep",
     "State",
-    "StepRecord",
     "expected_time_s",
     "weighted_fit_function",
 ]
@@ -205,7 +205,7 @@ class AdaptiveSettings:
 
 
 @dataclass(frozen=True)
-class MeasureRequest:
+class NextPoints:
     """Points the plan wants measured next, in order, and what it expects them to cost."""
 
     points: tuple[PlannedPoint, ...]
@@ -214,7 +214,7 @@ class MeasureRequest:
 
 
 @dataclass(frozen=True)
-class StepRecord:
+class PlanStep:
     """One step of the plan, with what it knew then.
 
     Attributes
@@ -264,7 +264,7 @@ class PlanOutcome:
     points: MeasuredPoints
     fit: FitResult
     relative_stderr: dict[str, float]
-    history: list[StepRecord]
+    history: list[PlanStep]
 
     @property
     def targets_met(self) -> bool:
@@ -346,7 +346,7 @@ class AdaptivePlan:
         self.settings = settings
         self.fit_function = fit_function or weighted_fit_function(settings.spec, settings.fixed)
         self.state = State.LOOK
-        self.history: list[StepRecord] = []
+        self.history: list[PlanStep] = []
         self.points: MeasuredPoints | None = None
         self.planned: list[PlannedPoint] = []
         self.result: FitResult | None = None
@@ -360,12 +360,12 @@ class AdaptivePlan:
         self._batches = 0
         self._settle_factor = 1.0
         self._checked = 0
-        self._pending: MeasureRequest | None = self._look()
+        self._pending: NextPoints | None = self._look()
 
     # ------------------------------------------------------------------ driving
 
     @property
-    def request(self) -> MeasureRequest | None:
+    def request(self) -> NextPoints | None:
         """The points the plan waits for (``None`` once it is done)."""
         return self._pending
 
@@ -392,7 +392,7 @@ class AdaptivePlan:
         self._fit()
         self._pending = self._decide()
 
-    def steps(self) -> Generator[MeasureRequest, MeasuredPoints, PlanOutcome]:
+    def steps(self) -> Generator[NextPoints, MeasuredPoints, PlanOutcome]:
         """The plan as a generator: yields requests, is sent the measured points."""
         while self._pending is not None:
             measured = yield self._pending
@@ -412,7 +412,7 @@ class AdaptivePlan:
     def _record(self, note: str, predicted_s: float | None = None) -> None:
         points = self.points
         self.history.append(
-            StepRecord(
+            PlanStep(
                 self.state,
                 0.0 if points is None else points.test_time_s,
                 0 if points is None else len(points),
@@ -422,7 +422,7 @@ class AdaptivePlan:
             )
         )
 
-    def _look(self) -> MeasureRequest:
+    def _look(self) -> NextPoints:
         s = self.settings
         f = log_grid(s.band_hz, s.look_points, s.limits)
         if s.coverage_damping_ratio is not None:  # on the coverage grid: it fills in exactly
@@ -449,7 +449,7 @@ class AdaptivePlan:
             previous = frequency
         self._record(f"first look: {len(planned)} points", seconds)
         self.state = State.MEASURE
-        return MeasureRequest(tuple(planned), State.LOOK, seconds)
+        return NextPoints(tuple(planned), State.LOOK, seconds)
 
     def _relative_stderr(self) -> dict[str, float]:
         result = self.result
@@ -472,7 +472,7 @@ class AdaptivePlan:
             )
         self.result = result
         power, source = point_noise_power(self.points, result.noise)
-        noise = estimate_noise(self.points, power, source).calibrated(self.points, power)
+        noise = fit_noise_forecast(self.points, power, source).calibrated(self.points, power)
         self._info = InformationModel(
             result.model, dict(result.values), tuple(result.free), noise, s.level_m_per_s2,
             s.force_limit_n,
@@ -541,7 +541,7 @@ class AdaptivePlan:
             reason, self.points, self.result, self._relative_stderr(), self.history
         )
 
-    def _decide(self) -> MeasureRequest | None:
+    def _decide(self) -> NextPoints | None:
         self.state = State.DECIDE
         s = self.settings
         assert self.points is not None and self._info is not None
@@ -571,7 +571,7 @@ class AdaptivePlan:
         self._batches += 1
         self._record(note, seconds)
         self.state = State.MEASURE
-        return MeasureRequest(tuple(planned), State.DECIDE, seconds)
+        return NextPoints(tuple(planned), State.DECIDE, seconds)
 
     # ------------------------------------------------------------------ choosing points
 

@@ -35,7 +35,7 @@ from viscorig.planning.instrument import (
     AnalyserLimits,
     PointTiming,
 )
-from viscorig.planning.noise import NoiseModel
+from viscorig.planning.noise import NoiseForecast
 from viscorig.planning.points import PlannedPoint
 from viscorig.planning.transient import identified_modes
 
@@ -77,7 +77,7 @@ def design_bound(
     model: Model,
     values: Mapping[str, float],
     names: tuple[str, ...],
-    noise: NoiseModel,
+    noise: NoiseForecast,
     level_m_per_s2: float,
     band_hz: tuple[float, float],
     targets: Mapping[str, float],

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.models import Model
-from viscorig.planning.noise import NoiseModel, model_amplitudes
+from viscorig.planning.noise import NoiseForecast, model_amplitudes
 from viscorig.planning.sensitivity import log_sensitivities
 
 __all__ = ["InformationModel", "log_sensitivities"]
@@ -48,7 +48,7 @@ class InformationModel:
     model: Model
     values: Mapping[str, float]
     names: tuple[str, ...]
-    noise: NoiseModel
+    noise: NoiseForecast
     level_m_per_s2: float
     force_limit_n: float | None = None
 
@@ -101,7 +101,3 @@ class InformationModel:
                 total += np.einsum("p,pi,pj->ij", weight, j.conj(), j).real
         return total
 
-    def relative_values(self) -> NDArray[np.float64]:
-        """``|p̂_k|`` (1 where the value is 0): the scale of the relative coordinates."""
-        v = np.array([abs(float(self.values[n])) for n in self.names])
-        return np.where(v > 0, v, 1.0)

@@ -26,6 +26,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.analyser import (
+    ANALYSER_MAX_POINTS,
+    FREQUENCY_STEP_HZ,
+    MAX_FREQUENCY_HZ,
+    MAX_INTEGRATE_CYCLES,
+    MIN_FREQUENCY_HZ,
+    MIN_INTEGRATE_CYCLES,
+)
 from viscorig.sequences.segments import point_durations_s
 
 __all__ = [
@@ -54,13 +62,13 @@ class AnalyserLimits:
         Points in one linear sweep.
     """
 
-    frequency_step_hz: float = 0.015625
-    min_frequency_hz: float = 0.03125
-    max_frequency_hz: float = 25600.0
-    min_integrate_cycles: int = 1
-    max_integrate_cycles: int = 234
+    frequency_step_hz: float = FREQUENCY_STEP_HZ
+    min_frequency_hz: float = MIN_FREQUENCY_HZ
+    max_frequency_hz: float = MAX_FREQUENCY_HZ
+    min_integrate_cycles: int = MIN_INTEGRATE_CYCLES
+    max_integrate_cycles: int = MAX_INTEGRATE_CYCLES
     max_settle_cycles: int = 10000
-    max_points_per_sweep: int = 801
+    max_points_per_sweep: int = ANALYSER_MAX_POINTS
 
     def round_down(self, frequency_hz: ArrayLike) -> NDArray[np.float64]:
         """Frequencies as the analyser sets them: the next lower step (a step itself stays)."""

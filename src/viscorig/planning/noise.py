@@ -37,16 +37,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
-from viscorig.fitting import NoiseModel as SharedNoiseModel
+from viscorig.fitting import NoiseModel
 from viscorig.fitting import estimate_noise as estimate_shared_noise
 from viscorig.models import Context, Model
 from viscorig.planning.points import MeasuredPoints
 
 __all__ = [
     "ChannelAmplitudes",
-    "FrfNoise",
-    "NoiseModel",
-    "estimate_noise",
+    "FrfNoiseForecast",
+    "NoiseForecast",
+    "fit_noise_forecast",
     "measured_amplitudes",
     "model_amplitudes",
     "point_noise_power",
@@ -77,7 +77,7 @@ class ChannelAmplitudes:
 
 
 @dataclass(frozen=True)
-class FrfNoise:
+class FrfNoiseForecast:
     """Noise densities behind one FRF.
 
     Attributes
@@ -107,18 +107,19 @@ class FrfNoise:
 
 
 @dataclass(frozen=True)
-class NoiseModel:
+class NoiseForecast:
     """Relative noise power of each FRF of a point: ``E|ε|² = rate(f) / T``.
 
     Attributes
     ----------
     frfs
-        ``{"table": FrfNoise, "support": FrfNoise}`` (``support`` absent on a bare table).
+        ``{"table": FrfNoiseForecast, "support": FrfNoiseForecast}`` (``support`` absent on a
+        bare table).
     source
         Where the constants were estimated from (``"analyser variance"``, ``"fit residuals"``).
     """
 
-    frfs: Mapping[str, FrfNoise]
+    frfs: Mapping[str, FrfNoiseForecast]
     source: str = ""
     local: Mapping[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = field(
         default_factory=dict
@@ -139,7 +140,7 @@ class NoiseModel:
 
     def calibrated(
         self, points: MeasuredPoints, power: Mapping[str, ArrayLike]
-    ) -> NoiseModel:
+    ) -> NoiseForecast:
         """This model corrected, at every frequency already measured, to what the points
         there measured (the median of ``E|ε|² T`` over the model's rate at that frequency).
 
@@ -159,7 +160,7 @@ class NoiseModel:
             frequencies, inverse = np.unique(points.frequency_hz, return_inverse=True)
             factors = np.array([np.median(ratio[inverse == i]) for i in range(frequencies.size)])
             local[frf] = (frequencies, np.where(np.isfinite(factors), factors, 1.0))
-        return NoiseModel(self.frfs, self.source, local)
+        return NoiseForecast(self.frfs, self.source, local)
 
     def power(
         self, frf: str, amplitudes: ChannelAmplitudes, integrate_s: ArrayLike
@@ -167,11 +168,11 @@ class NoiseModel:
         """``E|ε|²`` of one FRF for an integration of ``integrate_s`` seconds."""
         return self.rate(frf, amplitudes) / np.asarray(integrate_s, dtype=float)
 
-    def scaled(self, factor: float) -> NoiseModel:
+    def scaled(self, factor: float) -> NoiseForecast:
         """Every density multiplied by ``factor``."""
-        return NoiseModel(
+        return NoiseForecast(
             {
-                name: FrfNoise(n.force_psd * factor, n.acceleration_psd * factor,
+                name: FrfNoiseForecast(n.force_psd * factor, n.acceleration_psd * factor,
                                n.relative_psd * factor)
                 for name, n in self.frfs.items()
             },
@@ -254,7 +255,7 @@ def shared_noise(points: MeasuredPoints) -> NoiseModel:
 
 
 def point_noise_power(
-    points: MeasuredPoints, noise: SharedNoiseModel | None = None
+    points: MeasuredPoints, noise: NoiseModel | None = None
 ) -> tuple[dict[str, NDArray[np.float64]], str]:
     """Per-point relative noise power ``E|ε_i|²`` of each FRF, in measurement order, from the
     core's noise model of the points (:func:`shared_noise` unless given), and its source."""
@@ -266,9 +267,9 @@ def point_noise_power(
     return {name: noise.power(name)[back] for name in noise.frfs}, ", ".join(sorted(sources))
 
 
-def estimate_noise(
+def fit_noise_forecast(
     points: MeasuredPoints, power: Mapping[str, ArrayLike], source: str = ""
-) -> NoiseModel:
+) -> NoiseForecast:
     """Fit the densities of each FRF to per-point noise powers of measured points.
 
     Parameters
@@ -290,8 +291,8 @@ def estimate_noise(
             [1.0 / force**2, 1.0 / acceleration**2, np.ones_like(force)]
         )
         good = np.isfinite(y) & (y > 0) & np.all(np.isfinite(design), axis=1)
-        frfs[name] = FrfNoise(*_gamma_nnls(design[good], y[good]))
-    return NoiseModel(frfs, source)
+        frfs[name] = FrfNoiseForecast(*_gamma_nnls(design[good], y[good]))
+    return NoiseForecast(frfs, source)
 
 
 def _gamma_nnls(design: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.analyser import ANALYSER_MAX_POINTS
 from viscorig.fitting import FrfData
 
 __all__ = ["MeasureFunction", "MeasuredPoints", "PlannedPoint", "sweep_segments"]
@@ -218,7 +219,8 @@ class SweepSegment:
 
 
 def sweep_segments(
-    points: Sequence[PlannedPoint], *, min_linear_points: int = 3, max_points: int = 801
+    points: Sequence[PlannedPoint], *, min_linear_points: int = 3,
+    max_points: int = ANALYSER_MAX_POINTS
 ) -> list[SweepSegment]:
     """Group points, in order, into short linear sweeps and manual points.
 

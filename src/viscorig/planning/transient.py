@@ -29,7 +29,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from viscorig.estimates import measured_resonance
 from viscorig.models import Context, Model
@@ -177,8 +177,3 @@ def settle_s(
     return longest
 
 
-def settle_cycles_for(
-    frequency_hz: ArrayLike, settle_seconds: ArrayLike
-) -> NDArray[np.float64]:
-    """Settle seconds as (fractional) cycles."""
-    return np.asarray(settle_seconds, dtype=float) * np.asarray(frequency_hz, dtype=float)

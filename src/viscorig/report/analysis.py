@@ -204,7 +204,7 @@ class Climb:
 
 
 @dataclass
-class FrfResidual:
+class ShownResidual:
     """``H_model/H_measured − 1`` of one FRF of the shown model, with the local noise."""
 
     frf: str
@@ -240,7 +240,7 @@ class RunAnalysis:
     bare: bool
     band_hz: tuple[float, float]
     shown: ModelCurve | None = None
-    residuals: list[FrfResidual] = field(default_factory=list)
+    residuals: list[ShownResidual] = field(default_factory=list)
     modulus: ModulusCurves | None = None
     summary: RunSummary | None = None
     climb: Climb | None = None
@@ -303,7 +303,7 @@ def _in_band(run: Run, band: tuple[float, float]) -> NDArray[np.intp]:
     return keep[np.argsort(run.frequency_hz[keep])]
 
 
-def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[FrfResidual]:
+def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[ShownResidual]:
     """The shown model's residual of each FRF, beside the local σ of the run's noise model
     (estimated on the same points as a fit of the band estimates it)."""
     data = run_data(run).in_band(band)
@@ -318,7 +318,7 @@ def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[F
     if not frfs:
         return []
     noise = estimate_noise(data, tuple(frfs))
-    return [FrfResidual(name, f, np.abs(predicted[name] / data.frf(name) - 1.0)[order],
+    return [ShownResidual(name, f, np.abs(predicted[name] / data.frf(name) - 1.0)[order],
                         noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
 
 

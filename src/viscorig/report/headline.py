@@ -10,13 +10,13 @@ import math
 from dataclasses import dataclass, field
 
 from viscorig.compare import kstar_at
+from viscorig.numbers import with_uncertainty
 from viscorig.report.analysis import RunAnalysis
 from viscorig.report.words import (
     at_floor,
     error_words,
     finding_sentence,
     times,
-    with_uncertainty,
 )
 from viscorig.storage import Run
 

@@ -15,9 +15,9 @@ import html
 import math
 from datetime import UTC, datetime
 
-from viscorig import __version__
 from viscorig.compare import compare_fits, kstar_changes
 from viscorig.identify import Variation, preload_variations
+from viscorig.numbers import with_uncertainty
 from viscorig.paper import (
     PAPER_TABLE_1,
     PAPER_TABLE_2,
@@ -34,8 +34,9 @@ from viscorig.report.analysis import (
 )
 from viscorig.report.figures import SavedFigure
 from viscorig.report.headline import FRF_WORDS, headline
-from viscorig.report.words import error_words, evidence_words, with_uncertainty
+from viscorig.report.words import error_words, evidence_words
 from viscorig.storage import FLAG_NAMES, count_flags
+from viscorig.version import __version__
 
 STYLE = """
 body { font-family: "DejaVu Sans", Arial, sans-serif; margin: .8em auto; max-width: 1250px;

@@ -8,24 +8,17 @@ finding of a run, built from the rungs of its diagnosis ladder.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 from collections.abc import Sequence
 
-#: ``rms_error`` within this factor of the noise floor counts as "at the noise floor" (the
-#: diagnosis's own threshold).
-AT_FLOOR_RATIO = 1.25
-#: ... within this factor, "close to the noise floor".
+# "at the noise floor" is the diagnosis's own threshold
+from viscorig.diagnosis import AT_FLOOR_RATIO
+
+#: ``rms_error`` within this factor of the noise floor reads "close to the noise floor".
 CLOSE_RATIO = 2.0
-#: ΔBIC (whitened) below minus this is beyond noise (the diagnosis's threshold).
+#: ΔBIC (whitened) below minus this is beyond noise.
 SIGNIFICANT_DELTA_BIC = 20.0
-
-with contextlib.suppress(ImportError):  # the diagnosis's own thresholds, when installed
-    from viscorig.diagnosis import AT_FLOOR_RATIO, SIGNIFICANT_DELTA_BIC
-
-_PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"))
-
 
 def times(ratio: float) -> str:
     """``3.9×``, ``240×``: a ratio to a tenth below 10, whole above."""
@@ -62,29 +55,6 @@ def evidence_words(delta_bic: float, significant: bool) -> str:
     if delta_bic < -SIGNIFICANT_DELTA_BIC:
         return "real, but too small to matter"
     return "not worth its parameters"
-
-
-def with_uncertainty(value: float, stderr: float, unit: str = "") -> str:
-    """``"152.6 ± 0.6 kN/m"``: value and standard error to the error's first significant digit
-    (two when it is a 1 or a 2), with an SI prefix for newtons, metres and seconds; 4
-    significant digits without an error.
-    """
-    if not math.isfinite(value):
-        return "–"
-    scale, prefix = 1.0, ""
-    if unit and unit[0] in "Nms" and value != 0:
-        scale, prefix = next(((s, p) for s, p in _PREFIXES if abs(value) >= s), _PREFIXES[-1])
-    v = value / scale
-    shown_unit = f" {prefix}{unit}" if unit else ""
-    if not (math.isfinite(stderr) and stderr > 0):
-        return f"{v:.4g}{shown_unit}"
-    e = stderr / scale
-    exponent = math.floor(math.log10(e))
-    decimals = (1 if e / 10**exponent < 3 else 0) - exponent
-    if decimals <= 0:
-        return f"{round(v, decimals):.0f} ± {round(e, decimals):.0f}{shown_unit}"
-    decimals = min(decimals, 9)
-    return f"{v:.{decimals}f} ± {e:.{decimals}f}{shown_unit}"
 
 
 def _spoken_list(items: Sequence[str]) -> str:

@@ -16,6 +16,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from viscorig.analyser import FREQUENCY_STEP_HZ
+from viscorig.analyser import MAX_FREQUENCY_HZ as ANALYSER_MAX_FREQUENCY_HZ
 from viscorig.sequences import segments
 from viscorig.sequences.levels import parse_level
 from viscorig.sequences.problems import Path, Problems, did_you_mean
@@ -25,9 +27,9 @@ from viscorig.storage import layout
 REQUIRED: Any = type("Required", (), {"__repr__": lambda self: "REQUIRED"})()
 
 #: The analyser's highest frequency with four channels, Hz.
-MAX_FREQUENCY_HZ = 25_600.0
+MAX_FREQUENCY_HZ = ANALYSER_MAX_FREQUENCY_HZ
 #: Frequencies are set in steps of 15.625 mHz.
-MIN_RESOLUTION_HZ = 0.015625
+MIN_RESOLUTION_HZ = FREQUENCY_STEP_HZ
 #: Beyond any shaker rig, m/s² peak.
 MAX_LEVEL_M_PER_S2 = 500.0
 #: Rig preset names (``sim/rigs/<name>.toml``).

@@ -13,10 +13,10 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from viscorig.analyser import ANALYSER_MAX_POINTS
 from viscorig.errors import InputError
 
 #: The 35670A measures at most this many points in one swept-sine sweep.
-ANALYSER_MAX_POINTS = 801
 #: Default longest test time between two commits of a run.
 DEFAULT_SEGMENT_S = 60.0
 

@@ -55,14 +55,15 @@ from viscorig.sequences.steps import (
     TemperatureStep,
     WaitStep,
 )
+from viscorig.storage import layout
 
 #: Kept for callers that name them here.
 PRESET_NAME = schema.PRESET_NAME
 MAX_FREQUENCY_HZ = schema.MAX_FREQUENCY_HZ
 MIN_RESOLUTION_HZ = schema.MIN_RESOLUTION_HZ
 SWEEP_FIELDS = SWEEP.names
-#: A sanity limit on one run (100 000 points is over a day of dwell at 100+100 cycles).
-MAX_RUN_POINTS = 100_000
+#: A sanity limit on one run: the campaign file's (100 000 points, over a day of dwell).
+MAX_RUN_POINTS = layout.MAX_RUN_POINTS
 
 
 def read_text(path: str | Path) -> str:

@@ -59,11 +59,11 @@ import h5py
 import numpy as np
 from numpy.typing import ArrayLike
 
-from viscorig import __version__
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import Fit, Run, RunSettings, Segment
+from viscorig.version import __version__
 
 
 def utc_now() -> str:
@@ -522,14 +522,6 @@ class Campaign:
         """Every entry of ``/journal``, in the order written (none when there is no journal)."""
         with self._reading() as h5, reading.guarded(self.path, f"/{journal.JOURNAL_GROUP}"):
             return journal.read(h5, self.path)
-
-    def set_rig(self, **attributes: float | int) -> None:
-        """Set ``/rig`` attributes (e.g. table parameters identified from the bare-table run)."""
-        checked = _checked_rig(attributes, str(self.path))
-        with self._commit() as h5:
-            group = h5.require_group(layout.RIG_GROUP)
-            for key, value in checked.items():
-                group.attrs[key] = value
 
     def add_fit(
         self,
