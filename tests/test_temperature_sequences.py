@@ -210,7 +210,8 @@ def test_a_drift_is_explained_by_the_recorded_temperature_first(recorded, says) 
 
     finding = SimpleNamespace(
         effect="thermal_drift", evidence="K* falls along the run", significant=True,
-        parameters=lambda: {"kappa": {"value": -5.6e-6, "stderr": 1e-7}})
-    data = SimpleNamespace(run="r", temperature_range_c=recorded)
+        parameters=lambda: {"kappa": {"value": -5.6e-6, "stderr": 1e-7}}, likelihood=None)
+    # nothing inherited with an uncertainty: the table's error is not a candidate explanation
+    data = SimpleNamespace(run="r", temperature_range_c=recorded, nuisance=())
     text = explain(finding, data)
     assert text.startswith("The modulus drifts by") and says in text

@@ -484,6 +484,8 @@ def inherited_confusion(finding: Finding, data: DiagnosisData) -> tuple[str, flo
     ``1 − var(held exact)/var(with the prior)`` of the finding's first parameter, ``name`` the
     inherited parameter most correlated with it. ``None`` when the data tell them apart (or
     nothing was inherited with an uncertainty)."""
+    if not data.nuisance:
+        return None
     result = finding.likelihood
     nuisance = [n for n in data.nuisance if n in result.fitted]
     added = [n for n in result.fitted if n in added_parameters(result.model, finding.term)]
