@@ -409,6 +409,12 @@ class Model:
         """A term leaves a choice to the fitter (``maxwell`` without an order)."""
         return any(term.candidates() is not None for term in self.terms)
 
+    def require_modulus(self) -> ModulusTerm:
+        """The K* term; ``InputError`` for a model without one (the bare table)."""
+        if self.modulus_term is None:
+            raise InputError(f"'{self.spec}' has no K* term", "model spec")
+        return self.modulus_term
+
     def local_names(self, term: Term) -> dict[str, str]:
         """Local -> global parameter names of one of the model's terms."""
         return dict(self._names[id(term)])
