@@ -177,7 +177,7 @@ class BenchService:
         if not checked.ok:
             return [single_line(str(problem)) for problem in checked.problems], None, ""
         try:
-            forecasts = sequence_forecast(checked.sequence, checked.station)
+            forecasts = sequence_forecast(checked.passed(), checked.station)
         except ViscorigError as error:
             return [single_line(str(error))], None, ""
         low = sum(item.low_s for item in forecasts)
@@ -283,7 +283,7 @@ class BenchService:
             self.problems = [single_line(str(problem)) for problem in checked.problems]
             self.message = "the sequence has problems; nothing was measured"
             return "failed"
-        sequence = checked.sequence
+        sequence = checked.passed()
         out = Path(item.out)
         if out.exists():
             self._continuable(Path(item.sequence), out)  # continued from its first missing point
