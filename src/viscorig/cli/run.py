@@ -225,7 +225,7 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
     floors = _forecast(campaign, sequence, opened)
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
                     floors=floors)
-    live = contextlib.nullcontext()
+    live: contextlib.AbstractContextManager[str | None] = contextlib.nullcontext()
     if args.live:
         from viscorig.cli.watch import live_view
 
