@@ -219,6 +219,7 @@ def _independent_prony(omega, storage, loss, terms, starts=8, seed=3):
             float(np.sqrt(np.mean(np.log(value.imag / loss) ** 2))))
 
 
+@pytest.mark.slow
 def test_lsdyna_card_holds_the_best_series_its_six_cards_allow(campaign, tmp_path, capsys):
     path, data = campaign
     text = _export(path, "lsdyna", tmp_path / "card.k", capsys)
