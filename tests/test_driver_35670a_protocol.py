@@ -34,7 +34,8 @@ from agilent35670a.scripted import ScriptedSCPIServer
 from scpi_blocks import canned_trace, definite_block
 
 IDN = "HEWLETT-PACKARD,35670A,3416A01234,A.02.01"
-SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
+#: The paper's station: forces (N) on inputs 1 and 3, accelerations (m/s²) on 2 and 4.
+INPUTS = [(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124), (4, "M/S2", 0.0102)]
 FREQUENCIES = np.array([10.0, 10.25, 10.5, 10.75, 11.0])
 FRF_21 = np.array([1 + 2j, -0.5 + 0.25j, 3e-3 - 1e2j, 0.1 + 0.1j, -7.0 + 0j])
 
@@ -82,10 +83,11 @@ def open_analyser(server: ScriptedSCPIServer, timeout_s: float = 1.0) -> Agilent
 def configured(server: Analyser, **overrides) -> Agilent35670A:
     analyser = open_analyser(server)
     arguments = dict(
-        sensitivities_v_per_eu=SENSITIVITIES,
-        level_m_per_s2=2.0,
+        inputs=INPUTS,
+        reference_channel=4,
+        reference_level_eu=2.0,
         source_limit_vpk=1.5,
-        force_limit_n=40.0,
+        input_limit_eu=40.0,
     )
     arguments.update(overrides)
     analyser.configure_swept_sine(**arguments)
