@@ -8,6 +8,12 @@ level), :attr:`~Agilent35670A.fft` and :attr:`~Agilent35670A.fft_source` (FFT mo
 :attr:`~Agilent35670A.runner` (start and wait). Facts come from the programming guide; what it
 leaves open is in :class:`~agilent35670a.quirks.Quirks`. What a measurement returns:
 :mod:`agilent35670a.segment`.
+
+The driver knows no rig. Generic primitives (:meth:`~Agilent35670A.configure_inputs` from a
+list of ``(input, label, sensitivity)`` settings, :meth:`~Agilent35670A.set_reference_channel`,
+``sweep.reference_pairing``, :meth:`~Agilent35670A.read_trace`) and one composite per
+measurement take the rig's wiring as arguments; viscorig keeps that wiring in
+``viscorig.acquisition.sweep.Wiring``.
 """
 
 from __future__ import annotations
