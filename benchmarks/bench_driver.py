@@ -15,7 +15,7 @@ import numpy as np
 from agilent35670a import Agilent35670A
 
 REPEATS = 30
-SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
+INPUTS = [(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124), (4, "M/S2", 0.0102)]
 
 
 def timed(action, repeats: int = REPEATS) -> float:
@@ -61,7 +61,7 @@ def with_simulator() -> bool:
             adapter = server.interface_resource if prologix else None
             with Agilent35670A.open(server.resource, adapter=adapter) as analyser:
                 analyser.configure_swept_sine(
-                    sensitivities_v_per_eu=SENSITIVITIES, level_m_per_s2=2.0,
+                    inputs=INPUTS, reference_channel=4, reference_level_eu=2.0,
                     source_limit_vpk=2.0, settle_cycles=1, integrate_cycles=1,
                 )
                 analyser.measure(10.0, 210.0, poll_interval_s=0.01)

@@ -16,6 +16,7 @@ from viscorig.acquisition import (
     SweepMeasurement,
     SweepSettings,
     Wiring,
+    configure,
     estimate_force,
     estimate_force_from_probe,
     motion_ratio,
@@ -246,6 +247,27 @@ def test_an_axis_off_the_plan_is_an_instrument_fault_and_nothing_is_written(tmp_
     with pytest.raises(InstrumentError, match=r"FAKE::1::INSTR.*returned"):
         measure_fake(tmp_path, FakeAnalyser(axis_shift_hz=0.125))
     assert Campaign.open(tmp_path / "c.h5").run("r").points == 0
+
+
+def test_the_wiring_decides_the_analysers_inputs_and_reference() -> None:
+    """Excitation force on input 3: the labels, sensitivities and reference follow the wiring
+    (the driver is told them, it decides none)."""
+    wiring = Wiring(3, 4, 1, 2, {1: 0.011, 2: 0.0102, 3: 0.012, 4: 0.0105})
+    assert wiring.inputs() == [(1, "N", 0.011), (2, "M/S2", 0.0102), (3, "N", 0.012),
+                               (4, "M/S2", 0.0105)]
+    assert wiring.reference_channel(bare_table=True) == 4
+    assert wiring.reference_channel(bare_table=False) == 2
+    with pytest.raises(ValueError, match=r"input\(s\) \[4\]"):
+        Wiring(1, 2, 3, 4, {1: 0.01, 2: 0.01, 3: 0.01}).inputs()
+    analyser = FakeAnalyser()
+    step = parse_sequence(SEQUENCE).sweeps[0]
+    configure(analyser, wiring, SweepSettings(step=step, level_m_per_s2=1.4, force_limit_n=100.0,
+                                              source_limit_v=2.0))
+    assert analyser.settings["inputs"] == wiring.inputs()
+    assert analyser.settings["reference_channel"] == 2  # the device's accelerometer
+    assert analyser.settings["reference_level_eu"] == 1.4
+    assert analyser.settings["pairing"] == "PAIR"
+    assert analyser.settings["input_limit_eu"] == 100.0
 
 
 def test_a_bare_table_run_stores_nan_support(tmp_path) -> None:

@@ -163,3 +163,86 @@ def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys,
     assert read_dma(Campaign.open(path), "g").modulus == "G"
     assert main(["import", str(path), "--run", "h", "--uff", str(sweep_csv), "--modulus", "E"]) == 2
     assert "--modulus: only with --dma" in capsys.readouterr().err
+
+
+#: The TRIOS "Export to LIMS" text layout (docs/materials.md names the public exports it was
+#: taken from): header sections of name<TAB>value, then one [Step] per isothermal frequency
+#: sweep with Variables, Units (aligned) and "Data point" lines.
+TRIOS_VARIABLES = ["Run time", "Temperature", "Angular frequency", "Oscillation strain",
+                   "Complex viscosity", "Step time", "Phase angle", "Date and time", "Frequency",
+                   "Tan(delta)", "Complex modulus", "Storage modulus", "Loss modulus"]
+TRIOS_UNITS = ["s", "°C", "rad/s", "%", "Pa.s", "s", "°", "", "Hz", "", "Pa", "MPa", "MPa"]
+
+
+def _trios_text(data, temperatures, frequencies, drift_k=0.03) -> str:
+    lines = ["[Version]", "TA Instruments LIMS export format version\t0", "[Header]",
+             "Instrument name\tRSA-G2", "Run date\t6/26/2023", "[Sample]", "Name\tgenerated",
+             "[Procedure]", "Procedure name\tTTS", "[Procedure: Steps]",
+             "Step 1\tConditioning-Sample : Temperature 150 °C", "[Parameters]",
+             "[Parameters: File Parameters]", "Trios version\t5.1.1.46572"]
+    size = len(frequencies)
+    for k, temperature in enumerate(temperatures):
+        lines += ["[Step]", f"Step name\tFrequency sweep ({temperature:.1f} °C)",
+                  f"Number of points\t{size}", "Variables\t" + "\t".join(TRIOS_VARIABLES),
+                  "Units\t" + "\t".join(TRIOS_UNITS)]
+        for i in range(k * size, (k + 1) * size):
+            f, e1, e2 = data["frequency_hz"][i], data["storage_pa"][i], data["loss_pa"][i]
+            t = data["temperature_c"][i] + drift_k * ((i % 3) - 1)
+            cells = [f"{10.0 * i:.6g}", f"{t:.17g}", f"{2 * np.pi * f:.17g}", "1.0", "12.5",
+                     "3.0", f"{np.degrees(np.arctan2(e2, e1)):.17g}", "6/26/2023 1:43:31 PM",
+                     f"{f:.17g}", f"{e2 / e1:.17g}", f"{np.hypot(e1, e2):.17g}",
+                     f"{e1 / 1e6:.17g}", f"{e2 / 1e6:.17g}"]
+            lines.append("Data point\t" + "\t".join(cells))
+    return "\r\n".join(lines) + "\r\n"
+
+
+@pytest.fixture
+def trios_file(tmp_path):
+    temperatures, frequencies = np.linspace(-20.0, 60.0, 5), np.logspace(-1, 1.3, 7)
+    data = dma_sweep(temperatures, frequencies, seed=5)
+    path = tmp_path / "sweep.txt"
+    path.write_text(_trios_text(data, temperatures, frequencies), encoding="utf-8")
+    return path, data
+
+
+def test_trios_text_export_is_read_by_content_each_step_one_set(trios_file, tmp_path, capsys):
+    path, data = trios_file
+    table = read_dma_csv(path)
+    assert table.points == 35 and table.sets.size == 5
+    assert table.set_index.tolist() == np.repeat(np.arange(5), 7).tolist()
+    assert np.allclose(table.frequency_hz, data["frequency_hz"], rtol=1e-12)
+    assert np.allclose(table.storage_pa, data["storage_pa"], rtol=1e-12)
+    assert np.allclose(table.loss_pa, data["loss_pa"], rtol=1e-12)
+    assert np.allclose(table.temperature_c, data["temperature_c"], atol=0.031)
+    # TRIOS names shear and tensile moduli alike: the kind is --modulus's, E by default
+    assert table.modulus == "E"
+    h5 = tmp_path / "c.h5"
+    assert main(["import", str(h5), "--run", "trios", "--dma", str(path), "--modulus", "G"]) == 0
+    assert "35 points, 5 temperatures" in capsys.readouterr().out
+    assert read_dma(Campaign.open(h5), "trios").modulus == "G"
+
+
+def _spoil_frequency(lines: list[str], row: int) -> list[str]:
+    """The Frequency cell of line ``row`` (1-based) made not a number."""
+    cells = lines[row - 1].split("\t")
+    cells[1 + TRIOS_VARIABLES.index("Frequency")] = "oops"
+    return [*lines[:row - 1], "\t".join(cells), *lines[row:]]
+
+
+@pytest.mark.parametrize(("edit", "expected"), [
+    (lambda lines: _spoil_frequency(lines, 20), "row 20, column 'Frequency'"),
+    (lambda lines: [line for line in lines if not line.startswith("Units")],
+     "row 19: a data point before the step's Variables and Units"),
+    (lambda lines: lines[:-1], "declares 7 points but holds 6"),
+])
+def test_bad_trios_exports_name_file_row_and_column(trios_file, tmp_path, capsys, edit,
+                                                    expected):
+    path, _ = trios_file
+    lines = edit(path.read_text(encoding="utf-8").splitlines())
+    bad = tmp_path / "bad.txt"
+    bad.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    h5 = tmp_path / "c.h5"
+    assert main(["import", str(h5), "--run", "x", "--dma", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bad.txt" in err and "row " in err and expected in err, err
+    assert "Traceback" not in err and not h5.exists()

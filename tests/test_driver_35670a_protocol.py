@@ -34,7 +34,8 @@ from agilent35670a.scripted import ScriptedSCPIServer
 from scpi_blocks import canned_trace, definite_block
 
 IDN = "HEWLETT-PACKARD,35670A,3416A01234,A.02.01"
-SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
+#: The paper's station: forces (N) on inputs 1 and 3, accelerations (m/s²) on 2 and 4.
+INPUTS = [(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124), (4, "M/S2", 0.0102)]
 FREQUENCIES = np.array([10.0, 10.25, 10.5, 10.75, 11.0])
 FRF_21 = np.array([1 + 2j, -0.5 + 0.25j, 3e-3 - 1e2j, 0.1 + 0.1j, -7.0 + 0j])
 
@@ -82,10 +83,11 @@ def open_analyser(server: ScriptedSCPIServer, timeout_s: float = 1.0) -> Agilent
 def configured(server: Analyser, **overrides) -> Agilent35670A:
     analyser = open_analyser(server)
     arguments = dict(
-        sensitivities_v_per_eu=SENSITIVITIES,
-        level_m_per_s2=2.0,
+        inputs=INPUTS,
+        reference_channel=4,
+        reference_level_eu=2.0,
         source_limit_vpk=1.5,
-        force_limit_n=40.0,
+        input_limit_eu=40.0,
     )
     arguments.update(overrides)
     analyser.configure_swept_sine(**arguments)
@@ -523,3 +525,52 @@ def test_a_fixed_source_measurement_turns_auto_level_off_and_on_again() -> None:
     start = commands.index(":INIT:IMM")
     assert off < level < start < commands.index("SOUR:VOLT:AUTO ON")
     assert after_error[0] == "SOUR:VOLT:AUTO OFF" and "SOUR:VOLT:AUTO ON" in after_error
+
+
+# -- the wiring is the caller's ------------------------------------------------------------------
+def test_configure_inputs_sends_the_labels_and_pairing_the_caller_gives() -> None:
+    """Forces on 2 and 4 here: the labels follow the argument, not a wiring built in."""
+    with Analyser() as server, open_analyser(server) as analyser:
+        analyser.configure_inputs([(1, "m/s2", 0.0102), (2, "N", 0.01124), (3, "M/S2", 0.0102),
+                                   (4, "N", 0.01124)], pairing="SING")
+        sent = [c for c in server.received if "?" not in c]
+        assert sent[:4] == ["INP2 ON", "INP3 ON", "INP4 ON", "REF SING"]
+        labels = [c for c in sent if ":XDCR:LAB " in c]
+        assert labels == ["VOLT1:RANG:UNIT:XDCR:LAB M/S2", "VOLT2:RANG:UNIT:XDCR:LAB N",
+                          "VOLT3:RANG:UNIT:XDCR:LAB M/S2", "VOLT4:RANG:UNIT:XDCR:LAB N"]
+        assert analyser.channels_in_use == (1, 2, 3, 4)
+
+
+@pytest.mark.parametrize(
+    ("inputs", "complaint"),
+    [
+        ([(1, "N", 0.01), (2, "N;*RST", 0.01)], "label"),
+        ([(1, "N", 0.01), (1, "M/S2", 0.01)], "given twice"),
+        ([(2, "M/S2", 0.01)], "input 1"),
+        ([(1, "N", 0.01), (5, "N", 0.01)], "not 1..4"),
+        ([(1, "N", 0.0)], "V/EU"),
+        ([(1, "N")], "not \\(number, label"),
+    ],
+)
+def test_bad_input_settings_are_refused_before_anything_is_sent(inputs, complaint) -> None:
+    with Analyser() as server, open_analyser(server) as analyser:
+        before = list(server.received)
+        with pytest.raises(SettingOutOfRange, match=complaint):
+            analyser.configure_inputs(inputs, pairing="PAIR")
+        with pytest.raises(SettingOutOfRange, match=complaint):
+            analyser.configure_swept_sine(inputs=inputs, reference_channel=1,
+                                          reference_level_eu=1.0, source_limit_vpk=1.0)
+        assert server.received == before
+
+
+def test_a_reference_outside_the_inputs_is_refused_before_anything_is_sent() -> None:
+    with Analyser() as server, open_analyser(server) as analyser:
+        before = list(server.received)
+        with pytest.raises(SettingOutOfRange, match="reference channel 4 is not in use"):
+            analyser.configure_swept_sine(inputs=INPUTS[:2], reference_channel=4,
+                                          reference_level_eu=2.0, source_limit_vpk=1.0)
+        with pytest.raises(SettingOutOfRange, match="PAIR"):
+            analyser.configure_swept_sine(inputs=INPUTS, reference_channel=4,
+                                          reference_level_eu=2.0, source_limit_vpk=1.0,
+                                          pairing="BOTH")
+        assert server.received == before

@@ -25,7 +25,8 @@ server_module = pytest.importorskip("rigsim.server")
 rigfile = pytest.importorskip("rigsim.rigfile")
 faults = pytest.importorskip("rigsim.faults")
 
-SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}  # the soft-0 preset's sensors
+#: The paper's station: forces (N) on inputs 1 and 3, accelerations (m/s²) on 2 and 4.
+INPUTS = [(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124), (4, "M/S2", 0.0102)]
 LEVEL_M_PER_S2 = 2.0
 
 
@@ -46,8 +47,8 @@ def connect(server, timeout_s: float = 2.0) -> Agilent35670A:
 
 
 def configure(analyser: Agilent35670A, cycles: float = 20.0, **overrides) -> None:
-    settings = dict(sensitivities_v_per_eu=SENSITIVITIES, level_m_per_s2=LEVEL_M_PER_S2,
-                    source_limit_vpk=2.0, force_limit_n=90.0, settle_cycles=cycles,
+    settings = dict(inputs=INPUTS, reference_channel=4, reference_level_eu=LEVEL_M_PER_S2,
+                    source_limit_vpk=2.0, input_limit_eu=90.0, settle_cycles=cycles,
                     integrate_cycles=cycles)
     settings.update(overrides)
     analyser.configure_swept_sine(**settings)

@@ -46,11 +46,11 @@ def test_short_sweep(analyser: Agilent35670A) -> None:
     four = "AY6" in analyser.options
     channels = (1, 2, 3, 4) if four else (1, 2)
     analyser.configure_swept_sine(
-        sensitivities_v_per_eu={ch: 1.0 for ch in channels},
-        level_m_per_s2=0.05,
-        source_limit_vpk=0.5,
+        inputs=[(ch, "N" if ch % 2 else "M/S2", 1.0) for ch in channels],
         reference_channel=2,
-        four_channels=four,
+        reference_level_eu=0.05,
+        source_limit_vpk=0.5,
+        pairing="PAIR" if four else None,
         settle_cycles=5,
         integrate_cycles=5,
     )

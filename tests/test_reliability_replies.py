@@ -25,7 +25,8 @@ from hypothesis import strategies as st
 from scpi_blocks import canned_trace, definite_block
 
 IDN = "HEWLETT-PACKARD,35670A,3416A01234,A.02.01"
-SENSITIVITIES = {1: 0.01124, 2: 0.0102, 3: 0.01124, 4: 0.0102}
+#: The paper's station: forces (N) on inputs 1 and 3, accelerations (m/s²) on 2 and 4.
+INPUTS = [(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124), (4, "M/S2", 0.0102)]
 START_HZ, STOP_HZ, RESOLUTION_HZ = 20.0, 21.0, 0.25
 FREQUENCIES = START_HZ + RESOLUTION_HZ * np.arange(5)
 FRF_21 = np.array([1 + 2j, -0.5 + 0.25j, 3e-3 - 1e2j, 0.1 + 0.1j, -7.0 + 0j])
@@ -139,8 +140,8 @@ def measure_with(server: DamagedAnalyser):
     analyser = Agilent35670A.open(server.resource, timeout_s=0.25)
     try:
         analyser.configure_swept_sine(
-            sensitivities_v_per_eu=SENSITIVITIES, level_m_per_s2=2.0, source_limit_vpk=1.5,
-            force_limit_n=40.0, start_hz=START_HZ, stop_hz=STOP_HZ,
+            inputs=INPUTS, reference_channel=4, reference_level_eu=2.0, source_limit_vpk=1.5,
+            input_limit_eu=40.0, start_hz=START_HZ, stop_hz=STOP_HZ,
             resolution_hz=RESOLUTION_HZ,
         )
         return analyser.measure(START_HZ, STOP_HZ, poll_interval_s=0.005)

@@ -3,11 +3,17 @@
 Built on pyvisa; imports nothing of ``viscorig`` or ``rigsim``. The authority is the 35670A's
 programming guide; what it leaves open is in :class:`Quirks`.
 
+The driver knows no rig: which transducer is on which input (labels, sensitivities), which
+input the auto level holds, the ``REF`` pairing and which ratio is which accelerance are the
+caller's, passed as arguments. viscorig keeps that wiring in
+:class:`viscorig.acquisition.sweep.Wiring`.
+
 >>> from agilent35670a import Agilent35670A
 >>> with Agilent35670A.open("GPIB0::11::INSTR") as analyser:      # doctest: +SKIP
-...     analyser.configure_swept_sine(sensitivities_v_per_eu={1: 0.01124, 2: 0.0102,
-...                                   3: 0.01124, 4: 0.0102}, level_m_per_s2=2.0,
-...                                   source_limit_vpk=1.0)
+...     analyser.configure_swept_sine(
+...         inputs=[(1, "N", 0.01124), (2, "M/S2", 0.0102), (3, "N", 0.01124),
+...                 (4, "M/S2", 0.0102)],
+...         reference_channel=4, reference_level_eu=2.0, source_limit_vpk=1.0)
 ...     segment = analyser.measure(10.0, 60.0)
 ...     points = analyser.measure_points([12.5, 19.3, 40.0], settle_cycles=20,
 ...                                      integrate_cycles=50)
@@ -33,7 +39,7 @@ scripted      a recording SCPI test server (for protocol tests and benchmarks)
 ============  ================================================================================
 """
 
-from .channels import TRANSDUCER_LABELS, InputChannel
+from .channels import TRANSDUCER_LABELS, InputChannel, InputSetting
 from .connection import IDEMPOTENT_QUERIES, Connection
 from .errors import (
     ConnectionLost,
@@ -59,6 +65,7 @@ __all__ = [
     "Connection",
     "ConnectionLost",
     "InputChannel",
+    "InputSetting",
     "InstrumentError",
     "InstrumentTimeout",
     "MalformedReply",

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
+from numbers import Integral
+from typing import NamedTuple
 
 from .errors import SettingOutOfRange
 from .properties import (
@@ -19,7 +22,7 @@ from .properties import (
     strict_range,
 )
 
-__all__ = ["TRANSDUCER_LABELS", "InputChannel", "range_dbvrms"]
+__all__ = ["TRANSDUCER_LABELS", "InputChannel", "InputSetting", "check_inputs", "range_dbvrms"]
 
 #: Transducer labels of ``VOLTn:RANG:UNIT:XDCR:LAB`` (chapter 18). A whitelist: free text would
 #: end up inside a SCPI message, where ``;`` or a quote could inject commands.
@@ -42,6 +45,73 @@ def _label(value: object, owner: object) -> str:
     if text not in TRANSDUCER_LABELS:
         raise SettingOutOfRange(f"label {value!r} is not one of {', '.join(TRANSDUCER_LABELS)}")
     return text
+
+
+class InputSetting(NamedTuple):
+    """What one input measures: its number, engineering-unit label and transducer sensitivity.
+
+    A plain tuple, so a caller can pass ``(1, "N", 0.01124)`` without importing this class.
+    Which transducer sits on which input is the caller's (the rig's wiring); the driver only
+    checks that the values are ones the analyser takes.
+
+    Attributes
+    ----------
+    number
+        The input, 1..4.
+    label
+        Engineering-unit label, one of :data:`TRANSDUCER_LABELS` (``"N"``, ``"M/S2"``...).
+    sensitivity_v_per_eu
+        Transducer sensitivity in V per unit of ``label``, 1e-9 to 1e6 V/EU.
+    """
+
+    number: int
+    label: str
+    sensitivity_v_per_eu: float
+
+
+def check_inputs(inputs: Iterable[tuple[int, str, float]],
+                 owner: object = None) -> tuple[InputSetting, ...]:
+    """Validate input settings before anything is sent.
+
+    Parameters
+    ----------
+    inputs
+        ``(number, label, sensitivity_v_per_eu)`` for each input in use; input 1 (always on)
+        must be among them, each input at most once.
+    owner
+        The part named in the messages.
+
+    Returns
+    -------
+    tuple of InputSetting
+        The settings, in input order, labels upper-cased.
+
+    Raises
+    ------
+    SettingOutOfRange
+        An input outside 1..4, repeated, input 1 missing, a label off the list or a
+        sensitivity outside 1e-9..1e6 V/EU.
+    """
+    checked: dict[int, InputSetting] = {}
+    for entry in inputs:
+        try:
+            number, label, sensitivity = entry
+        except (TypeError, ValueError):
+            raise SettingOutOfRange(
+                f"input setting {entry!r} is not (number, label, sensitivity_v_per_eu)"
+            ) from None
+        if not isinstance(number, Integral) or isinstance(number, bool) or not 1 <= number <= 4:
+            raise SettingOutOfRange(f"input {number!r} is not 1..4")
+        number = int(number)
+        if number in checked:
+            raise SettingOutOfRange(f"input {number} is given twice")
+        checked[number] = InputSetting(
+            number, _label(label, owner),
+            strict_range(1e-9, 1e6, "V/EU")(sensitivity, owner),
+        )
+    if 1 not in checked:
+        raise SettingOutOfRange("input 1 (always on) has no setting")
+    return tuple(checked[number] for number in sorted(checked))
 
 
 class InputChannel(Subsystem):

@@ -8,16 +8,22 @@ level), :attr:`~Agilent35670A.fft` and :attr:`~Agilent35670A.fft_source` (FFT mo
 :attr:`~Agilent35670A.runner` (start and wait). Facts come from the programming guide; what it
 leaves open is in :class:`~agilent35670a.quirks.Quirks`. What a measurement returns:
 :mod:`agilent35670a.segment`.
+
+The driver knows no rig. Generic primitives (:meth:`~Agilent35670A.configure_inputs` from a
+list of ``(input, label, sensitivity)`` settings, :meth:`~Agilent35670A.set_reference_channel`,
+``sweep.reference_pairing``, :meth:`~Agilent35670A.read_trace`) and one composite per
+measurement take the rig's wiring as arguments; viscorig keeps that wiring in
+``viscorig.acquisition.sweep.Wiring``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
 from .blocks import check_axis
-from .channels import InputChannel
+from .channels import InputChannel, check_inputs
 from .connection import Connection
 from .errors import (
     ConnectionLost,
@@ -221,16 +227,81 @@ class Agilent35670A(Subsystem):
             return MAX_FREQUENCY_FOUR_CHANNELS_HZ
         return MAX_FREQUENCY_HZ
 
-    # -- the paper's test in one call ----------------------------------------------------------
+    # -- generic set-up primitives --------------------------------------------------------------
+    def configure_inputs(self, inputs: Iterable[tuple[int, str, float]], *,
+                         pairing: str | None = None) -> None:
+        """Switch the inputs in use on and set each one's engineering units and autorange.
+
+        What each input measures is the caller's to say (the rig's wiring): the driver only
+        validates the values, every one before anything is sent. Inputs 2..4 not listed are
+        switched off where the analyser allows it (input 2 of a two-channel analyser stays on).
+
+        Parameters
+        ----------
+        inputs
+            ``(number, label, sensitivity_v_per_eu)`` per input in use (see
+            :class:`~agilent35670a.channels.InputSetting`): input 1..4, a label of
+            :data:`~agilent35670a.channels.TRANSDUCER_LABELS`, 1e-9..1e6 V/EU. Input 1 is
+            always among them; inputs 3 and 4 need option AY6.
+        pairing
+            ``"PAIR"`` (1 is the reference of 2, 3 of 4) or ``"SING"`` (1 of all) for
+            ``REF``; ``None`` leaves it as it is.
+
+        Raises
+        ------
+        SettingOutOfRange, SCPIError, MissingOption
+        """
+        settings = check_inputs(inputs, self)
+        if pairing is not None:
+            SweptSine.reference_pairing.validator(pairing, self.sweep)
+        channels = tuple(setting.number for setting in settings)
+        if any(number in (3, 4) for number in channels) and "AY6" not in self.options:
+            installed = ", ".join(sorted(self.options)) or "none"
+            raise MissingOption(f"option AY6 (channels 3 and 4) is not installed; *OPT? lists: "
+                                f"{installed}", ("AY6",), self.resource)
+        self.channels_in_use = channels
+        for number in (2, 3, 4):
+            if number in channels:
+                self.channel(number).enabled = True
+            elif "AY6" in self.options and number != 2:
+                self.channel(number).enabled = False
+        if pairing is not None:
+            self.sweep.reference_pairing = pairing
+        for setting in settings:
+            channel = self.channel(setting.number)
+            channel.set_engineering_units(setting.label, setting.sensitivity_v_per_eu)
+            channel.autorange = True
+
+    def set_reference_channel(self, channel: int, level_eu: float, *,
+                              tolerance_db: float = 2.0) -> None:
+        """Auto level: hold input ``channel`` at ``level_eu`` (peak, in that input's
+        engineering unit) within ``tolerance_db``.
+
+        Parameters
+        ----------
+        channel
+            Auto-level reference input, one of the inputs in use (1..4).
+        level_eu
+            Reference amplitude, peak, in the input's engineering unit (> 0, ≤ 1e6).
+        tolerance_db
+            Accepted deviation from the reference level, dB.
+        """
+        if channel not in self.channels_in_use:
+            raise SettingOutOfRange(f"reference channel {channel} is not in use")
+        self.source.reference_channel = channel
+        self.source.reference_eu = level_eu
+        self.source.tolerance_db = tolerance_db
+
+    # -- one composite per measurement -----------------------------------------------------------
     def configure_swept_sine(
         self,
         *,
-        sensitivities_v_per_eu: Mapping[int, float],
-        level_m_per_s2: float,
+        inputs: Iterable[tuple[int, str, float]],
+        reference_channel: int,
+        reference_level_eu: float,
         source_limit_vpk: float,
-        force_limit_n: float | None = None,
-        reference_channel: int = 4,
-        four_channels: bool = True,
+        input_limit_eu: float | None = None,
+        pairing: str | None = "PAIR",
         resolution_hz: float = 0.25,
         start_hz: float = 10.0,
         stop_hz: float = 60.0,
@@ -241,32 +312,32 @@ class Agilent35670A(Subsystem):
         start_level_vpk: float = 0.1,
         data_format: str = "REAL,64",
     ) -> None:
-        """Set up the paper's swept-sine test and read every setting back.
+        """Set up an auto-levelled swept sine and read every setting back.
 
-        Swept-sine mode, channels 1..4 on with ``REF PAIR`` (1 → 2, 3 → 4), engineering units
-        (channels 1 and 3 force in N, 2 and 4 acceleration in m/s²), autorange, a linear grid of
-        ``resolution_hz`` with automatic resolution off, settle and integration in cycles, auto
-        level holding ``reference_channel`` at ``level_m_per_s2`` within ``tolerance_db``, the
-        source limit (always written before the level), and optionally the input limit (every
-        input but the reference stays below ``force_limit_n`` of its own unit, which with this
-        wiring holds the shaker's force). Each value is validated before anything is sent, the
-        error queue is checked after each setting, and all settings are read back at the end.
+        Swept-sine mode, the inputs of ``inputs`` (:meth:`configure_inputs`, with ``pairing``),
+        a linear grid of ``resolution_hz`` with automatic resolution off, settle and
+        integration in cycles, the source limit (always written before the level), auto level
+        holding ``reference_channel`` at ``reference_level_eu`` within ``tolerance_db``
+        (:meth:`set_reference_channel`) and optionally the input limit (every input but the
+        reference stays below ``input_limit_eu`` of its own unit). Which transducer is on which
+        input, and so which input is the reference, is the caller's: the driver knows no rig.
+        Each value is validated before anything is sent, the error queue is checked after each
+        setting, and all settings are read back at the end.
 
         Parameters
         ----------
-        sensitivities_v_per_eu
-            Channel -> transducer sensitivity: V/N for channels 1 and 3, V/(m/s²) for 2 and 4.
-        level_m_per_s2
-            Reference acceleration amplitude (peak) held by the controller, m/s².
+        inputs
+            ``(number, label, sensitivity_v_per_eu)`` per input in use.
+        reference_channel
+            Auto-level reference input (one of ``inputs``).
+        reference_level_eu
+            Amplitude (peak) the controller holds on the reference, in its unit (> 0, ≤ 1e6).
         source_limit_vpk
             Highest source level, volts peak (≤ 5).
-        force_limit_n
-            Shaker force limit (peak, N) applied as the auto-level input limit; ``None`` for
-            none.
-        reference_channel
-            Auto-level reference channel (4: the disc; 2 on a bare-table run).
-        four_channels
-            Use channels 3 and 4 (needs option AY6); else channels 1 and 2 only.
+        input_limit_eu
+            Auto-level input limit (peak, in each input's unit); ``None`` for none.
+        pairing
+            ``"PAIR"``, ``"SING"`` or ``None`` (not sent), see :meth:`configure_inputs`.
         resolution_hz, start_hz, stop_hz
             Linear grid (Hz) and the first band (set before the resolution, which must give at
             most 801 points over the band in use); :meth:`measure` sets each segment's band.
@@ -280,13 +351,13 @@ class Agilent35670A(Subsystem):
         ------
         SettingOutOfRange, SCPIError, SettingNotApplied, MissingOption
         """
-        channels = (1, 2, 3, 4) if four_channels else (1, 2)
-        missing = [ch for ch in channels if ch not in sensitivities_v_per_eu]
-        if missing:
-            raise SettingOutOfRange(f"no transducer sensitivity given for channel(s) {missing}")
+        settings = check_inputs(inputs, self)
+        channels = tuple(setting.number for setting in settings)
         if reference_channel not in channels:
             raise SettingOutOfRange(f"reference channel {reference_channel} is not in use")
-        strict_range(0.0, 1e6, "m/s²", low_inclusive=False)(level_m_per_s2, self)
+        strict_range(0.0, 1e6, "EU", low_inclusive=False)(reference_level_eu, self)
+        if pairing is not None:
+            SweptSine.reference_pairing.validator(pairing, self.sweep)
         self._check_band(start_hz, stop_hz, resolution_hz)
         strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
         strict_range(0.0, 1e6, "cycles")(settle_cycles, self)
@@ -297,22 +368,11 @@ class Agilent35670A(Subsystem):
                 f"limit {source_limit_vpk:g} Vpk"
             )
         self.identify()
-        self.require_options(four_channels)
+        self.require_options(any(number in (3, 4) for number in channels))
         self.channels_in_use = channels
         self.instrument_mode = "SINE"
         self.set_data_format(data_format)
-        for number in (2, 3, 4):
-            if number in channels:
-                self.channel(number).enabled = True
-            elif "AY6" in self.options and number != 2:
-                self.channel(number).enabled = False
-        if four_channels:
-            self.sweep.reference_pairing = "PAIR"
-        for number in channels:
-            channel = self.channel(number)
-            channel.set_engineering_units("N" if number in (1, 3) else "M/S2",
-                                          sensitivities_v_per_eu[number])
-            channel.autorange = True
+        self.configure_inputs(settings, pairing=pairing)
         sweep = self.sweep
         sweep.sweep_mode = "AUTO"
         sweep.spacing = "LIN"
@@ -324,11 +384,10 @@ class Agilent35670A(Subsystem):
         source = self.source
         source.limit_vpk = source_limit_vpk  # the limit always goes first
         source.level_vpk = start_level_vpk
-        source.reference_channel = reference_channel
-        source.reference_eu = level_m_per_s2
-        source.tolerance_db = tolerance_db
-        if force_limit_n is not None:
-            source.input_limit_eu = force_limit_n
+        self.set_reference_channel(reference_channel, reference_level_eu,
+                                   tolerance_db=tolerance_db)
+        if input_limit_eu is not None:
+            source.input_limit_eu = input_limit_eu
         source.auto_level = True
         self.verify_configuration()
 

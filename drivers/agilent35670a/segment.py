@@ -49,9 +49,10 @@ class SweepSegment:
         The analyser's own frequency axis (``TRAC:X?``), never computed.
     frf_21
         Frequency response channel 2 / channel 1, complex, in channel 2's engineering unit per
-        channel 1's (with the paper's wiring: table accelerance, (m/s²)/N).
+        channel 1's. What it is physically (a table or a support accelerance) is the caller's
+        wiring; the driver does not say.
     frf_43
-        Channel 4 / channel 3 (support accelerance, (m/s²)/N), or ``None`` with two channels.
+        Channel 4 / channel 3 in the same way, or ``None`` with two channels.
     amplitude_eu
         Channel number -> magnitude of its linear spectrum at each point, in that channel's
         engineering unit (``eu_labels``), as the analyser scales it (peak in swept sine,

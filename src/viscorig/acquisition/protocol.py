@@ -91,12 +91,12 @@ class Analyser(Protocol):
     def configure_swept_sine(
         self,
         *,
-        sensitivities_v_per_eu: Mapping[int, float],
-        level_m_per_s2: float,
-        source_limit_vpk: float,
-        force_limit_n: float | None,
+        inputs: Sequence[tuple[int, str, float]],
         reference_channel: int,
-        four_channels: bool,
+        reference_level_eu: float,
+        source_limit_vpk: float,
+        input_limit_eu: float | None,
+        pairing: str | None,
         resolution_hz: float,
         start_hz: float,
         stop_hz: float,
@@ -107,7 +107,9 @@ class Analyser(Protocol):
         start_level_vpk: float,
     ) -> None:
         """Set up the sweep with the source off; the source limit is set before anything that
-        could switch the source on."""
+        could switch the source on. ``inputs`` is ``(input, label, sensitivity V/EU)`` per
+        transducer and ``reference_channel`` the auto-level input, both from
+        :class:`~viscorig.acquisition.sweep.Wiring` (the driver knows no wiring)."""
 
     def measure(
         self,

@@ -43,8 +43,11 @@ class SweepInterrupted(Exception):  # noqa: N818 (an outcome, not a fault)
 class Wiring:
     """Which analyser input carries which transducer (from the station file).
 
-    The analyser pairs inputs (1 → 2, 3 → 4): the pair of the excitation force gives the table
-    accelerance, the other pair the support accelerance.
+    This is where the rig's wiring lives; the driver knows none of it. From it come the
+    inputs' labels and sensitivities (:meth:`inputs`), the auto-level reference
+    (:meth:`reference_channel`), the ``REF PAIR`` pairing and which measured ratio is which
+    accelerance (:func:`segment_of`): the analyser pairs inputs (1 → 2, 3 → 4), the pair of the
+    excitation force gives the table accelerance, the other pair the support accelerance.
     """
 
     excitation_force: int
@@ -69,6 +72,33 @@ class Wiring:
                 channels.device_acceleration: sensitivity.device_acceleration_v_per_m_s2,
             },
         )
+
+    #: Engineering-unit labels the analyser shows forces and accelerations in.
+    FORCE_LABEL = "N"
+    ACCELERATION_LABEL = "M/S2"
+    #: ``REF PAIR``: input 1 is the reference of 2 and 3 of 4, so each force must sit on an
+    #: odd input with its acceleration on the next one.
+    PAIRING = "PAIR"
+
+    def inputs(self) -> list[tuple[int, str, float]]:
+        """``(input, label, sensitivity V/EU)`` for each transducer, in input order: forces in
+        N, accelerations in m/s² (the driver's input settings)."""
+        labels = {
+            self.excitation_force: self.FORCE_LABEL,
+            self.device_force: self.FORCE_LABEL,
+            self.table_acceleration: self.ACCELERATION_LABEL,
+            self.device_acceleration: self.ACCELERATION_LABEL,
+        }
+        missing = sorted(set(labels) - set(self.sensitivities_v_per_eu))
+        if missing:
+            raise ValueError(f"wiring: no transducer sensitivity for input(s) {missing}")
+        return [(number, labels[number], float(self.sensitivities_v_per_eu[number]))
+                for number in sorted(labels)]
+
+    def reference_channel(self, bare_table: bool) -> int:
+        """The input the auto level holds: the table's accelerometer on a bare-table run, the
+        device's otherwise."""
+        return self.table_acceleration if bare_table else self.device_acceleration
 
     @property
     def force_limit_acts_on_excitation(self) -> bool:
@@ -150,14 +180,13 @@ def configure(
     if band_hz is None:
         grid = np.sort(step.frequencies_hz())
         band_hz = (float(grid[0]), float(grid[min(grid.size - 1, 800)]))
-    reference = wiring.table_acceleration if step.bare_table else wiring.device_acceleration
     analyser.configure_swept_sine(
-        sensitivities_v_per_eu=dict(wiring.sensitivities_v_per_eu),
-        level_m_per_s2=settings.level_m_per_s2,
+        inputs=wiring.inputs(),
+        reference_channel=wiring.reference_channel(step.bare_table),
+        reference_level_eu=settings.level_m_per_s2,
         source_limit_vpk=settings.source_limit_v,
-        force_limit_n=settings.force_limit_n if wiring.force_limit_acts_on_excitation else None,
-        reference_channel=reference,
-        four_channels=True,
+        input_limit_eu=settings.force_limit_n if wiring.force_limit_acts_on_excitation else None,
+        pairing=Wiring.PAIRING,
         resolution_hz=step.resolution_hz if resolution_hz is None else resolution_hz,
         start_hz=float(band_hz[0]),
         stop_hz=float(band_hz[1]),
@@ -226,8 +255,7 @@ def segment_of(
                                                                           measured.frf_21)
     amplitude, variance = measured.amplitude_eu, measured.variance
     nan = np.full(count, math.nan)
-    reference_channel = (wiring.table_acceleration if step.bare_table
-                         else wiring.device_acceleration)
+    reference_channel = wiring.reference_channel(step.bare_table)
     reference = np.asarray(amplitude.get(reference_channel, nan), dtype=float)
     force = np.asarray(amplitude.get(wiring.excitation_force, nan), dtype=float)
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from viscorig.acquisition.sweep import Wiring
 from viscorig.benchcheck.checks import FIXED_DRIVE, Readings, Roles
 
 __all__ = ["BenchSettings", "measure"]
@@ -81,10 +82,12 @@ def measure(analyser: Any, roles: Roles, sensitivity: dict[int, float],
     overloads: dict[int, list[str]] = {}
     start_vpk = min(settings.source_vpk, source_limit_v)
     low, high = min(settings.frequencies_hz), max(settings.frequencies_hz)
+    wiring = Wiring(roles.excitation_force, roles.table_acceleration, roles.device_force,
+                    roles.device_acceleration, sensitivity)
     analyser.configure_swept_sine(
-        sensitivities_v_per_eu=sensitivity, level_m_per_s2=settings.level_m_per_s2,
-        source_limit_vpk=source_limit_v, force_limit_n=force_limit_n,
-        reference_channel=roles.device_acceleration, resolution_hz=1.0, start_hz=low,
+        inputs=wiring.inputs(), reference_channel=wiring.reference_channel(bare_table=False),
+        reference_level_eu=settings.level_m_per_s2, source_limit_vpk=source_limit_v,
+        input_limit_eu=force_limit_n, pairing=Wiring.PAIRING, resolution_hz=1.0, start_hz=low,
         stop_hz=high, settle_cycles=settings.settle_cycles,
         integrate_cycles=settings.integrate_cycles, tolerance_db=settings.tolerance_db,
         start_level_vpk=start_vpk,

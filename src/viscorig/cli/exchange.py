@@ -99,8 +99,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="SDF file of a 35665A/35670A-family analyser (give twice: "
                         "ẍ_s/F_e, then ẍ_v/F_v)")
     source.add_argument("--dma", metavar="PATH",
-                        help="DMA temperature/frequency sweep (CSV, text, or an Excel workbook "
-                        "such as Eplexor's export), stored as a DMA run")
+                        help="DMA temperature/frequency sweep (CSV, a TA TRIOS text export, or an "
+                        "Excel workbook such as Eplexor's export), stored as a DMA run")
     imports.add_argument("--modulus", choices=("E", "G"), default=None,
                          help="with --dma: tensile (E) or shear (G) modulus (default: told "
                          "from the column names)")

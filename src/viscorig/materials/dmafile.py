@@ -5,6 +5,8 @@ Layouts read:
 - one row of column names, then one row of units (the layout pyvisco reads:
   ``f,E_stor,E_loss,T,Set`` / ``Hz,MPa,MPa,C,-``);
 - units inside the names: ``E' [MPa]``, ``Frequency (Hz)``, ``T/°C``;
+- TA Instruments TRIOS text exports ("Export to LIMS"), told by their first lines, each
+  ``[Step]`` one set (:mod:`viscorig.materials.trios` describes the layout);
 - comma, semicolon or tab between cells; decimal point, or decimal comma with semicolons or
   tabs; a UTF-8 byte-order mark; ``#`` comment lines before the header.
 
@@ -44,6 +46,7 @@ from viscorig.exchange.units import (
     normalised,
 )
 from viscorig.materials.table import ModulusTable
+from viscorig.materials.trios import is_trios_export, trios_steps
 
 #: Largest file read (a DMA table of 100 000 points is under 10 MB).
 MAX_FILE_BYTES = 32 * 1024 * 1024
@@ -153,9 +156,11 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
         raise InputError("no such file", where) from None
     except OSError as error:
         raise InputError(f"cannot be read ({error.strerror})", where) from None
-    delimiter, decimal_comma = _dialect(text, where)
     if "\x00" in text:
         raise InputError("not a text table (holds NUL bytes)", where)
+    if is_trios_export(text):
+        return _from_trios(text, modulus, where)
+    delimiter, decimal_comma = _dialect(text, where)
     try:
         rows = [(number, row) for number, row in enumerate(
             csv.reader(io.StringIO(text), delimiter=delimiter), start=1)
@@ -163,6 +168,27 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
             and not row[0].lstrip().startswith("#")]
     except csv.Error as error:
         raise InputError(f"not a readable table ({error})", where) from None
+    return _from_rows(rows, decimal_comma, modulus, where)
+
+
+def _from_trios(text: str, modulus: str | None, where: str) -> ModulusTable:
+    """A TRIOS LIMS text export (:mod:`viscorig.materials.trios`): every ``[Step]`` is one set,
+    its columns found by name as in a CSV table with a units row."""
+    steps = trios_steps(text, where)
+    names = [cell.strip() for cell in steps[0][1][0][1]]
+    rows: list[tuple[int, list[str]]] = [
+        (steps[0][1][0][0], [*names, "Step"]),
+        (steps[0][1][1][0], [*steps[0][1][1][1], *[""] * (len(names) - len(steps[0][1][1][1])),
+                             "-"])]
+    for ordinal, (_, step) in enumerate(steps):
+        (_, variables), _units = step[0], step[1]
+        position = {cell.strip(): i for i, cell in enumerate(variables)}
+        for number, cells in step[2:]:
+            mapped = [cells[position[name]] if name in position and position[name] < len(cells)
+                      else "" for name in names]
+            rows.append((number, [*mapped, str(ordinal)]))
+    decimal_comma = any(re.fullmatch(r"-?\d+,\d+(?:[eE][-+]?\d+)?", cell.strip())
+                        for _, cells in rows[2:12] for cell in cells)
     return _from_rows(rows, decimal_comma, modulus, where)
 
 

@@ -220,13 +220,20 @@ def ansys_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
 
 
 def _lsdyna_series(master: MasterCurve) -> tuple[PronySeries, str]:
+    """The series the card holds: the master's, or where that is longer than the cards hold,
+    the best series of :data:`LSDYNA_MAX_TERMS` terms refitted (not truncated) to every point
+    at the reduced frequencies the card itself applies (its WLF shift where it writes one)."""
     series = master.prony
     if series.terms <= LSDYNA_MAX_TERMS:
         return series, ""
-    omega = 2 * np.pi * master.reduced_frequency_hz
     table = master.table
+    function = master.shift_function
+    if function is not None and function.kind == "wlf":
+        reduced = table.frequency_hz * 10.0 ** function(table.temperature_c)
+    else:
+        reduced = master.reduced_frequency_hz
     scatter = (master.shifts.storage_scatter, master.shifts.loss_scatter)
-    shorter, fit = fit_prony_terms(omega, table.storage_pa, table.loss_pa, scatter,
+    shorter, fit = fit_prony_terms(2 * np.pi * reduced, table.storage_pa, table.loss_pa, scatter,
                                    LSDYNA_MAX_TERMS)
     note = (f"the {series.terms}-term series is refitted with {LSDYNA_MAX_TERMS} terms, the most "
             f"the {LSDYNA_MAX_CARDS} cards hold with the long-term one: rms ln(model/measured) "
