@@ -288,7 +288,7 @@ class Run:
                 ("band", self.band_text()), ("level", f"{m.level_m_per_s2:g} m/s² ({m.direction})"),
                 ("flagged points", int(self.stored.flagged().sum()) if self.stored.points else 0),
                 ("started", m.started), ("fits stored", ", ".join(
-                    f"{f.source.split()[-1]} {f.spec}" for f in self.fits) or "none")]
+                    f"{f.curve.source.split()[-1]} {f.model}" for f in self.fits) or "none")]
         body = "".join(f"<tr><th style=\"text-align:left\">{_e(k)}</th><td style=\"text-align:"
                        f"left\">{_e(v)}</td></tr>" for k, v in rows)
         return f"<b>Run {_e(self.name)}</b><table>{body}</table>"

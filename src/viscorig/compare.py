@@ -399,6 +399,7 @@ class Pair:
         parts = []
         for fit in (self.a, self.b):
             own = self._split[id(fit)][1]
+            assert fit.noise_covariance is not None  # only paired fits with noise get here
             parts.append(own - fit.noise_covariance)
         eigenvalues, vectors = np.linalg.eigh((parts[0] + parts[1]) / 2)
         return (vectors * np.clip(eigenvalues, 0.0, None)) @ vectors.T
@@ -444,8 +445,8 @@ class Pair:
         stderr = np.sqrt(np.maximum(variance, 0.0))
         return ratio - 1.0, np.where(np.isfinite(ratio), stderr, np.nan)
 
-    def change(self, quantity: str, unit: str, function: Callable[[Values], float],
-               after_function: Callable[[Values], float] | None = None) -> Change:
+    def change(self, quantity: str, unit: str, function: Callable[[Values], ArrayLike],
+               after_function: Callable[[Values], ArrayLike] | None = None) -> Change:
         """The relative change of ``function`` of the parameters from the first fit to the
         second (``after_function`` for the second when its model differs)."""
         after_function = after_function or function
@@ -482,8 +483,13 @@ def compare_fits(before: object, after: object, names: Iterable[str]) -> list[Ch
     Parameters missing from either fit are left out.
     """
     pair = Pair(before, after)
-    return [pair.change(name, _unit(pair.a, name), lambda values, name=name: values[name])
+    return [pair.change(name, _unit(pair.a, name), _value_of(name))
             for name in names if name in pair.a.values and name in pair.b.values]
+
+
+def _value_of(name: str) -> Callable[[Values], float]:
+    """``values -> values[name]``."""
+    return lambda values: values[name]
 
 
 def system_changes(before: object, after: object) -> list[Change]:

@@ -8,6 +8,7 @@ stored, frequencies in Hz at the interface.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,7 +81,7 @@ class SystemProperties:
     bandwidth_hz: float
 
 
-def system_properties(values: dict[str, float]) -> SystemProperties:
+def system_properties(values: Mapping[str, float]) -> SystemProperties:
     """Table 2 quantities from table and Voigt parameters (``M_s K_s C_s K_v C_v M_v``)."""
     stiffness = values["K_s"] + values["K_v"]
     mass = values["M_s"] + values["M_v"]
@@ -182,17 +183,17 @@ def derived(result, function, unit: str = "") -> Quantity:
     return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
 
 
-def natural_frequency(values: dict[str, float]) -> float:
+def natural_frequency(values: Mapping[str, float]) -> float:
     """``f_r`` (Hz) of the Voigt system, Table 2."""
     return system_properties(values).natural_frequency_hz
 
 
-def damping_factor(values: dict[str, float]) -> float:
+def damping_factor(values: Mapping[str, float]) -> float:
     """``ξ`` of the Voigt system, Table 2."""
     return system_properties(values).damping_factor
 
 
-def bandwidth(values: dict[str, float]) -> float:
+def bandwidth(values: Mapping[str, float]) -> float:
     """``B_r = 2 ξ f_r`` (Hz), Table 2."""
     return system_properties(values).bandwidth_hz
 

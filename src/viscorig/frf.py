@@ -22,7 +22,7 @@ def accelerance_to_receptance(
 ) -> NDArray[np.complex128]:
     """Receptance X/F in m/N from accelerance Ẍ/F in m/s²/N."""
     omega = angular_frequency(frequency_hz)
-    return np.asarray(accelerance_m_per_s2_per_n, dtype=complex) / (-(omega**2))
+    return np.asarray(accelerance_m_per_s2_per_n, dtype=np.complex128) / (-(omega**2))
 
 
 def receptance_to_accelerance(
@@ -30,7 +30,7 @@ def receptance_to_accelerance(
 ) -> NDArray[np.complex128]:
     """Accelerance Ẍ/F in m/s²/N from receptance X/F in m/N."""
     omega = angular_frequency(frequency_hz)
-    return np.asarray(receptance_m_per_n, dtype=complex) * (-(omega**2))
+    return np.asarray(receptance_m_per_n, dtype=np.complex128) * (-(omega**2))
 
 
 def accelerance_to_dynamic_stiffness(

@@ -21,10 +21,12 @@ to the analyser and its results to the file:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from viscorig.acquisition import stubs
 from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, RunRefused
@@ -196,7 +198,8 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
             call = MeasureRequest(step.run, session.resource, f, base_s, left,
                                   _call(group, levels))
             segment_measured, remeasured = yield from stubs.measure_segment(
-                call, lambda m, f=f: check_axis(m, f, session.resource), "adaptive")
+                call, functools.partial(check_axis, frequencies=f, resource=session.resource),
+                "adaptive")
             rig_s = point_times_s(segment_measured, base_s, sweep.time_base)
             time_s = test_time_s + np.cumsum(rig_s)
             test_time_s = float(time_s[-1])
@@ -292,7 +295,7 @@ def _slice(points: MeasuredPoints, start: int, stop: int) -> MeasuredPoints:
     )
 
 
-def _usable(values: np.ndarray | None) -> np.ndarray | None:
+def _usable(values: ArrayLike | None) -> np.ndarray | None:
     """A variance the plan can use (every value finite and positive), else ``None``."""
     if values is None:
         return None

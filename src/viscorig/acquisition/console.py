@@ -14,7 +14,7 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from typing import TextIO
+from typing import TextIO, TypedDict
 
 import numpy as np
 
@@ -44,6 +44,19 @@ def format_duration(seconds: float) -> str:
 def _number(value: float, unit: str, digits: int = 3) -> str:
     """``1.4 m/s^2``; "" when the value is not a finite number (never ``nan``)."""
     return f"{value:.{digits}g} {unit}" if math.isfinite(value) else ""
+
+
+class ConsoleView(TypedDict, total=False):
+    """:meth:`PageConsole.snapshot`: what the bench page shows."""
+
+    prompt: dict[str, object] | None
+    run: str
+    points_done: int
+    points_total: int
+    flagged: int
+    frequency_hz: float | None
+    run_left_s: float | None
+    messages: list[dict[str, object]]
 
 
 @dataclass
@@ -349,7 +362,7 @@ class PageConsole(Console):
             super().segment(done)
             self.progress.run_left_s = done.seconds_left
 
-    def snapshot(self) -> dict[str, object]:
+    def snapshot(self) -> ConsoleView:
         """What the page shows: the open prompt, progress and the last messages."""
         with self._lock:
             p = self.progress

@@ -54,7 +54,13 @@ import numpy as np
 from viscorig.acquisition.console import Console
 from viscorig.acquisition.probe import measure_probe
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
-from viscorig.acquisition.sweep import SweepInterrupted, SweepSettings, Wiring, configure
+from viscorig.acquisition.sweep import (
+    SweepHooks,
+    SweepInterrupted,
+    SweepSettings,
+    Wiring,
+    configure,
+)
 from viscorig.storage import Campaign
 
 __all__ = ["EngineState", "Msg", "Plan", "RunEngine", "RunRefused", "StopRequest"]
@@ -466,7 +472,8 @@ class RunEngine:
         configure(self.rig.analyser, self.rig.wiring, settings, **grid)
 
     def _do_probe(self, settings: SweepSettings) -> tuple:
-        hooks = _Hooks(self)
+        hooks = SweepHooks(should_stop=lambda: self.stop.asked(),
+                           measuring=self.stop.measuring)  # the stop request, as the probe sees it
         return measure_probe(self.rig.analyser, self.rig.wiring, settings, hooks)
 
     def _do_measure(self, request: MeasureRequest) -> MeasuredSegment:
@@ -592,18 +599,5 @@ class MeasureRequest:
     durations_s: np.ndarray
     left_after_s: float
     call: Callable[[Analyser, Callable[[SweepProgressReport], None], float], MeasuredSegment]
-
-
-class _Hooks:
-    """The stop request as the probe's hooks see it."""
-
-    def __init__(self, engine: RunEngine) -> None:
-        self.engine = engine
-        self.measuring = engine.stop.measuring
-        self.on_poll = None
-        self.on_segment = None
-
-    def should_stop(self) -> bool:
-        return self.engine.stop.asked()
 
 

@@ -28,6 +28,15 @@ __all__ = ["AnalyserNotAnswering", "ForceNearLimit", "HoldCondition", "InputOver
            "LevelNotHeld", "RetryAfter", "SpecimenOutOfBand", "standard_conditions"]
 
 
+class SpecimenThermometer(Protocol):
+    """What reads the specimen's temperature (a ``ChamberMonitor``; its ``soak``, if any, is
+    the band)."""
+
+    def specimen_c(self) -> float:
+        """The specimen thermocouple's reading, °C."""
+        ...
+
+
 @runtime_checkable
 class HoldCondition(Protocol):
     """A reason to hold a run (module text)."""
@@ -126,7 +135,7 @@ class SpecimenOutOfBand(_FlaggedInARow):
     flag = int(PointFlag.OUTSIDE_SOAK_BAND)
     what = "specimen out of its temperature band"
 
-    def __init__(self, points: int, chamber: object, every_s: float = 10.0,
+    def __init__(self, points: int, chamber: SpecimenThermometer, every_s: float = 10.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(points, 0.0, clock)
         self.chamber = chamber
@@ -213,7 +222,7 @@ class AnalyserNotAnswering:
 
 def standard_conditions(bench, force_limit_n: float, answers: Callable[[], object],
                         kinds: tuple[type[BaseException], ...],
-                        chamber: object | None = None) -> list[HoldCondition]:
+                        chamber: SpecimenThermometer | None = None) -> list[HoldCondition]:
     """The holds of a station's ``[bench]`` settings (:class:`BenchSettings`): four, and the
     temperature band's with a chamber."""
     conditions: list[HoldCondition] = [

@@ -19,6 +19,7 @@ file: a complete run is skipped, an interrupted one continues from what the file
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 
@@ -369,13 +370,14 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
     stored = yield from stubs.read_run(step.run, "measure")
     attributes = yield Msg("compute", (_attributes, step.run), step="measure")
     planned = step.frequencies_hz()
-    durations = point_durations_s(planned, step.settle_cycles, step.integrate_cycles)
+    _, settle_cycles, integrate_cycles = step.full_plan()
+    durations = point_durations_s(planned, settle_cycles, integrate_cycles)
     done = resume_index(planned, stored.frequency_hz,
                         where=f"{attributes['path']}: /runs/{step.run}")
     last_time_s = float(stored.time_s[-1]) if stored.points else 0.0
     test_time_s = float(attributes.get("test_time_s", last_time_s))
     run_started = iso_to_epoch(stored.metadata.started)
-    pieces = plan_segments(planned[done:], step.settle_cycles, step.integrate_cycles,
+    pieces = plan_segments(planned[done:], settle_cycles, integrate_cycles,
                            max_segment_s=step.segment_s, max_points=step.segment_points)
     for number, piece in enumerate(pieces, start=1):
         rows = slice(done + piece.start, done + piece.stop)
@@ -383,7 +385,8 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
         request = MeasureRequest(step.run, resource, frequencies, durations[rows],
                                  _left(step, rows.stop), _linear_call(frequencies))
         measured, remeasured = yield from stubs.measure_segment(
-            request, lambda m, f=frequencies: check_axis(m, f, resource), "measure")
+            request, functools.partial(check_axis, frequencies=frequencies, resource=resource),
+            "measure")
         rig_time = point_times_s(measured, durations[rows], settings.time_base)
         if settings.time_base == "test" or run_started is None:
             time_s = last_time_s + np.cumsum(durations[rows])
@@ -412,7 +415,7 @@ def _attributes(campaign: Campaign, run: str) -> dict[str, object]:
 
 
 def _left(step: SweepStep, done: int) -> float:
-    return time_left_s(step.frequencies_hz(), done, step.settle_cycles, step.integrate_cycles)
+    return time_left_s(step.frequencies_hz(), done, *step.full_plan()[1:])
 
 
 def _linear_call(frequencies: np.ndarray):

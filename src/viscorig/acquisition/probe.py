@@ -19,6 +19,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from viscorig.acquisition.limits import PROBE_LEVEL_FRACTION, ProbeReading, point_flags
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment, SweepProgressReport
@@ -155,6 +156,7 @@ def _first(values: object) -> float:
 def _reading(measured: MeasuredSegment, frequency_hz: float, wiring: Wiring,
              settings: SweepSettings) -> ProbeReading:
     step = settings.step
+    table_frf: ArrayLike
     if wiring.excitation_force == 1:
         table_frf = measured.frf_21
     else:

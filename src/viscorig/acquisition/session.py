@@ -148,7 +148,8 @@ class Session:
         if table is None:
             keys = ("table_mass_kg", "table_stiffness_n_per_m", "table_damping_ns_per_m")
             if all(key in rig for key in keys):
-                return RigEstimate(*(float(rig[key]) for key in keys), basis="/rig")
+                mass, stiffness, damping = (float(rig[key]) for key in keys)
+                return RigEstimate(mass, stiffness, damping, basis="/rig")
             return None
         return RigEstimate(table.mass_kg, table.stiffness_n_per_m, table.damping_ns_per_m,
                            basis="the station's table")

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from viscorig.acquisition.console import PageConsole, single_line
+from viscorig.acquisition.console import ConsoleView, PageConsole, single_line
 from viscorig.acquisition.engine import EngineState
 from viscorig.errors import InputError, ViscorigError
 from viscorig.sequences.station import BenchSettings
@@ -177,7 +177,7 @@ class BenchService:
         if not checked.ok:
             return [single_line(str(problem)) for problem in checked.problems], None, ""
         try:
-            forecasts = sequence_forecast(checked.sequence, checked.station)
+            forecasts = sequence_forecast(checked.passed(), checked.station)
         except ViscorigError as error:
             return [single_line(str(error))], None, ""
         low = sum(item.low_s for item in forecasts)
@@ -199,7 +199,7 @@ class BenchService:
                     return
         raise BenchError(f"queue item {item_id}: not queued", 404)
 
-    def move(self, item_id: str, position: int) -> None:
+    def move(self, item_id: str, position: object) -> None:
         """Move a queued sequence to ``position`` (0 is next).
 
         Raises
@@ -283,7 +283,7 @@ class BenchService:
             self.problems = [single_line(str(problem)) for problem in checked.problems]
             self.message = "the sequence has problems; nothing was measured"
             return "failed"
-        sequence = checked.sequence
+        sequence = checked.passed()
         out = Path(item.out)
         if out.exists():
             self._continuable(Path(item.sequence), out)  # continued from its first missing point
@@ -404,11 +404,11 @@ class BenchService:
         with self._lock:
             console, runner = self.console, self.runner
             busy = self.busy
-            view = console.snapshot() if console is not None else {}
+            view: ConsoleView = console.snapshot() if console is not None else {}
             engine = runner.engine if runner is not None else None
             if busy and (self._checking or engine is None):
                 state = "checking"
-            elif busy:
+            elif busy and engine is not None:  # the branch above took busy without an engine
                 state = _ENGINE_STATES.get(engine.state, "measuring")
                 if view.get("prompt") is not None and state == "measuring":
                     state = "waiting_for_operator"

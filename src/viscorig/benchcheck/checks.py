@@ -20,7 +20,7 @@ readings, but undoing that swap does: every pair is tried.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -153,7 +153,7 @@ def judge(readings: Readings, roles: Roles, rig: RigFacts,
     return verdicts
 
 
-def _list(values: Sequence[float]) -> str:
+def _list(values: Iterable[float]) -> str:
     return ", ".join(f"{v:g}" for v in values)
 
 

@@ -19,10 +19,12 @@ import json
 import re
 import sys
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.sequences import (
+    ChamberStation,
     FileCheckError,
     Problem,
     Sequence,
@@ -67,6 +69,12 @@ class Checked:
     def ok(self) -> bool:
         return not self.problems and self.sequence is not None
 
+    def passed(self) -> Sequence:
+        """The sequence of a check that found no problem (:attr:`ok`); ``ValueError`` else."""
+        if not self.ok or self.sequence is None:
+            raise ValueError("the sequence did not pass its check")
+        return self.sequence
+
 
 def _problems_of(error: InputError, source: str) -> list[Problem]:
     if isinstance(error, FileCheckError):
@@ -100,7 +108,8 @@ def check_texts(sequence_text: str, sequence_source: str, station_text: str | No
             station_text is None or checked.station is not None):
         from viscorig.sequences.setpoints import set_point_problems
 
-        if station_text is None:
+        chamber: ChamberStation | None
+        if checked.station is None:
             from viscorig.cli.stations import embedded_chamber_station
 
             chamber, name = embedded_chamber_station(checked.sequence), "the embedded rig"
@@ -123,7 +132,7 @@ def check_files(sequence_path: str, station_path: str | None) -> Checked:
     return check_texts(sequence_text, sequence_path, station_text, station_path or "")
 
 
-def refuse(checked: Checked, check_command: str | None) -> None:
+def refuse(checked: Checked, check_command: str | None) -> NoReturn:
     """Stop before anything runs: the first problem in one line, with how many more follow and
     the command that lists them all (``check_command``, when one can).
 
@@ -158,7 +167,7 @@ def check_command(args: argparse.Namespace) -> int:
         return 0 if checked.ok else 2
     for problem in checked.problems:
         print(problem)
-    if not checked.ok:
+    if not checked.ok or sequence is None or test_time_s is None:  # ok: both are set
         count = len(checked.problems)
         print(f"{count} problem{'s' if count != 1 else ''}", file=sys.stderr)
         return 2

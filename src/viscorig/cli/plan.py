@@ -46,9 +46,9 @@ def plan_command(args: argparse.Namespace) -> int:
 
     checked = check_files(args.sequence, args.station)
     if not checked.ok:
-        station = f" --station {args.station}" if args.station else ""
-        refuse(checked, f"viscorig check {args.sequence}{station}")
-    sequence, station = checked.sequence, checked.station
+        option = f" --station {args.station}" if args.station else ""
+        refuse(checked, f"viscorig check {args.sequence}{option}")
+    sequence, station = checked.passed(), checked.station
     forecasts = sequence_forecast(sequence, station)
     if args.json:
         low = sum(item.low_s for item in forecasts)

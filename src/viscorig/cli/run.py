@@ -104,9 +104,9 @@ def run_command(args: argparse.Namespace) -> int:
         raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
     checked = check_files(args.sequence, args.station)
     if not checked.ok:
-        station = f" --station {args.station}" if args.station else ""
-        refuse(checked, f"viscorig check {args.sequence}{station}")
-    sequence, station = checked.sequence, checked.station
+        option = f" --station {args.station}" if args.station else ""
+        refuse(checked, f"viscorig check {args.sequence}{option}")
+    sequence, station = checked.passed(), checked.station
     out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.sequence).stem}.h5"
     if out.exists():
         raise InputError(
@@ -141,7 +141,7 @@ def resume_command(args: argparse.Namespace) -> int:
                           f"{args.file}: /setup/station_toml")
     if not checked.ok:
         refuse(checked, "")
-    sequence, station = checked.sequence, checked.station
+    sequence, station = checked.passed(), checked.station
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     if all(statuses.get(name) == "complete" for name in sequence.run_names) and _identified(
         campaign, sequence
@@ -225,7 +225,7 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
     floors = _forecast(campaign, sequence, opened)
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
                     floors=floors)
-    live = contextlib.nullcontext()
+    live: contextlib.AbstractContextManager[str | None] = contextlib.nullcontext()
     if args.live:
         from viscorig.cli.watch import live_view
 

@@ -145,9 +145,12 @@ def serve_command(args: argparse.Namespace) -> int:
     if args.chamber is not None:
         from rigsim.chamber import Chamber
         from rigsim.chamber_server import ChamberServer
+        from rigsim.engine import RigSimulator
 
         chamber = Chamber(rig.chamber)
-        server.analyser.simulator.attach_chamber(chamber, advance=False)
+        simulator = server.analyser.simulator
+        assert isinstance(simulator, RigSimulator)  # the server builds the time-domain engine
+        simulator.attach_chamber(chamber, advance=False)
         pace = args.chamber_pace or args.pace or 1.0
         chamber_server = ChamberServer(chamber, transport=args.chamber, host=args.host,
                                        port=args.chamber_port, pace=pace)

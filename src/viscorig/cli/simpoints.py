@@ -96,8 +96,9 @@ class SimulatedRig:
         ends = record.end_time_s
         return MeasuredPoints(
             frequency_hz=f,
-            accelerance_table=accel_s / force_e,
-            accelerance_support=None if bare else accel_v / force_v,
+            accelerance_table=np.asarray(accel_s / force_e, dtype=np.complex128),
+            accelerance_support=(None if bare
+                                 else np.asarray(accel_v / force_v, dtype=np.complex128)),
             reference_amplitude=np.abs(accel_s if bare else accel_v),
             force_amplitude=np.abs(force_e),
             settle_cycles=settle.astype(np.int64),
@@ -105,7 +106,7 @@ class SimulatedRig:
             duration_s=np.diff(np.concatenate([[start], ends])),
             variance_table=record.variance[:, 0] + record.variance[:, 1],
             variance_support=None if bare else record.variance[:, 2] + record.variance[:, 3],
-            flags=flags,
+            flags=np.asarray(flags, dtype=np.uint16),
         )
 
 

@@ -145,8 +145,9 @@ def _specimen_geometry(sequence: Sequence) -> SpecimenGeometry | None:
     for step in sequence.steps:
         if isinstance(step, PromptStep) and step.simulated_rig in names:
             specimen = load_preset(step.simulated_rig).specimen
-            if None not in (specimen.diameter_m, specimen.height_m, specimen.count):
-                return SpecimenGeometry(specimen.diameter_m, specimen.height_m, specimen.count)
+            diameter_m, height_m, count = specimen.diameter_m, specimen.height_m, specimen.count
+            if diameter_m is not None and height_m is not None and count is not None:
+                return SpecimenGeometry(diameter_m, height_m, count)
     return None
 
 
@@ -259,7 +260,7 @@ def _wrong_rig(step: SweepStep, mounted: _Mounting, last_prompt: int | None) -> 
     changed = first is not None and (
         first.specimen != step.specimen
         or not _same_number(first.hardness_shore_a, step.hardness_shore_a))
-    if changed and last_prompt is not None and (mounted.prompt is None
+    if changed and first is not None and last_prompt is not None and (mounted.prompt is None
                                                or last_prompt > mounted.prompt):
         return (f"run {step.run!r} ({_describe_step(step)}) would be measured on {rig_text}, "
                 f"which run {first.run!r} measured as specimen {first.specimen!r}: the prompt "

@@ -25,10 +25,14 @@ import time
 import webbrowser
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import port_number
 from viscorig.errors import InputError
+
+if TYPE_CHECKING:
+    from viscorig.watch import WatchServer
 
 #: The port a technician can bookmark.
 DEFAULT_PORT = 8765
@@ -63,7 +67,7 @@ def open_in_browser(url: str) -> bool:
         return False
 
 
-def serve(path: Path, port: int) -> tuple[object, str]:
+def serve(path: Path, port: int) -> tuple[WatchServer, str]:
     """Start serving ``path``; return the server and its address.
 
     Raises
@@ -132,8 +136,9 @@ def live_view(path: Path, *, open_browser: bool, say=print) -> Iterator[str | No
         start_new_session=True,
     )
     address: list[str] = []
-    reader = threading.Thread(target=lambda: address.append(process.stdout.readline()),
-                              daemon=True)
+    output = process.stdout
+    assert output is not None  # stdout=PIPE
+    reader = threading.Thread(target=lambda: address.append(output.readline()), daemon=True)
     reader.start()
     reader.join(timeout=15)
     found = re.search(r"http://127\.0\.0\.1:\d+/", address[0]) if address else None

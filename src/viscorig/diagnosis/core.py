@@ -32,7 +32,7 @@ from viscorig.diagnosis.significance import dispersion
 from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, Known, fit
-from viscorig.models import parse_spec
+from viscorig.models import Fixture, parse_spec
 from viscorig.storage import Campaign
 
 #: ``rms_error`` within this factor of the noise floor counts as "at the noise floor".
@@ -259,9 +259,10 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
     and the rest of the diagnosis works on its misfit.
     """
     for _ in range(MODE_MOVES):
-        model, moved = result.model, {}
+        model = result.model
+        moved: dict[str, tuple[str, dict[str, str]]] = {}
         for term in model.effects:
-            if term.keyword != "fixture" or term.argument is None:
+            if not isinstance(term, Fixture) or term.argument is None:
                 continue
             names = model.local_names(term)
             f_n = result.values[names["f_n"]]
@@ -271,7 +272,7 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
                 moved[term.spec] = (type(term)(float(f"{f_n:.4g}")).spec, names)
         if not moved:
             return result
-        spec = "+".join([model.modulus_term.spec] + [
+        spec = "+".join([model.require_modulus().spec] + [
             moved[term.spec][0] if term.spec in moved else term.spec for term in model.effects])
         new = parse_spec(spec)
         start = carried_values(result, new)

@@ -106,7 +106,9 @@ class DiagnosisData:
         if not names:
             return np.zeros(0)
         p = np.array([values[n] for n in names], dtype=float)
-        p0 = np.array([self.table[n] for n in names], dtype=float)  # type: ignore[index]
+        table = self.table
+        assert table is not None  # the nuisance names are the table's
+        p0 = np.array([table[n] for n in names], dtype=float)
         return np.sqrt(self.prior_scale) * (self._prior_whitening() @ (p - p0))
 
     def prior_jacobian(self, values: dict[str, float], log: NDArray[np.bool_]) -> NDArray:
@@ -288,21 +290,25 @@ def combine(
     with the covariance they were found with (a :class:`~viscorig.fitting.Known`, as
     ``TableSource.known`` gives it), which the tests then allow for.
     """
-    prior = table if isinstance(table, Known) else None
-    if prior is not None:
-        table = dict(prior.values) if prior.values else None
+    prior: Known | None = None
+    exact: dict[str, float] | None
+    if isinstance(table, Known):
+        prior = table
+        exact = dict(table.values) if table.values else None
+    else:
+        exact = table
     if not runs:
         raise InputError("no run to diagnose", "diagnosis")
     pieces = [(name, data.in_band(band_hz)) for name, data in runs]
     main = pieces[0][1]
     if frfs is None:
         frfs = tuple(name for name in ("table", "support") if name in main.available)
-        if table is None:
+        if exact is None:
             frfs = tuple(name for name in frfs if name != "table")
     frfs = tuple(frfs)
     if not frfs:
         raise InputError("has no FRF to diagnose", main.name)
-    if "table" in frfs and table is None:
+    if "table" in frfs and exact is None:
         raise InputError(
             "the table FRF needs the table's M_s, K_s, C_s (a bare-table run or /rig)", main.name
         )
@@ -334,7 +340,7 @@ def combine(
         combined,
         tuple(segments),
         frfs,
-        None if table is None else dict(table),
+        None if exact is None else dict(exact),
         NoiseModel.join(noises),
         table_prior=prior if prior is not None and prior.names else None,
     )

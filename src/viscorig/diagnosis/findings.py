@@ -173,7 +173,9 @@ def candidate_spec(current: Model, term_text: str) -> str:
 
 def carried_values(old: FitResult | Likelihood, new: Model) -> dict[str, float]:
     """Values of ``old`` for every term ``new`` shares with it, under ``new``'s names."""
-    values = {name: old.values[name] for name in ("M_s", "K_s", "C_s") if name in old.values}
+    values: dict[str, float] = {
+        name: old.values[name] for name in ("M_s", "K_s", "C_s") if name in old.values
+    }
     old_terms = {term.spec: term for term in old.model.terms}
     for term in new.terms:
         match = old_terms.get(term.spec)
@@ -226,7 +228,7 @@ def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
 
 def _broad(model: Model) -> set[str]:
     """Parameters that shape the whole band: K*'s, the disc mass, the load cell's."""
-    names = set(model.local_names(model.modulus_term).values()) | {"M_v"}
+    names = set(model.local_names(model.require_modulus()).values()) | {"M_v"}
     return names | {n for t in model.effects if t.keyword == "load_cell"
                     for n in model.local_names(t).values()}
 
@@ -244,7 +246,8 @@ def fit_term(
     """
     model = parse_spec(candidate_spec(current.model, term_text))
     only = _broad(model) | added_parameters(model, term_text)
-    if model.modulus_term.spec != current.model.modulus_term.spec or term_text == "load_cell":
+    if (model.require_modulus().spec != current.model.require_modulus().spec
+            or term_text == "load_cell"):
         # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
@@ -323,7 +326,7 @@ def confirm(
             continue
         _, result, term = best
         if term == "maxwell":
-            term = result.model.modulus_term.spec
+            term = result.model.require_modulus().spec
         result, term = _renamed(result, term, data)
         if candidate.effect == "fixture_resonance" and not _inside(result, term, data):
             continue  # a mode fitted outside the band is a smooth trend there, not a local mode
@@ -338,14 +341,14 @@ def confirm(
     ties = _ties(findings)
     findings[: len(ties)] = sorted(ties, key=_priority)
     _after_modulus(findings)
-    best = _forward(current, data, findings)
+    forward = _forward(current, data, findings)
     for finding in findings:
         if finding.significant:  # its ± from the exact whitening, not the fit's stand-in
             finding.likelihood = evaluate(finding.likelihood.model, data,
                                           finding.likelihood.values)
     _mark_ambiguities(findings, ties)
     findings.sort(key=lambda finding: not finding.significant)  # stable: ranks kept within
-    return findings, best
+    return findings, forward
 
 
 def _after_modulus(findings: list[Finding]) -> None:
@@ -393,7 +396,7 @@ def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
 def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
     """Mark significant the findings that pay for themselves next to those before them; the fit
     of the model with all of them."""
-    base, accepted = current, []
+    base, accepted = current, list[Finding]()
     lead = findings[0] if findings else None
     if lead is None or lead.passes_alone or lead.delta_chi2 <= 0 or lead.effect == (
             "fixture_resonance"):

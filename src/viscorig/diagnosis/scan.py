@@ -23,6 +23,7 @@ length of the normalised templates along frequency for each width.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,7 +122,7 @@ class Residual:
             t = np.concatenate([t, np.zeros((missing, *t.shape[1:]))])
         return t - self.basis @ (self.basis.T @ t)
 
-    def template(self, change: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
+    def template(self, change: Mapping[str, NDArray[np.inexact]]) -> NDArray[np.float64]:
         """Whitened, projected change of the residual for a change ``δ log H`` per FRF (an FRF
         left out is unchanged); arrays of one column per effect are allowed."""
         shape = np.shape(next(iter(change.values())))
@@ -132,7 +133,7 @@ class Residual:
             columns[frf] = factor[:, None] * c if c.ndim > 1 else factor * c
         return self.project(self.data.whiten(columns))
 
-    def estimate(self, change: dict[str, NDArray[np.complex128]]) -> tuple[float, float, float]:
+    def estimate(self, change: Mapping[str, NDArray[np.inexact]]) -> tuple[float, float, float]:
         """Least-squares size of one effect whose unit changes ``log H`` by ``change``: its
         value, standard error and the drop of ``χ²`` it brings, to first order."""
         t = self.template(change)
@@ -181,15 +182,15 @@ def scan(
             best.append((float(gain[i]), float(f_n[i]), zeta, float(mass[i]), float(robust[i])))
     best.sort(reverse=True)
     peaks: list[Peak] = []
-    for gain, f_n, zeta, mass, robust in best:
-        if gain <= 0:
+    for peak_gain, peak_hz, peak_zeta, peak_mass, peak_robust in best:
+        if peak_gain <= 0:
             break
-        if any(abs(p.frequency_hz - f_n) < max(SEPARATION_HZ, 4 * p.damping_ratio *
-                                                   p.frequency_hz) for p in peaks):
+        if any(abs(p.frequency_hz - peak_hz) < max(SEPARATION_HZ, 4 * p.damping_ratio *
+                                                     p.frequency_hz) for p in peaks):
             continue
-        if any(abs(f - f_n) < 1.0 for f in existing_hz):
+        if any(abs(f - peak_hz) < 1.0 for f in existing_hz):
             continue
-        peaks.append(Peak(f_n, zeta, mass, robust))
+        peaks.append(Peak(peak_hz, peak_zeta, peak_mass, peak_robust))
         if len(peaks) >= 8:
             break
     return ScanResult(tuple(peaks), length,

@@ -211,12 +211,12 @@ def ml_fit(
             predicted = model.predict(ctx, current)
             return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
 
-    last: dict[str, object] = {}
+    last: list[tuple[NDArray[np.float64], dict[str, NDArray[np.complex128]]]] = []
 
     def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
-        if last.get("x") is None or not np.array_equal(last["x"], x):
-            last["x"], last["ratio"] = x.copy(), ratio(x)
-        return last["ratio"]  # type: ignore[return-value]
+        if not last or not np.array_equal(last[0][0], x):
+            last[:] = [(x.copy(), ratio(x))]
+        return last[0][1]
 
     prior_at = [free.index(name) for name in nuisance]
 

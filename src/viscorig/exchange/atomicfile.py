@@ -36,7 +36,7 @@ def _failed(error: OSError, path: Path) -> InputError:
     return InputError(f"cannot write ({cause(error, path)})", str(path))
 
 
-def replace_atomically(path: Path, write: Callable[[IO[Any]], None], *, text: bool) -> None:
+def replace_atomically(path: Path, write: Callable[[IO[Any]], object], *, text: bool) -> None:
     """Call ``write(handle)`` on a temporary file next to ``path``, then rename it to ``path``.
 
     Text is written as UTF-8 with the line endings ``write`` gives (no translation).

@@ -152,7 +152,7 @@ def _frf(trace: SdfTrace, where: str, origin: str) -> SdfFrf:
     keep = trace.valid & (trace.x > 0)
     if not np.any(keep):
         raise InputError("holds no valid point above 0 Hz", where)
-    values = trace.values[keep]
+    values = np.asarray(trace.values[keep], dtype=np.complex128)  # complex: checked above
     response, reference = trace.response, trace.reference
     if response is None and reference is None:
         if "/" not in trace.y_unit:
@@ -183,7 +183,7 @@ def read_sdf(path: str | Path) -> list[SdfFrf]:
         frequency response: the message says what it holds.
     """
     file = read_sdf_file(path)
-    found = []
+    found: list[SdfFrf] = []
     for trace in file.traces:
         if trace.domain == FREQUENCY_DOMAIN and trace.data_type == FREQUENCY_RESPONSE:
             number = len(found) + 1

@@ -306,7 +306,7 @@ def read_uff(path: Path) -> FrfSet:
         frequency = _abscissa_hz(record, here)
         ordinate, power = _ordinate_factor(record, system, here)
         denominator = _denominator_factor(record, system, here)
-        values = np.asarray(record["data"], dtype=complex) * (ordinate / denominator)
+        values = np.asarray(record["data"], dtype=np.complex128) * (ordinate / denominator)
         if values.shape != frequency.shape:
             raise InputError(f"{values.size} values but {frequency.size} frequencies", here)
         if power:

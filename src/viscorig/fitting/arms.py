@@ -44,24 +44,26 @@ def maxwell_order(model: Model) -> int | None:
     return term.order if isinstance(term, Maxwell) else None
 
 
-def _arm_values(model: Model, values: Mapping[str, float]) -> tuple[NDArray, NDArray, dict]:
+def _arm_values(
+    model: Model, values: Mapping[str, float]
+) -> tuple[Maxwell, NDArray, NDArray, dict[str, float]]:
     term = model.modulus_term
     assert isinstance(term, Maxwell)
     local = model.local_values(term, values)
     k, c = term.arms(local)
-    return k, c, local
+    return term, k, c, local
 
 
 def arm_contributions(
     model: Model, values: Mapping[str, float], frequency_hz: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """Largest ``|arm_i / K*|`` over ``frequency_hz``, one value per arm (arm 1 first)."""
-    k, c, local = _arm_values(model, values)
+    term, k, c, local = _arm_values(model, values)
     omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
     iwc = 1j * omega[:, None] * c[None, :]
     with np.errstate(all="ignore"):
         arms = k[None, :] * iwc / (k[None, :] + iwc)
-        kstar = np.asarray(model.modulus_term.modulus(Context(frequency_hz), local))
+        kstar = np.asarray(term.modulus(Context(frequency_hz), local))
         ratio = np.abs(arms) / np.abs(kstar)[:, None]
     return np.nan_to_num(ratio, nan=0.0, posinf=np.inf).max(axis=0)
 
@@ -92,7 +94,7 @@ def dead_arms(result: FitResult) -> dict[int, str]:
     kstar = np.abs(model.kstar(Context(result.frequency_hz), values))
     if order > 1 and values["K_0"] < DEAD_ARM_CONTRIBUTION * kstar.min():
         # No static stiffness: the arm relaxing slowest stands in for it (a spring in the band).
-        k, c, _ = _arm_values(model, values)
+        _, k, c, _ = _arm_values(model, values)
         slowest = int(np.argmax(c / k)) + 1
         dead.setdefault(
             slowest, f"K_0 adds nothing and arm {slowest} stands in for it (a spring in the band)"
@@ -104,7 +106,7 @@ def reduced_start(result: FitResult, dead: Sequence[int], lower: Model) -> dict[
     """Start of ``lower`` (a Maxwell model with ``len(dead)`` arms fewer and the same effect
     terms): ``result``'s values without the dead arms. A dead arm's storage stiffness at the
     band centre goes into ``K_0`` (an arm relaxing above the band acts as a spring there)."""
-    k, c, _ = _arm_values(result.model, result.values)
+    _, k, c, _ = _arm_values(result.model, result.values)
     keep = [i for i in range(k.size) if i + 1 not in dead]
     start = {name: value for name, value in result.values.items() if name in lower.by_name}
     omega = 2 * np.pi * np.sqrt(result.frequency_hz.min() * result.frequency_hz.max())
@@ -122,7 +124,7 @@ def extended_start(result: FitResult, higher: Model) -> dict[str, float]:
     """Start of ``higher`` (one arm more than ``result``'s model, same effect terms):
     ``result``'s values plus a new arm of :data:`NEW_ARM_FRACTION` of ``|K*|``, relaxing where
     the existing arms leave the widest gap in ``log τ`` within the band."""
-    k, c, local = _arm_values(result.model, result.values)
+    term, k, c, local = _arm_values(result.model, result.values)
     f = result.frequency_hz
     omega_lo, omega_hi = 2 * np.pi * f.min(), 2 * np.pi * f.max()
     edges = np.log([1.0 / omega_hi, 1.0 / omega_lo])
@@ -131,7 +133,7 @@ def extended_start(result: FitResult, higher: Model) -> dict[str, float]:
     gap = int(np.argmax(np.diff(points)))
     tau = float(np.exp(0.5 * (points[gap] + points[gap + 1])))
     centre = Context(np.array([np.sqrt(f.min() * f.max())]))
-    gain = NEW_ARM_FRACTION * float(np.abs(result.model.modulus_term.modulus(centre, local))[0])
+    gain = NEW_ARM_FRACTION * float(np.abs(term.modulus(centre, local))[0])
     start = {name: value for name, value in result.values.items() if name in higher.by_name}
     new = k.size + 1
     start[f"K_{new}"], start[f"C_{new}"] = gain, gain * tau

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -99,9 +100,9 @@ class FrfData:
         """The model context at these points."""
         return Context(self.frequency_hz, self.time_s, self.reference_amplitude)
 
-    def select(self, index: ArrayLike) -> FrfData:
+    def select(self, index: NDArray[np.intp] | NDArray[np.bool_] | slice) -> FrfData:
         """The data at the selected points."""
-        pick = {
+        pick: dict[str, Any] = {
             field: None if getattr(self, field) is None else getattr(self, field)[index]
             for field in ("table", "support", *_REAL_FIELDS)
         }

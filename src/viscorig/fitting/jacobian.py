@@ -13,6 +13,7 @@ the fitter falls back to finite differences: the effect stages may change the ch
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -95,7 +96,7 @@ def predict_many(
     known = _BATCHABLE.get(id(model))
     batchable = None if known is None or known[0] is not model else known[1]
     if batchable is not False and count > 1:
-        batch = dict(values)
+        batch: dict[str, Any] = dict(values)  # a parameter may be an array, one per point
         for j, name in enumerate(names):
             batch[name] = np.repeat(rows[:, j], points)
         try:

@@ -169,12 +169,18 @@ class FrfNoise:
         """Diagonal (white) variance and correlated variance of one part (``"re"``/``"im"``)."""
         return self.white_power / 2.0, self.correlated_power[PARTS.index(part)]
 
+    @property
+    def _positions(self) -> NDArray[np.float64]:
+        """``axis``, which ``__post_init__`` always fills."""
+        assert self.axis is not None
+        return self.axis
+
     def covariance(self, part: str) -> NDArray[np.float64]:
         """Dense covariance matrix of one part of ``ε`` (``n × n``)."""
         white, sigma2 = self.part_variance(part)
         matrix = np.diag(white)
         if sigma2 > 0.0:
-            lag = np.abs(self.axis[:, None] - self.axis[None, :])
+            lag = np.abs(self._positions[:, None] - self._positions[None, :])
             matrix = matrix + sigma2 * np.exp(-lag / self.correlation_length)
         return matrix
 
@@ -185,7 +191,7 @@ class FrfNoise:
         out = white.reshape((-1,) + (1,) * (values.ndim - 1)) * values
         if sigma2 > 0.0:
             out = out + sigma2 * exponential_kernel_apply(
-                self.axis, self.correlation_length, values
+                self._positions, self.correlation_length, values
             )
         return out
 
@@ -234,7 +240,7 @@ class FrfNoise:
                 total += n
                 continue
             diagonal = white + sigma2
-            lag = np.abs(self.axis[:, None] - self.axis[None, :])
+            lag = np.abs(self._positions[:, None] - self._positions[None, :])
             off = sigma2 * np.exp(-lag / self.correlation_length)
             np.fill_diagonal(off, 0.0)
             scaled = off / np.sqrt(np.outer(diagonal, diagonal))
@@ -249,7 +255,7 @@ class FrfNoise:
             self.white_power[index],
             self.correlated_power,
             self.correlation_length,
-            self.axis[index],
+            self._positions[index],
             self.axis_unit,
             self.resolution,
             self.source,

@@ -435,7 +435,7 @@ def estimate_frf_noise(
         if not np.all(np.isfinite(var) & (var > 0)):
             var = None
     known = frequency_hz is not None
-    irregular = known and not regular_grid(frequency_hz)
+    irregular = frequency_hz is not None and not regular_grid(frequency_hz)
     if irregular and var is not None:
         white = np.empty_like(var)
         white[order] = var

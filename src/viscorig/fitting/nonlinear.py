@@ -360,14 +360,14 @@ def _fit_concrete(
     measured = [data.frf(name) for name in frfs]
     omega_squared = ctx.omega**2
     current = dict(values)
-    last: dict[str, object] = {}
+    last: list[tuple[NDArray[np.float64], dict[str, NDArray[np.complex128]]]] = []
 
     def predict(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
-        if last.get("x") is not None and np.array_equal(last["x"], x):
-            return last["predicted"]  # type: ignore[return-value]
+        if last and np.array_equal(last[0][0], x):
+            return last[0][1]
         current.update(zip(free, coordinates.to_values(x), strict=True))
-        last["x"], last["predicted"] = x.copy(), model.predict(ctx, current)
-        return last["predicted"]  # type: ignore[return-value]
+        last[:] = [(x.copy(), model.predict(ctx, current))]
+        return last[0][1]
 
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
         predicted = predict(x)

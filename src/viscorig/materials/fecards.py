@@ -148,7 +148,7 @@ def abaqus_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
     e0 = series.instantaneous_modulus_pa * _young(master, poisson)
     relative = series.moduli_pa / series.instantaneous_modulus_pa
     function = master.shift_function
-    conventions = ABAQUS_CONVENTIONS
+    conventions: tuple[str, ...] = ABAQUS_CONVENTIONS
     if function is not None and function.kind == "arrhenius":
         conventions += ABAQUS_ARRHENIUS
     lines = _comment(master, series, poisson, "**", conventions=conventions)
@@ -199,7 +199,7 @@ def ansys_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
                     strict=True):
         pairs += [float(a), float(t)]
     function = master.shift_function
-    conventions = ANSYS_CONVENTIONS
+    conventions: tuple[str, ...] = ANSYS_CONVENTIONS
     if function is not None:
         conventions += ANSYS_WLF if function.kind == "wlf" else ANSYS_TN
     lines = _comment(master, series, poisson, "!", conventions=conventions)
@@ -278,7 +278,7 @@ def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
                          "--reference-temperature")
     series, note = _lsdyna_series(master)
     shear, bulk = _split(master, poisson)
-    conventions = LSDYNA_CONVENTIONS
+    conventions: tuple[str, ...] = LSDYNA_CONVENTIONS
     if function is not None:
         conventions += LSDYNA_WLF if wlf else LSDYNA_ARRHENIUS
     lines = ["*KEYWORD", *_comment(master, series, poisson, "$", note, conventions,

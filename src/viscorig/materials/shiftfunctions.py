@@ -14,7 +14,7 @@ describe the shifts within their errors; its parameter errors are then scaled by
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -181,7 +181,7 @@ def fit_shift_function(
                          pcov, chi2, dof)
 
 
-def best_shift_function(functions: list[ShiftFunction | None]) -> ShiftFunction | None:
+def best_shift_function(functions: Sequence[ShiftFunction | None]) -> ShiftFunction | None:
     """The fitted function of lowest AIC, or ``None`` if none was fitted."""
     fitted = [f for f in functions if f is not None]
     return min(fitted, key=lambda f: f.aic) if fitted else None

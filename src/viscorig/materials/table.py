@@ -114,7 +114,7 @@ def concatenate(tables: list[ModulusTable], source: str) -> ModulusTable:
     kinds = {table.modulus for table in tables}
     if len(kinds) > 1:
         raise InputError(f"runs hold different moduli ({', '.join(sorted(kinds))})", source)
-    offset, sets, names = 0, [], []
+    offset, sets, names = 0, [], list[str]()
     for table in tables:
         _, renumbered = np.unique(table.set_index, return_inverse=True)
         sets.append(renumbered + offset)

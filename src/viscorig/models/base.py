@@ -159,7 +159,7 @@ class Term:
     def __init__(self, argument: float | None = None) -> None:
         if argument is not None:
             raise InputError(f"term '{self.keyword}' takes no argument", "model spec")
-        self.argument = argument
+        self.argument: float | None = argument
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
@@ -331,8 +331,8 @@ class Model:
     def __init__(self, terms: Sequence[Term]) -> None:
         moduli = [term for term in terms if term.kind == "modulus"]
         if len(moduli) > 1:
-            names = ", ".join(term.spec for term in moduli)
-            raise InputError(f"a model has exactly one K* term, got {names}", "model spec")
+            specs = ", ".join(term.spec for term in moduli)
+            raise InputError(f"a model has exactly one K* term, got {specs}", "model spec")
         self.terms: tuple[Term, ...] = tuple(terms)
         self.modulus_term: ModulusTerm | None = moduli[0] if moduli else None  # type: ignore[assignment]
         order = {keyword: index for index, keyword in enumerate(TERMS)}
@@ -408,6 +408,12 @@ class Model:
     def is_open(self) -> bool:
         """A term leaves a choice to the fitter (``maxwell`` without an order)."""
         return any(term.candidates() is not None for term in self.terms)
+
+    def require_modulus(self) -> ModulusTerm:
+        """The K* term; ``InputError`` for a model without one (the bare table)."""
+        if self.modulus_term is None:
+            raise InputError(f"'{self.spec}' has no K* term", "model spec")
+        return self.modulus_term
 
     def local_names(self, term: Term) -> dict[str, str]:
         """Local -> global parameter names of one of the model's terms."""
@@ -527,7 +533,7 @@ class Model:
         matrix[:, 2, 2] = g + s + kstar
         force = np.zeros((w.size, 3, 1), dtype=complex)
         force[:, 0, 0], force[:, 2, 0] = 1.0, -1.0
-        x = np.linalg.solve(matrix, force)[:, :, 0]
+        x = np.asarray(np.linalg.solve(matrix, force)[:, :, 0], dtype=np.complex128)
         return {"table": x[:, 0], "support": x[:, 1] / (k_c * (x[:, 0] - x[:, 1]))}
 
     # -- composition --------------------------------------------------------------------------

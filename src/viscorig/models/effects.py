@@ -305,7 +305,7 @@ def kraus_stiffness(displacement_m: NDArray[np.float64], p: Mapping[str, float]
     how sharply.
     """
     r = (np.asarray(displacement_m, dtype=float) / p["x_c"]) ** p["m_k"]
-    return (p["K_f"] + 2j * p["L_f"] * r) / (1.0 + r * r)
+    return np.asarray((p["K_f"] + 2j * p["L_f"] * r) / (1.0 + r * r), dtype=np.complex128)
 
 
 #: The Kraus term's parameters (shared by the term and the strain identification).

@@ -60,7 +60,7 @@ class Voigt(ModulusTerm):
         )
 
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
-        return p["K_v"] + 1j * ctx.omega * p["C_v"]
+        return np.asarray(p["K_v"] + 1j * ctx.omega * p["C_v"], dtype=np.complex128)
 
     def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
         return {"K_v": np.ones(ctx.omega.shape, dtype=complex), "C_v": 1j * ctx.omega}
@@ -93,7 +93,7 @@ class Maxwell(ModulusTerm):
     @property
     def order(self) -> int | None:
         """Number of arms, ``None`` while open."""
-        return self.argument
+        return None if self.argument is None else int(self.argument)
 
     def candidates(self) -> list[Term] | None:
         if self.order is not None:
@@ -127,7 +127,7 @@ class Maxwell(ModulusTerm):
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
         # Arm by arm, so that a parameter may also be an array of one value per point (a
         # Jacobian's parameter sets evaluated at once, viscorig.fitting.jacobian.predict_many).
-        arms = 0.0
+        arms: NDArray[np.complex128] = np.zeros_like(ctx.omega, dtype=np.complex128)
         for i in range(1, (self.order or 0) + 1):
             iwt = 1j * ctx.omega * (p[f"C_{i}"] / p[f"K_{i}"])
             arms = arms + p[f"K_{i}"] * iwt / (1.0 + iwt)

@@ -290,6 +290,10 @@ def weighted_fit_function(spec: str, fixed: Mapping[str, float]) -> FitFunction:
     return run
 
 
+def _never_fitted(points: MeasuredPoints) -> FitResult:
+    raise AssertionError("the first request of a plan fits nothing")
+
+
 def expected_time_s(
     settings: AdaptiveSettings, floor_s: float | None = None
 ) -> tuple[float, float]:
@@ -307,7 +311,7 @@ def expected_time_s(
     (shortest, longest)
         Seconds of rig time.
     """
-    plan = AdaptivePlan(settings, fit_function=lambda points: None)  # type: ignore[arg-type]
+    plan = AdaptivePlan(settings, fit_function=_never_fitted)
     look = plan.request
     assert look is not None
     low = high = look.predicted_s

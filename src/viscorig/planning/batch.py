@@ -202,7 +202,7 @@ def settle_points(
                 f[i], last, list(context.modes), mismatch=mismatch, noise_sd=lead_noise,
                 integrate_s=lead_s, bias_fraction=bias_fraction,
             ))  # fmt: skip
-        settle_cycles = int(min(limits.settle_cycles(settle_factor * wait * f[i]), cap))
+        settle_cycles = min(int(limits.settle_cycles(settle_factor * wait * f[i])), int(cap))
         if lead:
             planned.append(PlannedPoint(float(f[i]), settle_cycles, lead_cycles, purpose))
             seconds.append(float(timing.point_s(f[i], settle_cycles, lead_cycles, passes[i])))

@@ -141,7 +141,9 @@ def _solve_support(problem: _Problem, index: NDArray[np.int64], start: NDArray) 
     return x * scale * factor
 
 
-def _feasible_start(problem: _Problem, weights: NDArray[np.float64]) -> NDArray[np.float64]:
+def _feasible_start(
+    problem: _Problem, weights: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
     """``Θ w`` with the least ``Θ`` that meets every target (bisection on ``Θ``); ``None``
     when no ``Θ`` does."""
     all_index = np.arange(weights.size)
@@ -237,9 +239,11 @@ def minimum_time_design(
     first = np.union1d(first, best_each)
     start = np.zeros(f.size)
     start[first] = 1.0 / first.size
-    start = _feasible_start(problem, start)
-    if start is None:
+    feasible = _feasible_start(problem, start)
+    if feasible is None:
         first, start = all_index, uniform
+    else:
+        start = feasible
     tau = np.zeros(f.size)
     tau[first] = _solve_support(problem, first, start[first])
     lam = np.full(targets.size, 1.0 / targets.size)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -115,7 +116,7 @@ class MeasuredPoints:
 
     def concatenate(self, other: MeasuredPoints) -> MeasuredPoints:
         """These points followed by ``other``'s."""
-        values = {}
+        values: dict[str, Any] = {}
         for item in fields(self):
             if item.name == "extras":
                 continue

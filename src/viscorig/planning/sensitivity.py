@@ -38,5 +38,6 @@ def log_sensitivities(
         down[name] = value - _STEP * scale
         plus, minus = model.predict(ctx, up), model.predict(ctx, down)
         for frf in plus:
-            columns.setdefault(frf, []).append(np.log(plus[frf] / minus[frf]) / (2 * _STEP))
+            column = np.asarray(np.log(plus[frf] / minus[frf]) / (2 * _STEP), dtype=np.complex128)
+            columns.setdefault(frf, []).append(column)
     return {frf: np.column_stack(c) for frf, c in columns.items()}

@@ -12,7 +12,13 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from viscorig.compare import Pair, loss_factor_of, storage_stiffness_of
-from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, storage_and_loss, term_change
+from viscorig.report.analysis import (
+    CampaignAnalysis,
+    ModulusCurves,
+    RunAnalysis,
+    storage_and_loss,
+    term_change,
+)
 from viscorig.storage import INPUT_OVERLOAD, Run
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
@@ -87,7 +93,7 @@ def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure
             _shade(ax, failures or analysis.failures, name, label=ax is magnitude)
         magnitude.semilogy(f, np.abs(h), "-", lw=0.9, color=MEASURED, label="measured")
         phase.plot(f, np.degrees(np.angle(h)), "-", lw=0.9, color=MEASURED)
-        if name in predicted:
+        if curve is not None and name in predicted:  # predicted only from a curve
             label = f"{curve.spec} ({curve.source})"
             magnitude.semilogy(grid, np.abs(predicted[name]), "-", lw=1.3, color=MODEL,
                                label=label)
@@ -118,14 +124,14 @@ def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure
 
 def residual_figure(analysis: RunAnalysis) -> Figure | None:
     """``|H_model/H_measured − 1|`` against frequency, with the local noise and the floor."""
-    if not analysis.residuals:
+    curve = analysis.shown
+    if not analysis.residuals or curve is None:  # the residuals are the shown curve's
         return None
     count = len(analysis.residuals)
     figure = Figure(figsize=(5.2 * count, 3.2), layout=None)
     axes = figure.subplots(1, count, squeeze=False)[0]
     figure.subplots_adjust(left=0.1 if count == 2 else 0.16, right=0.98, top=0.9, bottom=0.16,
                            wspace=0.25)
-    curve = analysis.shown
     for ax, residual in zip(axes, analysis.residuals, strict=True):
         _shade(ax, analysis.failures, residual.frf, label=True)
         ax.semilogy(residual.frequency_hz, residual.magnitude, "-", lw=0.8,
@@ -196,7 +202,7 @@ def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None
     scale, unit = (1e-6, "E' [MPa]") if theta_m else (1e-3, "K' = Re K* [kN/m]")
     to_modulus = scale / theta_m if theta_m else scale
     for index, member in enumerate(members):
-        curves = member.modulus
+        curves = _moduli(member)
         e_meas, _, eta_meas, _ = storage_and_loss(curves, theta_m)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{member.name} (preload {member.run.metadata.preload_strain:g})"
@@ -227,6 +233,13 @@ def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None
     return figure
 
 
+def _moduli(member: RunAnalysis) -> ModulusCurves:
+    """A specimen run's K* curves (the modulus figures show only specimen runs)."""
+    if member.modulus is None:
+        raise ValueError(f"run {member.name} has no K* curves (a bare-table run)")
+    return member.modulus
+
+
 def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     """The preload effect per rubber: relative change of K' (= of E') and of η against
     frequency, with the ± one standard uncertainty band of the change
@@ -234,7 +247,8 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     pairs = {name: (members[0], members[-1]) for name, members in groups.items()
              if len(members) >= 2 and members[-1].run.metadata.preload_strain
              > members[0].run.metadata.preload_strain
-             and members[0].modulus.estimates is not None
+             and members[0].modulus is not None and members[0].modulus.estimates is not None
+             and members[-1].modulus is not None
              and members[-1].modulus.estimates is not None}
     if not pairs:
         return None
@@ -242,10 +256,11 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     stiffness_ax, loss_ax = figure.subplots(1, 2, sharex=True)
     figure.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.15, wspace=0.25)
     for index, (name, (none, loaded)) in enumerate(pairs.items()):
-        lo = max(none.modulus.frequency_hz.min(), loaded.modulus.frequency_hz.min())
-        hi = min(none.modulus.frequency_hz.max(), loaded.modulus.frequency_hz.max())
+        before, after = _moduli(none), _moduli(loaded)
+        lo = max(before.frequency_hz.min(), after.frequency_hz.min())
+        hi = min(before.frequency_hz.max(), after.frequency_hz.max())
         f = np.linspace(lo, hi, 61)
-        pair = Pair(none.modulus.estimates, loaded.modulus.estimates)
+        pair = Pair(before.estimates, after.estimates)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{name}: {loaded.name} vs {none.name}"
         for ax, part in ((stiffness_ax, storage_stiffness_of), (loss_ax, loss_factor_of)):

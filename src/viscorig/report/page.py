@@ -190,7 +190,7 @@ def preload_summary(analysis: CampaignAnalysis) -> str:
                          + (f" (paper {paper})" if paper else ""))
         stiff = [c for c in reached if c.quantity.startswith("K'")]
         stiff = [stiff[0], stiff[-1]] if len(stiff) > 2 else stiff
-        if stiff:
+        if stiff and base.shown is not None and other.shown is not None:  # reached needs both
             same = base.shown.spec == other.shown.spec
             parts.append(("K′ of the model reached " if same else
                           "K′ of the models reached (not the same model in both runs) ")

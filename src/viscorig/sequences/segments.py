@@ -43,7 +43,8 @@ def sweep_frequencies(
 ) -> NDArray[np.float64]:
     """The sweep's frequency grid in Hz, in measurement order (``"up"`` or ``"down"``)."""
     lo, _ = band_hz
-    grid = lo + resolution_hz * np.arange(point_count(band_hz, resolution_hz))
+    steps = np.arange(point_count(band_hz, resolution_hz))
+    grid = np.asarray(lo + resolution_hz * steps, dtype=np.float64)
     return grid[::-1].copy() if direction == "down" else grid
 
 

@@ -260,8 +260,9 @@ def _check_chamber(problems: Problems, chamber: ReadTable | None) -> None:
 
 
 def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
-    values = {name: (None if table is None else table.values)
-              for name, table in sections.items()}
+    # None for an absent optional section; parse_station has refused a missing required one.
+    values: dict[str, Any] = {name: (None if table is None else table.values)
+                              for name, table in sections.items()}
     shaker, limits = values["shaker"], values["source"]
     table = values["table"]
     specimen = values["specimen"]

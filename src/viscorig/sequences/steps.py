@@ -95,7 +95,9 @@ class SweepStep:
         """``target_uncertainty`` as a dict."""
         return dict(self.target_uncertainty)
 
-    def _full(self) -> tuple[float, int, int]:
+    def full_plan(self) -> tuple[float, int, int]:
+        """``resolution_hz``, ``settle_cycles``, ``integrate_cycles`` of a full plan (all set);
+        ``ValueError`` for an adaptive one."""
         if self.adaptive or self.resolution_hz is None or self.settle_cycles is None \
                 or self.integrate_cycles is None:
             raise ValueError(f"run {self.run!r}: an adaptive plan has no fixed grid")
@@ -104,15 +106,15 @@ class SweepStep:
     @property
     def points(self) -> int:
         """Number of frequency points of the whole run (a full plan)."""
-        return segments.point_count(self.band_hz, self._full()[0])
+        return segments.point_count(self.band_hz, self.full_plan()[0])
 
     def frequencies_hz(self) -> NDArray[np.float64]:
         """Frequencies in measurement order (a full plan)."""
-        return segments.sweep_frequencies(self.band_hz, self._full()[0], self.direction)
+        return segments.sweep_frequencies(self.band_hz, self.full_plan()[0], self.direction)
 
     def segments(self, overhead_s_per_point: float = 0.0) -> list[slice]:
         """The run's segments as slices of :meth:`frequencies_hz` (a full plan)."""
-        _, settle, integrate = self._full()
+        _, settle, integrate = self.full_plan()
         return segments.plan_segments(
             self.frequencies_hz(), settle, integrate,
             max_segment_s=self.segment_s, max_points=self.segment_points,
@@ -122,7 +124,7 @@ class SweepStep:
     def duration_s(self, overhead_s_per_point: float = 0.0) -> float:
         """Test time of the whole run, s (a full plan: an adaptive plan's is a forecast,
         :mod:`viscorig.acquisition.forecast`)."""
-        _, settle, integrate = self._full()
+        _, settle, integrate = self.full_plan()
         return segments.time_left_s(self.frequencies_hz(), 0, settle, integrate,
                                     overhead_s_per_point)
 

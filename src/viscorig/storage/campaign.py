@@ -53,7 +53,7 @@ from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import Any, Self
 
 import h5py
 import numpy as np
@@ -572,7 +572,8 @@ class Campaign:
         for key, (value, stderr, unit) in parameters.items():
             check_name(key, f"{where}: parameter")
             checked[key] = (float(value), float(stderr), str(unit))
-        names, matrix = (), None
+        names: tuple[str, ...] = ()
+        matrix = None
         if correlation is not None:
             names = tuple(str(name) for name in correlation[0])
             matrix = np.asarray(correlation[1], dtype=float).reshape(len(names), len(names))
@@ -670,7 +671,7 @@ def _settings_attributes(settings: RunSettings) -> dict[str, object]:
     return values
 
 
-def _checked_rig(rig: dict[str, object], where: str) -> dict[str, object]:
+def _checked_rig(rig: Mapping[str, Any], where: str) -> dict[str, object]:
     checked: dict[str, object] = {}
     for key, value in rig.items():
         if key in layout.RIG_FLOAT_ATTRIBUTES:

@@ -14,7 +14,7 @@ import contextlib
 import math
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, overload
 
 import h5py
 import numpy as np
@@ -132,6 +132,18 @@ def read_text(obj: h5py.HLObject, name: str, path: Path) -> str:
         problem = "missing" if value is None else f"not text ({type(value).__name__})"
         raise InputError(f"attribute {problem}", f"{path}: {obj.name}.{name}")
     return value
+
+
+@overload
+def read_number(
+    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[True]
+) -> int: ...
+
+
+@overload
+def read_number(
+    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[False] = False
+) -> float: ...
 
 
 def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = False) -> float:
@@ -313,7 +325,9 @@ def read_run(h5: h5py.File, name: str, path: Path) -> Run:
             detail = ", ".join(f"{key} {length}" for key, length in lengths.items())
             raise InputError(f"datasets differ in length ({detail})", f"{path}: {group.name}")
         metadata = read_metadata(group, path)
-        columns = {spec.name: read_column(group, spec, path) for spec in layout.REQUIRED_DATASETS}
+        columns: dict[str, Any] = {  # Run checks each column's dtype and length
+            spec.name: read_column(group, spec, path) for spec in layout.REQUIRED_DATASETS
+        }
         for spec in layout.OPTIONAL_DATASETS:
             columns[spec.name] = read_column(group, spec, path) if spec.name in group else None
         extra: dict[str, tuple[NDArray, str]] = {}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,7 +62,7 @@ class RunMetadata(RunSettings):
 def _column(values: ArrayLike | None, dtype: type, name: str) -> NDArray | None:
     if values is None:
         return None
-    array = np.atleast_1d(np.asarray(values, dtype=dtype))
+    array: NDArray = np.atleast_1d(np.asarray(values, dtype=dtype))
     if array.ndim != 1:
         raise ValueError(f"segment {name} must be 1-D, got shape {array.shape}")
     return array
@@ -125,6 +126,8 @@ class Segment:
             if name in result or not name or "/" in name:
                 raise ValueError(f"segment extra dataset name {name!r} is not allowed")
             array = _column(values, np.float64 if not np.iscomplexobj(values) else complex, name)
+            if array is None:
+                raise ValueError(f"segment extra dataset {name!r} has no values")
             result[name] = (array, str(units))
         lengths = {name: len(values) for name, (values, _) in result.items()}
         if len(set(lengths.values())) != 1:
@@ -213,7 +216,7 @@ class Run:
     def select(self, keep: ArrayLike) -> Run:
         """The run at some of its points (a boolean mask or indices), in the order given."""
         index = np.asarray(keep)
-        columns = {
+        columns: dict[str, Any] = {
             item.name: None if getattr(self, item.name) is None else getattr(self, item.name)[index]
             for item in fields(self) if item.name not in ("name", "metadata", "extra")
         }

@@ -273,7 +273,8 @@ def _lock(lock: Path, path: Path) -> int | None:
             if error.errno in _BUSY:
                 raise _refusal(path, holder) from None
             if error.errno in _NO_LOCKS:
-                return _lock_by_record(lock, path)
+                _lock_by_record(lock, path)
+                return None
             raise
         if not _same_file(descriptor, lock):  # removed by its last holder meanwhile: again
             os.close(descriptor)

@@ -90,9 +90,9 @@ def _run_state(run: Run, step: SweepStep | None, limits: dict[str, float],
     table = run.accelerance_table
     support = run.accelerance_support
     grid = step is not None and not step.adaptive  # an adaptive plan chooses its points
-    planned = step.points if grid else run.points
-    left = (time_left_s(step.frequencies_hz(), run.points, step.settle_cycles,
-                        step.integrate_cycles) if grid and run.points <= planned else 0.0)
+    planned = step.points if step is not None and grid else run.points
+    left = (time_left_s(step.frequencies_hz(), run.points, *step.full_plan()[1:])
+            if step is not None and grid and run.points <= planned else 0.0)
     force_limit = limits.get("shaker_force_limit_n", station_limit_n or math.nan)
     requested = limits.get("requested_level_m_per_s2",
                            step.level_m_per_s2 if step is not None else math.nan)
