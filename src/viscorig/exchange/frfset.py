@@ -18,8 +18,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.storage import Campaign, RunSettings, Segment
-from viscorig.storage.campaign import check_name
+from viscorig.storage import RunSettings, Segment
+from viscorig.storage.campaign import campaign_for_import, check_name
 from viscorig.storage.layout import MAX_RUN_POINTS
 
 #: Relative tolerance within which two files' frequency axes count as the same.
@@ -218,17 +218,5 @@ def import_run(campaign_path: Path, run_name: str, frfs: FrfSet, settings: Impor
         flags=frfs.flags[keep],  # type: ignore[index]
     )
     segment.columns()  # raises ValueError on inconsistent arrays, before the file is touched
-    path = Path(campaign_path)
-    created = not path.exists()
-    campaign = Campaign.create(path, sequence_text="", sequence_file="") if created \
-        else Campaign.open(path, "a")
-    with campaign:
-        if run_name in campaign.run_names:
-            raise InputError("run exists; imports never overwrite a run",
-                             f"{path}: /runs/{run_name}")
-        try:
-            return campaign.add_run(run_name, run_settings, segment)
-        except BaseException:
-            if created:
-                path.unlink(missing_ok=True)
-            raise
+    with campaign_for_import(Path(campaign_path), run_name) as campaign:
+        return campaign.add_run(run_name, run_settings, segment)

@@ -24,7 +24,7 @@ import numpy as np
 from viscorig.errors import InputError
 from viscorig.materials.table import ModulusTable
 from viscorig.storage import Campaign, layout, reading, untrusted
-from viscorig.storage.campaign import check_name, utc_now
+from viscorig.storage.campaign import campaign_for_import, check_name, utc_now
 
 DMA_GROUP = "dma"
 #: dataset name -> (table attribute, units, dtype)
@@ -54,30 +54,18 @@ def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
     check_name(name, "--run")
     table.check(table.source or "DMA table")
     path = Path(campaign_path)
-    created = not path.exists()
-    campaign = Campaign.create(path, sequence_text="", sequence_file="") if created \
-        else Campaign.open(path, "a")
-    with campaign:
-        if name in campaign.run_names:
-            raise InputError("a run of that name exists; imports never overwrite a run",
-                             f"{path}: /{layout.RUNS_GROUP}/{name}")
-        try:
-            with campaign.commit() as h5:
-                group = h5.require_group(DMA_GROUP)
-                if name in group:
-                    raise InputError("DMA run exists; imports never overwrite a run",
-                                     f"{path}: /{DMA_GROUP}/{name}")
-                run = group.create_group(name)
-                run.attrs.update({"kind": "dma", "modulus": table.modulus,
-                                  "source": table.source[:200], "created": utc_now(),
-                                  "points": np.int64(table.points)})
-                for dataset, (attribute, units, dtype) in COLUMNS.items():
-                    values = np.asarray(getattr(table, attribute), dtype=dtype)
-                    run.create_dataset(dataset, data=values).attrs["units"] = units
-        except BaseException:
-            if created:
-                path.unlink(missing_ok=True)
-            raise
+    with campaign_for_import(path, name) as campaign, campaign.commit() as h5:
+        group = h5.require_group(DMA_GROUP)
+        if name in group:
+            raise InputError("DMA run exists; imports never overwrite a run",
+                             f"{path}: /{DMA_GROUP}/{name}")
+        run = group.create_group(name)
+        run.attrs.update({"kind": "dma", "modulus": table.modulus,
+                          "source": table.source[:200], "created": utc_now(),
+                          "points": np.int64(table.points)})
+        for dataset, (attribute, units, dtype) in COLUMNS.items():
+            values = np.asarray(getattr(table, attribute), dtype=dtype)
+            run.create_dataset(dataset, data=values).attrs["units"] = units
     return table.points
 
 

@@ -682,3 +682,23 @@ def _checked_rig(rig: Mapping[str, Any], where: str) -> dict[str, object]:
             known = ", ".join((*layout.RIG_FLOAT_ATTRIBUTES, *layout.RIG_INT_ATTRIBUTES))
             raise InputError(f"unknown /rig attribute {key!r} (known: {known})", where)
     return checked
+
+
+@contextlib.contextmanager
+def campaign_for_import(path: Path, run_name: str) -> Iterator[Campaign]:
+    """The campaign file an import adds the run ``run_name`` to: opened for appending, or created
+    where there is none. A run of that name is refused (imports never overwrite a run), and a
+    file this import created is removed again when the import fails."""
+    created = not path.exists()
+    campaign = Campaign.create(path, sequence_text="", sequence_file="") if created \
+        else Campaign.open(path, "a")
+    try:
+        with campaign:
+            if run_name in campaign.run_names:
+                raise InputError("run exists; imports never overwrite a run",
+                                 f"{path}: /{layout.RUNS_GROUP}/{run_name}")
+            yield campaign
+    except BaseException:
+        if created:
+            path.unlink(missing_ok=True)
+        raise
