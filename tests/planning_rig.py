@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from viscorig.cli.simpoints import SimulatedRig, load, paper_sweep
 
-__all__ = ["TABLE", "VOIGT_RIG", "VOIGT_TRUTH", "SimulatedRig", "load", "paper_sweep"]
+__all__ = ["ADAPTIVE_SEQUENCE", "TABLE", "VOIGT_RIG", "VOIGT_TRUTH", "SimulatedRig", "load",
+           "paper_sweep"]
 
 #: The paper's table (physics.md) and transducers, shaker and sensor noise of the presets.
 VOIGT_RIG = """
@@ -46,3 +47,23 @@ adc_noise_db_re_range_per_sqrt_hz = -100.0
 VOIGT_TRUTH = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05, "K_v": 149986.61, "C_v": 114.59,
                "M_v": 0.15}  # fmt: skip
 TABLE = {name: VOIGT_TRUTH[name] for name in ("M_s", "K_s", "C_s")}
+
+#: A sequence of one adaptive Voigt sweep on the Voigt rig; format it with the targets ``K_v``,
+#: ``C_v`` and ``extra`` (more lines of the sweep step).
+ADAPTIVE_SEQUENCE = """
+name = "adaptive-voigt"
+[defaults]
+band_hz = [20.0, 120.0]
+level = "1.4 m/s^2"
+[[steps]]
+type = "prompt"
+message = "Mount the Voigt damper."
+[[steps]]
+type = "sweep"
+run = "voigt"
+specimen = "voigt damper"
+plan = "adaptive"
+model = "voigt"
+target_uncertainty = {{ K_v = {K_v}, C_v = {C_v} }}
+{extra}
+"""

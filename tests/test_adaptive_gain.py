@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from planning_rig import VOIGT_RIG
+from planning_rig import ADAPTIVE_SEQUENCE, VOIGT_RIG
 from reliability_campaign import station_text
 
 from viscorig.acquisition.gain import estimate_gain
@@ -23,23 +23,6 @@ from viscorig.storage import Campaign
 
 server_module = pytest.importorskip("rigsim.server")
 
-SEQUENCE = """
-name = "adaptive-voigt"
-[defaults]
-band_hz = [20.0, 120.0]
-level = "1.4 m/s^2"
-[[steps]]
-type = "prompt"
-message = "Mount the Voigt damper."
-[[steps]]
-type = "sweep"
-run = "voigt"
-specimen = "voigt damper"
-plan = "adaptive"
-model = "voigt"
-target_uncertainty = {{ K_v = {K_v}, C_v = {C_v} }}
-{extra}
-"""
 LOOSE = {"K_v": 1e-4, "C_v": 5e-4}
 #: A short plan for the tests of the gain alone: the gain is measured before the plan starts.
 SHORT = "dwell_limit_s = 5"
@@ -73,7 +56,7 @@ def _run(tmp_path: Path, server, gain: float | None, targets=LOOSE, name: str = 
     station = tmp_path / f"{name}-station.toml"
     station.write_text(_station(server, gain))
     sequence = tmp_path / f"{name}.toml"
-    sequence.write_text(SEQUENCE.format(extra=extra, **targets))
+    sequence.write_text(ADAPTIVE_SEQUENCE.format(extra=extra, **targets))
     out = tmp_path / f"{name}.h5"
     status = main(["run", str(sequence), "--station", str(station), "--out", str(out), "--yes"])
     return status, out

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from planning_rig import VOIGT_RIG, VOIGT_TRUTH
+from planning_rig import ADAPTIVE_SEQUENCE, VOIGT_RIG, VOIGT_TRUTH
 from reliability_campaign import station_text
 
 from viscorig.cli import main
@@ -21,24 +21,6 @@ from viscorig.storage import Campaign
 server_module = pytest.importorskip("rigsim.server")
 
 TARGETS = {"K_v": 2e-5, "C_v": 1e-4}
-
-SEQUENCE = """
-name = "adaptive-voigt"
-[defaults]
-band_hz = [20.0, 120.0]
-level = "1.4 m/s^2"
-[[steps]]
-type = "prompt"
-message = "Mount the Voigt damper."
-[[steps]]
-type = "sweep"
-run = "voigt"
-specimen = "voigt damper"
-plan = "adaptive"
-model = "voigt"
-target_uncertainty = {{ K_v = {K_v}, C_v = {C_v} }}
-{extra}
-"""
 
 
 @pytest.fixture
@@ -54,7 +36,7 @@ def files(tmp_path: Path, server, extra: str = "", targets=None) -> tuple[str, s
     station = tmp_path / "station.toml"
     station.write_text(station_text(server.resource, preset="soft-0"))
     sequence = tmp_path / "adaptive.toml"
-    sequence.write_text(SEQUENCE.format(extra=extra, **(targets or TARGETS)))
+    sequence.write_text(ADAPTIVE_SEQUENCE.format(extra=extra, **(targets or TARGETS)))
     return str(sequence), str(station), str(tmp_path / "out.h5")
 
 
@@ -167,7 +149,7 @@ def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp
         station = tmp_path / "station.toml"
         station.write_text(station_text(resource, preset="soft-0"))
         sequence = tmp_path / "adaptive.toml"
-        sequence.write_text(SEQUENCE.format(extra="", K_v=1e-4, C_v=5e-4))
+        sequence.write_text(ADAPTIVE_SEQUENCE.format(extra="", K_v=1e-4, C_v=5e-4))
         out = tmp_path / "out.h5"
         assert main(["run", str(sequence), "--station", str(station), "--out", str(out),
                      "--yes"]) == 0

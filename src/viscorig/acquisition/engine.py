@@ -271,17 +271,20 @@ class RunEngine:
         """Stop as Ctrl-C does: the analyser is aborted at its next poll (the segment in flight
         is dropped), a pause, hold or prompt ends at once; committed points are kept. A
         ``reason`` is written to the journal."""
+        run = self.current_run  # read first: the stop may close the run before it is logged
         with self._control:
             self.stop.requested.set()
             self._control.notify_all()
         if reason:
-            self._log("abort", reason)
+            self._log("abort", reason, run)
 
-    def _log(self, kind: str, text: str) -> None:
-        """Write a journal entry (a failure to write it is said, never fatal)."""
+    def _log(self, kind: str, text: str, run: str | None = None) -> None:
+        """Write a journal entry about ``run`` (default: the current one); a failure to write it
+        is said, never fatal."""
         try:
             with self.file_lock:
-                self.campaign.add_journal_entry(kind, text, self.current_run)
+                self.campaign.add_journal_entry(kind, text,
+                                                self.current_run if run is None else run)
         except Exception as error:  # the file's own commits report their failures
             self.console.warn(f"journal: {error}")
 
