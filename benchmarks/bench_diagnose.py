@@ -34,13 +34,10 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from rigsim.engine import RigSimulator  # noqa: E402
-from rigsim.measurement import SourceControl, SweepRequest  # noqa: E402
-from rigsim.rigfile import load_preset  # noqa: E402
 
 from viscorig.cli import main as cli  # noqa: E402
 from viscorig.diagnosis import diagnose, diagnose_run  # noqa: E402
-from viscorig.fitting import FrfData, fit  # noqa: E402
+from viscorig.fitting import fit  # noqa: E402
 from viscorig.identify import (  # noqa: E402
     PAPER_BAND_HZ,
     identify_run,
@@ -51,39 +48,15 @@ from viscorig.identify import (  # noqa: E402
 from viscorig.storage import Campaign  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from ladder_reference import measured_run  # noqa: E402  (the paper's sweep of a preset)
+
 AUTO_RATIO, IDENTIFY_RATIO = 0.2, 0.01
 
 TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
 TARGET_S = 2.0
 AUTO_TARGET_S = 5.0
-
-
-def measured_run(preset: str = "hard-10") -> FrfData:
-    """The paper's sweep of a preset, as the analyser would give it."""
-    rig = load_preset(preset)
-    frequency = np.arange(20.0, 120.125, 0.25)
-    sensors = rig.sensors
-    control = SourceControl(
-        source_vpk=0.05, auto_level=True, reference_channel=4,
-        reference_vpk=1.4 * sensors.acceleration_v_per_m_s2, tolerance_db=0.5,
-        source_limit_vpk=rig.shaker.force_limit_n / rig.shaker.force_n_per_v,
-    )
-    record = RigSimulator(rig, seed=1).sweep(
-        SweepRequest(frequency, 100 / frequency, 100 / frequency, control)
-    )
-    v = record.channel_v
-    force, accel = sensors.force_v_per_n, sensors.acceleration_v_per_m_s2
-    variance = record.variance
-    return FrfData(
-        frequency,
-        (v[:, 1] / accel) / (v[:, 0] / force),
-        (v[:, 3] / accel) / (v[:, 2] / force),
-        record.end_time_s,
-        np.abs(v[:, 3] / accel),
-        name=preset,
-        variance_table=variance[:, 0] + variance[:, 1],
-        variance_support=variance[:, 2] + variance[:, 3],
-    )
 
 
 def best_of(repeats: int, action) -> tuple[float, object]:
