@@ -14,7 +14,7 @@ from viscorig.storage.flags import (
     PointFlag,
     count_flags,
 )
-from viscorig.storage.records import Fit, FitParameter, Run, RunMetadata, RunSettings, Segment
+from viscorig.storage.records import FitParameter, FitRecord, Run, RunMetadata, RunSettings, Segment
 
 __all__ = [
     "FLAG_NAMES",
@@ -23,8 +23,8 @@ __all__ = [
     "LEVEL_NOT_REACHED",
     "SOURCE_AT_LIMIT",
     "Campaign",
-    "Fit",
     "FitParameter",
+    "FitRecord",
     "PointFlag",
     "Run",
     "RunMetadata",
