@@ -169,8 +169,9 @@ class Campaign:
         first, second = fits[0].result, fits[1].result
         shared = [name for name in first.free if name in second.free]
         changes = compare_fits(first, second, shared)
-        frequency_dependent = any(f.model.modulus_term.keyword != "voigt"
-                                  for f in (first, second))
+        frequency_dependent = any(term is not None and term.keyword != "voigt"
+                                  for term in (first.model.modulus_term,
+                                               second.model.modulus_term))
         if first.has_disc and second.has_disc and frequency_dependent:
             if frequencies_hz is None:
                 lo = max(f.band_hz[0] for f in fits)

@@ -260,6 +260,7 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
         lo = max(before.frequency_hz.min(), after.frequency_hz.min())
         hi = min(before.frequency_hz.max(), after.frequency_hz.max())
         f = np.linspace(lo, hi, 61)
+        assert before.fit is not None and after.fit is not None  # kept by the filter above
         pair = Pair(before.fit, after.fit)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{name}: {loaded.name} vs {none.name}"
