@@ -2,6 +2,9 @@
 
 Every change is an atomic commit, so a writer killed at any instant leaves a file that opens
 with every committed segment intact (:mod:`viscorig.storage.atomic`).
+
+A layer under the public API (:mod:`viscorig.api`, ``viscorig.open_campaign``): importable for work
+the API does not wrap, not documented as a second API; its names may change between versions.
 """
 
 from viscorig.storage.campaign import Campaign
