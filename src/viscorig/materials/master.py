@@ -32,6 +32,7 @@ from viscorig.materials.shiftfunctions import (
 )
 from viscorig.materials.superposition import SuperpositionCheck, check_superposition
 from viscorig.materials.table import ModulusTable
+from viscorig.numbers import with_uncertainty
 
 #: Without a shift function, a set within this many kelvin of the reference temperature asked
 #: for is taken as the reference itself (with one, the shifts are moved to it exactly).
@@ -118,12 +119,12 @@ class MasterCurve:
                  "shift factors (reduced frequency f·aT):"]
         for t, a, e in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
                            strict=True):
-            lines.append(f"  {t:8.2f} °C   log10 aT = {a:+8.3f} ± {e:.3f}")
+            lines.append(f"  {t:8.2f} °C   log10 aT = {with_uncertainty(a, e, signed=True)}")
         for function in master.shift_functions:
             data = function.to_json()
             values = ", ".join(
-                f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
-                + ("" if v["unit"] == "1" else f" {v['unit']}")
+                f"{k} = " + with_uncertainty(v["value"], v["stderr"],
+                                             "" if v["unit"] == "1" else v["unit"])
                 for k, v in data["parameters"].items())
             chi = function.reduced_chi2
             fit = "" if math.isnan(chi) else f" (χ²/dof {chi:.2f}"

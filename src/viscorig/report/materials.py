@@ -22,6 +22,7 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve, build_master
 from viscorig.materials.sources import modulus_table
+from viscorig.numbers import with_uncertainty
 from viscorig.report.figures import SavedFigure, save
 from viscorig.storage import Campaign
 
@@ -164,7 +165,7 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
                  f"{master.reference_temperature_c:.1f} °C.",
                  master.superposition.verdict[0].upper() + master.superposition.verdict[1:] + "."]
         if best is not None:
-            values = ", ".join(f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+            values = ", ".join(f"{k} = {with_uncertainty(v['value'], v['stderr'])}"
                                for k, v in best.to_json()["parameters"].items())
             fits = "describes" if best.to_json()["describes_shifts"] else "does not describe"
             words.append(f"Shift function: {best.kind} ({values}); it {fits} the shift factors "
