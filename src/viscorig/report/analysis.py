@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
 from viscorig.executor import default_jobs, executor
-from viscorig.fitting import FitResult, estimate_noise
+from viscorig.fitting import FitResult, estimate_noise, fit
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -368,8 +368,6 @@ def analyse_campaign(
         ``tcp://HOST:PORT`` of a Dask cluster whose workers climb the ladders instead
         (:mod:`viscorig.executor`).
     """
-    from viscorig.fitting import fit
-
     started = time.perf_counter()
     campaign = read_once(str(campaign.path), campaign)
     rig = RigDescription.from_attributes(campaign.rig)
@@ -388,63 +386,17 @@ def analyse_campaign(
     analyses: list[RunAnalysis] = []
     requests: list[tuple[str, tuple[float, float], str]] = []
     for run in runs:
-        bare = is_bare_table(run)
-        if not run.points:
-            band = band_hz
-        elif bare:  # the table's own band, which covers its resonance
-            band = (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
-        else:
-            band = _band(run, band_hz)
-        analysis = RunAnalysis(run, bare, band, summary=by_name.get(run.name))
+        analysis = RunAnalysis(run, is_bare_table(run), _run_band(run, band_hz),
+                               summary=by_name.get(run.name))
         analyses.append(analysis)
-        if run.points < 10:
-            continue
-        stored = campaign.fits(run.name)
-        if stored:
-            try:
-                analysis.shown = read_fit(stored[-1])
-            except InputError as error:
-                analysis.notes.append(f"stored fit not shown: {error}")
-        if bare or not use_diagnosis:
-            continue
-        if table is None:
-            analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
-                                        "run, no /rig values)")
-            continue
-        spec = "voigt"
-        if analysis.shown is not None and analysis.shown.has_disc:
-            spec = analysis.shown.spec
-            analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
-        requests.append((run.name, band, spec))
+        spec = _first_look(campaign, analysis, table, use_diagnosis)
+        if spec is not None:
+            requests.append((run.name, analysis.band_hz, spec))
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     climbs, workers = ({}, 1) if not requests else _climb_all(
         str(campaign.path), requests, ladder, jobs, scheduler)
     for analysis in analyses:
-        outcome = climbs.get(analysis.name)
-        if isinstance(outcome, str):
-            analysis.diagnosis_error = outcome
-        elif outcome is not None:
-            analysis.climb = outcome
-            analysis.shown = outcome.final
-        if analysis.shown is None and analysis.summary is not None:
-            frfs = "X_s/F_e" if not analysis.bare else "the bare table"
-            analysis.shown = replace(analysis.summary.fit, source=f"fitted here to {frfs}")
-        run, band = analysis.run, analysis.band_hz
-        if analysis.shown is not None and run.points >= 10:
-            analysis.residuals = _residuals(run, analysis.shown, band)
-        if analysis.bare or run.points < 10:
-            continue
-        shown = analysis.shown
-        try:
-            if analysis.climb is not None and shown is not None and shown.has_disc:
-                analysis.modulus = _modulus(run, shown, band, f"{shown.spec} ({shown.source})")
-            else:
-                result = fit("maxwell", run_data(run), frfs=("support",), band_hz=band,
-                             fixed=table.values if table is not None else None)
-                analysis.modulus = _modulus(run, replace(result, source="Maxwell fit"),
-                                            band, "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)")
-        except (InputError, ValueError, np.linalg.LinAlgError) as error:
-            analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
+        _complete(analysis, climbs.get(analysis.name), table)
     if not use_diagnosis:
         notes.append("diagnosis sections left out: "
                      + ("the diagnosis package is not installed" if _diagnosis is None
@@ -455,6 +407,72 @@ def analyse_campaign(
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
                             min(workers, max(1, len(requests))))
+
+
+def _run_band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
+    """The band a run is analysed in: ``band_hz`` clipped to the run; a bare table's own band,
+    which covers its resonance."""
+    if not run.points:
+        return band_hz
+    if is_bare_table(run):
+        return float(run.frequency_hz.min()), float(run.frequency_hz.max())
+    return _band(run, band_hz)
+
+
+def _first_look(campaign: Campaign, analysis: RunAnalysis, table: TableSource | None,
+                use_diagnosis: bool) -> str | None:
+    """Show the run's latest stored fit; the spec its diagnosis starts from, or ``None`` when
+    it is not diagnosed (too few points, the bare table, no table values, no diagnosis)."""
+    run = analysis.run
+    if run.points < 10:
+        return None
+    stored = campaign.fits(run.name)
+    if stored:
+        try:
+            analysis.shown = read_fit(stored[-1])
+        except InputError as error:
+            analysis.notes.append(f"stored fit not shown: {error}")
+    if analysis.bare or not use_diagnosis:
+        return None
+    if table is None:
+        analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
+                                    "run, no /rig values)")
+        return None
+    spec = "voigt"
+    if analysis.shown is not None and analysis.shown.has_disc:
+        spec = analysis.shown.spec
+        analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
+    return spec
+
+
+def _complete(analysis: RunAnalysis, outcome: Climb | str | None,
+              table: TableSource | None) -> None:
+    """The model shown (the ladder's last rung, else the stored or Table 1 fit), its residuals
+    and, for a specimen, K* from Eq. (5) with a model's."""
+    if isinstance(outcome, str):
+        analysis.diagnosis_error = outcome
+    elif outcome is not None:
+        analysis.climb = outcome
+        analysis.shown = outcome.final
+    if analysis.shown is None and analysis.summary is not None:
+        frfs = "X_s/F_e" if not analysis.bare else "the bare table"
+        analysis.shown = replace(analysis.summary.fit, source=f"fitted here to {frfs}")
+    run, band = analysis.run, analysis.band_hz
+    if analysis.shown is not None and run.points >= 10:
+        analysis.residuals = _residuals(run, analysis.shown, band)
+    if analysis.bare or run.points < 10:
+        return
+    shown = analysis.shown
+    try:
+        if analysis.climb is not None and shown is not None and shown.has_disc:
+            analysis.modulus = _modulus(run, shown, band, f"{shown.spec} ({shown.source})")
+        else:
+            result = fit("maxwell", run_data(run), frfs=("support",), band_hz=band,
+                         fixed=table.values if table is not None else None)
+            analysis.modulus = _modulus(run, replace(result, source="Maxwell fit"),
+                                        band, "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)")
+    except (InputError, ValueError, np.linalg.LinAlgError) as error:
+        analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
 
 
 def storage_and_loss(curves: ModulusCurves, theta_m: float | None
