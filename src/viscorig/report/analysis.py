@@ -25,6 +25,8 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
+from types import ModuleType
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +47,7 @@ from viscorig.identify import (
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
 
+_diagnosis: ModuleType | None
 try:  # diagnosis is optional: the report is built without its sections when it is absent
     from viscorig import diagnosis as _diagnosis
 except ImportError:  # pragma: no cover - depends on the installed tree
@@ -269,20 +272,21 @@ class ReadOnce:
 _READ: dict[tuple[str, int, int], ReadOnce] = {}
 
 
-def read_once(path: str, campaign: Campaign | None = None) -> ReadOnce:
+def read_once(path: str, campaign: Campaign | None = None) -> Campaign:
     """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
-    unless ``campaign`` is given)."""
+    unless ``campaign`` is given), typed as the campaign it stands in for: it answers every
+    attribute but :meth:`ReadOnce.run` with the campaign's own."""
     from pathlib import Path
 
     try:
         stat = Path(path).stat()
     except OSError:
-        return ReadOnce(Campaign.open(path))  # which says what is wrong with the path
+        return cast(Campaign, ReadOnce(Campaign.open(path)))  # which says what is wrong
     key = (str(Path(path).resolve()), stat.st_mtime_ns, stat.st_size)
     if key not in _READ:
         _READ.clear()  # one campaign at a time
         _READ[key] = ReadOnce(campaign if campaign is not None else Campaign.open(path))
-    return _READ[key]
+    return cast(Campaign, _READ[key])
 
 
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
@@ -292,6 +296,8 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
     Runs in a worker process: it opens the campaign itself and returns nothing that holds a
     fitted model object.
     """
+    if _diagnosis is None:  # analyse_campaign asks for no ladder then
+        return "the diagnosis package is not installed"
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked

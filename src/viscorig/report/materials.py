@@ -36,6 +36,13 @@ class Material:
     problem: str = ""
 
 
+def _number(value: object, missing: float) -> float:
+    """A run attribute as a number; ``missing`` when it is absent, zero or not a number."""
+    if isinstance(value, (int, float, str, np.number)) and value:
+        return float(value)
+    return missing
+
+
 def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
     """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures."""
     groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
@@ -43,10 +50,10 @@ def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
     for name in campaign.run_names:
         attributes = campaign.run_attributes(name)
         specimen = str(attributes.get("specimen", ""))
-        temperature = float(attributes.get("temperature_c", math.nan) or math.nan)
+        temperature = _number(attributes.get("temperature_c"), math.nan)
         if specimen.lower() in ("none", "") or not math.isfinite(temperature):
             continue
-        key = (specimen, round(float(attributes.get("preload_strain", 0.0) or 0.0), 4))
+        key = (specimen, round(_number(attributes.get("preload_strain"), 0.0), 4))
         by_specimen.setdefault(key, []).append((temperature, name))
     for members in by_specimen.values():
         if len({round(t, 1) for t, _ in members}) >= 2:
