@@ -37,8 +37,9 @@ class Material:
 
 
 def _number(value: object, missing: float) -> float:
-    """A run attribute as a number; ``missing`` when it is absent, zero or not a number."""
-    if isinstance(value, (int, float, str, np.number)) and value:
+    """A numeric run attribute as a float (0 is a value: a run at 0 °C has a temperature);
+    ``missing`` when it is absent or not a number."""
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
         return float(value)
     return missing
 
