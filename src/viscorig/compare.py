@@ -87,7 +87,7 @@ class Residuals:
         ``∂p/∂ε`` (fitted parameters × stacked ``[Re; Im]`` residual), see
         :attr:`viscorig.fitting.FitResult.influence`.
     noise_floor
-        The fit's noise floor.
+        The floor of the noise model the fit was weighed with.
     """
 
     frequency_hz: NDArray[np.float64]
@@ -113,8 +113,11 @@ def residuals_of(fit: FitResult) -> Residuals | None:
     n = np.asarray(fit.frequency_hz).size
     if values.shape != (len(frfs), n) or influence.shape != (len(fit.free), 2 * len(frfs) * n):
         return None
+    # the floor of the noise model the fit was weighed with: the report and the API may show
+    # a fit beside another floor (the diagnosis's), which is not the one its residuals have
+    floor = fit.noise.floor_of(frfs) if fit.noise is not None else fit.noise_floor
     return Residuals(np.asarray(fit.frequency_hz, dtype=float), frfs, values,
-                     np.asarray(influence, dtype=float), float(fit.noise_floor))
+                     np.asarray(influence, dtype=float), float(floor))
 
 
 @dataclass(frozen=True)
