@@ -346,7 +346,7 @@ class BenchService:
         return runner.engine
 
     def pause(self) -> None:
-        """Pause at the next checkpoint (the segment in flight committed, the source off)."""
+        """Pause at the point being measured (committed with those before it, the source off)."""
         if not self._engine().request_pause():
             raise BenchError(f"cannot pause: the run is {self.state()['state']}")
 
