@@ -113,12 +113,11 @@ class Runner:
                 if events & ESR_OPERATION_COMPLETE:
                     return
             condition = self.status.operation_condition()
-            if may_end_early and self.end_requested.is_set():
-                if condition & OPER_SETTLING or not condition & OPER_MEASURING:
-                    self.write("ABOR")  # before the point now settling is measured
-                    self.ended_early = True
-                    return
-                wait_s = min(END_POLL_S, poll_interval_s)  # the point in progress: let it end
+            at_boundary = bool(condition & OPER_SETTLING) or not condition & OPER_MEASURING
+            if may_end_early and self.end_requested.is_set() and at_boundary:
+                self.write("ABOR")  # before the point now settling is measured
+                self.ended_early = True
+                return
             now = time.time()
             if condition & OPER_CALIBRATING:
                 self.calibrating_s += now - last
@@ -144,7 +143,9 @@ class Runner:
                     calibrating_s=self.calibrating_s,
                 ))
             if not self.aborted.is_set():
-                if may_end_early and not self.end_requested.is_set():
+                if may_end_early and self.end_requested.is_set():
+                    time.sleep(min(END_POLL_S, poll_interval_s))  # the point in flight ends
+                elif may_end_early:
                     self.end_requested.wait(wait_s)  # a request to end is looked at at once
                 else:
                     time.sleep(wait_s)
