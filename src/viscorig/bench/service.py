@@ -272,10 +272,9 @@ class BenchService:
 
     def _run(self, item: QueueItem) -> str:
         from viscorig.acquisition import Outcome, Runner
-        from viscorig.acquisition.holds import standard_conditions
         from viscorig.cli.check import check_files
         from viscorig.cli.run import open_station, runner_options
-        from viscorig.cli.stations import not_answering_errors
+        from viscorig.cli.stations import station_holds
         from viscorig.storage import Campaign
 
         checked = check_files(item.sequence, self.station_path)
@@ -298,9 +297,7 @@ class BenchService:
                     station_text=checked.station_text, station_file=self.station_path or "",
                     rig=station.rig_attributes())
             console = PageConsole()
-            holds = standard_conditions(bench, station.shaker_force_limit_n,
-                                        opened.analyser.identify, not_answering_errors(),
-                                        opened.chamber)
+            holds = station_holds(opened, bench)
             floors = {}
             if opened.simulated:
                 from viscorig.cli.plan import simulated_floors
