@@ -457,6 +457,7 @@ class Agilent35670A(Subsystem):
         if resolution is None:
             raise SettingOutOfRange("set a resolution (or call configure_swept_sine) first")
         start, stop, points = self._check_band(start_hz, stop_hz, float(resolution))
+        self.runner.end_requested.clear()  # a request left from an earlier sweep
         sweep = self.sweep
         sweep.sweep_mode = "AUTO"
         sweep.set_band(start, stop)

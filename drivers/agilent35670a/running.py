@@ -85,8 +85,7 @@ class Runner:
         MeasurementAborted, InstrumentTimeout, SCPIError
         """
         self.aborted.clear()
-        self.end_requested.clear()
-        self.ended_early = False
+        self.ended_early = False  # a request to end made before the start still counts
         self._paused_since = None
         self._paused_s = 0.0
         self.calibrating_s = 0.0

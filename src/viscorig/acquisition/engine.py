@@ -522,8 +522,8 @@ class RunEngine:
             if self.stop.asked():
                 analyser.abort()
                 return
-            if self._pause_wanted:  # asked before the sweep started
-                self._end_at_point()
+            if self._pause_wanted and callable(end_after_point):
+                end_after_point()  # again at every poll: a request made as the sweep started
             index = min(int(np.searchsorted(cumulative, report.elapsed_s)), cumulative.size - 1)
             in_flight = max(float(cumulative[-1]) - float(report.elapsed_s), 0.0)
             self.console.poll(float(request.frequency_hz[index]), request.left_after_s + in_flight)
