@@ -19,18 +19,19 @@ Lifecycle (:class:`EngineState`)::
 
 Pausing and holds. :meth:`RunEngine.request_pause` (from any thread) pauses at the point: an
 analyser that can end a sweep at a point boundary (``end_after_point``, the 35670A driver's
-linear sweeps) is asked to, so the point being measured is finished, the sweep ends before the
-next one and the segment returned holds the points measured so far, which the plan commits;
-otherwise the segment being measured is finished and committed. At the checkpoint that follows
-the commit, the engine switches the source off (the analyser's abort) and waits.
-:meth:`RunEngine.request_resume` goes on; the analyser is configured again first (the source
-starts from its start level and the controller levels again) and the plan continues from where
-it was, as if nothing had happened. Hold conditions (:mod:`viscorig.acquisition.holds`,
-pluggable) see every committed segment and every analyser error of a measurement: one that
-answers with a reason holds the run at the next checkpoint (or, for an error, at once: the
-segment in flight is dropped and measured again after the hold). A hold ends when its condition
-clears (``hold_resume = "auto"``) or when the technician resumes. Each pause, hold and resume is
-written to the campaign's journal (:mod:`viscorig.storage.journal`) with its reason.
+linear sweeps) is asked to, for a plan that takes such a segment (a full plan's), so the point
+being measured is finished, the sweep ends before the next one and the segment returned holds
+the points measured so far, which the plan commits; otherwise the segment being measured is
+finished and committed. At the checkpoint that follows the commit, the engine switches the
+source off (the analyser's abort) and waits. :meth:`RunEngine.request_resume` goes on; the
+analyser is configured again first (the source starts from its start level and the controller
+levels again) and the plan continues from where it was, as if nothing had happened. Hold
+conditions (:mod:`viscorig.acquisition.holds`, pluggable) see every committed segment and every
+analyser error of a measurement: one that answers with a reason holds the run at the next
+checkpoint (or, for an error, at once: the segment in flight is dropped and measured again after
+the hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the
+technician resumes. Each pause, hold and resume is written to the campaign's journal
+(:mod:`viscorig.storage.journal`) with its reason.
 
 Stopping. The first Ctrl-C (or SIGTERM) while the analyser measures only asks it to stop: the
 next poll aborts the analyser and the segment in flight is dropped, so no partial segment is
@@ -516,7 +517,8 @@ class RunEngine:
         analyser = self.rig.analyser
         cumulative = np.cumsum(request.durations_s)
 
-        end_after_point = getattr(analyser, "end_after_point", None)
+        end_after_point = (getattr(analyser, "end_after_point", None)
+                           if request.ends_at_a_point else None)
 
         def progress(report: SweepProgressReport) -> None:
             if self.stop.asked():
@@ -615,6 +617,9 @@ class MeasureRequest:
         Test time of the run after this sweep (progress).
     call
         ``call(analyser, progress, poll_interval_s) -> MeasuredSegment``: the driver call.
+    ends_at_a_point
+        The plan takes a segment that a pause ended at a point (the first points of those
+        asked for, ``ended_early``); otherwise a pause waits for the whole sweep.
     """
 
     run: str
@@ -623,5 +628,6 @@ class MeasureRequest:
     durations_s: np.ndarray
     left_after_s: float
     call: Callable[[Analyser, Callable[[SweepProgressReport], None], float], MeasuredSegment]
+    ends_at_a_point: bool = False
 
 

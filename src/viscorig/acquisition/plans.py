@@ -386,7 +386,8 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
         rows = slice(done + piece.start, done + piece.stop)
         frequencies = planned[rows]
         request = MeasureRequest(step.run, resource, frequencies, durations[rows],
-                                 _left(step, rows.stop), _linear_call(frequencies))
+                                 _left(step, rows.stop), _linear_call(frequencies),
+                                 ends_at_a_point=True)
         measured, remeasured = yield from stubs.measure_segment(
             request, functools.partial(_check_piece, frequencies=frequencies, resource=resource),
             "measure")
