@@ -69,7 +69,7 @@ def _read_until(process: subprocess.Popen, text: str, lines: list[str],
 
 @pytest.mark.slow
 def test_signals_pause_and_resume_a_run_and_a_note_reaches_its_journal(tmp_path) -> None:
-    """The whole path in a process of its own (about 10 s: two interpreters start)."""
+    """The whole path in a process of its own (about 15 s: two interpreters start)."""
     sequence = _write(tmp_path, "short.toml")
     out = tmp_path / "short.h5"
     process = subprocess.Popen(
