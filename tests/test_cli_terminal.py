@@ -133,7 +133,7 @@ def test_in_process_signals_pause_and_resume_and_a_note_is_carried(tmp_path) -> 
 
     helper = threading.Thread(target=technician)
     helper.start()
-    status, stdout, err = cli(["run", sequence, "--yes", "--sim-pace", "20", "--out", out])
+    status, stdout, err = cli(["run", sequence, "--yes", "--sim-pace", "40", "--out", out])
     helper.join(30)
     assert status == 0, err
     assert seen["note"] == 0 and seen["still"] == seen["paused_at"]
@@ -255,3 +255,33 @@ def test_the_signal_handlers_are_put_back_after_the_run(tmp_path) -> None:
     assert status == 0, err
     after = {name: signal.getsignal(getattr(signal, name)) for name in before}
     assert after == before
+
+
+@pytest.mark.slow
+def test_a_note_from_the_terminal_reaches_a_run_of_the_bench_page(tmp_path) -> None:
+    """About 5 s: the note comes from a process of its own."""
+    from benchrig import wait_until
+
+    from viscorig.bench import BenchService
+
+    _write(tmp_path, "short.toml")
+    service = BenchService(root=tmp_path, sim_pace=20.0)
+    service.add("short.toml", "bench.h5")
+    service.start()
+    try:
+        prompt = wait_until(lambda: service.state()["prompt"], what="a prompt")
+        service.answer(prompt["id"], "done")
+        wait_until(lambda: service.state()["points_done"] >= 1, what="measuring")
+        service.pause()  # the run stays in progress while the note is on its way
+        wait_until(lambda: service.state()["state"] == "paused", what="paused")
+        note = subprocess.run(  # another process: this one shares the service's writer lock
+            [sys.executable, "-m", "viscorig", "note", str(tmp_path / "bench.h5"), "from", "the",
+             "terminal"], capture_output=True, text=True, timeout=60)
+        service.resume()
+        wait_until(lambda: not service.busy, 60, "the end")
+    finally:
+        service.shutdown()
+    assert note.returncode == 0 and "handed to the run in progress" in note.stdout, note.stderr
+    entries = [(e.kind, e.run, e.text) for e in Campaign.open(tmp_path / "bench.h5").journal]
+    assert entries[1] == ("note", "soft-0", "from the terminal")
+    assert [kind for kind, _, _ in entries] == ["pause", "note", "resume"]

@@ -272,6 +272,7 @@ class BenchService:
 
     def _run(self, item: QueueItem) -> str:
         from viscorig.acquisition import Outcome, Runner
+        from viscorig.acquisition.notebox import NoteCarrier
         from viscorig.cli.check import check_files
         from viscorig.cli.run import open_station, runner_options
         from viscorig.cli.stations import station_holds
@@ -311,8 +312,15 @@ class BenchService:
                 self.opened, self.console, self.runner = opened, console, runner
                 self.campaign_path = out
                 self._checking = False
+            engine = runner.engine
+
+            def store(text: str) -> object:  # a note from 'viscorig note FILE.h5 TEXT'
+                with self.file_lock:
+                    return campaign.add_journal_entry("note", text, engine.current_run)
+
             try:
-                result = runner.run()
+                with NoteCarrier(out, store, console.warn):
+                    result = runner.run()
             finally:
                 with self._lock:
                     self.opened = None

@@ -1,9 +1,9 @@
 """``viscorig note FILE.h5 TEXT``: a note with its time in the campaign's journal.
 
-Works on a file nobody writes (the note is stored at once) and on a file ``viscorig run`` or
-``resume`` is measuring into (the running process stores it, with the run being measured, within
-a second: :mod:`viscorig.acquisition.notebox`). Exit status 0 stored; 2 bad input, or the file
-is held by a writer that does not take notes (nothing stored).
+Works on a file nobody writes (the note is stored at once) and on a file ``viscorig run``,
+``resume`` or the bench page is measuring into (the running process stores it, with the run
+being measured, within a second: :mod:`viscorig.acquisition.notebox`). Exit status 0 stored; 2
+bad input, or the file is held by a writer that does not take notes (nothing stored).
 """
 
 from __future__ import annotations
@@ -52,9 +52,9 @@ def note_command(args: argparse.Namespace) -> int:
         while (posted.exists() or taken.exists()) and time.monotonic() < deadline:
             time.sleep(0.05)
         if notebox.withdraw(posted):
-            raise InputError(f"{busy.detail}; it did not take the note within {WAIT_S:g} s (only "
-                             "'viscorig run' and 'resume' take notes): nothing stored",
-                             str(path)) from None
+            raise InputError(f"{busy.detail}; it did not take the note within {WAIT_S:g} s "
+                             "(only 'viscorig run', 'resume' and 'bench serve' take notes): "
+                             "nothing stored", str(path)) from None
         print(f"{path}: note handed to the run in progress")
         return 0
     print(f"{path}: note stored {entry.time_utc}" + (f" (run {entry.run})" if entry.run else ""))
