@@ -255,6 +255,7 @@ def test_configure_swept_sine_sends_the_papers_setup_in_a_safe_order() -> None:
             "SWE:STIM 100 CYCLE",
             "SWE:DWEL 100 CYCLE",
             "SOUR:VOLT:LIM 1.5 VPK",
+            "SOUR:VOLT:SLEW 1 V/S",
             "SOUR:VOLT 0.1 VPK",
             "SOUR:VOLT:REF:CHAN INP4",
             "SOUR:VOLT:REF 2 EU",

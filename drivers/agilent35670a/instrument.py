@@ -50,7 +50,7 @@ from .properties import (
 from .quirks import Quirks
 from .running import Runner
 from .segment import Spectra, SweepProgress, SweepSegment
-from .source import MAX_SOURCE_VPK, FftSource, Source
+from .source import DEFAULT_SLEW_V_PER_S, MAX_SOURCE_VPK, FftSource, Source
 from .status import Status
 from .swept_sine import MAX_POINTS, SweptSine, round_down
 from .traces import Traces
@@ -312,6 +312,7 @@ class Agilent35670A(Subsystem):
         tolerance_db: float = 2.0,
         start_level_vpk: float = 0.1,
         data_format: str = "REAL,64",
+        source_slew_v_per_s: float = DEFAULT_SLEW_V_PER_S,
     ) -> None:
         """Set up an auto-levelled swept sine and read every setting back.
 
@@ -347,6 +348,11 @@ class Agilent35670A(Subsystem):
         direction, tolerance_db, start_level_vpk, data_format
             ``"UP"``/``"DOWN"``, auto-level tolerance (dB), level the controller starts from
             (≤ the source limit), ``"REAL,64"`` (falls back to ASCII if refused).
+        source_slew_v_per_s
+            Ramp rate of the source (``SOUR:VOLT:SLEW``, 0 to 10000 V/s, 0 for none): the
+            analyser ramps the source up as a sweep starts and down to 0 when it ends or is
+            aborted (a pause, a hold, Ctrl-C), so the shaker never sees a step (module
+            :mod:`.running`).
 
         Raises
         ------
@@ -361,6 +367,7 @@ class Agilent35670A(Subsystem):
             SweptSine.reference_pairing.validator(pairing, self.sweep)
         self._check_band(start_hz, stop_hz, resolution_hz)
         strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
+        Source.slew_v_per_s.validator(source_slew_v_per_s, self.source)
         strict_range(0.0, 1e6, "cycles")(settle_cycles, self)
         strict_range(1.0, 234.0, "cycles")(integrate_cycles, self)
         if not 0.0 < start_level_vpk <= source_limit_vpk:
@@ -384,6 +391,7 @@ class Agilent35670A(Subsystem):
         sweep.set_timing(settle_cycles, integrate_cycles, "CYCLE")
         source = self.source
         source.limit_vpk = source_limit_vpk  # the limit always goes first
+        source.slew_v_per_s = source_slew_v_per_s  # before the source can start: it ramps up
         source.level_vpk = start_level_vpk
         self.set_reference_channel(reference_channel, reference_level_eu,
                                    tolerance_db=tolerance_db)
@@ -446,7 +454,8 @@ class Agilent35670A(Subsystem):
         poll_interval_s
             Longest time between polls (polling starts at 1 ms and doubles).
         switch_source_off
-            End with ``ABOR`` (the sweep drives the source), also after an error.
+            End with ``ABOR`` (the sweep drives the source), also after an error; the source
+            ramps down at the slew rate set (:meth:`source_ramp_down_s`).
 
         Raises
         ------
@@ -516,6 +525,9 @@ class Agilent35670A(Subsystem):
         level the controller is expected to land at, so that a point starts where the one
         before it left the rig), within the source limit.
 
+        :meth:`end_after_point` ends it after the point in flight: the segment then holds the
+        first points, with ``ended_early`` true.
+
         Returns
         -------
         SweepSegment
@@ -543,7 +555,10 @@ class Agilent35670A(Subsystem):
                                     f"{len(frequencies)} frequencies")
         limit = self.source.sent.get("limit_vpk")
         pieces: list[SweepSegment] = []
+        self.runner.end_requested.clear()  # a request left from an earlier sweep
         for number, frequency in enumerate(frequencies):
+            if pieces and self.runner.end_requested.is_set():  # ended after the point before
+                return dataclasses.replace(_joined(pieces), ended_early=True)
             if start_levels_vpk is not None:
                 start = float(start_levels_vpk[number])
                 self.source.level_vpk = min(start, limit) if limit is not None else start
@@ -656,7 +671,9 @@ class Agilent35670A(Subsystem):
 
     def _stop_source(self, fault: BaseException | None) -> None:
         """End the measurement so that the source stops, however it ended: ``ABOR`` (in swept
-        sine the sweep drives the source), and ``OUTP OFF`` in FFT mode.
+        sine the sweep drives the source), and ``OUTP OFF`` in FFT mode. With a slew rate set
+        (``SOUR:VOLT:SLEW``) the analyser ramps the source down rather than cutting it (module
+        :mod:`.running`).
 
         After a lost connection or a time-out the session is reopened first: a write to a
         socket the peer has closed still "succeeds", so the source would stay on. No error-queue
@@ -686,16 +703,28 @@ class Agilent35670A(Subsystem):
         self.runner.resume()
 
     def end_after_point(self) -> None:
-        """End the running :meth:`measure` at the next point boundary: the point being integrated
-        is finished, the analyser stopped (``ABOR``, the source with it) before the next one and
-        the points measured so far read; the segment returned holds them, with ``ended_early``
-        true. Point-by-point measurements (manual sweep mode) ignore it. Safe from the progress
-        callback or another thread."""
+        """End the running measurement at the next point boundary: the point being integrated
+        is finished, the analyser stopped (``ABOR``; the source ramps down at the slew rate)
+        before the next one and the points measured so far read; the segment returned holds
+        them, with ``ended_early`` true. :meth:`measure` ends inside its sweep;
+        :meth:`measure_points` (manual sweep mode, one measurement per point) after the point
+        in flight, before the next one starts. Safe from the progress callback or another
+        thread."""
         self.runner.end_after_point()
 
+    def source_ramp_down_s(self) -> float:
+        """The longest time the source takes to ramp down to 0 after ``ABOR``: the source
+        limit over the slew rate sent on this connection (the level the auto-level controller
+        reached is not readable in swept sine), 0 without a slew rate."""
+        slew = float(self.source.sent.get("slew_v_per_s") or 0.0)
+        limit = self.source.sent.get("limit_vpk")
+        if slew <= 0.0:
+            return 0.0
+        return float(MAX_SOURCE_VPK if limit is None else limit) / slew
+
     def abort(self) -> None:
-        """Stop the measurement (``ABOR``; the source stops with it); a waiting measurement
-        raises :class:`MeasurementAborted`."""
+        """Stop the measurement (``ABOR``; the source ramps down at the slew rate); a waiting
+        measurement raises :class:`MeasurementAborted`."""
         self.runner.abort()
         if self.instrument_mode_sent() == "FFT":
             self.write("OUTP OFF")

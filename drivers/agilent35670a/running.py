@@ -6,17 +6,30 @@ polls ``*STB?`` (answered at once) until the standard-event summary bit says the
 complete or an error came, and ``STAT:OPER:COND?`` for progress. Time the analyser spends
 auto-calibrating (``STAT:OPER`` bit 0) and time paused do not count against the deadline.
 
-Ending at a point. :meth:`Runner.end_after_point` (from the progress callback or another thread)
-asks the sweep to end at the next point boundary: a point being integrated (``STAT:OPER``
-measuring without settling) is let finish, and as soon as the analyser settles at the next
-frequency, or at once when it is already settling, ``ABOR`` stops it there (and the source with
-it, in swept sine). The points measured so far stay in the traces (the rest hold the no-data
-marker) and the caller reads them. ``ABOR`` rather than the instrument's pause (``INIT:CONT
-OFF``): a paused measurement still counts as running for ``*WAI``, which every trace read uses,
-and the source would stay on. While such an end is awaited the status is polled every
-:data:`END_POLL_S` so that a short settle is not missed. That the 35670A's settling bit rises as
-a new point starts, after the point before it reached its trace, is inferred from the
-programming guide's description of the bits: check it on hardware.
+Ending at a point. :meth:`Runner.end_after_point` (from the progress callback or another
+thread) asks the sweep to end at the next point boundary: a point being integrated
+(``STAT:OPER`` measuring without settling) is let finish, and as soon as the analyser settles
+at the next frequency, or at once when it is already settling, ``ABOR`` stops it there. The
+points measured so far stay in the traces (the rest hold the no-data marker) and the caller
+reads them. ``ABOR`` rather than the instrument's pause (``INIT:CONT OFF``): a paused
+measurement still counts as running for ``*WAI``, which every trace read uses, and the source
+would stay on. While such an end is awaited the status is polled every :data:`END_POLL_S` so
+that a short settle is not missed. That the 35670A's settling bit rises as a new point starts,
+after the point before it reached its trace, is inferred from the programming guide's
+description of the bits: check it on hardware.
+
+The source on stopping. In swept sine the sweep drives the source, and ``ABOR`` (at a point
+boundary, on an abort, at the end of every segment) is what stops it. The source has a ramp
+rate, ``SOUR:VOLT:SLEW`` (0 to 10000 V/s, preset 0: no ramp). The driver sets it with the swept
+sine (:meth:`~.instrument.Agilent35670A.configure_swept_sine`, 1 V/s unless told) so that the
+analyser ramps the source down to 0 at that rate instead of cutting it, over at most the source
+limit over the rate (:meth:`~.instrument.Agilent35670A.source_ramp_down_s`). That the analyser
+applies the ramp when a swept sine ends and when ``ABOR`` stops it, as well as when the level
+changes, is inferred from the command's name and range: the programming guide's text on it was
+not at hand, and no SCPI query reads the output level back. Check it on hardware with a scope
+on the source output; if ``ABOR`` cuts the source regardless, the ramp must be made by the
+driver (auto level off, ``SOUR:VOLT`` stepped down) before ``ABOR``. ``ABOR`` never waits for
+the ramp; a new sweep started during it takes the source from where the ramp has brought it.
 """
 
 from __future__ import annotations

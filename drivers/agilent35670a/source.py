@@ -25,10 +25,13 @@ from .properties import (
     strict_range,
 )
 
-__all__ = ["MAX_SOURCE_VPK", "FftSource", "Source"]
+__all__ = ["DEFAULT_SLEW_V_PER_S", "MAX_SOURCE_VPK", "FftSource", "Source"]
 
 #: Highest source amplitude (volts peak).
 MAX_SOURCE_VPK = 5.0
+#: Source ramp rate :meth:`~.instrument.Agilent35670A.configure_swept_sine` sets unless told
+#: (V/s; the analyser's preset is 0, no ramp).
+DEFAULT_SLEW_V_PER_S = 1.0
 #: Highest input level (the +27 dBVrms range), volts peak.
 MAX_INPUT_VPK = 31.66
 
@@ -111,7 +114,9 @@ class Source(Subsystem):
     )
     slew_v_per_s = control(
         "SOUR:VOLT:SLEW {value} V/S", "SOUR:VOLT:SLEW?",
-        """Ramp rate of the source at the start and end of a sweep, 0 (none) to 10000 V/s.""",
+        """Ramp rate of the source at the start and end of a sweep, 0 (none, the preset) to
+        10000 V/s: the source ramps up to its level as a sweep starts and down to 0 when the
+        sweep ends or ``ABOR`` stops it (inferred for ``ABOR``, module :mod:`.running`).""",
         validator=strict_range(0.0, 10000.0, "V/s"), to_text=number_text, parse=parse_float,
     )
 

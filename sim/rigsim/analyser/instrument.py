@@ -357,6 +357,14 @@ class VirtualAnalyser:
                 return self.run.state == "RUNNING" and self._measuring_mode == "SINE"
             return bool(self.store.get("outp.state", mode="FFT"))
 
+    @property
+    def source_output_vpk(self) -> float:
+        """What the source outputs now, volts peak: the swept sine's level while it runs, then
+        its ramp down at ``SOUR:VOLT:SLEW`` (:mod:`rigsim.analyser.ramp`). **In-process only,
+        not SCPI** (the 35670A has no query for it)."""
+        with self.lock:
+            return self.sine.output.level_vpk()
+
     def close(self) -> None:
         """Stop any measurement (the worker thread ends)."""
         self.abort()

@@ -146,6 +146,11 @@ class Run:
         if generation != self.generation:
             raise Aborted
 
+    def check_unlocked(self, generation: int) -> None:
+        """Raise :class:`Aborted` if the generation is over (lock not held: no pause wait)."""
+        if generation != self.generation:
+            raise Aborted
+
     def wait(self, generation: int, simulated_s: float, bits: int | None = None) -> None:
         """Let ``simulated_s`` of instrument time pass (scaled by the pace), honouring pause
         and abort; ``bits`` are the ``STAT:OPER`` condition meanwhile. A pause restarts the

@@ -21,6 +21,7 @@ inputs of the rule, not the rule)**.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -30,6 +31,7 @@ import numpy as np
 from rigsim.analyser.frequency import point_count, sweep_frequencies
 from rigsim.analyser.inputs import CHANNELS
 from rigsim.analyser.limits import MAX_POINTS, MIN_DWELL_S, POINT_OVERHEAD_S, display_points
+from rigsim.analyser.ramp import SourceOutput, ramp_requests
 from rigsim.analyser.run import Measurement, Simulator
 from rigsim.analyser.status import (
     OPER_AVERAGING,
@@ -126,6 +128,11 @@ class SweptSine(Measurement):
         self.forced_overload: dict[int, int | None] = {}
         self.last_flags = (np.zeros(CHANNELS, bool), np.zeros(CHANNELS, bool))
         self.rng = np.random.default_rng()
+        self.output = SourceOutput()
+        """What the source outputs: the sweep's level, then its ramp down (module ramp)."""
+        self.rig_lock = threading.Lock()
+        """Held while the rig simulator computes (the worker's points, a ramp down)."""
+        self._plan: _Plan | None = None
 
     # ---------------------------------------------------------------- planning (lock held)
 
@@ -231,7 +238,10 @@ class SweptSine(Measurement):
             slots = display_points(plan.frequencies.size)
         self.points = MeasuredPoints(planned_hz=plan.frequencies.copy(), slots=slots,
                                      scale=self.inputs.scale())
+        self._plan = plan
         zero = plan.start_vpk <= 0.0
+        if not zero:
+            self.output.drive(plan.start_vpk, float(plan.frequencies[0]))
         self.run.start(lambda generation: self._measure(generation, plan), paused=zero)
         if zero:
             self.status.push_error(-221, ScpiError(-221, ZERO_SOURCE_MESSAGE).message)
@@ -282,7 +292,9 @@ class SweptSine(Measurement):
                 request = SweepRequest(frequency_hz=chunk, settle_s=settle, integrate_s=integrate,
                                        control=control, input_range_vpk=plan.ranges)
             self.calibrate(generation)
-            record = self.simulator.sweep(request)
+            with self.rig_lock:
+                self.run.check_unlocked(generation)  # a ramp down may have run meanwhile
+                record = self.simulator.sweep(request)
             self._wire(record, integrate, plan.ranges)
             for k in range(len(record)):
                 self._pace_point(generation, float(settle[k]), float(integrate[k]))
@@ -373,6 +385,7 @@ class SweptSine(Measurement):
         points.range_vpk.append(np.array(record.range_vpk[k]))
         points.overload.append(overload)
         points.source_vpk.append(float(record.source_vpk[k]))
+        self.output.drive(float(record.source_vpk[k]), float(record.frequency_hz[k]))
         active = np.array([self.inputs.enabled(n) for n in range(1, CHANNELS + 1)])
         half = np.array(record.half_range[k], bool)
         self.last_flags = (overload & active, half & active)
@@ -391,3 +404,17 @@ class SweptSine(Measurement):
             if remaining is None:
                 del self.forced_overload[channel]
         self.status.volt.set_condition(0)
+        self._ramp_down()
+
+    def _ramp_down(self) -> None:
+        """The source ramps down at the slew rate (module :mod:`rigsim.analyser.ramp`); the
+        rig simulator is driven through the ramp (lock held)."""
+        frequency, level = self.output.frequency_hz, self.output.driving_vpk
+        duration_s = self.output.stop(float(self.store.get("sour.slew")), self.run.pace)
+        plan = self._plan
+        if plan is None or duration_s <= 0.0:
+            return
+        with self.rig_lock:
+            for request in ramp_requests(frequency, level, duration_s, plan.control,
+                                         plan.ranges):
+                self.simulator.sweep(request)

@@ -19,18 +19,19 @@ Lifecycle (:class:`EngineState`)::
 
 Pausing and holds. :meth:`RunEngine.request_pause` (from any thread) pauses at the point: an
 analyser that can end a sweep at a point boundary (``end_after_point``, the 35670A driver's
-linear sweeps) is asked to, for a plan that takes such a segment (a full plan's), so the point
-being measured is finished, the sweep ends before the next one and the segment returned holds
-the points measured so far, which the plan commits; otherwise the segment being measured is
-finished and committed. At the checkpoint that follows the commit, the engine switches the
-source off (the analyser's abort) and waits. :meth:`RunEngine.request_resume` goes on; the
-analyser is configured again first (the source starts from its start level and the controller
-levels again) and the plan continues from where it was, as if nothing had happened. Hold
-conditions (:mod:`viscorig.acquisition.holds`, pluggable) see every committed segment and every
-analyser error of a measurement: one that answers with a reason holds the run at the next
-checkpoint (or, for an error, at once: the segment in flight is dropped and measured again after
-the hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the
-technician resumes. Each pause, hold and resume is written to the campaign's journal
+sweeps, linear or point by point) is asked to, for a plan that takes such a segment (a full
+plan's, an adaptive plan's), so the point being measured is finished, the sweep ends before the
+next one and the segment returned holds the points measured so far, which the plan commits;
+otherwise the segment being measured is finished and committed. At the checkpoint that follows
+the commit, the engine switches the source off (the analyser's abort, which ramps it down at
+the analyser's slew rate) and waits. :meth:`RunEngine.request_resume` goes on; the analyser is
+configured again first (the source starts from its start level and the controller levels again)
+and the plan continues from where it was, as if nothing had happened. Hold conditions
+(:mod:`viscorig.acquisition.holds`, pluggable) see every committed segment and every analyser
+error of a measurement: one that answers with a reason holds the run at the next checkpoint
+(or, for an error, at once: the segment in flight is dropped and measured again after the
+hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the technician
+resumes. Each pause, hold and resume is written to the campaign's journal
 (:mod:`viscorig.storage.journal`) with its reason.
 
 Stopping. The first Ctrl-C (or SIGTERM) while the analyser measures only asks it to stop: the
@@ -302,10 +303,20 @@ class RunEngine:
         except Exception as error:  # the file's own commits report their failures
             self.console.warn(f"journal: {error}")
 
-    def _source_off(self) -> None:
-        """Stop the analyser's source (its abort); a silent analyser is left as it is."""
+    def _source_off(self) -> str:
+        """Stop the analyser's source (its abort; a silent analyser is left as it is) and say
+        how: ramped down at the analyser's slew rate when it reports how long that takes
+        (``source_ramp_down_s``), else off."""
+        analyser = self.rig.analyser
         with contextlib.suppress(Exception):
-            self.rig.analyser.abort()
+            analyser.abort()
+        ramp = getattr(analyser, "source_ramp_down_s", None)
+        seconds = 0.0
+        with contextlib.suppress(Exception):
+            seconds = float(ramp()) if callable(ramp) else 0.0
+        if seconds > 0.0:
+            return f"the source ramps down to off (within {seconds:.3g} s)"
+        return "the source is off"
 
     def _wait(self, done: Callable[[], bool]) -> None:
         """Wait until ``done()`` or a stop request.
@@ -330,9 +341,9 @@ class RunEngine:
             self._pause_wanted = False
             self._resume_wanted = False
             self._move(EngineState.PAUSED)
-        self._source_off()
-        self.console.say("paused: the points measured are committed, the source is off")
-        self._log("pause", "paused by the technician; the source is off")
+        source = self._source_off()
+        self.console.say(f"paused: the points measured are committed, {source}")
+        self._log("pause", f"paused by the technician; {source}")
         self._wait(lambda: self._resume_wanted)
         self._go_on("resume", "resumed by the technician")
 

@@ -105,9 +105,11 @@ class Analyser(Protocol):
         direction: str,
         tolerance_db: float,
         start_level_vpk: float,
+        source_slew_v_per_s: float,
     ) -> None:
         """Set up the sweep with the source off; the source limit is set before anything that
-        could switch the source on. ``inputs`` is ``(input, label, sensitivity V/EU)`` per
+        could switch the source on; the source ramps at ``source_slew_v_per_s`` when a sweep
+        starts and stops (0: at once). ``inputs`` is ``(input, label, sensitivity V/EU)`` per
         transducer and ``reference_channel`` the auto-level input, both from
         :class:`~viscorig.acquisition.sweep.Wiring` (the driver knows no wiring)."""
 

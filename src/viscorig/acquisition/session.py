@@ -169,6 +169,7 @@ class Session:
             step=step, level_m_per_s2=level, force_limit_n=self.station.shaker_force_limit_n,
             source_limit_v=self.source_limit_v(), time_base=self.options.time_base,
             poll_interval_s=self.options.poll_interval_s,
+            source_slew_v_per_s=self.station.source_slew_v_per_s,
         )
 
     def run_settings(self, step: SweepStep, level: float) -> RunSettings:

@@ -31,6 +31,9 @@ from viscorig.storage.flags import OUTSIDE_SOAK_BAND
 TIME_BASES = ("wall", "test")
 #: Source level the auto-level controller starts a run from, V peak (at most the limit).
 START_LEVEL_V = 0.1
+#: Ramp rate of the source when a station gives none, V/s: a 2 Vpk drive is down in 2 s, slowly
+#: enough that the shaker and the specimen see no step, quickly enough for a pause.
+SOURCE_SLEW_V_PER_S = 1.0
 #: Half the analyser's frequency step tells points apart.
 FREQUENCY_MATCH_HZ = FREQUENCY_STEP_HZ / 2
 
@@ -126,6 +129,8 @@ class SweepSettings:
     poll_interval_s: float = 0.2
     start_level_v: float = START_LEVEL_V
     """Source level the auto-level controller starts from, V peak (capped at the limit)."""
+    source_slew_v_per_s: float = SOURCE_SLEW_V_PER_S
+    """Ramp rate of the source at the start and end of a sweep, V/s (0: none)."""
 
     def __post_init__(self) -> None:
         if self.time_base not in TIME_BASES:
@@ -201,6 +206,7 @@ def configure(
         direction=step.direction.upper(),
         tolerance_db=step.tolerance_db,
         start_level_vpk=min(settings.start_level_v, settings.source_limit_v),
+        source_slew_v_per_s=settings.source_slew_v_per_s,
     )
 
 

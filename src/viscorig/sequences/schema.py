@@ -618,6 +618,9 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
     TableSchema("source", "The analyser's source.", (
         Field("limit_v", "number", "Source limit, V peak.", unit="V", low=0.0, high=5.0,
               low_open=True, example="2.0"),
+        Field("slew_v_per_s", "number", "Ramp rate of the source (SOUR:VOLT:SLEW) at the start "
+              "and end of each sweep, and so when a pause, hold or abort stops it; 0 stops it "
+              "at once.", default=1.0, unit="V/s", low=0.0, high=10000.0, example="1.0"),
     )),
     TableSchema("table", "Optional: the table's known suspension, used when a campaign has no "
                 "bare-table run of its own.", (

@@ -23,6 +23,7 @@
 
     [source]
     limit_v = 2.0              # at most 5 Vpk
+    slew_v_per_s = 1.0         # optional: the source ramps down at this rate (0: at once)
 
     [table]                    # optional: known M_s, K_s, C_s
     mass_kg = 3.4
@@ -158,6 +159,8 @@ class Station:
     chamber: ChamberStation | None = None
     source: str = ""
     bench: BenchSettings = BenchSettings()
+    source_slew_v_per_s: float = 1.0
+    """Ramp rate of the analyser's source at the start and end of a sweep, V/s."""
 
     def rig_attributes(self) -> dict[str, float | int]:
         """The ``/rig`` attributes of a campaign file that this station knows."""
@@ -275,6 +278,7 @@ def _station(top: ReadTable, sections: dict[str, Any], source: str) -> Station:
         shaker_force_limit_n=shaker["force_limit_n"],
         shaker_gain_n_per_v=shaker["gain_n_per_v"],
         source_limit_v=limits["limit_v"],
+        source_slew_v_per_s=limits["slew_v_per_s"],
         table=None if table is None else TableParameters(**table),
         specimen=None if specimen is None else SpecimenGeometry(**specimen),
         chamber=None if chamber is None else ChamberStation(**chamber),
