@@ -47,6 +47,7 @@ from viscorig.acquisition.sweep import (
     SegmentDone,
     SweepSettings,
     check_axis,
+    check_piece,
     point_times_s,
     segment_of,
 )
@@ -187,35 +188,45 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
         pending: list[Segment] = []
         pending_s = 0.0
         groups = analyser_groups(request.points[skip:])
-        for index, group in enumerate(groups):
+        while groups:
+            group = groups.pop(0)
             f = np.array([p.frequency_hz for p in group.points])
             settle = np.array([p.settle_cycles for p in group.points], dtype=np.int64)
             integrate = np.array([p.integrate_cycles for p in group.points], dtype=np.int64)
             base_s = (settle + integrate) / f
-            left = max(left - float(base_s.sum()), 0.0)
             so_far = _joined([*([] if plan.points is None else [plan.points]), *measured])
             levels = start_levels(f, plan, so_far, settings, session)
-            call = MeasureRequest(step.run, session.resource, f, base_s, left,
-                                  _call(group, levels))
+            call = MeasureRequest(step.run, session.resource, f, base_s,
+                                  max(left - float(base_s.sum()), 0.0), _call(group, levels),
+                                  ends_at_a_point=True)
             segment_measured, remeasured = yield from stubs.measure_segment(
-                call, functools.partial(check_axis, frequencies=f, resource=session.resource),
+                call, functools.partial(check_piece, frequencies=f, resource=session.resource),
                 "adaptive")
-            rig_s = point_times_s(segment_measured, base_s, sweep.time_base)
-            time_s = test_time_s + np.cumsum(rig_s)
-            test_time_s = float(time_s[-1])
-            segment = segment_of(segment_measured, session.wiring, sweep, time_s,
-                                 (settle, integrate))
-            measured.append(_points(segment, rig_s, step.bare_table))
-            pending.append(segment)
-            pending_s += float(rig_s.sum())
-            if pending_s >= step.segment_s or index == len(groups) - 1:
+            count = np.asarray(segment_measured.frequency_hz).size  # fewer when paused
+            ended = count < f.size
+            if ended:  # the rest of the group after the pause
+                groups[:0] = analyser_groups(group.points[count:])
+            if count:
+                rows = slice(0, count)
+                left = max(left - float(base_s[rows].sum()), 0.0)
+                rig_s = point_times_s(segment_measured, base_s[rows], sweep.time_base)
+                time_s = test_time_s + np.cumsum(rig_s)
+                test_time_s = float(time_s[-1])
+                segment = segment_of(segment_measured, session.wiring, sweep, time_s,
+                                     (settle[rows], integrate[rows]))
+                measured.append(_points(segment, rig_s, step.bare_table))
+                pending.append(segment)
+                pending_s += float(rig_s.sum())
+            pause = bool(pending) and not ended and bool(groups) and (
+                yield from stubs.pausing("adaptive"))  # between one-point groups
+            if pending and (pending_s >= step.segment_s or ended or not groups or pause):
                 joined = join_segments(pending)
                 total = yield from stubs.commit(step.run, joined, {
                     "test_time_s": test_time_s, "plan_state": plan.state.value,
-                }, "adaptive")
+                }, "adaptive")  # a pause takes hold at the checkpoint after the commit
                 commits += 1
                 points_done = total
-                remaining = sum(len(later.points) for later in groups[index + 1:])
+                remaining = sum(len(later.points) for later in groups)
                 yield Msg("progress", ("segment", SegmentDone(
                     run=step.run, number=commits, count=commits, points_done=total,
                     points_total=total + remaining,
@@ -225,6 +236,8 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
                     flags=np.asarray(joined.flags, dtype=np.uint16), remeasured=remeasured,
                     seconds_left=left)), step="adaptive")
                 pending, pending_s = [], 0.0
+            elif ended:  # a pause ended the sweep before its first point: pause here
+                yield from stubs.checkpoint("adaptive")
         delivered = _joined(measured)
         assert delivered is not None
         plan.deliver(delivered)

@@ -477,6 +477,12 @@ class RunEngine:
         if self._pause_wanted:
             self._pause()
 
+    def _do_pausing(self) -> bool:
+        """Whether a pause is asked for and waits for the next checkpoint (a plan that
+        measures point by point commits what it holds, so the pause comes after the point)."""
+        with self._control:
+            return self._pause_wanted
+
     def _do_progress(self, what: str, *args: Any) -> None:
         """Progress for the console: ``start_run``, ``segment``, ``campaign_left``."""
         if what == "campaign_left":

@@ -36,7 +36,7 @@ from viscorig.acquisition.sweep import (
     SweepHooks,
     SweepSettings,
     Wiring,
-    check_axis,
+    check_piece,
     iso_to_epoch,
     point_times_s,
     segment_of,
@@ -389,7 +389,7 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
                                  _left(step, rows.stop), _linear_call(frequencies),
                                  ends_at_a_point=True)
         measured, remeasured = yield from stubs.measure_segment(
-            request, functools.partial(_check_piece, frequencies=frequencies, resource=resource),
+            request, functools.partial(check_piece, frequencies=frequencies, resource=resource),
             "measure")
         count = np.asarray(measured.frequency_hz).size  # fewer when paused at a point
         if count:
@@ -419,14 +419,6 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
         else:  # a pause ended the sweep before its first point: pause here, then go on
             yield from stubs.checkpoint("measure")
     return planned.size
-
-
-def _check_piece(measured, frequencies: np.ndarray, resource: str) -> None:
-    """The analyser measured the piece's frequencies, or its first ones when it ended the sweep
-    at a point boundary for a pause (``ended_early``)."""
-    if getattr(measured, "ended_early", False):
-        frequencies = frequencies[:np.asarray(measured.frequency_hz).size]
-    check_axis(measured, frequencies, resource)
 
 
 def _attributes(campaign: Campaign, run: str) -> dict[str, object]:

@@ -22,8 +22,8 @@ from viscorig.storage import Segment
 
 __all__ = [
     "annotate", "checkpoint", "close_run", "commit", "compute", "configure", "measure_segment",
-    "mount", "open_run", "probe", "prompt", "read_run", "resume_run", "say", "status", "wait",
-    "warn",
+    "mount", "open_run", "pausing", "probe", "prompt", "read_run", "resume_run", "say", "status",
+    "wait", "warn",
 ]
 
 
@@ -55,6 +55,11 @@ def mount(preset: str, step: str = "") -> Plan:
 def checkpoint(step: str = "") -> Plan:
     """A safe place to stop: the engine stops here when asked."""
     yield Msg("checkpoint", step=step)
+
+
+def pausing(step: str = "") -> Plan:
+    """Whether a pause waits for the next checkpoint (commit what is measured first)."""
+    return bool((yield Msg("pausing", step=step)))
 
 
 def status(run: str, step: str = "") -> Plan:

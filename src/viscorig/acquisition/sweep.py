@@ -248,6 +248,21 @@ def check_axis(measured: MeasuredSegment, frequencies: NDArray[np.float64],
         )
 
 
+def check_piece(measured: MeasuredSegment, frequencies: NDArray[np.float64],
+                resource: str) -> None:
+    """The analyser measured ``frequencies``, or their first ones when it ended the sweep at a
+    point boundary for a pause (``ended_early``).
+
+    Raises
+    ------
+    InstrumentError
+        Other frequencies than asked.
+    """
+    if getattr(measured, "ended_early", False):
+        frequencies = frequencies[:np.asarray(measured.frequency_hz).size]
+    check_axis(measured, frequencies, resource)
+
+
 def segment_of(
     measured: MeasuredSegment,
     wiring: Wiring,
