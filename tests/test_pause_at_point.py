@@ -137,3 +137,27 @@ def test_the_driver_returns_the_points_measured_before_the_boundary(tmp_path) ->
             assert not whole.ended_early and len(whole) == 17
         finally:
             analyser.close()
+
+
+def test_an_unpaced_analyser_told_in_process_ends_at_a_point_too(tmp_path) -> None:
+    """Unpaced, a sweep outruns the driver's polls; the virtual analyser's in-process
+    ``end_after_point`` holds it at the next boundary so the driver's end at a point is seen."""
+    with SimulatedAnalyserServer(load_preset("soft-0")) as server:  # as fast as possible
+        analyser = Agilent35670A.open(server.socket_resource, timeout_s=5.0)
+        try:
+            analyser.configure_swept_sine(
+                inputs=[(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)],
+                reference_channel=4, reference_level_eu=1.0, source_limit_vpk=2.0,
+                input_limit_eu=None, pairing="PAIR", resolution_hz=0.25, start_hz=20.0,
+                stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
+                tolerance_db=1.0, start_level_vpk=0.1)
+            def progress(report) -> None:
+                server.analyser.end_after_point()
+                analyser.end_after_point()
+
+            cut = analyser.measure(20.0, 30.0, progress=progress)
+            assert cut.ended_early and 1 <= len(cut) <= 2
+            np.testing.assert_allclose(cut.frequency_hz, 20.0 + 0.25 * np.arange(len(cut)))
+            assert not server.analyser.source_on
+        finally:
+            analyser.close()

@@ -28,8 +28,8 @@ applies the ramp when a swept sine ends and when ``ABOR`` stops it, as well as w
 changes, is inferred from the command's name and range: the programming guide's text on it was
 not at hand, and no SCPI query reads the output level back. Check it on hardware with a scope
 on the source output; if ``ABOR`` cuts the source regardless, the ramp must be made by the
-driver (auto level off, ``SOUR:VOLT`` stepped down) before ``ABOR``. ``ABOR`` never waits for
-the ramp; a new sweep started during it takes the source from where the ramp has brought it.
+driver (auto level off, ``SOUR:VOLT`` stepped down) before ``ABOR``. ``ABOR`` does not wait for
+the ramp.
 """
 
 from __future__ import annotations

@@ -169,8 +169,10 @@ class VirtualAnalyser:
             raise ScpiError(-221, "Measurement mode incompatible with command.")
 
     def abort(self) -> None:
-        """``ABOR``: stop the measurement (its data so far stays)."""
+        """``ABOR``: stop the measurement (its data so far stays); the source ramps down."""
         with self.lock:
+            if self.run.state != "IDLE" and self._measuring_mode == "SINE":
+                self.sine.aborting = True
             self.run.abort()
 
     def set_continuous(self, on: bool) -> None:
@@ -309,6 +311,16 @@ class VirtualAnalyser:
     def status_byte(self, mav: bool = False) -> int:
         """``*STB?`` with message-available as given."""
         return self.status.status_byte(mav)
+
+    def end_after_point(self) -> None:
+        """Make the running swept sine stop at its next point boundary, as a paced one gives a
+        controller time to: the point being measured is finished, then the sweep holds settling
+        (``STAT:OPER``) until ``ABOR`` (at most ``END_HOLD_S`` of wall time). Unpaced, a sweep
+        otherwise ends before a controller polls again, so its end at a point is never seen.
+        **In-process only, not SCPI.**"""
+        with self.changed:
+            self.sine.end_wanted = True
+            self.changed.notify_all()
 
     def force_overload(self, channel: int, points: int | None = None) -> None:
         """Flag an input overload on ``channel`` (1..4) for the next ``points`` swept-sine

@@ -7,9 +7,13 @@ at once). The simulated analyser models this twice:
 - what the source outputs in time (:meth:`SourceOutput.level_vpk`): the level of the point
   being measured while the sweep runs, then a linear fall at the slew rate, on the wall clock
   scaled by the pace (unpaced, the fall takes no wall time);
-- what the rig sees: the ramp's test time passes on the rig simulator, driven at the last
-  frequency by a staircase of :data:`RAMP_STEPS` falling levels (:func:`ramp_requests`), so the
-  rig's state and clock carry the ramp into the next sweep.
+- what the rig sees, when ``ABOR`` stopped the sweep (a pause, a hold, an abort): the ramp's
+  test time passes on the rig simulator, driven at the last frequency by a staircase of
+  :data:`RAMP_STEPS` falling levels (:func:`ramp_requests`), so the rig's state and clock carry
+  the ramp into the next sweep. At a sweep's own end the rig is not driven through the ramp:
+  the simulator takes consecutive sweeps as one continuous excitation, as it always has (what
+  the real analyser does between the points of a manual sweep is an open question, see
+  ``docs/bench.md``).
 
 The ramp up at the start of a sweep is not modelled: the first point's settling covers it.
 That the real 35670A ramps on ``ABOR`` as at the end of a measurement is inferred

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -114,6 +115,10 @@ class _Plan:
     mch: float = 2.0
 
 
+#: Longest wall time a sweep holds at a point boundary for an in-process end request before it
+#: goes on (the controller that asked for the end sends ``ABOR`` at its next poll).
+END_HOLD_S = 5.0
+
 class SweptSine(Measurement):
     """Swept-sine measurements on a rig simulator.
 
@@ -133,6 +138,11 @@ class SweptSine(Measurement):
         self.rig_lock = threading.Lock()
         """Held while the rig simulator computes (the worker's points, a ramp down)."""
         self._plan: _Plan | None = None
+        self.aborting = False
+        """``ABOR`` is stopping the sweep (the rig is driven through the ramp down)."""
+        self.end_wanted = False
+        """An end asked in process (``VirtualAnalyser.end_after_point``): hold at the next point
+        boundary until ``ABOR``."""
 
     # ---------------------------------------------------------------- planning (lock held)
 
@@ -297,12 +307,30 @@ class SweptSine(Measurement):
                 record = self.simulator.sweep(request)
             self._wire(record, integrate, plan.ranges)
             for k in range(len(record)):
+                with self.run.changed:
+                    self._hold_at_boundary(generation)
                 self._pace_point(generation, float(settle[k]), float(integrate[k]))
                 with self.run.changed:
                     self.run.check(generation)
                     self._reveal(record, k)
                 level = float(record.source_vpk[k]) or level
             index = stop
+
+    def _hold_at_boundary(self, generation: int) -> None:
+        """An end asked in process, once a point is measured: settle at this boundary (``STAT:OPER``
+        measuring and settling) until ``ABOR`` ends the sweep, at most :data:`END_HOLD_S` of wall
+        time, then go on (lock held)."""
+        if not self.end_wanted or self.points.count == 0:
+            return
+        self.end_wanted = False
+        self.run.set_operation(OPER_MEASURING | OPER_AVERAGING | OPER_SETTLING)
+        deadline = time.monotonic() + END_HOLD_S
+        while generation == self.run.generation:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            self.run.changed.wait(remaining)
+        self.run.check(generation)
 
     def _next_adaptive(self, plan: _Plan, frequencies: np.ndarray,
                        step: float) -> tuple[np.ndarray, float, bool]:
@@ -404,15 +432,21 @@ class SweptSine(Measurement):
             if remaining is None:
                 del self.forced_overload[channel]
         self.status.volt.set_condition(0)
-        self._ramp_down()
+        self.end_wanted = False
+        aborted, self.aborting = self.aborting, False
+        self._ramp_down(aborted)
 
-    def _ramp_down(self) -> None:
-        """The source ramps down at the slew rate (module :mod:`rigsim.analyser.ramp`); the
-        rig simulator is driven through the ramp (lock held)."""
+    def _ramp_down(self, aborted: bool) -> None:
+        """The source ramps down at the slew rate (module :mod:`rigsim.analyser.ramp`); when
+        ``ABOR`` stopped the sweep the rig simulator is driven through the ramp (lock held).
+
+        At a sweep's own end the rig is not: the simulator takes consecutive sweeps as one
+        continuous excitation (the next starts where the last left the rig), which the
+        segments of a full plan and an adaptive plan's points rely on."""
         frequency, level = self.output.frequency_hz, self.output.driving_vpk
         duration_s = self.output.stop(float(self.store.get("sour.slew")), self.run.pace)
         plan = self._plan
-        if plan is None or duration_s <= 0.0:
+        if plan is None or duration_s <= 0.0 or not aborted:
             return
         with self.rig_lock:
             for request in ramp_requests(frequency, level, duration_s, plan.control,
