@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
+from viscorig.fitting.noise import MarkovWhitening
 from viscorig.storage import Campaign, Run
 
 
@@ -194,11 +195,13 @@ class DiagnosisData:
         they are noise, in the noise model's layout (real parts of every FRF, then imaginary
         parts). Outlier points are left out (their residual counts as zero).
 
-        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening matrix
-        formed once (a diagonal for white noise, ``L⁻¹`` of a drift's Cholesky factor ``L``)
-        so that the many evaluations of a fit cost a product each. ``exact=False`` divides
-        each point by its total ``σ`` instead (the drift's correlation left out): a cheap
-        stand-in for fits whose result is then judged with the exact whitening."""
+        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening formed
+        once (a diagonal for white noise, the O(n) Kalman whitening of a drift,
+        :class:`~viscorig.fitting.noise.MarkovWhitening`, or ``L⁻¹`` of its Cholesky factor
+        ``L`` where the points are not in time order) so that the many evaluations of a fit
+        cost little each. ``exact=False`` divides each point by its total ``σ`` instead (the
+        drift's correlation left out): a cheap stand-in for fits whose result is then judged
+        with the exact whitening."""
         masks = self._masks()
         operators = self._operators() if exact else self._diagonal_operators()
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
@@ -209,7 +212,9 @@ class DiagnosisData:
             for rows, by_part in operators[frf]:
                 for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
                     operator = by_part[part]
-                    if operator.ndim == 1:
+                    if isinstance(operator, MarkovWhitening):
+                        parts[part].append(operator.apply(values))
+                    elif operator.ndim == 1:
                         scale = operator if values.ndim == 1 else operator[:, None]
                         parts[part].append(values * scale)
                     else:
@@ -236,7 +241,9 @@ class DiagnosisData:
                     for part in ("re", "im"):
                         white, correlated = block.part_variance(part)
                         if exact and correlated > 0:
-                            by_part[part] = block.whiten_part(part, np.eye(block.size))
+                            operator = block.whitening(part)
+                            by_part[part] = (operator if operator is not None
+                                             else block.whiten_part(part, np.eye(block.size)))
                         else:
                             by_part[part] = 1.0 / np.sqrt(white + (0.0 if exact else correlated))
                     blocks.append((rows, by_part))
