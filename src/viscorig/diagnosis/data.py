@@ -207,8 +207,8 @@ class DiagnosisData:
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
-            keep = masks[frf] if r.ndim == 1 else masks[frf][:, None]
-            r = np.where(keep, r, 0.0)
+            if not masks[frf].all():
+                r = np.where(masks[frf] if r.ndim == 1 else masks[frf][:, None], r, 0.0)
             for rows, by_part in operators[frf]:
                 for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
                     operator = by_part[part]

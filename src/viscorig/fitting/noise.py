@@ -121,6 +121,8 @@ class MarkovWhitening:
     """``K_i``."""
     scale: NDArray[np.float64]
     """``1/√S_i``."""
+    band: NDArray[np.float64] = field(repr=False)
+    """``I − B`` of the filtered mean's recursion in LAPACK's lower band storage."""
 
     @classmethod
     def of(
@@ -142,22 +144,22 @@ class MarkovWhitening:
             variance[i] = predicted + white[i]
             gain[i] = predicted / variance[i]
             filtered = (1.0 - gain[i]) * predicted
-        return cls(step, step * (1.0 - gain), gain, 1.0 / np.sqrt(variance))
+        decay = step * (1.0 - gain)
+        band = np.zeros((2, n))
+        band[0] = 1.0
+        band[1, :-1] = -decay[1:]
+        return cls(step, decay, gain, 1.0 / np.sqrt(variance), band)
 
     def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``L⁻¹ values`` (rows: points; a vector or a matrix)."""
         y = np.asarray(values, dtype=float)
         flat = y.ndim == 1
         matrix = y[:, None] if flat else y.reshape(y.shape[0], -1)
-        n = matrix.shape[0]
-        band = np.zeros((2, n))
-        band[1, :-1] = -self.decay[1:]
-        mean, info = dtbtrs(band, self.gain[:, None] * matrix, uplo="L", diag="U")
+        mean, info = dtbtrs(self.band, self.gain[:, None] * matrix, uplo="L", diag="U")
         if info != 0:
             raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
-        previous = np.zeros_like(mean)
-        previous[1:] = mean[:-1]
-        out = (matrix - self.step[:, None] * previous) * self.scale[:, None]
+        out = matrix * self.scale[:, None]
+        out[1:] -= (self.step[1:] * self.scale[1:])[:, None] * mean[:-1]
         return out[:, 0] if flat else out.reshape(y.shape)
 
 
