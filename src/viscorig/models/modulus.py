@@ -324,7 +324,10 @@ class Fractional(ModulusTerm):
         )
 
     def modulus(self, ctx: Context, p: Mapping[str, float]) -> NDArray[np.complex128]:
-        s = (1j * ctx.omega * p["tau"]) ** p["alpha"]
+        # (iωτ)^α = (ωτ)^α e^{iαπ/2}: a real power and one rotation, several times cheaper
+        # than the complex power (ωτ > 0)
+        alpha = p["alpha"]
+        s = (ctx.omega * p["tau"]) ** alpha * np.exp(0.5j * np.pi * alpha)
         return (p["K_0"] + p["K_inf"] * s) / (1.0 + s)
 
     def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
