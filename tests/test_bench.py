@@ -1,5 +1,5 @@
 """The bench page's JSON API and run control on the embedded simulated rig: queue, prompts on
-the page, pause (no point measured while paused, the segment in flight committed), resume,
+the page, pause (no point measured while paused, the points measured committed), resume,
 notes in the file, abort (data kept, file resumable), automatic holds from injected faults."""
 
 from __future__ import annotations
@@ -53,7 +53,6 @@ def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
         path = tmp_path / "a.h5"
         committed = Campaign.open(path).run("soft-0").points
         assert committed == paused["points_done"] and 0 < committed < 81
-        assert committed % 8 == 0  # whole segments: the one in flight was finished
         time.sleep(0.6)
         assert Campaign.open(path).run("soft-0").points == committed  # nothing while paused
         assert client.post("/api/notes", {"text": "specimen warm to the touch"}).status_code == 200

@@ -1,6 +1,6 @@
 """The bench page in a real headless browser (Chromium from the distribution, driven by
 Playwright): the paper's sequence on the embedded simulated rig, every prompt answered on the
-page, a pause during a sweep (nothing measured while paused, the segment in flight committed),
+page, a pause during a sweep (nothing measured while paused, the points measured committed),
 resume, a note, an automatic hold when the simulated analyser stops answering and its clearing,
 a second browser that is read-only, the browser closed mid-run (the run goes on), an abort, and
 ``viscorig resume`` completing the file: the campaign equals one measured without

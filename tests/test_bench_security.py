@@ -118,3 +118,39 @@ def test_refusals_leave_a_run_unharmed(tmp_path) -> None:
         assert run.metadata.status == "complete" and run.points == 81
         assert campaign.journal == []  # no refused request reached the file
     assert MAX_BODY_BYTES < 10 * 1024 * 1024
+
+
+def test_served_on_loopback_unless_the_station_allows_another_address(tmp_path) -> None:
+    import socket
+    import subprocess
+    import sys
+
+    from reliability_campaign import station_text
+
+    from viscorig.bench import BenchService
+    from viscorig.bench.app import BenchServer
+
+    server = BenchServer(BenchService(root=tmp_path))
+    try:
+        assert server.socket.getsockname()[0] == "127.0.0.1"
+        outside = [address for *_, (address, *_) in socket.getaddrinfo(
+            socket.gethostname(), None, socket.AF_INET) if not address.startswith("127.")]
+        for address in outside:  # another interface of this machine does not reach it
+            with pytest.raises(OSError), socket.create_connection((address, server.port), 1):
+                pass
+    finally:
+        server.socket.close()
+
+    station = tmp_path / "station.toml"
+    station.write_text(station_text("TCPIP::127.0.0.1::1::SOCKET")
+                       + '[bench]\naddress = "127.0.0.2"\n')
+    process = subprocess.Popen([sys.executable, "-m", "viscorig", "bench", "serve", "--station",
+                                str(station), "--port", "0", "--no-browser"], cwd=tmp_path,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first, second = process.stdout.readline(), process.stdout.readline()
+    finally:
+        process.send_signal(2)
+        process.communicate(timeout=30)
+    assert first.startswith("http://127.0.0.2:")
+    assert second.startswith("WARNING: served on 127.0.0.2 as the station's [bench] address")

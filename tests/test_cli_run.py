@@ -272,3 +272,23 @@ def test_a_toml_syntax_error_is_one_problem_with_its_line(tmp_path, capsys) -> N
     assert main(["check", str(bad)]) == 2
     [line] = capsys.readouterr().out.splitlines()
     assert line.startswith(f"{bad}:3: not valid TOML")
+
+
+def test_a_low_level_run_probes_at_the_lowest_level_the_analyser_holds(tmp_path) -> None:
+    """A tenth of 0.2 m/s^2 is 0.2 mV on a 10.2 mV/(m/s^2) accelerometer, below the
+    35670A's lowest auto-level reference (-69.276 dBVrms, 0.49 mVpk): the probe rises to it
+    instead of the analyser refusing the command."""
+    sequence = tmp_path / "low.toml"
+    sequence.write_text(
+        'name = "low"\n[defaults]\nband_hz = [20.0, 60.0]\nresolution_hz = 20.0\n'
+        'settle_cycles = 10\nintegrate_cycles = 10\nlevel = "0.2 m/s^2"\n'
+        '[[steps]]\ntype = "prompt"\nmessage = "Mount."\nsimulated_rig = "medium-0"\n'
+        '[[steps]]\ntype = "sweep"\nrun = "low"\nspecimen = "medium"\n'
+        'hardness_shore_a = 33.0\n', encoding="utf-8")
+    result = viscorig("run", str(sequence), "--yes", "--out", "low.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    said = re.search(r"probing at .* Hz at ([0-9.]+) m/s\^2 \(([^;]+);", result.stdout)
+    assert said, result.stdout
+    assert float(said.group(1)) == pytest.approx(0.0476, rel=0.02)
+    assert said.group(2) == "the lowest level the analyser's auto level holds"
+    assert Campaign.open(tmp_path / "low.h5").run("low").points == 3

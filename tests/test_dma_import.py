@@ -72,7 +72,8 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
 
 @pytest.mark.parametrize(("text", "expected"), [
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,x,1,20\n", "row 4, column 'E_stor'"),
-    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,-3,1,20\n", "row 4, column 'E_stor'"),
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,-3,1,20\n",
+     "1 data row(s) with a positive storage and loss modulus"),
     ("f,E_stor,T\nHz,MPa,C\n1,10,20\n2,11,20\n", "no storage and loss modulus columns"),
     ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "no unit for modulus"),
     ("f,E_stor,E_loss,T\nHz,furlong,MPa,C\n1,10,1,20\n2,11,1,20\n", "furlong"),
@@ -99,6 +100,31 @@ def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv
     assert "DMA run" in listing and "eca" in listing and "-50.0..100.0" in listing
     assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 2
     assert "DMA run exists" in capsys.readouterr().err
+
+
+def test_a_modulus_below_zero_is_stored_named_and_left_out_of_the_master_curve(
+        tmp_path, capsys, caplog, sweep_csv):
+    lines = sweep_csv.read_text().splitlines()
+    cells = lines[13].split(",")  # row 14 of the file: set 1's second point
+    cells[2] = "-0.02"
+    lines[13] = ",".join(cells)
+    sweep_csv.write_text("\n".join(lines) + "\n")
+    path = tmp_path / "c.h5"
+    with caplog.at_level("WARNING"):
+        assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1 and "row 14, column 'E_loss'" in warned[0], warned
+    assert "210 points" in capsys.readouterr().out
+    stored = read_dma(Campaign.open(path), "eca")
+    assert stored.loss_pa[11] == pytest.approx(-0.02e6)  # kept as measured
+    assert main(["master", str(path), "--run", "eca", "--json"]) == 0
+    import json
+
+    document = json.loads(capsys.readouterr().out)
+    assert document["points"] == 209 and len(document["shift_factors"]) == 21
+    (left,) = document["left_out"]
+    assert left["point"] == 12 and left["loss_pa"] == pytest.approx(-0.02e6)
+    assert "loss modulus" in left["why"]
 
 
 def test_import_refuses_a_bad_file_in_one_line_and_creates_nothing(tmp_path, capsys):

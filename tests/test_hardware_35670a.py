@@ -59,3 +59,30 @@ def test_short_sweep(analyser: Agilent35670A) -> None:
     np.testing.assert_allclose(segment.frequency_hz, np.linspace(100.0, 101.0, 5), atol=0.02)
     assert np.all(np.isfinite(segment.frf_21))
     assert set(segment.amplitude_eu) == set(channels)
+
+
+def test_a_sweep_ended_at_a_point_keeps_the_points_measured(analyser: Agilent35670A) -> None:
+    """Checks the inferred behaviour a pause at a point relies on: the settling bit rises as a
+    new point starts, and after ``ABOR`` the traces keep the points measured (the rest hold the
+    no-data marker)."""
+    four = "AY6" in analyser.options
+    channels = (1, 2, 3, 4) if four else (1, 2)
+    analyser.configure_swept_sine(
+        inputs=[(ch, "N" if ch % 2 else "M/S2", 1.0) for ch in channels],
+        reference_channel=2,
+        reference_level_eu=0.05,
+        source_limit_vpk=0.5,
+        pairing="PAIR" if four else None,
+        settle_cycles=20,
+        integrate_cycles=20,
+    )
+
+    def progress(report) -> None:
+        if report.elapsed_s > 0.3 * report.expected_s:
+            analyser.end_after_point()
+
+    segment = analyser.measure(20.0, 30.0, progress=progress, timeout_s=300.0)
+    assert segment.ended_early and 0 < len(segment) < 41
+    np.testing.assert_allclose(segment.frequency_hz, 20.0 + 0.25 * np.arange(len(segment)),
+                               atol=0.02)
+    assert np.all(np.isfinite(segment.frf_21))

@@ -276,3 +276,32 @@ def test_rig_modulus_from_a_stored_fit_is_its_kstar_over_theta(tmp_path):
     assert np.allclose(table.loss_pa, omega * 150.0 / THETA_M)
     with pytest.raises(InputError, match="no stored fit of a specimen model"):
         rig_modulus_table(campaign, runs[1], kstar_source="fit")
+
+
+def test_a_noisier_sweep_gets_a_larger_shift_standard_error_that_covers_the_truth():
+    """Sweeps differ in noise (a hot rubber's small loss modulus is measured far less well):
+    the shift of a sweep ten times noisier than the others must carry its own, larger error.
+    Replicates from the independent generator, the noisy sweep at 60 °C."""
+    from viscorig.materials.shift import estimate_shift_factors
+
+    temperatures, frequencies = np.arange(-10.0, 71.0, 10.0), np.logspace(-1, 2, 12)
+    noisy = int(np.flatnonzero(temperatures == 60.0)[0])
+    z, errors = [], []
+    for seed in range(40):
+        data = gen.dma_sweep(temperatures, frequencies, storage_noise=0.002,
+                             loss_noise=0.004, seed=300 + seed)
+        rng = np.random.default_rng(900 + seed)
+        rows = data["set_index"] == noisy
+        for name, sigma in (("storage_pa", 0.02), ("loss_pa", 0.04)):
+            data[name][rows] *= np.exp(sigma * rng.standard_normal(int(rows.sum())))
+        shifts = estimate_shift_factors(ModulusTable(**data, source="noisy sweep"),
+                                        reference_set=3)
+        truth = gen.true_log10_at(shifts.temperature_c, shifts.temperature_c[3])
+        z.append((shifts.log10_at - truth)[[noisy, 2]] / shifts.log10_at_stderr[[noisy, 2]])
+        errors.append(shifts.log10_at_stderr[[noisy, 2]])
+    z, errors = np.array(z), np.array(errors)
+    # the noisy sweep's error is several times a quiet one's, and means what it says
+    assert np.median(errors[:, 0] / errors[:, 1]) > 3
+    for column in range(2):
+        assert 0.7 < np.sqrt(np.mean(z[:, column] ** 2)) < 1.55, column
+    assert np.mean(np.abs(z) <= 2) >= 0.9

@@ -18,6 +18,7 @@ measurement take the rig's wiring as arguments; viscorig keeps that wiring in
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
@@ -456,6 +457,7 @@ class Agilent35670A(Subsystem):
         if resolution is None:
             raise SettingOutOfRange("set a resolution (or call configure_swept_sine) first")
         start, stop, points = self._check_band(start_hz, stop_hz, float(resolution))
+        self.runner.end_requested.clear()  # a request left from an earlier sweep
         sweep = self.sweep
         sweep.sweep_mode = "AUTO"
         sweep.set_band(start, stop)
@@ -471,8 +473,17 @@ class Agilent35670A(Subsystem):
                                      else start_level_vpk)
         self.verify_configuration([sweep])
         grid = start + float(resolution) * np.arange(points)
-        segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off)
-        check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
+        segment = self._run(grid, points, progress, timeout_s, poll_interval_s, switch_source_off,
+                            may_end_early=True)
+        if segment.ended_early:  # the first points of the sweep, in its order
+            count = segment.frequency_hz.size
+            if count:
+                ordered = grid[::-1] if abs(segment.frequency_hz[0] - grid[-1]) < abs(
+                    segment.frequency_hz[0] - grid[0]) else grid
+                check_axis(segment.frequency_hz, ordered[:count], float(resolution),
+                           self.resource)
+        else:
+            check_axis(segment.frequency_hz, grid, float(resolution), self.resource)
         return segment
 
     def measure_point(self, frequency_hz: float, *, progress: Progress | None = None,
@@ -622,13 +633,19 @@ class Agilent35670A(Subsystem):
 
     def _run(self, grid_hz: np.ndarray, points: int | None, progress: Progress | None,
              timeout_s: float | None, poll_interval_s: float,
-             switch_source_off: bool) -> SweepSegment:
+             switch_source_off: bool, may_end_early: bool = False) -> SweepSegment:
         expected_s = self.expected_duration_s(grid_hz)
         deadline_s = 2.0 * expected_s + 30.0 if timeout_s is None else float(timeout_s)
         fault: BaseException | None = None
         try:
             started, finished = self.runner.run(expected_s, deadline_s, progress,
-                                                poll_interval_s)
+                                                poll_interval_s, may_end_early=may_end_early)
+            if self.runner.ended_early:  # the points measured: those before the first gap
+                segment = self._read_segment(None, started, finished)
+                missing = np.asarray(segment.no_data, dtype=bool)
+                measured = int(np.argmax(missing)) if missing.any() else missing.size
+                return dataclasses.replace(_picked(segment, slice(0, measured)),
+                                           ended_early=True)
             return self._read_segment(points, started, finished)
         except BaseException as error:
             fault = error
@@ -667,6 +684,14 @@ class Agilent35670A(Subsystem):
     def resume(self) -> None:
         """Resume a paused measurement (``INIT:CONT ON``)."""
         self.runner.resume()
+
+    def end_after_point(self) -> None:
+        """End the running :meth:`measure` at the next point boundary: the point being integrated
+        is finished, the analyser stopped (``ABOR``, the source with it) before the next one and
+        the points measured so far read; the segment returned holds them, with ``ended_early``
+        true. Point-by-point measurements (manual sweep mode) ignore it. Safe from the progress
+        callback or another thread."""
+        self.runner.end_after_point()
 
     def abort(self) -> None:
         """Stop the measurement (``ABOR``; the source stops with it); a waiting measurement
@@ -800,9 +825,9 @@ class Agilent35670A(Subsystem):
                        ranges_dbvrms=ranges, overload_channels=overload)
 
 
-def _picked(segment: SweepSegment, index: int) -> SweepSegment:
-    """One point of a segment."""
-    pick = slice(index, index + 1)
+def _picked(segment: SweepSegment, index: int | slice) -> SweepSegment:
+    """One point of a segment (or the points of a slice)."""
+    pick = index if isinstance(index, slice) else slice(index, index + 1)
     return SweepSegment(
         frequency_hz=segment.frequency_hz[pick], frf_21=segment.frf_21[pick],
         frf_43=None if segment.frf_43 is None else segment.frf_43[pick],

@@ -73,6 +73,9 @@ class SweepSegment:
     extras
         Further data by name: with ``REF SING`` (input 1 the reference of every input),
         ``frf_31`` and ``frf_41``, the responses of inputs 3 and 4 over input 1.
+    ended_early
+        The sweep was ended at a point boundary (``end_after_point``): it holds the first
+        points of the band asked for, in sweep order (possibly none).
 
     Notes
     -----
@@ -92,6 +95,7 @@ class SweepSegment:
     finished_at_s: float
     extras: Mapping[str, np.ndarray] = field(default_factory=dict)
     no_data: np.ndarray | None = None
+    ended_early: bool = False
 
     def __len__(self) -> int:
         return int(self.frequency_hz.size)

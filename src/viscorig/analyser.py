@@ -7,6 +7,8 @@ neither, and the simulator shares no code with the core.
 
 from __future__ import annotations
 
+import math
+
 #: The source sets swept-sine frequencies in steps of 15.625 mHz (rounded down to a step).
 FREQUENCY_STEP_HZ = 0.015625
 #: Lowest four-channel swept-sine frequency, Hz.
@@ -20,3 +22,6 @@ MIN_INTEGRATE_CYCLES = 1
 MAX_INTEGRATE_CYCLES = 234
 #: The analyser's highest source output, V peak.
 ANALYSER_SOURCE_MAX_V = 5.0
+#: Lowest auto-level reference level, V peak (``SOUR:VOLT:REF``: -69.276 dBVrms, option 1D2):
+#: with a 10.2 mV/(m/s²) accelerometer, 0.048 m/s².
+MIN_REFERENCE_VPK = math.sqrt(2.0) * 10 ** (-69.276 / 20)

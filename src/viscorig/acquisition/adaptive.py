@@ -426,7 +426,7 @@ def shaker_gain(session: Session, step: SweepStep, sweep: SweepSettings) -> Plan
     frequencies = np.array(probe_frequencies_hz(step))
     settle, integrate = probe_cycles(step)
     source = min(GAIN_SOURCE_V, sweep.source_limit_v)
-    low = probe_settings(sweep)
+    low = probe_settings(sweep, session.wiring.lowest_reference_level(step.bare_table))
     span = max(frequencies[-1] - frequencies[0], FREQUENCY_STEP_HZ)
     yield from stubs.configure(low, "gain", band_hz=(frequencies[0], frequencies[0] + span),
                                resolution_hz=span, settle_cycles=settle,

@@ -17,15 +17,19 @@ Lifecycle (:class:`EngineState`)::
               │ ╰── paused ◄── pausing     (:meth:`RunEngine.request_pause`, then resume)
               ╰──► held ──► running        (a hold condition, until it clears)
 
-Pausing and holds. :meth:`RunEngine.request_pause` (from any thread) lets the segment being
-measured finish and be committed; at the checkpoint that follows, the engine switches the
+Pausing and holds. :meth:`RunEngine.request_pause` (from any thread) pauses at the point: an
+analyser that can end a sweep at a point boundary (``end_after_point``, the 35670A driver's
+linear sweeps) is asked to, for a plan that takes such a segment (a full plan's), so the point
+being measured is finished, the sweep ends before the next one and the segment returned holds
+the points measured so far, which the plan commits; otherwise the segment being measured is
+finished and committed. At the checkpoint that follows the commit, the engine switches the
 source off (the analyser's abort) and waits. :meth:`RunEngine.request_resume` goes on; the
 analyser is configured again first (the source starts from its start level and the controller
 levels again) and the plan continues from where it was, as if nothing had happened. Hold
 conditions (:mod:`viscorig.acquisition.holds`, pluggable) see every committed segment and every
 analyser error of a measurement: one that answers with a reason holds the run at the next
-checkpoint (or, for an error, at once: the segment in flight is dropped and measured again
-after the hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the
+checkpoint (or, for an error, at once: the segment in flight is dropped and measured again after
+the hold). A hold ends when its condition clears (``hold_resume = "auto"``) or when the
 technician resumes. Each pause, hold and resume is written to the campaign's journal
 (:mod:`viscorig.storage.journal`) with its reason.
 
@@ -220,6 +224,7 @@ class RunEngine:
         self._pause_wanted = False
         self._resume_wanted = False
         self._pending_hold: list[tuple[Any, str]] = []
+        self._ending: Callable[[], None] | None = None
         self._relevel = False
         self._last_configure: tuple[tuple, dict] | None = None
         self.state = EngineState.IDLE
@@ -245,14 +250,23 @@ class RunEngine:
 
     # -- requests from any thread ----------------------------------------------------------
     def request_pause(self) -> bool:
-        """Pause at the next checkpoint (the segment in flight is finished and committed).
+        """Pause at the point being measured (module text), at the checkpoint after its commit.
         Returns whether the request was taken (the engine is running)."""
         with self._control:
             if self.state is not EngineState.RUNNING:
                 return False
             self._pause_wanted = True
             self._move(EngineState.PAUSING)
+            self._end_at_point()
             return True
+
+    def _end_at_point(self) -> None:
+        """Ask the sweep in flight, once, to end after the point being measured (when the
+        analyser can)."""
+        with self._control:
+            end, self._ending = self._ending, None
+        if end is not None:
+            end()
 
     def request_resume(self) -> bool:
         """Go on after a pause or a hold. Returns whether the request was taken."""
@@ -317,7 +331,7 @@ class RunEngine:
             self._resume_wanted = False
             self._move(EngineState.PAUSED)
         self._source_off()
-        self.console.say("paused: the segment in flight was committed, the source is off")
+        self.console.say("paused: the points measured are committed, the source is off")
         self._log("pause", "paused by the technician; the source is off")
         self._wait(lambda: self._resume_wanted)
         self._go_on("resume", "resumed by the technician")
@@ -503,16 +517,23 @@ class RunEngine:
         analyser = self.rig.analyser
         cumulative = np.cumsum(request.durations_s)
 
+        end_after_point = (getattr(analyser, "end_after_point", None)
+                           if request.ends_at_a_point else None)
+
         def progress(report: SweepProgressReport) -> None:
             if self.stop.asked():
                 analyser.abort()
                 return
+            if self._pause_wanted and callable(end_after_point):
+                end_after_point()  # again at every poll: a request made as the sweep started
             index = min(int(np.searchsorted(cumulative, report.elapsed_s)), cumulative.size - 1)
             in_flight = max(float(cumulative[-1]) - float(report.elapsed_s), 0.0)
             self.console.poll(float(request.frequency_hz[index]), request.left_after_s + in_flight)
 
         poll = self.rig.poll_interval_s
         self.stop.measuring[0] = True
+        with self._control:
+            self._ending = end_after_point if callable(end_after_point) else None
         try:
             measured = request.call(analyser, progress, poll)
         except Exception as error:
@@ -520,6 +541,8 @@ class RunEngine:
                 raise SweepInterrupted(request.run) from error
             raise
         finally:
+            with self._control:
+                self._ending = None
             self.stop.measuring[0] = False
         if self.stop.asked():  # stopped as the segment ended: drop it all the same
             raise SweepInterrupted(request.run)
@@ -594,6 +617,9 @@ class MeasureRequest:
         Test time of the run after this sweep (progress).
     call
         ``call(analyser, progress, poll_interval_s) -> MeasuredSegment``: the driver call.
+    ends_at_a_point
+        The plan takes a segment that a pause ended at a point (the first points of those
+        asked for, ``ended_early``); otherwise a pause waits for the whole sweep.
     """
 
     run: str
@@ -602,5 +628,6 @@ class MeasureRequest:
     durations_s: np.ndarray
     left_after_s: float
     call: Callable[[Analyser, Callable[[SweepProgressReport], None], float], MeasuredSegment]
+    ends_at_a_point: bool = False
 
 

@@ -143,11 +143,20 @@ class SpecimenOutOfBand(_FlaggedInARow):
         self._asked = -float("inf")
 
     def cleared(self) -> bool:
-        """Read the specimen thermocouple (at most once every ``every_s``): back in the band?"""
+        """Read the specimen thermocouple (at most once every ``every_s``): back in the band?
+
+        On a simulated rig (a chamber with ``pass_time``) its clock moves only when told to:
+        each look lets ``every_s`` of its time pass first, as they would at a real bench while
+        the run is held, so that the chamber can bring the specimen back."""
         soak = getattr(self.chamber, "soak", None)
         if soak is None:
             return True
-        if self.clock() - self._asked < self.every_s:
+        if getattr(self.chamber, "pass_time", None) is not None:
+            try:
+                self.chamber.wait(self.every_s)
+            except Exception:
+                return False
+        elif self.clock() - self._asked < self.every_s:
             return False
         self._asked = self.clock()
         try:

@@ -8,6 +8,7 @@
               └─ sweep ──── prediction (probe) ── open or resume the run ─┬─ full sweep
                                                                           └─ adaptive sweep
     full sweep:     configure ─ (measure segment ─ commit ─ checkpoint)* ─ close
+                    (a pause ends a segment at a point: the rest is planned again after it)
     adaptive sweep: see :mod:`viscorig.acquisition.adaptive`
 
 Each plan yields :class:`~viscorig.acquisition.engine.Msg` objects through the small steps of
@@ -377,37 +378,55 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
     last_time_s = float(stored.time_s[-1]) if stored.points else 0.0
     test_time_s = float(attributes.get("test_time_s", last_time_s))
     run_started = iso_to_epoch(stored.metadata.started)
-    pieces = plan_segments(planned[done:], settle_cycles, integrate_cycles,
-                           max_segment_s=step.segment_s, max_points=step.segment_points)
-    for number, piece in enumerate(pieces, start=1):
+    number = 0
+    while done < planned.size:
+        pieces = plan_segments(planned[done:], settle_cycles, integrate_cycles,
+                               max_segment_s=step.segment_s, max_points=step.segment_points)
+        piece, number = pieces[0], number + 1
         rows = slice(done + piece.start, done + piece.stop)
         frequencies = planned[rows]
         request = MeasureRequest(step.run, resource, frequencies, durations[rows],
-                                 _left(step, rows.stop), _linear_call(frequencies))
+                                 _left(step, rows.stop), _linear_call(frequencies),
+                                 ends_at_a_point=True)
         measured, remeasured = yield from stubs.measure_segment(
-            request, functools.partial(check_axis, frequencies=frequencies, resource=resource),
+            request, functools.partial(_check_piece, frequencies=frequencies, resource=resource),
             "measure")
-        rig_time = point_times_s(measured, durations[rows], settings.time_base)
-        if settings.time_base == "test" or run_started is None:
-            time_s = last_time_s + np.cumsum(durations[rows])
-        else:
-            share = np.cumsum(durations[rows]) / durations[rows].sum()
-            wall = measured.started_at_s + share * (measured.finished_at_s
-                                                    - measured.started_at_s)
-            time_s = np.maximum(wall - run_started, last_time_s)
-        segment = segment_of(measured, wiring, settings, time_s)
-        test_time_s += float(rig_time.sum())
-        total = yield from stubs.commit(step.run, segment, {"test_time_s": test_time_s},
-                                        "measure")
-        last_time_s = float(time_s[-1])
-        yield Msg("progress", ("segment", SegmentDone(
-            run=step.run, number=number, count=len(pieces), points_done=total,
-            points_total=planned.size, frequency_hz=np.asarray(segment.frequency_hz),
-            reference_amplitude=np.asarray(segment.reference_amplitude),
-            force_amplitude=np.asarray(segment.force_amplitude),
-            flags=np.asarray(segment.flags, dtype=np.uint16), remeasured=remeasured,
-            seconds_left=_left(step, total))), step="measure")
+        count = np.asarray(measured.frequency_hz).size  # fewer when paused at a point
+        if count:
+            rows = slice(rows.start, rows.start + count)
+            rig_time = point_times_s(measured, durations[rows], settings.time_base)
+            if settings.time_base == "test" or run_started is None:
+                time_s = last_time_s + np.cumsum(durations[rows])
+            else:
+                share = np.cumsum(durations[rows]) / durations[rows].sum()
+                wall = measured.started_at_s + share * (measured.finished_at_s
+                                                        - measured.started_at_s)
+                time_s = np.maximum(wall - run_started, last_time_s)
+            segment = segment_of(measured, wiring, settings, time_s)
+            test_time_s += float(rig_time.sum())
+            total = yield from stubs.commit(step.run, segment, {"test_time_s": test_time_s},
+                                            "measure")
+            last_time_s = float(time_s[-1])
+            done = rows.stop
+            yield Msg("progress", ("segment", SegmentDone(
+                run=step.run, number=number, count=number + len(pieces) - 1,
+                points_done=total, points_total=planned.size,
+                frequency_hz=np.asarray(segment.frequency_hz),
+                reference_amplitude=np.asarray(segment.reference_amplitude),
+                force_amplitude=np.asarray(segment.force_amplitude),
+                flags=np.asarray(segment.flags, dtype=np.uint16), remeasured=remeasured,
+                seconds_left=_left(step, total))), step="measure")
+        else:  # a pause ended the sweep before its first point: pause here, then go on
+            yield from stubs.checkpoint("measure")
     return planned.size
+
+
+def _check_piece(measured, frequencies: np.ndarray, resource: str) -> None:
+    """The analyser measured the piece's frequencies, or its first ones when it ended the sweep
+    at a point boundary for a pause (``ended_early``)."""
+    if getattr(measured, "ended_early", False):
+        frequencies = frequencies[:np.asarray(measured.frequency_hz).size]
+    check_axis(measured, frequencies, resource)
 
 
 def _attributes(campaign: Campaign, run: str) -> dict[str, object]:

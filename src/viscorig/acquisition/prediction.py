@@ -31,7 +31,7 @@ from viscorig.acquisition.limits import (
     motion_ratio,
     specimen_from_accelerance,
 )
-from viscorig.acquisition.probe import probe_frequencies_hz, probe_test_time_s
+from viscorig.acquisition.probe import probe_frequencies_hz, probe_settings, probe_test_time_s
 from viscorig.acquisition.session import Session
 from viscorig.sequences import SweepStep
 
@@ -95,10 +95,13 @@ def predict(session: Session, step: SweepStep, level: float) -> Plan:
 def _probe(session: Session, step: SweepStep, level: float) -> Plan:
     """Measure the probe points of a newly mounted rig and predict from them."""
     frequencies = " and ".join(f"{f:g}" for f in probe_frequencies_hz(step))
-    probe_level = level * PROBE_LEVEL_FRACTION
+    lowest = session.wiring.lowest_reference_level(step.bare_table)
+    probe_level = probe_settings(session.sweep_settings(step, level), lowest).level_m_per_s2
+    why = ("a tenth of the level" if probe_level <= level * PROBE_LEVEL_FRACTION * (1 + 1e-9)
+           else "the lowest level the analyser's auto level holds")
     yield from stubs.say(
         f"run '{step.run}': newly mounted; probing at {frequencies} Hz at "
-        f"{probe_level:.3g} m/s^2 (a tenth of the level; {probe_test_time_s(step):.0f} s "
+        f"{probe_level:.3g} m/s^2 ({why}; {probe_test_time_s(step):.0f} s "
         "of test time, not part of the run)", "probe")
     readings = yield from stubs.probe(session.sweep_settings(step, level), "probe")
     for reading in readings:

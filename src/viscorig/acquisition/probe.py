@@ -73,11 +73,17 @@ def probe_test_time_s(step: SweepStep) -> float:
     return float(point_durations_s(frequencies, *probe_cycles(step)).sum())
 
 
-def probe_settings(settings: SweepSettings) -> SweepSettings:
+def probe_settings(settings: SweepSettings, lowest_level_m_per_s2: float = 0.0
+                   ) -> SweepSettings:
     """The run's settings at :data:`PROBE_LEVEL_FRACTION` of its level, with the same source and
-    input limits, the controller starting as far down."""
-    return replace(settings, level_m_per_s2=settings.level_m_per_s2 * PROBE_LEVEL_FRACTION,
-                   start_level_v=settings.start_level_v * PROBE_LEVEL_FRACTION)
+    input limits, the controller starting as far down; never below ``lowest_level_m_per_s2``
+    (the lowest the analyser's auto level holds, :meth:`Wiring.lowest_reference_level`) nor
+    above the run's level."""
+    level = min(settings.level_m_per_s2,
+                max(settings.level_m_per_s2 * PROBE_LEVEL_FRACTION, lowest_level_m_per_s2))
+    fraction = level / settings.level_m_per_s2
+    return replace(settings, level_m_per_s2=level,
+                   start_level_v=settings.start_level_v * fraction)
 
 
 def measure_probe(
@@ -102,7 +108,7 @@ def measure_probe(
         Whatever the driver raises on an instrument fault (the caller classifies it).
     """
     hooks = hooks or SweepHooks()
-    low = probe_settings(settings)
+    low = probe_settings(settings, wiring.lowest_reference_level(settings.step.bare_table))
     if settings.step.adaptive:  # no grid of its own: the band's edges at the probe's cycles
         edges = probe_frequencies_hz(settings.step)
         settle, integrate = probe_cycles(settings.step)

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from viscorig.acquisition.limits import AT_FORCE_LIMIT_DB, point_flags
 from viscorig.acquisition.protocol import Analyser, MeasuredSegment
-from viscorig.analyser import FREQUENCY_STEP_HZ
+from viscorig.analyser import FREQUENCY_STEP_HZ, MIN_REFERENCE_VPK
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     Station,
@@ -99,6 +99,12 @@ class Wiring:
         """The input the auto level holds: the table's accelerometer on a bare-table run, the
         device's otherwise."""
         return self.table_acceleration if bare_table else self.device_acceleration
+
+    def lowest_reference_level(self, bare_table: bool) -> float:
+        """The lowest level the auto level can hold on :meth:`reference_channel`, m/s²
+        (:data:`~viscorig.analyser.MIN_REFERENCE_VPK` over the accelerometer's sensitivity)."""
+        channel = self.reference_channel(bare_table)
+        return MIN_REFERENCE_VPK / float(self.sensitivities_v_per_eu[channel])
 
     @property
     def force_limit_acts_on_excitation(self) -> bool:

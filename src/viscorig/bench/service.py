@@ -272,10 +272,10 @@ class BenchService:
 
     def _run(self, item: QueueItem) -> str:
         from viscorig.acquisition import Outcome, Runner
-        from viscorig.acquisition.holds import standard_conditions
+        from viscorig.acquisition.notebox import NoteCarrier
         from viscorig.cli.check import check_files
         from viscorig.cli.run import open_station, runner_options
-        from viscorig.cli.stations import not_answering_errors
+        from viscorig.cli.stations import station_holds
         from viscorig.storage import Campaign
 
         checked = check_files(item.sequence, self.station_path)
@@ -298,9 +298,7 @@ class BenchService:
                     station_text=checked.station_text, station_file=self.station_path or "",
                     rig=station.rig_attributes())
             console = PageConsole()
-            holds = standard_conditions(bench, station.shaker_force_limit_n,
-                                        opened.analyser.identify, not_answering_errors(),
-                                        opened.chamber)
+            holds = station_holds(opened, bench)
             floors = {}
             if opened.simulated:
                 from viscorig.cli.plan import simulated_floors
@@ -314,8 +312,15 @@ class BenchService:
                 self.opened, self.console, self.runner = opened, console, runner
                 self.campaign_path = out
                 self._checking = False
+            engine = runner.engine
+
+            def store(text: str) -> object:  # a note from 'viscorig note FILE.h5 TEXT'
+                with self.file_lock:
+                    return campaign.add_journal_entry("note", text, engine.current_run)
+
             try:
-                result = runner.run()
+                with NoteCarrier(out, store, console.warn):
+                    result = runner.run()
             finally:
                 with self._lock:
                     self.opened = None
@@ -346,7 +351,7 @@ class BenchService:
         return runner.engine
 
     def pause(self) -> None:
-        """Pause at the next checkpoint (the segment in flight committed, the source off)."""
+        """Pause at the point being measured (committed with those before it, the source off)."""
         if not self._engine().request_pause():
             raise BenchError(f"cannot pause: the run is {self.state()['state']}")
 

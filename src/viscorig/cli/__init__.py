@@ -44,6 +44,7 @@ class Command(NamedTuple):
 COMMANDS: dict[str, Command] = {
     "run": Command("run", "run a test sequence into a new campaign file"),
     "resume": Command("run", "continue an interrupted campaign file"),
+    "note": Command("note", "store a note with its time in a campaign's journal, also mid-run"),
     "show": Command("show", "list the runs and fits of a campaign file"),
     "identify": Command("identify", "fit a model to one run and store the fit in the file"),
     "diagnose": Command(

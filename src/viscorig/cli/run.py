@@ -4,7 +4,16 @@
 
     viscorig run sequences/paper.toml --yes --out paper.h5     # the embedded simulated rig
     viscorig run my-test.toml --station lab.toml                # the rig in the lab
+    viscorig run a.toml b.toml --station lab.toml --holds       # a queue, automatic holds
     viscorig resume paper.h5 --yes                              # after Ctrl-C, a fault, a crash
+
+While it measures: Ctrl-Z pauses at the point being measured and Ctrl-Z again resumes (or
+``kill -USR1``/``-USR2``, :mod:`viscorig.acquisition.terminal`); ``viscorig note FILE.h5 TEXT``
+from another terminal stores a note in the campaign's journal. ``--holds`` holds the run by
+itself under the station's ``[bench]`` conditions, as the bench page does.
+
+Several sequences are a queue: every one is checked before the first starts, each into its own
+file (``<sequence name>.h5`` here), one after another as long as each ends complete.
 
 Exit status: 0 complete; 2 bad input (nothing written) or a sweep refused because its
 predicted force exceeds the shaker limit (``over_limit = "refuse"`` in the sequence, the
@@ -29,6 +38,8 @@ from viscorig.acquisition import (
     Runner,
     RunnerOptions,
 )
+from viscorig.acquisition.notebox import NoteCarrier
+from viscorig.acquisition.terminal import PauseSignals, signal_help
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
 from viscorig.errors import InputError, InstrumentError
@@ -53,6 +64,12 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
+    parser.add_argument("--holds", action="store_true",
+                        help="automatic holds, as on the bench page: the run pauses by itself "
+                        "when the level is not held, an input keeps overloading, the force nears "
+                        "the shaker limit, the analyser stops answering or the specimen leaves "
+                        "its temperature band (the station's [bench] settings); it goes on when "
+                        "the condition clears (hold_resume = \"auto\") or at Ctrl-Z")
 
 
 def _fields_epilog() -> str:
@@ -78,12 +95,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sequence (and station) are checked whole before the first prompt, as 'viscorig "
         "check' does.",
         epilog=_fields_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
-    run.add_argument("sequence", metavar="SEQUENCE.toml", help="test sequence")
+    run.add_argument("sequence", metavar="SEQUENCE.toml", nargs="+",
+                     help="test sequence; several are a queue, run in order")
     run.add_argument("--station", metavar="STATION.toml", default=None,
                      help="the lab's station file (analyser resource, transducers, shaker)")
     run.add_argument("--out", metavar="FILE.h5", default=None,
                      help="campaign file to create (default: <sequence name>.h5 here; an "
-                     "existing file is never overwritten)")
+                     "existing file is never overwritten); one sequence only")
     _common(run)
     run.set_defaults(handler=run_command)
 
@@ -97,31 +115,63 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """``viscorig run``: check everything, create the file, run the sequence."""
+    """``viscorig run``: check everything, create the file, run the sequence (or each sequence
+    of a queue, in order, while each ends complete)."""
     from viscorig.cli.check import check_files, refuse
 
     if args.station is not None and args.sim_pace is not None:
         raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
-    checked = check_files(args.sequence, args.station)
-    if not checked.ok:
-        option = f" --station {args.station}" if args.station else ""
-        refuse(checked, f"viscorig check {args.sequence}{option}")
+    sequences = list(args.sequence)
+    if args.out and len(sequences) > 1:
+        raise InputError("one campaign file for one sequence; a queue writes each to "
+                         "<sequence name>.h5 here", "--out")
+    queue = []
+    for text in sequences:  # everything checked before anything moves
+        checked = check_files(text, args.station)
+        if not checked.ok:
+            option = f" --station {args.station}" if args.station else ""
+            refuse(checked, f"viscorig check {text}{option}")
+        out = Path(args.out) if args.out else Path.cwd() / f"{Path(text).stem}.h5"
+        if out.exists():
+            raise InputError(
+                f"exists; a campaign file is never overwritten. Continue it with "
+                f"'viscorig resume {out}', or choose another --out", str(out))
+        if not out.parent.is_dir():
+            raise InputError("folder does not exist", str(out))
+        if any(out == other for _, _, other in queue):
+            raise InputError(f"two sequences of the queue would write {out.name}: rename one",
+                             text)
+        queue.append((text, checked, out))
+    for number, (text, checked, out) in enumerate(queue):
+        if len(queue) > 1:
+            print(f"queue {number + 1}/{len(queue)}: {text}", flush=True)
+        status = _run_new(text, checked, out, args)
+        if status != 0:
+            left = [name for name, _, _ in queue[number + 1:]]
+            if left:
+                print(f"viscorig: the queue stopped; not started: {', '.join(left)}",
+                      file=sys.stderr)
+            return status
+    return 0
+
+
+def _run_new(text: str, checked, out: Path, args: argparse.Namespace) -> int:
+    """Create ``out`` and run one checked sequence into it."""
     sequence, station = checked.passed(), checked.station
-    out = Path(args.out) if args.out else Path.cwd() / f"{Path(args.sequence).stem}.h5"
-    if out.exists():
-        raise InputError(
-            f"exists; a campaign file is never overwritten. Continue it with "
-            f"'viscorig resume {out}', or choose another --out", str(out))
-    if not out.parent.is_dir():
-        raise InputError("folder does not exist", str(out))
     with open_station(sequence, station, args.sim_pace) as opened:
         campaign = Campaign.create(
-            out, sequence_text=checked.sequence_text, sequence_file=str(args.sequence),
+            out, sequence_text=checked.sequence_text, sequence_file=str(text),
             station_text=checked.station_text, station_file=args.station or "",
             rig=opened.station.rig_attributes(),
         )
         print(f"campaign file: {out}  ({_where(opened)})", flush=True)
-        return _run(campaign, sequence, opened, args)
+        try:
+            return _run(campaign, sequence, opened, args)
+        except InstrumentError:
+            if len(args.sequence) > 1:
+                print(f"viscorig: continue this file with 'viscorig resume {out}'",
+                      file=sys.stderr)
+            raise
 
 
 def resume_command(args: argparse.Namespace) -> int:
@@ -223,15 +273,28 @@ def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespac
     options = runner_options(opened, args.over_limit)
     console = Console(yes=args.yes)
     floors = _forecast(campaign, sequence, opened)
+    holds, hold_resume = [], "technician"
+    if args.holds:
+        from viscorig.cli.stations import station_holds
+
+        holds, hold_resume = station_holds(opened), opened.station.bench.hold_resume
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
-                    floors=floors)
+                    floors=floors, holds=holds, hold_resume=hold_resume)
+    engine = runner.engine
     live: contextlib.AbstractContextManager[str | None] = contextlib.nullcontext()
     if args.live:
         from viscorig.cli.watch import live_view
 
         live = live_view(campaign.path, open_browser=not args.no_browser, say=console.say)
+    console.say(signal_help() + f"; notes: viscorig note {campaign.path} TEXT")
+
+    def store(text: str) -> object:
+        with engine.file_lock:
+            return campaign.add_journal_entry("note", text, engine.current_run)
+
     try:
-        with live:
+        with live, PauseSignals(engine, console.say).installed(), NoteCarrier(
+                campaign.path, store, console.warn):
             result = runner.run()
     except NoAnswer:
         print(f"viscorig: a prompt needs an answer and the input is closed; run with --yes, "

@@ -72,6 +72,18 @@ def not_answering_errors() -> tuple[type[BaseException], ...]:
     return (InstrumentTimeout, ConnectionLost)
 
 
+def station_holds(opened: OpenStation, bench: Any = None) -> list[Any]:
+    """The automatic holds of an open station: its ``[bench]`` settings (or ``bench``), the
+    analyser's identity query to see it answer again, and the chamber's thermometer if any. The
+    bench page and ``viscorig run --holds`` use these same conditions."""
+    from viscorig.acquisition.holds import standard_conditions
+
+    station = opened.station
+    return standard_conditions(bench or station.bench, station.shaker_force_limit_n,
+                               opened.analyser.identify, not_answering_errors(),
+                               opened.chamber)
+
+
 #: The embedded rig's chamber limits and safe set point, °C.
 EMBEDDED_CHAMBER_LIMITS_C = (-40.0, 100.0)
 EMBEDDED_SAFE_SET_POINT_C = 25.0

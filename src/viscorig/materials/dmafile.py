@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,6 +52,10 @@ from viscorig.materials.trios import is_trios_export, trios_steps
 #: Largest file read (a DMA table of 100 000 points is under 10 MB).
 MAX_FILE_BYTES = 32 * 1024 * 1024
 MAX_POINTS = 100_000
+#: Rows named one by one in the warning about moduli that are not positive.
+MAX_NAMED_POINTS = 5
+
+log = logging.getLogger(__name__)
 
 #: Column role -> accepted names (normalised: lower case, no spaces, ``_``/``-`` removed).
 ROLES: dict[str, tuple[str, ...]] = {
@@ -391,15 +396,15 @@ def _sets_by_temperature(temperature: np.ndarray, tolerance_k: float = 1.0) -> n
 
 
 def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], where: str) -> None:
-    """Name the row and column of the first value no master curve can use."""
+    """Name the row and column of the first frequency or temperature no master curve can use.
+
+    Moduli that are not positive are kept as measured (:meth:`ModulusTable.usable`); each is
+    named in a warning with its row and column.
+    """
     checks = (
         ("frequency" if "frequency" in columns else "angular", table.frequency_hz,
          "frequency must be a positive finite number"),
         ("temperature", table.temperature_c + 273.15, "temperature must be above absolute zero"),
-        ("storage" if "storage" in columns else "complex", table.storage_pa,
-         "storage modulus must be a positive finite number"),
-        ("loss" if "loss" in columns else "tan_delta", table.loss_pa,
-         "loss modulus must be a positive finite number"),
     )
     for role, value, what in checks:
         good = np.isfinite(value) & (value > 0)
@@ -407,5 +412,16 @@ def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], wh
         if bad.size:
             row_number = body[int(bad[0])][0]
             raise InputError(what, f"{where}: row {row_number}, column {columns[role].name!r}")
-    if table.points < 2:
-        raise InputError(f"{table.points} data row(s); a master curve needs more", where)
+    storage_role = "storage" if "storage" in columns else "complex"
+    loss_role = "loss" if "loss" in columns else "tan_delta"
+    unusable = table.unusable_points()
+    for point in unusable[:MAX_NAMED_POINTS]:
+        role = storage_role if point["why"].startswith("storage") else loss_role
+        log.warning("%s: row %s, column %r: %s; kept as measured, left out of master curves",
+                    where, body[point["point"] - 1][0], columns[role].name, point["why"])
+    if len(unusable) > MAX_NAMED_POINTS:
+        log.warning("%s: %d more rows with a modulus that is not a positive number",
+                    where, len(unusable) - MAX_NAMED_POINTS)
+    if int(table.usable().sum()) < 2:
+        raise InputError(f"{int(table.usable().sum())} data row(s) with a positive storage and "
+                         "loss modulus; a master curve needs more", where)

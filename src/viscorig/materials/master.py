@@ -68,6 +68,9 @@ class MasterCurve:
     jointly_refined
         Whether the shifts were then refined together with the Prony series (they are unless
         that made the fit worse).
+    left_out
+        The points of the data whose storage or loss modulus is not a positive number
+        (:meth:`ModulusTable.unusable_points`); ``table`` holds the others.
     """
 
     table: ModulusTable
@@ -88,6 +91,7 @@ class MasterCurve:
     kramers_kronig: KramersKronigCheck
     shifts: ShiftFactors
     jointly_refined: bool = False
+    left_out: tuple[dict, ...] = ()
 
     def log10_at_of(self, temperature_c: float) -> float:
         """``log10 aT`` at any temperature from the shift function (NaN without one)."""
@@ -131,6 +135,12 @@ class MasterCurve:
                     else ", does not describe the shifts within their errors)")
             best = "  <- better" if function is master.shift_function else ""
             lines.append(f"{function.kind}: {values}{fit}{best}")
+        if master.left_out:
+            named = "; ".join(f"{p['temperature_c']:.1f} °C, {p['frequency_hz']:.4g} Hz "
+                              f"({p['why']})" for p in master.left_out[:8])
+            more = f" and {len(master.left_out) - 8} more" if len(master.left_out) > 8 else ""
+            lines.append(f"left out: {len(master.left_out)} point(s) whose modulus is not "
+                         f"a positive number: {named}{more}")
         lines.append(master.superposition.verdict)
         flagged = master.flagged_points()
         if flagged:
@@ -212,6 +222,7 @@ class MasterCurve:
                 "flagged": flagged,
             },
             "points": self.table.points,
+            "left_out": list(self.left_out),
             "source": self.table.source,
         }
 
@@ -268,6 +279,9 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
 def _build(table: ModulusTable, runs: tuple[str, ...],
            reference_temperature_c: float | None) -> MasterCurve:
     table.check(table.source or "modulus table")
+    left_out = tuple(table.unusable_points())
+    if left_out:
+        table = table.select(table.usable())
     if not (reference_temperature_c is None or (math.isfinite(reference_temperature_c)
                                                 and reference_temperature_c > -273.15)):
         raise InputError(f"{reference_temperature_c} is not a temperature in °C",
@@ -329,5 +343,5 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
         fractional_fit=fractional_fit, superposition=check_superposition(table),
         kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
                                             sweep_scatter),
-        shifts=shifts, jointly_refined=refined,
+        shifts=shifts, jointly_refined=refined, left_out=left_out,
     )

@@ -5,8 +5,8 @@ Criterion: every isothermal set ``s`` is moved along the log-frequency axis by `
 on one smooth master curve, for the storage and the loss modulus at once. The master curve is a
 cubic B-spline in ``log10(f·aT)`` for ``ln E'`` and another for ``ln E''``; for given shifts
 its coefficients are a linear least-squares solution, so only the shifts are searched (variable
-projection). The residuals of ``ln E'`` and ``ln E''`` are each weighted by their own scatter,
-estimated from the fit itself (two passes).
+projection). The residuals of ``ln E'`` and ``ln E''`` are each weighted by their own scatter in
+each set (sweeps differ in noise by an order of magnitude), estimated from the fit itself.
 
 Standard errors come from the Jacobian of the projected residuals (the marginal covariance of
 the shifts, spline coefficients eliminated), scaled by the weighted residual variance. They are
@@ -26,8 +26,8 @@ from scipy.optimize import least_squares
 from viscorig.errors import InputError
 from viscorig.materials.table import ModulusTable
 
-#: Spacing of the spline's knots along log10 reduced frequency (decades).
-KNOT_SPACING_DECADES = 0.5
+#: Spacings of the spline's knots along log10 reduced frequency tried (decades).
+KNOT_SPACINGS_DECADES = (0.5, 0.35, 0.25)
 #: Largest shift searched between neighbouring sets (decades).
 MAX_STEP_DECADES = 8.0
 
@@ -119,6 +119,36 @@ def _knots(u: NDArray[np.float64], spacing: float) -> NDArray[np.float64]:
     return np.concatenate([[lo] * 3, breaks, [hi] * 3])
 
 
+#: Weight of the typical set's scatter in each set's, in points (a set's own scatter is
+#: trusted as it gains points).
+POOLED_PRIOR_POINTS = 1.0
+
+
+def _set_scatter(raw: NDArray[np.float64], leverage: NDArray[np.float64],
+                 member: NDArray[np.int64], shifts: int) -> NDArray[np.float64]:
+    """Each point's scatter of ``ln E'`` and ``ln E''``: its set's, estimated from the
+    residuals ``raw`` and drawn a little towards the typical set's
+    (:data:`POOLED_PRIOR_POINTS`).
+
+    Sweeps differ in noise by an order of magnitude (a hot rubber's small loss modulus is
+    measured far less well than a cold one's), and a shift is only as well known as the sweeps
+    it joins: one weight for all would make the noisy sweeps' shifts look better known than they
+    are. A set's degrees of freedom are its points less their leverage on the spline (an end
+    set alone holds the curve's end) and less its shift.
+    """
+    sets = int(member.max()) + 1
+    counts = np.bincount(member, minlength=sets).astype(float)
+    per_set, dof = np.empty((sets, raw.shape[1])), np.empty((sets, raw.shape[1]))
+    for k in range(raw.shape[1]):
+        per_set[:, k] = np.bincount(member, weights=raw[:, k] ** 2, minlength=sets)
+        dof[:, k] = np.bincount(member, weights=1.0 - leverage[:, k], minlength=sets)
+    dof = np.maximum(dof - 0.5 * shifts / sets, 0.1 * counts[:, None])
+    # the typical set's, so that one noisy set does not make the quiet ones look noisy
+    pooled = np.median(per_set / dof, axis=0)
+    variance = (per_set + POOLED_PRIOR_POINTS * pooled) / (dof + POOLED_PRIOR_POINTS)
+    return np.maximum(np.sqrt(variance), 1e-6)[member]
+
+
 class _Problem:
     """The variable-projection residual of the shifts."""
 
@@ -129,7 +159,7 @@ class _Problem:
         self.member = np.array([position[s] for s in table.set_index.tolist()])
         self.free = np.array([i for i in range(sets.size) if i != reference])
         self.sets = sets.size
-        self.weights = np.ones(2)
+        self.weights = np.ones((self.x.size, 2))
         self.knots: NDArray[np.float64] | None = None
         #: per-point correction of the shift where a point's temperature is not its set's
         self.offset = np.zeros(self.x.size)
@@ -142,13 +172,23 @@ class _Problem:
     def reduced(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
         return self.x + self.shifts(free)[self.member] + self.offset
 
-    def fitted(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Master-curve values of ``ln E'``, ``ln E''`` at every point (two columns)."""
+    def fitted(self, free: NDArray[np.float64], leverage: bool = False
+               ) -> NDArray[np.float64] | tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Master-curve values of ``ln E'``, ``ln E''`` at every point (two columns), and with
+        ``leverage`` each point's leverage on them (the weighted fit's hat-matrix diagonal)."""
         basis = _basis(self.reduced(free), self.knots)
-        # normal equations; a small ridge keeps knots without data from making them singular
-        normal = basis.T @ basis + 1e-8 * np.eye(basis.shape[1])
-        coefficients = np.linalg.solve(normal, basis.T @ self.y)
-        return basis @ coefficients
+        out, hat = np.empty_like(self.y), np.empty_like(self.y)
+        for k in range(self.y.shape[1]):
+            # weighted normal equations; a small ridge keeps knots without data from making
+            # them singular
+            w2 = self.weights[:, k] ** 2
+            weighted = basis * w2[:, None]
+            normal = basis.T @ weighted
+            normal += 1e-8 * np.trace(normal) / normal.shape[0] * np.eye(basis.shape[1])
+            out[:, k] = basis @ np.linalg.solve(normal, weighted.T @ self.y[:, k])
+            if leverage:
+                hat[:, k] = np.einsum("ij,ji->i", weighted, np.linalg.solve(normal, basis.T))
+        return (out, hat) if leverage else out
 
     def residual(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
         return ((self.y - self.fitted(free)) * self.weights).ravel(order="F")
@@ -156,7 +196,7 @@ class _Problem:
 
 def estimate_shift_factors(
     table: ModulusTable, reference_set: int | None = None,
-    knot_spacing: float = KNOT_SPACING_DECADES,
+    knot_spacing: float | None = None,
 ) -> ShiftFactors:
     """Estimate the shift factor of every set of ``table`` (see the module text).
 
@@ -167,7 +207,10 @@ def estimate_shift_factors(
     reference_set
         Set number whose shift is 0; default the set nearest the middle temperature.
     knot_spacing
-        Spline knot spacing in decades of reduced frequency.
+        Spline knot spacing in decades of reduced frequency; default the one of
+        :data:`KNOT_SPACINGS_DECADES` with the lowest BIC (a curve the data follow to a tenth
+        of a per cent needs closer knots than a noisy one, or the spline's own error biases
+        the shifts).
 
     Raises
     ------
@@ -188,39 +231,22 @@ def estimate_shift_factors(
         reference = int(np.argmin(np.abs(temperatures - middle)))
     else:
         reference = int(np.flatnonzero(sets == reference_set)[0])
-    problem = _Problem(table, sets, reference)
     # start: neighbour by neighbour, colder to warmer, then relative to the reference
+    probe = _Problem(table, sets, reference)
     start = np.zeros(sets.size)
     for i in range(1, sets.size):
         a, b = table.set_index == sets[i - 1], table.set_index == sets[i]
-        start[i] = start[i - 1] - _pair_step(problem.x[a], problem.y[a], problem.x[b],
-                                             problem.y[b])
+        start[i] = start[i - 1] - _pair_step(probe.x[a], probe.y[a], probe.x[b], probe.y[b])
     start -= start[reference]
-    free = start[problem.free]
-    for _ in range(2):  # knots follow the span; weights follow the scatter
-        problem.knots = _knots(problem.reduced(free), knot_spacing)
-        solution = least_squares(problem.residual, free, method="trf", x_scale=1.0,
-                                 max_nfev=40, xtol=1e-6, ftol=1e-8)
-        free = solution.x
-        raw = problem.y - problem.fitted(free)
-        dof = max(1.0, raw.shape[0] - (problem.knots.size - 4) - free.size / 2)
-        scatter = np.sqrt((raw**2).sum(axis=0) / dof)
-        problem.weights = 1.0 / np.maximum(scatter, 1e-6)
-    solution = least_squares(problem.residual, free, method="trf", max_nfev=60, xtol=1e-8,
-                             ftol=1e-10)
-    deviation = table.temperature_c - temperatures[problem.member]
-    if np.abs(deviation).max() > 0.01 and sets.size >= 2:
-        # points measured off their set's mean temperature (a specimen warming during a sweep):
-        # each is moved by the local slope d(log10 aT)/dT of the shifts found, then refitted
-        slope = np.gradient(problem.shifts(solution.x), temperatures)
-        problem.offset = slope[problem.member] * deviation
-        solution = least_squares(problem.residual, solution.x, method="trf", max_nfev=60,
-                                 xtol=1e-8, ftol=1e-10)
+    spacings = KNOT_SPACINGS_DECADES if knot_spacing is None else (knot_spacing,)
+    fits = [_fit(table, sets, temperatures, reference, start, spacing) for spacing in spacings]
+    problem, solution, _ = min(fits, key=lambda fit: fit[2])
     free = solution.x
     residual = problem.residual(free)
     jac = solution.jac
     parameters = free.size + 2 * (problem.knots.size - 4)
-    variance = float(residual @ residual) / max(1, residual.size - parameters)
+    # the weights are each set's own scatter already: only a misfit beyond it scales the errors
+    variance = max(1.0, float(residual @ residual) / max(1, residual.size - parameters))
     try:
         cov_free = np.linalg.pinv(jac.T @ jac) * variance
     except np.linalg.LinAlgError:
@@ -237,3 +263,35 @@ def estimate_shift_factors(
         loss_scatter=float(np.sqrt(np.mean(raw[:, 1] ** 2))),
         residual_storage=raw[:, 0], residual_loss=raw[:, 1], point_offset=problem.offset,
     )
+
+
+def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.float64],
+         reference: int, start: NDArray[np.float64], spacing: float) -> tuple:
+    """The shifts with knots ``spacing`` decades apart: (problem, solution, BIC)."""
+    problem = _Problem(table, sets, reference)
+    free = start[problem.free]
+    for _ in range(3):  # knots follow the span; weights follow the scatter
+        problem.knots = _knots(problem.reduced(free), spacing)
+        solution = least_squares(problem.residual, free, method="trf", x_scale=1.0,
+                                 max_nfev=40, xtol=1e-6, ftol=1e-8)
+        free = solution.x
+        values, leverage = problem.fitted(free, leverage=True)
+        problem.weights = 1.0 / _set_scatter(problem.y - values, leverage, problem.member,
+                                             free.size)
+    solution = least_squares(problem.residual, free, method="trf", max_nfev=60, xtol=1e-8,
+                             ftol=1e-10)
+    deviation = table.temperature_c - temperatures[problem.member]
+    if np.abs(deviation).max() > 0.01:
+        # points measured off their set's mean temperature (a specimen warming during a sweep):
+        # each is moved by the local slope d(log10 aT)/dT of the shifts found, then refitted
+        slope = np.gradient(problem.shifts(solution.x), temperatures)
+        problem.offset = slope[problem.member] * deviation
+        solution = least_squares(problem.residual, solution.x, method="trf", max_nfev=60,
+                                 xtol=1e-8, ftol=1e-10)
+    # Gaussian likelihood with each set's own variance (the weights), so that fits with
+    # different knots compare whatever scatter each leaves
+    residual = solution.fun
+    parameters = solution.x.size + 2 * (problem.knots.size - 4)
+    bic = float(residual @ residual - 2.0 * np.log(problem.weights).sum()
+                + parameters * np.log(residual.size))
+    return problem, solution, bic

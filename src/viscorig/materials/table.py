@@ -71,20 +71,20 @@ class ModulusTable:
     def check(self, where: str) -> None:
         """Refuse a table no master curve can be built from, naming the first bad point.
 
+        A modulus that is not positive (a DMA instrument reports a slightly negative loss
+        modulus where tan δ is below its resolution) is kept as measured: :meth:`usable` leaves
+        the point out of master curves.
+
         Raises
         ------
         InputError
-            A non-finite or non-positive frequency or modulus, a non-finite temperature, or
-            fewer than two points.
+            A non-finite or non-positive frequency, a non-finite temperature, or fewer than two
+            usable points.
         """
-        if self.points < 2:
-            raise InputError(f"{self.points} point(s); a master curve needs more", where)
         checks = (
             ("frequency_hz", self.frequency_hz > 0, "frequency must be a positive number"),
             ("temperature_c", np.isfinite(self.temperature_c) & (self.temperature_c > -273.15),
              "temperature must be a number above -273.15 °C"),
-            ("storage_pa", self.storage_pa > 0, "storage modulus must be a positive number"),
-            ("loss_pa", self.loss_pa > 0, "loss modulus must be a positive number"),
         )
         for name, good, what in checks:
             good = np.asarray(good) & np.isfinite(getattr(self, name))
@@ -92,6 +92,30 @@ class ModulusTable:
                 index = int(np.flatnonzero(~good)[0])
                 raise InputError(f"{what}, not {getattr(self, name)[index]!r} (point {index + 1})",
                                  f"{where}: {name}")
+        usable = int(self.usable().sum())
+        if usable < 2:
+            raise InputError(f"{usable} point(s) with a positive storage and loss modulus; a "
+                             "master curve needs more", where)
+
+    def usable(self) -> NDArray[np.bool_]:
+        """Points whose storage and loss moduli are both positive numbers."""
+        return (np.isfinite(self.storage_pa) & (self.storage_pa > 0)
+                & np.isfinite(self.loss_pa) & (self.loss_pa > 0))
+
+    def unusable_points(self) -> list[dict]:
+        """Every point :meth:`usable` leaves out: its number (from 1), set, temperature,
+        frequency, both moduli and why."""
+        out = []
+        for index in np.flatnonzero(~self.usable()).tolist():
+            storage, loss = float(self.storage_pa[index]), float(self.loss_pa[index])
+            bad = [name for name, value in (("storage", storage), ("loss", loss))
+                   if not (np.isfinite(value) and value > 0)]
+            out.append({"point": index + 1, "set": int(self.set_index[index]),
+                        "temperature_c": float(self.temperature_c[index]),
+                        "frequency_hz": float(self.frequency_hz[index]),
+                        "storage_pa": storage, "loss_pa": loss,
+                        "why": " and ".join(bad) + " modulus not a positive number"})
+        return out
 
     def select(self, keep: NDArray[np.bool_]) -> ModulusTable:
         """The points where ``keep`` is true."""
