@@ -29,10 +29,6 @@ BAND = "#f5b7b1"
 PRELOAD_STYLES = ("o", "s", "^", "D")
 RUBBER_COLOURS = ("#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 DPI = 100
-#: Height of an axes' title, in axes units, given so that matplotlib does not measure every
-#: tick label of the axes and its siblings at each draw to place it (no axes here has ticks
-#: above it, where the automatic placement would put it anyway).
-TITLE_Y = 1.0
 
 
 @dataclass(frozen=True)
@@ -110,7 +106,7 @@ def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure
         if overloaded.any():
             magnitude.plot(f[overloaded], np.abs(h[overloaded]), "o", mfc="none", ms=7,
                            color="black", label="input overload (not fitted)")
-        magnitude.set_title(FRF_TITLES[name], y=TITLE_Y)
+        magnitude.set_title(FRF_TITLES[name])
         magnitude.set_ylabel("|accelerance| [m/s²/N]")
         phase.set_ylabel("phase [°]")
         phase.set_xlabel("frequency [Hz]")
@@ -144,7 +140,7 @@ def residual_figure(analysis: RunAnalysis) -> Figure | None:
                     label="local noise σ (the run's noise model)")
         ax.axhline(residual.floor, ls="--", lw=1.0, color="black",
                    label=f"noise floor {residual.floor:.2g}")
-        ax.set_title(f"residual, {FRF_TITLES[residual.frf]}", y=TITLE_Y)
+        ax.set_title(f"residual, {FRF_TITLES[residual.frf]}")
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("relative error")
         ax.grid(True, which="major", alpha=0.3)
@@ -186,7 +182,7 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
                     ha="center", fontsize=7)
     ax.set_xticks(x, labels, rotation=20, ha="right", fontsize=7)
     ax.set_ylabel("rms error")
-    ax.set_title(title, fontsize=9, y=TITLE_Y)
+    ax.set_title(title, fontsize=9)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=7)
     return figure
