@@ -132,7 +132,7 @@ class MarkovWhitening:
         (the points are then not in the process's order)."""
         axis = np.asarray(axis, dtype=float)
         gaps = np.diff(axis)
-        if not (np.all(gaps >= 0) or np.all(gaps <= 0)):
+        if axis.size == 0 or not (np.all(gaps >= 0) or np.all(gaps <= 0)):
             return None
         step = np.concatenate([[0.0], np.exp(-np.abs(gaps) / tau)])
         n = axis.size
