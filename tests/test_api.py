@@ -114,10 +114,10 @@ def test_stored_fits_and_storing(path: Path, tmp_path: Path):
     campaign = viscorig.open_campaign(copy, mode="a")
     made = campaign.identify("soft-0", "voigt", store=True)
     (stored,) = campaign["soft-0"].fits
-    assert stored.stored is not None and stored.model == "voigt"
+    assert stored.result.stored and stored.model == "voigt"
     assert stored.parameters["K_v"][0] == pytest.approx(made.parameters["K_v"][0])
     assert stored.parameters["K_v"][1] == pytest.approx(made.parameters["K_v"][1])
-    assert made.curve.source == f"stored fit {stored.stored.id}"
+    assert made.source == stored.source == "stored fit 0001"
 
 
 def test_compare_runs_gives_the_change_with_its_uncertainty(path: Path):

@@ -16,9 +16,11 @@ import pytest
 from reliability_campaign import cli, one_clear_line, station_text
 from simserve import sim_serve
 
-from viscorig.benchcheck.checks import Readings, RigFacts, Roles, judge
+from viscorig.acquisition.sweep import Wiring
+from viscorig.benchcheck.checks import Readings, RigFacts, judge
 
-ROLES = Roles(1, 2, 3, 4)
+#: The judging needs only which input carries which transducer, not their sensitivities.
+ROLES = Wiring(1, 2, 3, 4, sensitivities_v_per_eu={})
 
 
 def fails(out: str) -> list[str]:

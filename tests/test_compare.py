@@ -20,33 +20,48 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.compare import (
     Change,
-    Estimates,
     Pair,
     compare_fits,
     kstar_at,
     kstar_changes,
     system_changes,
 )
-from viscorig.fitting import Known, fit
-from viscorig.identify import store_fit
+from viscorig.fitting import FitResult, Known, fit
+from viscorig.identify import read_fit, store_fit
 from viscorig.models import Context, parse_spec
-from viscorig.storage import Campaign, Fit, FitParameter, RunSettings, Segment
+from viscorig.storage import Campaign, FitParameter, FitRecord, RunSettings, Segment
 
 VOIGT = parse_spec("voigt")
 TABLE = {"M_s": 3.4, "K_s": 5e4, "C_s": 5.0}
 FITTED = ("K_v", "C_v", "M_v")
 
 
+def a_fit(spec: str, values: dict[str, float], names: tuple[str, ...], covariance,
+          free: tuple[str, ...], inherited_from: str = "", rms_error: float = math.nan,
+          noise_floor: float = math.nan) -> FitResult:
+    """A fit with the given values and joint covariance of ``names``, and no residuals."""
+    covariance = np.array(covariance, dtype=float)
+    sigma = np.sqrt(np.diag(covariance))
+    own = [names.index(name) for name in free]
+    model = parse_spec(spec)
+    return FitResult(model=model, values=dict(values), stderr=dict(zip(names, sigma, strict=True)),
+                     free=free, covariance=covariance[np.ix_(own, own)], rms_error=rms_error,
+                     noise_floor=noise_floor, band_hz=(20.0, 120.0), points=0,
+                     frfs=model.frfs, frequency_hz=np.empty(0), residuals={}, bic=math.nan,
+                     covariance_names=names, joint_covariance=covariance,
+                     fits_noise=bool(rms_error <= 1.25 * noise_floor),
+                     inherited_from=inherited_from)
+
+
 def estimates(values: dict[str, float], names: tuple[str, ...], covariance,
               free: tuple[str, ...] | None = None, inherited_from: str = "",
-              ratio: float = 1.0) -> Estimates:
-    """A fit's estimates, ``ratio`` its rms_error over its noise floor."""
-    return Estimates("voigt", {**TABLE, "M_v": 0.15, **values}, names,
-                     np.array(covariance, dtype=float), free or names, inherited_from,
-                     rms_error=ratio * 1e-3, noise_floor=1e-3)
+              ratio: float = 1.0) -> FitResult:
+    """A Voigt fit, ``ratio`` its rms_error over its noise floor."""
+    return a_fit("voigt", {**TABLE, "M_v": 0.15, **values}, names, covariance, free or names,
+                 inherited_from, rms_error=ratio * 1e-3, noise_floor=1e-3)
 
 
-def voigt(k_v: float, c_v: float, covariance, ratio: float = 1.0) -> Estimates:
+def voigt(k_v: float, c_v: float, covariance, ratio: float = 1.0) -> FitResult:
     return estimates({"K_v": k_v, "C_v": c_v}, ("K_v", "C_v"), covariance, ratio=ratio)
 
 
@@ -102,7 +117,7 @@ def test_propagation_agrees_with_sampling_the_covariance():
     assert set(free) <= set(model.names)
     sigma = np.array([300.0, 400.0, 0.6, 300.0, 0.06])
     covariance = (np.eye(5) + 0.3 * (np.ones((5, 5)) - np.eye(5))) * np.outer(sigma, sigma)
-    fit_ = Estimates(model.spec, values, free, covariance, free)
+    fit_ = a_fit(model.spec, values, free, covariance, free)
     (k, u_k), (_, u_eta) = kstar_at(fit_, 60.0)
     samples = rng.multivariate_normal([values[n] for n in free], covariance, size=4000)
     context = Context(np.array([60.0]))
@@ -126,7 +141,7 @@ CENTRE = {"before": {"K_v": 150e3, "C_v": 100.0, "M_v": 0.15},
           "after": {"K_v": 164e3, "C_v": 110.0, "M_v": 0.151}}
 
 
-def _inheriting(which: str, source: str) -> Estimates:
+def _inheriting(which: str, source: str) -> FitResult:
     """A fit whose parameters are ``p = centre + LEVER (q − q0) + e``, as the module text says."""
     c_pq = LEVER @ TABLE_COVARIANCE
     joint = np.block([[OWN[which] + c_pq @ LEVER.T, c_pq], [c_pq.T, TABLE_COVARIANCE]])
@@ -174,12 +189,12 @@ def test_a_shared_table_counts_once_as_sampling_the_joint_distribution_shows(sha
 
 
 def _stored(fit_id: str, values: dict[str, float], sigma: dict[str, float],
-            correlation: np.ndarray) -> Fit:
+            correlation: np.ndarray) -> FitRecord:
     names = tuple(sigma)
     parameters = {name: FitParameter(value, sigma.get(name, math.nan), "")
                   for name, value in values.items()}
-    return Fit(fit_id, "r", "voigt", (20.0, 120.0), 1e-3, 1e-3, "", parameters,
-               (names, correlation))
+    return FitRecord(fit_id, "r", "voigt", (20.0, 120.0), 1e-3, 1e-3, "", parameters,
+                     (names, correlation))
 
 
 def test_stored_fits_use_their_correlation_and_a_table_given_alike_is_shared():
@@ -191,16 +206,17 @@ def test_stored_fits_use_their_correlation_and_a_table_given_alike_is_shared():
         correlation = fit_.joint_covariance / np.outer(sigma, sigma)
         stored[which] = _stored(which, fit_.values, dict(zip(names, sigma, strict=True)),
                                 correlation)
-    from_file = compare_fits(stored["before"], stored["after"], ["K_v", "C_v"])
+    from_file = compare_fits(read_fit(stored["before"]), read_fit(stored["after"]),
+                             ["K_v", "C_v"])
     from_fits = compare_fits(inherited["before"], inherited["after"], ["K_v", "C_v"])
     for a, b in zip(from_file, from_fits, strict=True):
         assert a.relative_stderr == pytest.approx(b.relative_stderr, rel=1e-9)
-    assert Pair(stored["before"], stored["after"]).shared == tuple(TABLE)
+    assert Pair(read_fit(stored["before"]), read_fit(stored["after"])).shared == tuple(TABLE)
     # The table given differently in one of them: two tables, independent.
     other = dict(stored["after"].parameters)
     other["K_s"] = FitParameter(other["K_s"].value + 1.0, other["K_s"].stderr, "")
     moved = replace(stored["after"], parameters=other)
-    assert Pair(stored["before"], moved).shared == ("M_s", "C_s")
+    assert Pair(read_fit(stored["before"]), read_fit(moved)).shared == ("M_s", "C_s")
 
 
 # -- fits made here: the residuals' influence, a file's round trip ---------------------------------
@@ -260,9 +276,9 @@ def test_a_stored_pair_compares_as_the_fits_do_without_their_residuals(tmp_path:
                 run.flags))
         for name, result in zip(("soft-0", "soft-10"), results, strict=True):
             store_fit(campaign, name, result)
-        stored = [campaign.fits(name)[0] for name in ("soft-0", "soft-10")]
+        stored = [read_fit(campaign.fits(name)[0]) for name in ("soft-0", "soft-10")]
     from_file = compare_fits(*stored, FITTED)
-    unpaired = [replace(Estimates.of(r), residuals=None) for r in results]
+    unpaired = [replace(r, influence=None) for r in results]
     for a, b in zip(from_file, compare_fits(*unpaired, FITTED), strict=True):
         assert a.relative == pytest.approx(b.relative, rel=1e-12)
         assert a.relative_stderr == pytest.approx(b.relative_stderr, rel=1e-9)

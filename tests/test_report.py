@@ -234,7 +234,7 @@ def test_moduli_and_preload_figures_carry_the_uncertainty_bands(campaign_file: P
     assert np.all(band.storage_modulus_stderr > 0) and np.all(band.loss_factor_stderr > 0)
     change_ax = preload_figure(groups).get_axes()[0]
     (shaded,) = [c for c in change_ax.collections if isinstance(c, PolyCollection)]
-    pair = Pair(soft[0].modulus.estimates, soft[-1].modulus.estimates)
+    pair = Pair(soft[0].modulus.fit, soft[-1].modulus.fit)
     f = np.linspace(20, 120, 61)
     change, stderr = pair.relative(storage_stiffness_of(pair.a.model, f),
                                    storage_stiffness_of(pair.b.model, f))

@@ -20,8 +20,6 @@ NOT_YET_CLEAN = (
     "src/viscorig/acquisition/plans.py",
     "src/viscorig/acquisition/sweep.py",
     "src/viscorig/materials/",
-    "src/viscorig/report/analysis.py",
-    "src/viscorig/report/materials.py",
 )
 
 _ERROR = re.compile(r"^(?P<path>[^:\s]+\.py):\d+: error: ", re.MULTILINE)

@@ -28,7 +28,7 @@ the modal coordinates ``q = V⁻¹ z``; see :class:`ModalSystem`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,6 +54,55 @@ class StateSpace:
     relative_displacement: np.ndarray
 
 
+@dataclass
+class _Network:
+    """The rig as lumped masses, springs and dampers between nodes (node 0 the table), with
+    what the device's output row needs: its spring and dashpot, its Maxwell arms, the fixture
+    modes' springs and dampers on the disc."""
+
+    n: int
+    disc: int
+    fixture_nodes: list[int]
+    frame: int | None
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    device_k: float = 0.0
+    device_c: float = 0.0
+    arm_k: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    arm_c: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    fixture_k: list[float] = field(default_factory=list)
+    fixture_c: list[float] = field(default_factory=list)
+
+    @classmethod
+    def nodes_of(cls, rig: Rig) -> _Network:
+        """The nodes: table, disc (behind a load cell only), fixture masses, frame."""
+        names = ["table"]
+        if rig.device is not None and rig.load_cell is not None:
+            names.append("disc")
+        disc = names.index("disc") if "disc" in names else 0
+        fixture_nodes = []
+        for index in range(len(rig.fixtures)):
+            fixture_nodes.append(len(names))
+            names.append(f"fixture{index}")
+        frame = None
+        if rig.frame is not None:
+            frame = len(names)
+            names.append("frame")
+        n = len(names)
+        return cls(n, disc, fixture_nodes, frame, np.zeros(n), np.zeros((n, n)),
+                   np.zeros((n, n)))
+
+    def connect(self, i: int, j: int | None, k: float, c: float) -> None:
+        """Spring-damper between node i and node j (None: ground)."""
+        for matrix, value in ((self.stiffness, k), (self.damping, c)):
+            matrix[i, i] += value
+            if j is not None:
+                matrix[j, j] += value
+                matrix[i, j] -= value
+                matrix[j, i] -= value
+
+
 def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 1.0,
                       added_stiffness_n_per_m: float = 0.0,
                       added_damping_ns_per_m: float = 0.0) -> StateSpace:
@@ -61,78 +110,61 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 
     time of the material (dashpot and arms) multiplied by ``time_shift`` (the temperature's
     ``a_T``), and a spring and dashpot added in parallel with the specimens (the filler
     network of a Payne effect)."""
-    names = ["table"]
-    has_device = rig.device is not None
-    rigid_link = rig.load_cell is None
-    if has_device and not rigid_link:
-        names.append("disc")
-    disc = names.index("disc") if "disc" in names else 0
-    fixture_nodes = []
-    for index in range(len(rig.fixtures)):
-        fixture_nodes.append(len(names))
-        names.append(f"fixture{index}")
-    frame = None
-    if rig.frame is not None:
-        frame = len(names)
-        names.append("frame")
-    n = len(names)
+    net = _Network.nodes_of(rig)
+    _assemble(net, rig, modulus_scale, time_shift, added_stiffness_n_per_m,
+              added_damping_ns_per_m)
+    a, b, arm_rows = _state_matrices(net)
+    c, d, relative = _outputs(net, rig, a, b, arm_rows)
+    return _with_conditioning(StateSpace(a=a, b=b, c=c, d=d, relative_displacement=relative),
+                              rig)
 
-    mass = np.zeros(n)
-    stiffness = np.zeros((n, n))
-    damping = np.zeros((n, n))
 
-    def connect(i: int, j: int | None, k: float, c: float) -> None:
-        """Spring-damper between node i and node j (None: ground)."""
-        for matrix, value in ((stiffness, k), (damping, c)):
-            matrix[i, i] += value
-            if j is not None:
-                matrix[j, j] += value
-                matrix[i, j] -= value
-                matrix[j, i] -= value
-
+def _assemble(net: _Network, rig: Rig, modulus_scale: float, time_shift: float,
+              added_stiffness_n_per_m: float, added_damping_ns_per_m: float) -> None:
+    """Masses, springs and dampers of the table, the device, the fixtures and the frame."""
+    disc, frame, mass = net.disc, net.frame, net.mass
     table = rig.table
     mass[0] += table.mass_kg
-    connect(0, frame, table.stiffness_n_per_m, table.damping_ns_per_m)
-
-    arm_k = np.zeros(0)
-    arm_c = np.zeros(0)
-    device_k = device_c = 0.0
+    net.connect(0, frame, table.stiffness_n_per_m, table.damping_ns_per_m)
     if rig.device is not None:
         mass[disc] += rig.device.mass_kg
-        if not rigid_link:
-            connect(0, disc, rig.load_cell.stiffness_n_per_m, 0.0)
+        if rig.load_cell is not None:
+            net.connect(0, disc, rig.load_cell.stiffness_n_per_m, 0.0)
         material = state_model(rig.device.material)
-        device_k = (modulus_scale * material.static_stiffness_n_per_m
-                    + added_stiffness_n_per_m)
-        device_c = (modulus_scale * time_shift * material.damping_ns_per_m
-                    + added_damping_ns_per_m)
-        arm_k = modulus_scale * material.arm_stiffness_n_per_m
-        arm_c = modulus_scale * time_shift * material.arm_damping_ns_per_m
-        connect(disc, frame, device_k, device_c)
-    fixture_k = []
-    fixture_c = []
-    for node, mode in zip(fixture_nodes, rig.fixtures, strict=True):
+        net.device_k = (modulus_scale * material.static_stiffness_n_per_m
+                        + added_stiffness_n_per_m)
+        net.device_c = (modulus_scale * time_shift * material.damping_ns_per_m
+                        + added_damping_ns_per_m)
+        net.arm_k = modulus_scale * material.arm_stiffness_n_per_m
+        net.arm_c = modulus_scale * time_shift * material.arm_damping_ns_per_m
+        net.connect(disc, frame, net.device_k, net.device_c)
+    for node, mode in zip(net.fixture_nodes, rig.fixtures, strict=True):
         w_n = 2.0 * np.pi * mode.frequency_hz
         k_f = mode.mass_kg * w_n**2
         c_f = 2.0 * mode.damping_ratio * mode.mass_kg * w_n
         mass[node] += mode.mass_kg
-        connect(node, disc, k_f, c_f)
-        fixture_k.append(k_f)
-        fixture_c.append(c_f)
-    if frame is not None:
+        net.connect(node, disc, k_f, c_f)
+        net.fixture_k.append(k_f)
+        net.fixture_c.append(c_f)
+    if frame is not None and rig.frame is not None:
         w_g = 2.0 * np.pi * rig.frame.frequency_hz
         mass[frame] += rig.frame.mass_kg
-        connect(frame, None, rig.frame.mass_kg * w_g**2, 2 * rig.frame.damping_ratio *
-                rig.frame.mass_kg * w_g)
+        net.connect(frame, None, rig.frame.mass_kg * w_g**2, 2 * rig.frame.damping_ratio *
+                    rig.frame.mass_kg * w_g)
 
+
+def _state_matrices(net: _Network) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, arm rows)``: positions, velocities, then one force state per Maxwell arm."""
+    n, disc, frame = net.n, net.disc, net.frame
+    arm_k, arm_c = net.arm_k, net.arm_c
     n_arms = arm_k.size
     size = 2 * n + n_arms
     a = np.zeros((size, size))
     b = np.zeros(size)
-    inv_mass = 1.0 / mass
+    inv_mass = 1.0 / net.mass
     a[:n, n : 2 * n] = np.eye(n)
-    a[n : 2 * n, :n] = -inv_mass[:, None] * stiffness
-    a[n : 2 * n, n : 2 * n] = -inv_mass[:, None] * damping
+    a[n : 2 * n, :n] = -inv_mass[:, None] * net.stiffness
+    a[n : 2 * n, n : 2 * n] = -inv_mass[:, None] * net.damping
     # Arm i pulls the disc back with its force f_i and pushes the frame with it.
     arm_rows = np.arange(2 * n, size)
     if n_arms:
@@ -146,7 +178,15 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 
     b[n] = inv_mass[0]
     if frame is not None:
         b[n + frame] = -inv_mass[frame]
+    return a, b, arm_rows
 
+
+def _outputs(net: _Network, rig: Rig, a: np.ndarray, b: np.ndarray, arm_rows: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(C, D, relative displacement row)``: force, table acceleration, device force, disc
+    acceleration; the displacement across the specimens."""
+    n, disc, frame = net.n, net.disc, net.frame
+    size = a.shape[0]
     c = np.zeros((4, size))
     d = np.zeros(4)
     d[0] = 1.0  # the force transducer reads the shaker force
@@ -159,13 +199,14 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 
         # F_v = M_v a_v - (forces of the device and fixtures on the disc); for a finite load
         # cell this equals K_c (x_s - x_v), for a rigid link it is the force the link carries.
         on_disc = np.zeros(size)
-        on_disc[disc] -= device_k
-        on_disc[n + disc] -= device_c
+        on_disc[disc] -= net.device_k
+        on_disc[n + disc] -= net.device_c
         if frame is not None:
-            on_disc[frame] += device_k
-            on_disc[n + frame] += device_c
+            on_disc[frame] += net.device_k
+            on_disc[n + frame] += net.device_c
         on_disc[arm_rows] -= 1.0
-        for node, k_f, c_f in zip(fixture_nodes, fixture_k, fixture_c, strict=True):
+        for node, k_f, c_f in zip(net.fixture_nodes, net.fixture_k, net.fixture_c,
+                                  strict=True):
             on_disc[node] += k_f
             on_disc[disc] -= k_f
             on_disc[n + node] += c_f
@@ -175,8 +216,7 @@ def build_state_space(rig: Rig, modulus_scale: float = 1.0, time_shift: float = 
         relative[disc] = 1.0
         if frame is not None:
             relative[frame] = -1.0
-    return _with_conditioning(StateSpace(a=a, b=b, c=c, d=d, relative_displacement=relative),
-                              rig)
+    return c, d, relative
 
 
 def _with_conditioning(space: StateSpace, rig: Rig) -> StateSpace:

@@ -119,6 +119,51 @@ def _clipped_fundamental(ratio: np.ndarray) -> np.ndarray:
     return (2.0 / np.pi) * (np.arcsin(a) + a * np.sqrt(1.0 - a * a))
 
 
+
+class _Points:
+    """What a sweep measured, point by point, until it becomes a :class:`SweepRecord`."""
+
+    def __init__(self, points: int) -> None:
+        self.channel_v = np.zeros((points, CHANNEL_COUNT), dtype=complex)
+        self.variance = np.zeros((points, CHANNEL_COUNT))
+        self.range_vpk = np.zeros((points, CHANNEL_COUNT))
+        self.overload = np.zeros((points, CHANNEL_COUNT), dtype=bool)
+        self.half_range = np.zeros((points, CHANNEL_COUNT), dtype=bool)
+        self.source_vpk = np.zeros(points)
+        self.level_reached = np.ones(points, dtype=bool)
+        self.source_limited = np.zeros(points, dtype=bool)
+        self.input_limited = np.zeros(points, dtype=bool)
+        self.end_time = np.zeros(points)
+        self.iterations = np.zeros(points, dtype=int)
+        self.force_limited = np.zeros(points, dtype=bool)
+        self.force_n = np.zeros(points)
+        self.modulus_scale = np.ones(points)
+        self.displacement = np.zeros(points)
+        self.temperature = np.full(points, math.nan)
+
+    def record(self, frequency_hz: np.ndarray) -> SweepRecord:
+        return SweepRecord(
+            frequency_hz=frequency_hz,
+            channel_v=self.channel_v,
+            variance=self.variance,
+            range_vpk=self.range_vpk,
+            overload=self.overload,
+            half_range=self.half_range,
+            source_vpk=self.source_vpk,
+            level_reached=self.level_reached,
+            source_limited=self.source_limited,
+            input_limited=self.input_limited,
+            end_time_s=self.end_time,
+            extras={
+                "iterations": self.iterations,
+                "force_limited": self.force_limited,
+                "excitation_force_n": self.force_n,
+                "modulus_scale": self.modulus_scale,
+                "specimen_displacement_m": self.displacement,
+                "specimen_temperature_c": self.temperature,
+            },
+        )
+
 class RigSimulator:
     """Time-domain simulation of the rig and the analyser's measuring front end.
 
@@ -332,59 +377,24 @@ class RigSimulator:
                 self._modal(1.0), omega, settle, integrate, self._delays, self._sensitivity
             )
 
-        channel_v = np.zeros((points, CHANNEL_COUNT), dtype=complex)
-        variance = np.zeros((points, CHANNEL_COUNT))
-        range_vpk = np.zeros((points, CHANNEL_COUNT))
-        overload = np.zeros((points, CHANNEL_COUNT), dtype=bool)
-        half_range = np.zeros((points, CHANNEL_COUNT), dtype=bool)
-        source_vpk = np.zeros(points)
-        level_reached = np.ones(points, dtype=bool)
-        source_limited = np.zeros(points, dtype=bool)
-        input_limited = np.zeros(points, dtype=bool)
-        end_time = np.zeros(points)
-        iterations = np.zeros(points, dtype=int)
-        force_limited = np.zeros(points, dtype=bool)
-        force_n = np.zeros(points)
-        modulus_scale = np.ones(points)
-        displacement = np.zeros(points)
-        temperature = np.full(points, math.nan)
-
+        out = _Points(points)
         gain = self._rig.shaker.force_n_per_v
         force_limit = self._rig.shaker.force_limit_n
         level = min(control.source_vpk, control.source_limit_vpk) if control.auto_level else (
             control.source_vpk
         )
         for n in range(points):
-            drift = 1.0 if self._rig.drift is None else self._rig.drift.scale(self._clock_s)
-            if drift <= 0.05:
-                raise ValueError(
-                    f"thermal drift has brought the modulus to {drift:.3g} of its value at "
-                    f"{self._clock_s:.0f} s: the rig file's drift rate is too large for this run"
-                )
+            drift = self._drift_now()
+            out.temperature[n] = self.specimen_temperature_c()
+            shift = self._time_shift()
             count = 0
             reached = not control.auto_level
             cap = None
-            temperature[n] = self.specimen_temperature_c()
-            shift = self._time_shift()
             while True:
                 count += 1
                 force = min(gain * level, force_limit)
-                if varying:
-                    point = self._point_physics(omega[n], force, drift, shift)
-                    scale = point[0]
-                    self._point = point
-                    k = _kernels(
-                        self._modal(*point),
-                        omega[n : n + 1],
-                        settle[n : n + 1],
-                        integrate[n : n + 1],
-                        self._delays,
-                        self._sensitivity,
-                    )
-                    index = 0
-                    self._scale = scale
-                else:
-                    scale, k, index = 1.0, kernels, n
+                scale, k, index = self._kernel_at(kernels, n, omega, settle, integrate, force,
+                                                  drift, shift)
                 measured, ranges, over, half = self._measure_point(
                     k, index, force, omega[n], integrate[n], fixed_range,
                     self._clock_s + settle[n] + 0.5 * integrate[n],
@@ -393,64 +403,83 @@ class RigSimulator:
                 self._time_passes(settle[n] + integrate[n])
                 if not control.auto_level:
                     break
-                reference = abs(measured[control.reference_channel - 1])
-                if reference > 0.0 and control.reference_vpk > 0.0:
-                    error_db = 20.0 * np.log10(control.reference_vpk / reference)
-                    if abs(error_db) <= control.tolerance_db:
-                        reached = True
-                        break
-                    wanted = level * control.reference_vpk / reference
-                else:
-                    wanted = np.inf
-                new_level, cap = self._limit(wanted, level, measured, control)
-                if count >= control.max_iterations or abs(new_level - level) <= 1e-12 * level:
+                reached, new_level, cap = self._next_level(level, measured, control)
+                if reached or count >= control.max_iterations or (
+                        abs(new_level - level) <= 1e-12 * level):
                     break
                 level = new_level
 
-            channel_v[n] = measured
-            noise_power = self._noise_power(ranges) * 2.0 / integrate[n]
-            magnitude2 = np.abs(measured) ** 2
-            variance[n] = np.where(
-                noise_power == 0.0,
-                0.0,
-                noise_power / np.where(magnitude2 > 0.0, magnitude2, np.inf) * (magnitude2 > 0)
-                + np.where(magnitude2 > 0.0, 0.0, np.inf),
-            )
-            range_vpk[n] = ranges
-            overload[n] = over
-            half_range[n] = half
-            source_vpk[n] = level
-            level_reached[n] = reached
-            source_limited[n] = not reached and cap == "source"
-            input_limited[n] = not reached and cap == "input"
-            end_time[n] = self._clock_s
-            iterations[n] = count
-            force_limited[n] = gain * level > force_limit
-            force_n[n] = min(gain * level, force_limit)
-            modulus_scale[n] = scale
-            displacement[n] = abs(k.relative[index]) * force_n[n]
+            out.channel_v[n] = measured
+            out.variance[n] = self._variance(measured, ranges, integrate[n])
+            out.range_vpk[n] = ranges
+            out.overload[n] = over
+            out.half_range[n] = half
+            out.source_vpk[n] = level
+            out.level_reached[n] = reached
+            out.source_limited[n] = not reached and cap == "source"
+            out.input_limited[n] = not reached and cap == "input"
+            out.end_time[n] = self._clock_s
+            out.iterations[n] = count
+            out.force_limited[n] = gain * level > force_limit
+            out.force_n[n] = min(gain * level, force_limit)
+            out.modulus_scale[n] = scale
+            out.displacement[n] = abs(k.relative[index]) * out.force_n[n]
         self._source_vpk = level
+        return out.record(frequency)
 
-        return SweepRecord(
-            frequency_hz=frequency,
-            channel_v=channel_v,
-            variance=variance,
-            range_vpk=range_vpk,
-            overload=overload,
-            half_range=half_range,
-            source_vpk=source_vpk,
-            level_reached=level_reached,
-            source_limited=source_limited,
-            input_limited=input_limited,
-            end_time_s=end_time,
-            extras={
-                "iterations": iterations,
-                "force_limited": force_limited,
-                "excitation_force_n": force_n,
-                "modulus_scale": modulus_scale,
-                "specimen_displacement_m": displacement,
-                "specimen_temperature_c": temperature,
-            },
+    def _drift_now(self) -> float:
+        """The thermal drift's factor on the modulus now (refused once it is absurd)."""
+        drift = 1.0 if self._rig.drift is None else self._rig.drift.scale(self._clock_s)
+        if drift <= 0.05:
+            raise ValueError(
+                f"thermal drift has brought the modulus to {drift:.3g} of its value at "
+                f"{self._clock_s:.0f} s: the rig file's drift rate is too large for this run"
+            )
+        return drift
+
+    def _kernel_at(self, kernels, n: int, omega: np.ndarray, settle: np.ndarray,
+                   integrate: np.ndarray, force: float, drift: float, shift: float):
+        """``(modulus scale, kernels, index)`` of point ``n`` at this force: the sweep's
+        kernels when nothing varies, else this point's, from its own physics."""
+        if kernels is not None:
+            return 1.0, kernels, n
+        point = self._point_physics(omega[n], force, drift, shift)
+        self._point = point
+        self._scale = point[0]
+        k = _kernels(
+            self._modal(*point),
+            omega[n : n + 1],
+            settle[n : n + 1],
+            integrate[n : n + 1],
+            self._delays,
+            self._sensitivity,
+        )
+        return point[0], k, 0
+
+    def _next_level(self, level: float, measured: np.ndarray, control
+                    ) -> tuple[bool, float, str | None]:
+        """Auto level: ``(reached, next source level, what capped it)`` after one pass."""
+        reference = abs(measured[control.reference_channel - 1])
+        if reference > 0.0 and control.reference_vpk > 0.0:
+            error_db = 20.0 * np.log10(control.reference_vpk / reference)
+            if abs(error_db) <= control.tolerance_db:
+                return True, level, None
+            wanted = level * control.reference_vpk / reference
+        else:
+            wanted = np.inf
+        new_level, cap = self._limit(wanted, level, measured, control)
+        return False, new_level, cap
+
+    def _variance(self, measured: np.ndarray, ranges: np.ndarray, integrate_s: float
+                  ) -> np.ndarray:
+        """Normalised variance of each channel's amplitude (0 without noise, inf at zero)."""
+        noise_power = self._noise_power(ranges) * 2.0 / integrate_s
+        magnitude2 = np.abs(measured) ** 2
+        return np.where(
+            noise_power == 0.0,
+            0.0,
+            noise_power / np.where(magnitude2 > 0.0, magnitude2, np.inf) * (magnitude2 > 0)
+            + np.where(magnitude2 > 0.0, 0.0, np.inf),
         )
 
     @staticmethod

@@ -70,10 +70,14 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # read only when a rig file has a [chamber]
+    from rigsim.chamber import ChamberParameters
 
 __all__ = [
     "CHANNEL_KEYS",
@@ -535,6 +539,200 @@ def _read_damping_ratio(sec: _Section, key: str) -> float:
     return sec.number(key, minimum=0.0, maximum=1.0, exclusive_maximum=True)
 
 
+def _read_section(top: _Section, key: str, read: Callable[[_Section], Any],
+                  default: Any = None) -> Any:
+    """``read`` of section ``[key]`` with every key of it used, or ``default`` without it."""
+    sec = top.section(key)
+    if sec is None:
+        return default
+    value = read(sec)
+    sec.finish()
+    return value
+
+
+def _read_table(sec: _Section) -> Table:
+    return Table(
+        mass_kg=sec.positive("mass_kg"),
+        stiffness_n_per_m=sec.positive("stiffness_n_per_m"),
+        damping_ns_per_m=sec.non_negative("damping_ns_per_m"),
+    )
+
+
+def _read_device(sec: _Section) -> Device:
+    return Device(mass_kg=sec.positive("mass_kg"), material=_read_material(sec))
+
+
+def _read_load_cell(sec: _Section) -> LoadCell:
+    return LoadCell(stiffness_n_per_m=sec.positive("stiffness_n_per_m"))
+
+
+def _read_fixtures(top: _Section, has_device: bool) -> tuple[FixtureMode, ...]:
+    """The ``[[fixture]]`` modes (they attach to the disc: a device is needed)."""
+    if not top.has("fixture"):
+        return ()
+    raw = top.raw("fixture")
+    if not isinstance(raw, list):
+        raise top.error("must be an array of tables ([[fixture]])", "fixture")
+    if raw and not has_device:
+        raise top.error("fixture modes attach to the disc: they need a [device]", "fixture")
+    fixtures = []
+    for index, item in enumerate(raw):
+        sec = _Section(item, f"fixture[{index}]", top.source)
+        fixtures.append(
+            FixtureMode(
+                frequency_hz=sec.positive("frequency_hz"),
+                damping_ratio=_read_damping_ratio(sec, "damping_ratio"),
+                mass_kg=sec.positive("mass_kg"),
+            )
+        )
+        sec.finish()
+    return tuple(fixtures)
+
+
+def _read_conditioning(sec: _Section, key: str) -> Conditioning:
+    channel = sec.section(key)
+    if channel is None:
+        return Conditioning()
+    conditioning = Conditioning(
+        gain=channel.number("gain", 1.0, minimum=0.1, maximum=10.0),
+        highpass_hz=channel.number("highpass_hz", required=False, minimum=1e-3, maximum=1e3),
+        lowpass_hz=channel.number("lowpass_hz", required=False, minimum=1.0, maximum=1e9),
+    )
+    channel.finish()
+    return conditioning
+
+
+def _read_sensors(sec: _Section) -> Sensors:
+    conditioning = tuple(_read_conditioning(sec, key) for key in CHANNEL_KEYS)
+    return Sensors(
+        force_v_per_n=sec.positive("force_v_per_n", Sensors.force_v_per_n),
+        acceleration_v_per_m_s2=sec.positive(
+            "acceleration_v_per_m_s2", Sensors.acceleration_v_per_m_s2
+        ),
+        conditioning=conditioning,
+    )
+
+
+def _read_shaker(sec: _Section) -> Shaker:
+    return Shaker(
+        force_n_per_v=sec.positive("force_n_per_v"),
+        force_limit_n=sec.positive("force_limit_n"),
+    )
+
+
+def _read_noise(sec: _Section) -> Noise:
+    defaults = Noise()
+    return Noise(
+        excitation_force_n_per_sqrt_hz=sec.non_negative("excitation_force_n_per_sqrt_hz", 0.0),
+        table_acceleration_m_per_s2_per_sqrt_hz=sec.non_negative(
+            "table_acceleration_m_per_s2_per_sqrt_hz", 0.0
+        ),
+        device_force_n_per_sqrt_hz=sec.non_negative("device_force_n_per_sqrt_hz", 0.0),
+        disc_acceleration_m_per_s2_per_sqrt_hz=sec.non_negative(
+            "disc_acceleration_m_per_s2_per_sqrt_hz", 0.0
+        ),
+        adc_noise_db_re_range_per_sqrt_hz=sec.number(
+            "adc_noise_db_re_range_per_sqrt_hz",
+            defaults.adc_noise_db_re_range_per_sqrt_hz,
+            maximum=0.0,
+        ),
+        seed=sec.integer("seed", minimum=0),
+        sensitivity_drift_rms=sec.number(
+            "sensitivity_drift_rms", 0.0, minimum=0.0, maximum=0.1
+        ),
+        sensitivity_drift_time_s=sec.number(
+            "sensitivity_drift_time_s", 30.0, minimum=0.0, exclusive_minimum=True,
+            maximum=1e6,
+        ),
+        burst_probability=sec.number("burst_probability", 0.0, minimum=0.0, maximum=1.0),
+        burst_factor=sec.number("burst_factor", 30.0, minimum=1.0, maximum=1e4),
+    )
+
+
+def _read_delays(sec: _Section) -> Delays:
+    return Delays(
+        *(
+            sec.number(key, 0.0, minimum=0.0, maximum=1.0)
+            for key in (
+                "excitation_force_s",
+                "table_acceleration_s",
+                "device_force_s",
+                "disc_acceleration_s",
+            )
+        )
+    )
+
+
+def _read_amplitude(sec: _Section) -> AmplitudeDependence:
+    return AmplitudeDependence(
+        softening_fraction=sec.number(
+            "softening_fraction", minimum=0.0, maximum=1.0, exclusive_maximum=True
+        ),
+        reference_displacement_m=sec.positive("reference_displacement_m"),
+        exponent=sec.number("exponent", 1.0, minimum=0.0, exclusive_minimum=True, maximum=4),
+    )
+
+
+def _read_drift(sec: _Section) -> Drift:
+    return Drift(
+        modulus_change_per_hour=sec.number(
+            "modulus_change_per_hour", minimum=-0.5, maximum=0.5
+        )
+    )
+
+
+def _read_temperature(sec: _Section) -> TemperatureShift:
+    return TemperatureShift(
+        reference_temperature_c=sec.number("reference_temperature_c", minimum=-100.0,
+                                           maximum=300.0),
+        c1=sec.number("c1", minimum=0.0, maximum=100.0),
+        c2_k=sec.number("c2_k", minimum=0.0, exclusive_minimum=True, maximum=1000.0),
+    )
+
+
+def _read_payne(sec: _Section) -> Payne:
+    return Payne(
+        storage_drop_n_per_m=sec.non_negative("storage_drop_n_per_m"),
+        loss_peak_n_per_m=sec.non_negative("loss_peak_n_per_m"),
+        critical_displacement_m=sec.positive("critical_displacement_m"),
+        exponent=sec.number("exponent", 0.6, minimum=0.0, exclusive_minimum=True,
+                            maximum=4.0),
+    )
+
+
+def _read_frame(sec: _Section) -> Frame:
+    return Frame(
+        mass_kg=sec.positive("mass_kg"),
+        frequency_hz=sec.positive("frequency_hz"),
+        damping_ratio=_read_damping_ratio(sec, "damping_ratio"),
+    )
+
+
+def _read_specimen(sec: _Section) -> Specimen:
+    return Specimen(
+        hardness_shore_a=sec.number("hardness_shore_a", required=False, minimum=0.0,
+                                    maximum=100.0),
+        preload_strain=sec.number("preload_strain", required=False, minimum=0.0,
+                                  maximum=1.0, exclusive_maximum=True),
+        count=sec.integer("count", minimum=1),
+        diameter_m=sec.optional_positive("diameter_m"),
+        height_m=sec.optional_positive("height_m"),
+    )
+
+
+def _read_chamber(sec: _Section) -> ChamberParameters:
+    from rigsim.chamber import ChamberParameters
+
+    return ChamberParameters(
+        heating_rate_k_per_min=sec.positive("heating_rate_k_per_min", 5.0),
+        cooling_rate_k_per_min=sec.positive("cooling_rate_k_per_min", 3.0),
+        air_time_constant_s=sec.positive("air_time_constant_s", 60.0),
+        specimen_time_constant_s=sec.positive("specimen_time_constant_s", 420.0),
+        start_temperature_c=sec.number("start_temperature_c", 25.0, minimum=-70.0,
+                                       maximum=180.0),
+    )
+
+
 def parse_rig(text: str, source: str = "<string>") -> Rig:
     """Read a rig description from TOML text.
 
@@ -562,240 +760,30 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
     top = _Section(data, "", source)
     name = top.string("name", "")
     description = top.string("description", "")
-
-    table_sec = top.section("table")
-    if table_sec is None:
+    table = _read_section(top, "table", _read_table)
+    if table is None:
         raise top.error("missing section [table]", "table")
-    table = Table(
-        mass_kg=table_sec.positive("mass_kg"),
-        stiffness_n_per_m=table_sec.positive("stiffness_n_per_m"),
-        damping_ns_per_m=table_sec.non_negative("damping_ns_per_m"),
+    device = _read_section(top, "device", _read_device)
+    load_cell = _read_section(top, "load_cell", _read_load_cell)
+    if load_cell is not None and device is None:
+        raise top.error("a load cell needs a [device] to link to the table", "load_cell")
+    fixtures = _read_fixtures(top, device is not None)
+    parts = dict(
+        sensors=_read_section(top, "sensors", _read_sensors, Sensors()),
+        shaker=_read_section(top, "shaker", _read_shaker, Shaker()),
+        noise=_read_section(top, "noise", _read_noise),
+        delays=_read_section(top, "delays", _read_delays, Delays()),
+        amplitude=_read_section(top, "amplitude", _read_amplitude),
+        drift=_read_section(top, "drift", _read_drift),
+        temperature=_read_section(top, "temperature", _read_temperature),
+        chamber=_read_section(top, "chamber", _read_chamber),
+        payne=_read_section(top, "payne", _read_payne),
+        frame=_read_section(top, "frame", _read_frame),
+        specimen=_read_section(top, "specimen", _read_specimen, Specimen()),
     )
-    table_sec.finish()
-
-    device = None
-    device_sec = top.section("device")
-    if device_sec is not None:
-        device = Device(mass_kg=device_sec.positive("mass_kg"), material=_read_material(device_sec))
-        device_sec.finish()
-
-    load_cell = None
-    load_sec = top.section("load_cell")
-    if load_sec is not None:
-        load_cell = LoadCell(stiffness_n_per_m=load_sec.positive("stiffness_n_per_m"))
-        load_sec.finish()
-        if device is None:
-            raise top.error("a load cell needs a [device] to link to the table", "load_cell")
-
-    fixtures = []
-    if top.has("fixture"):
-        raw = top.raw("fixture")
-        if not isinstance(raw, list):
-            raise top.error("must be an array of tables ([[fixture]])", "fixture")
-        if raw and device is None:
-            raise top.error("fixture modes attach to the disc: they need a [device]", "fixture")
-        for index, item in enumerate(raw):
-            sec = _Section(item, f"fixture[{index}]", source)
-            fixtures.append(
-                FixtureMode(
-                    frequency_hz=sec.positive("frequency_hz"),
-                    damping_ratio=_read_damping_ratio(sec, "damping_ratio"),
-                    mass_kg=sec.positive("mass_kg"),
-                )
-            )
-            sec.finish()
-
-    sensors = Sensors()
-    sec = top.section("sensors")
-    if sec is not None:
-        conditioning = []
-        for key in CHANNEL_KEYS:
-            channel = sec.section(key)
-            if channel is None:
-                conditioning.append(Conditioning())
-                continue
-            conditioning.append(
-                Conditioning(
-                    gain=channel.number("gain", 1.0, minimum=0.1, maximum=10.0),
-                    highpass_hz=channel.number(
-                        "highpass_hz", required=False, minimum=1e-3, maximum=1e3
-                    ),
-                    lowpass_hz=channel.number(
-                        "lowpass_hz", required=False, minimum=1.0, maximum=1e9
-                    ),
-                )
-            )
-            channel.finish()
-        sensors = Sensors(
-            force_v_per_n=sec.positive("force_v_per_n", Sensors.force_v_per_n),
-            acceleration_v_per_m_s2=sec.positive(
-                "acceleration_v_per_m_s2", Sensors.acceleration_v_per_m_s2
-            ),
-            conditioning=tuple(conditioning),
-        )
-        sec.finish()
-
-    shaker = Shaker()
-    sec = top.section("shaker")
-    if sec is not None:
-        shaker = Shaker(
-            force_n_per_v=sec.positive("force_n_per_v"),
-            force_limit_n=sec.positive("force_limit_n"),
-        )
-        sec.finish()
-
-    noise = None
-    sec = top.section("noise")
-    if sec is not None:
-        defaults = Noise()
-        noise = Noise(
-            excitation_force_n_per_sqrt_hz=sec.non_negative("excitation_force_n_per_sqrt_hz", 0.0),
-            table_acceleration_m_per_s2_per_sqrt_hz=sec.non_negative(
-                "table_acceleration_m_per_s2_per_sqrt_hz", 0.0
-            ),
-            device_force_n_per_sqrt_hz=sec.non_negative("device_force_n_per_sqrt_hz", 0.0),
-            disc_acceleration_m_per_s2_per_sqrt_hz=sec.non_negative(
-                "disc_acceleration_m_per_s2_per_sqrt_hz", 0.0
-            ),
-            adc_noise_db_re_range_per_sqrt_hz=sec.number(
-                "adc_noise_db_re_range_per_sqrt_hz",
-                defaults.adc_noise_db_re_range_per_sqrt_hz,
-                maximum=0.0,
-            ),
-            seed=sec.integer("seed", minimum=0),
-            sensitivity_drift_rms=sec.number(
-                "sensitivity_drift_rms", 0.0, minimum=0.0, maximum=0.1
-            ),
-            sensitivity_drift_time_s=sec.number(
-                "sensitivity_drift_time_s", 30.0, minimum=0.0, exclusive_minimum=True,
-                maximum=1e6,
-            ),
-            burst_probability=sec.number("burst_probability", 0.0, minimum=0.0, maximum=1.0),
-            burst_factor=sec.number("burst_factor", 30.0, minimum=1.0, maximum=1e4),
-        )
-        sec.finish()
-
-    delays = Delays()
-    sec = top.section("delays")
-    if sec is not None:
-        delays = Delays(
-            *(
-                sec.number(key, 0.0, minimum=0.0, maximum=1.0)
-                for key in (
-                    "excitation_force_s",
-                    "table_acceleration_s",
-                    "device_force_s",
-                    "disc_acceleration_s",
-                )
-            )
-        )
-        sec.finish()
-
-    amplitude = None
-    sec = top.section("amplitude")
-    if sec is not None:
-        amplitude = AmplitudeDependence(
-            softening_fraction=sec.number(
-                "softening_fraction", minimum=0.0, maximum=1.0, exclusive_maximum=True
-            ),
-            reference_displacement_m=sec.positive("reference_displacement_m"),
-            exponent=sec.number("exponent", 1.0, minimum=0.0, exclusive_minimum=True, maximum=4),
-        )
-        sec.finish()
-
-    drift = None
-    sec = top.section("drift")
-    if sec is not None:
-        drift = Drift(
-            modulus_change_per_hour=sec.number(
-                "modulus_change_per_hour", minimum=-0.5, maximum=0.5
-            )
-        )
-        sec.finish()
-
-    temperature = None
-    sec = top.section("temperature")
-    if sec is not None:
-        temperature = TemperatureShift(
-            reference_temperature_c=sec.number("reference_temperature_c", minimum=-100.0,
-                                               maximum=300.0),
-            c1=sec.number("c1", minimum=0.0, maximum=100.0),
-            c2_k=sec.number("c2_k", minimum=0.0, exclusive_minimum=True, maximum=1000.0),
-        )
-        sec.finish()
-
-    chamber = None
-    sec = top.section("chamber")
-    if sec is not None:
-        from rigsim.chamber import ChamberParameters
-
-        chamber = ChamberParameters(
-            heating_rate_k_per_min=sec.positive("heating_rate_k_per_min", 5.0),
-            cooling_rate_k_per_min=sec.positive("cooling_rate_k_per_min", 3.0),
-            air_time_constant_s=sec.positive("air_time_constant_s", 60.0),
-            specimen_time_constant_s=sec.positive("specimen_time_constant_s", 420.0),
-            start_temperature_c=sec.number("start_temperature_c", 25.0, minimum=-70.0,
-                                           maximum=180.0),
-        )
-        sec.finish()
-
-    payne = None
-    sec = top.section("payne")
-    if sec is not None:
-        payne = Payne(
-            storage_drop_n_per_m=sec.non_negative("storage_drop_n_per_m"),
-            loss_peak_n_per_m=sec.non_negative("loss_peak_n_per_m"),
-            critical_displacement_m=sec.positive("critical_displacement_m"),
-            exponent=sec.number("exponent", 0.6, minimum=0.0, exclusive_minimum=True,
-                                maximum=4.0),
-        )
-        sec.finish()
-
-    frame = None
-    sec = top.section("frame")
-    if sec is not None:
-        frame = Frame(
-            mass_kg=sec.positive("mass_kg"),
-            frequency_hz=sec.positive("frequency_hz"),
-            damping_ratio=_read_damping_ratio(sec, "damping_ratio"),
-        )
-        sec.finish()
-
-    specimen = Specimen()
-    sec = top.section("specimen")
-    if sec is not None:
-        specimen = Specimen(
-            hardness_shore_a=sec.number("hardness_shore_a", required=False, minimum=0.0,
-                                        maximum=100.0),
-            preload_strain=sec.number("preload_strain", required=False, minimum=0.0,
-                                      maximum=1.0, exclusive_maximum=True),
-            count=sec.integer("count", minimum=1),
-            diameter_m=sec.optional_positive("diameter_m"),
-            height_m=sec.optional_positive("height_m"),
-        )
-        sec.finish()
-
     top.finish()
-    return Rig(
-        table=table,
-        device=device,
-        load_cell=load_cell,
-        fixtures=tuple(fixtures),
-        sensors=sensors,
-        shaker=shaker,
-        noise=noise,
-        delays=delays,
-        amplitude=amplitude,
-        drift=drift,
-        temperature=temperature,
-        chamber=chamber,
-        payne=payne,
-        frame=frame,
-        specimen=specimen,
-        name=name,
-        description=description,
-        source=source,
-    )
+    return Rig(table=table, device=device, load_cell=load_cell, fixtures=fixtures, **parts,
+               name=name, description=description, source=source)
 
 
 def load_rig(path: str | Path) -> Rig:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import html
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +28,17 @@ import numpy as np
 from viscorig.compare import compare_fits, kstar_changes
 from viscorig.diagnosis import diagnose_run
 from viscorig.errors import InputError
-from viscorig.identify import identify_run, is_bare_table, store_fit, table_parameters
+from viscorig.fitting import FitResult
+from viscorig.identify import (
+    identify_run,
+    is_bare_table,
+    store_fit,
+    stored_fits,
+    table_parameters,
+)
 from viscorig.numbers import with_uncertainty
 from viscorig.report import build_report, words
-from viscorig.report.analysis import ModelCurve, RunAnalysis, climb_from
+from viscorig.report.analysis import RunAnalysis, climb_from
 from viscorig.report.figures import frf_figure
 from viscorig.report.headline import describe_specimen, headline
 from viscorig.report.page import diagnosis_section
@@ -109,10 +116,10 @@ class Campaign:
                              str(self.path))
         with np.errstate(all="ignore"):
             result, _ = identify_run(self.stored, run, model, band_hz=band_hz, frfs=frfs)
-        source = "fitted here"
+        result.source = "fitted here"
         if store:
-            source = f"stored fit {store_fit(self.stored, run, result)}"
-        return Fit(self[run], ModelCurve.from_fit(result, source), result)
+            result.source = f"stored fit {store_fit(self.stored, run, result)}"
+        return Fit(self[run], result)
 
     def master(self, *runs: str, reference_temperature_c: float | None = None,
                disc_mass_kg: float | None = None, kstar: str = "support"):
@@ -159,15 +166,18 @@ class Campaign:
 
         fits = [x if isinstance(x, Fit) else self.identify(x, model, band_hz=band_hz)
                 for x in (before, after)]
-        shared = [name for name in fits[0].curve.free if name in fits[1].curve.free]
-        changes = compare_fits(fits[0], fits[1], shared)
-        frequency_dependent = any(f.curve.model.modulus_term.keyword != "voigt" for f in fits)
-        if fits[0].curve.has_disc and fits[1].curve.has_disc and frequency_dependent:
+        first, second = fits[0].result, fits[1].result
+        shared = [name for name in first.free if name in second.free]
+        changes = compare_fits(first, second, shared)
+        frequency_dependent = any(term is not None and term.keyword != "voigt"
+                                  for term in (first.model.modulus_term,
+                                               second.model.modulus_term))
+        if first.has_disc and second.has_disc and frequency_dependent:
             if frequencies_hz is None:
                 lo = max(f.band_hz[0] for f in fits)
                 hi = min(f.band_hz[1] for f in fits)
                 frequencies_hz = [lo, round((lo + hi) / 2, 1), hi]
-            changes += kstar_changes(fits[0], fits[1], frequencies_hz)
+            changes += kstar_changes(first, second, frequencies_hz)
         return Comparison(fits[0], fits[1], changes)
 
     def report(self, out_dir: str | Path, **options: Any) -> Path:
@@ -222,13 +232,7 @@ class Run:
     def fits(self) -> list[Fit]:
         """The fits stored for this run, oldest first."""
 
-        out = []
-        for stored in self.campaign.stored.fits(self.name):
-            try:
-                out.append(Fit(self, ModelCurve.from_stored(stored), None, stored))
-            except InputError:
-                continue
-        return out
+        return [Fit(self, fit) for fit in stored_fits(self.campaign.stored, self.name)]
 
     def identify(self, model: str | None = None, **options: Any) -> Fit:
         """:meth:`Campaign.identify` of this run."""
@@ -274,7 +278,7 @@ class Run:
 
         analysis = RunAnalysis(self.stored, self.bare, (0.0, 0.0))
         fits = self.fits
-        analysis.shown = fits[-1].curve if fits else None
+        analysis.shown = fits[-1].result if fits else None
         return frf_figure(analysis)
 
     def __repr__(self) -> str:
@@ -288,70 +292,68 @@ class Run:
                 ("band", self.band_text()), ("level", f"{m.level_m_per_s2:g} m/s² ({m.direction})"),
                 ("flagged points", int(self.stored.flagged().sum()) if self.stored.points else 0),
                 ("started", m.started), ("fits stored", ", ".join(
-                    f"{f.curve.source.split()[-1]} {f.model}" for f in self.fits) or "none")]
+                    f"{f.result.source.split()[-1]} {f.model}" for f in self.fits) or "none")]
         body = "".join(f"<tr><th style=\"text-align:left\">{_e(k)}</th><td style=\"text-align:"
                        f"left\">{_e(v)}</td></tr>" for k, v in rows)
         return f"<b>Run {_e(self.name)}</b><table>{body}</table>"
 
 
 class Fit:
-    """A fitted model of one run: parameters with ±, error against the noise, the curves."""
+    """A fitted model of one run: parameters with ±, error against the noise, the curves.
 
-    def __init__(self, run: Run, curve, result=None, stored=None) -> None:
+    A notebook's view of the package's one fit (:attr:`result`, a
+    :class:`viscorig.fitting.FitResult`, made here or read back from the file) beside the run
+    it was fitted to; :mod:`viscorig.compare` takes ``fit.result``.
+    """
+
+    def __init__(self, run: Run, result: FitResult) -> None:
         self.run = run
-        self.curve = curve
-        """The fit as plain values (:class:`viscorig.report.analysis.ModelCurve`)."""
         self.result = result
-        """The :class:`viscorig.fitting.FitResult` when fitted here, else ``None``."""
-        self.stored = stored
-        """The :class:`viscorig.storage.Fit` when read from the file, else ``None``."""
+        """The :class:`viscorig.fitting.FitResult`."""
 
     @property
     def model(self) -> str:
         """Canonical model spec."""
-        return self.curve.spec
+        return self.result.spec
+
+    @property
+    def source(self) -> str:
+        """Where the fit comes from (``"fitted here"``, ``"stored fit 0002"``)."""
+        return self.result.source
 
     @property
     def rms_error(self) -> float:
         """``sqrt(mean |H_model/H_measured − 1|²)``."""
-        return self.curve.rms_error
+        return float(self.result.rms_error)
 
     @property
     def noise_floor(self) -> float:
         """The error a perfect model would reach, from the data alone."""
-        return self.curve.noise_floor
+        return float(self.result.noise_floor)
 
     @property
     def band_hz(self) -> tuple[float, float]:
-        """The band fitted (the run's whole band for a stored fit without one)."""
-        if self.result is not None:
-            return tuple(map(float, self.result.band_hz))  # type: ignore[return-value]
-        if self.stored is not None:
-            return tuple(map(float, self.stored.band_hz))  # type: ignore[return-value]
-        f = self.run.stored.frequency_hz
-        return float(f.min()), float(f.max())
+        """The band fitted."""
+        lo, hi = self.result.band_hz
+        return float(lo), float(hi)
 
     @property
     def parameters(self) -> dict[str, tuple[float, float, str]]:
         """``{name: (value, stderr, unit)}``; stderr NaN for a parameter held fixed."""
-        return self.curve.parameters
-
-    @property
-    def estimates(self):
-        """What a comparison needs (:class:`viscorig.compare.Estimates`): ``viscorig.compare``
-        functions take this fit as it is."""
-        return self.curve.estimates
+        free = set(self.result.free)
+        return {name: (float(e.value), float(e.stderr) if name in free else math.nan, e.unit)
+                for name, e in self.result.parameters.items()}
 
     def predict(self, frequency_hz) -> dict[str, np.ndarray]:
         """The model's accelerances (m/s²/N) on any frequency grid (Hz)."""
-        return self.curve.predict(frequency_hz)
+        return self.result.predict(frequency_hz)
 
     def _columns(self) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, str]]:
         run = self.run.stored
         lo, hi = self.band_hz
         keep = (run.frequency_hz >= lo) & (run.frequency_hz <= hi)
         f = run.frequency_hz[keep]
-        predicted = self.curve.predict(f, run.time_s[keep], run.reference_amplitude[keep])
+        predicted = self.result.predict(f, run.time_s[keep], run.reference_amplitude[keep])
         columns, units = {}, {}
         for frf, measured in (("table", run.accelerance_table),
                               ("support", run.accelerance_support)):
@@ -366,7 +368,7 @@ class Fit:
         return f, columns, units
 
     def _attributes(self) -> dict[str, Any]:
-        return {"run": self.run.name, "model": self.model, "source": self.curve.source,
+        return {"run": self.run.name, "model": self.model, "source": self.source,
                 "rms_error": self.rms_error, "noise_floor": self.noise_floor}
 
     def to_pandas(self):
@@ -403,8 +405,8 @@ class Fit:
     def __repr__(self) -> str:
         w = words
         shown = [f"{name} = {with_uncertainty(v, e, u)}"
-                 for name, (v, e, u) in self.parameters.items() if name in self.curve.free][:4]
-        more = ", ..." if len(self.curve.free) > 4 else ""
+                 for name, (v, e, u) in self.parameters.items() if name in self.result.free][:4]
+        more = ", ..." if len(self.result.free) > 4 else ""
         return (f"<Fit {self.run.name} {self.model}: "
                 f"{w.error_words(self.rms_error, self.noise_floor)}; {', '.join(shown)}{more}>")
 
@@ -412,11 +414,11 @@ class Fit:
         w = words
         rows = "".join(
             f"<tr><td style=\"text-align:left\">{_e(name)}</td><td>"
-            f"{_e(with_uncertainty(v, e if name in self.curve.free else math.nan, u))}</td>"
-            f"<td style=\"text-align:left\">{'' if name in self.curve.free else 'fixed'}</td>"
+            f"{_e(with_uncertainty(v, e if name in self.result.free else math.nan, u))}</td>"
+            f"<td style=\"text-align:left\">{'' if name in self.result.free else 'fixed'}</td>"
             "</tr>" for name, (v, e, u) in self.parameters.items())
         return (f"<b>Fit of {_e(self.run.name)}</b>: <code>{_e(self.model)}</code> "
-                f"({_e(self.curve.source)}), "
+                f"({_e(self.source)}), "
                 f"{_e(w.error_words(self.rms_error, self.noise_floor))}"
                 f"<table><thead><tr><th>parameter</th><th>value ± standard error</th><th></th>"
                 f"</tr></thead><tbody>{rows}</tbody></table>")
@@ -471,9 +473,9 @@ class Diagnosis:
     def fit(self) -> Fit:
         """The fit of the model diagnosed."""
 
-        curve = ModelCurve.from_fit(self.internal.fit, "diagnosed here")
-        curve.noise_floor = self.noise_floor
-        return Fit(self.run, curve, self.internal.fit)
+        result = replace(self.internal.fit, source="diagnosed here",
+                         noise_floor=self.noise_floor)
+        return Fit(self.run, result)
 
     def with_effect(self, effect: str) -> Diagnosis:
         """This model with one more effect (a term, a finding's term, or a whole spec)."""

@@ -8,8 +8,8 @@ Everything in the project that compares two runs goes through this module: the r
 storage stiffness ``K' = Re K*`` and the loss factor ``η = Im K*/Re K*`` of the two fitted
 models at chosen frequencies, :func:`system_changes` for Table 2's ``f_r``, ``ξ`` and ``B_r``,
 and :func:`change` for any function of the parameters. A fit is a
-:class:`~viscorig.fitting.FitResult`, a stored :class:`~viscorig.storage.Fit`, or anything that
-carries :class:`Estimates`.
+:class:`~viscorig.fitting.FitResult`, made here or read back from the campaign file
+(:func:`viscorig.identify.read_fit`).
 
 How the two fits' errors are related (first order, GUM):
 
@@ -56,8 +56,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.estimates import TABLE_2_QUANTITIES, Quantity, derived, gradient
-from viscorig.fitting.uncertainty import MISFIT_RATIO, bartlett_meat
-from viscorig.models import Context, Model, parse_spec
+from viscorig.fitting.result import FitResult
+from viscorig.fitting.uncertainty import bartlett_meat
+from viscorig.models import Context, Model
 from viscorig.numbers import with_uncertainty
 
 #: A change is called a change when it exceeds this many standard uncertainties.
@@ -86,7 +87,7 @@ class Residuals:
         ``∂p/∂ε`` (fitted parameters × stacked ``[Re; Im]`` residual), see
         :attr:`viscorig.fitting.FitResult.influence`.
     noise_floor
-        The fit's noise floor.
+        The floor of the noise model the fit was weighed with.
     """
 
     frequency_hz: NDArray[np.float64]
@@ -101,139 +102,22 @@ class Residuals:
         return part * len(self.frfs) * n + self.frfs.index(frf) * n + points
 
 
-@dataclass(frozen=True, eq=False)
-class Estimates:
-    """What a comparison needs of a fit, as plain picklable data (SI units).
-
-    Attributes
-    ----------
-    spec
-        Canonical model spec.
-    values
-        Every parameter's value.
-    covariance_names, joint_covariance
-        The parameters with an uncertainty (fitted, then inherited) and their joint covariance.
-    free
-        The fitted parameters (for a stored fit, which does not say, every one with a ±).
-    inherited_from
-        Where the inherited parameters came from (``"run 'table'"``), ``""`` when nothing was
-        inherited or it is not known.
-    noise_covariance
-        Covariance of ``free`` from the noise alone (``None`` when unknown).
-    residuals
-        Residuals and influence, for pairing with another run (``None`` when unknown).
-    rms_error, noise_floor
-        The fit's error measures (NaN when unknown).
-    stored
-        Read back from a campaign file.
-    """
-
-    spec: str
-    values: dict[str, float]
-    covariance_names: tuple[str, ...]
-    joint_covariance: NDArray[np.float64]
-    free: tuple[str, ...]
-    inherited_from: str = ""
-    noise_covariance: NDArray[np.float64] | None = None
-    residuals: Residuals | None = None
-    rms_error: float = math.nan
-    noise_floor: float = math.nan
-    stored: bool = False
-
-    @classmethod
-    def of(cls, fit: object) -> Estimates:
-        """From a :class:`~viscorig.fitting.FitResult`, a stored :class:`~viscorig.storage.Fit`
-        (its standard errors and correlation matrix), or an object with an ``estimates``
-        attribute (:class:`viscorig.report.analysis.ModelCurve`)."""
-        if isinstance(fit, Estimates):
-            return fit
-        carried = getattr(fit, "estimates", None)
-        if isinstance(carried, Estimates):
-            return carried
-        from viscorig.fitting import FitResult
-        from viscorig.storage import Fit as StoredFit
-
-        if isinstance(fit, FitResult):
-            return cls._of_result(fit)
-        if isinstance(fit, StoredFit):
-            return cls._of_stored(fit)
-        raise TypeError(f"cannot compare a {type(fit).__name__}: not a fit")
-
-    @classmethod
-    def _of_result(cls, result) -> Estimates:
-        residuals = None
-        influence = getattr(result, "influence", None)
-        frfs = tuple(result.frfs)
-        if influence is not None and all(name in result.residuals for name in frfs):
-            values = np.array([result.residuals[name] for name in frfs], dtype=complex)
-            n = np.asarray(result.frequency_hz).size
-            if values.shape == (len(frfs), n) and influence.shape == (len(result.free),
-                                                                      2 * len(frfs) * n):
-                residuals = Residuals(np.asarray(result.frequency_hz, dtype=float), frfs,
-                                      values, np.asarray(influence, dtype=float),
-                                      float(result.noise_floor))
-        noise = getattr(result, "noise_covariance", None)
-        return cls(result.spec, {k: float(v) for k, v in result.values.items()},
-                   tuple(result.covariance_names),
-                   np.array(result.joint_covariance, dtype=float).reshape(
-                       len(result.covariance_names), len(result.covariance_names)),
-                   tuple(result.free), result.inherited_from or "",
-                   None if noise is None else np.array(noise, dtype=float), residuals,
-                   float(result.rms_error), float(result.noise_floor))
-
-    @classmethod
-    def _of_stored(cls, stored) -> Estimates:
-        parameters = stored.parameters
-        values = {name: float(p.value) for name, p in parameters.items()}
-        known = {name: float(p.stderr) for name, p in parameters.items()
-                 if math.isfinite(p.stderr) and p.stderr > 0}
-        names = tuple(known)
-        correlation = np.eye(len(names))
-        if stored.correlation is not None:
-            stored_names, matrix = stored.correlation
-            index = {name: i for i, name in enumerate(stored_names)}
-            if all(name in index for name in names):
-                order = [index[name] for name in names]
-                correlation = np.asarray(matrix, dtype=float)[np.ix_(order, order)]
-        sigma = np.array([known[name] for name in names])
-        covariance = correlation * np.outer(sigma, sigma)
-        return cls(parse_spec(stored.model).spec, values, names, covariance, names,
-                   rms_error=float(stored.rms_error), noise_floor=float(stored.noise_floor),
-                   stored=True)
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state.pop("model", None)  # a Model keys its terms by id(): rebuilt after unpickling
-        return state
-
-    @cached_property
-    def model(self) -> Model:
-        """The model, rebuilt from the spec."""
-        return parse_spec(self.spec)
-
-    @property
-    def inherited(self) -> tuple[str, ...]:
-        """Parameters with an uncertainty that were not fitted here."""
-        return tuple(name for name in self.covariance_names if name not in self.free)
-
-    @property
-    def fits_noise(self) -> bool:
-        """``rms_error`` within :data:`~viscorig.fitting.MISFIT_RATIO` of the floor (False when
-        unknown)."""
-        return bool(self.rms_error <= MISFIT_RATIO * self.noise_floor)
-
-    def stderr(self, name: str) -> float:
-        """Standard uncertainty of one parameter (NaN when it has none)."""
-        if name not in self.covariance_names:
-            return math.nan
-        i = self.covariance_names.index(name)
-        return float(math.sqrt(max(self.joint_covariance[i, i], 0.0)))
-
-    def block(self, rows: Sequence[str], columns: Sequence[str]) -> NDArray[np.float64]:
-        """The covariance between two lists of parameter names."""
-        r = [self.covariance_names.index(name) for name in rows]
-        c = [self.covariance_names.index(name) for name in columns]
-        return self.joint_covariance[np.ix_(r, c)]
+def residuals_of(fit: FitResult) -> Residuals | None:
+    """A fit's residuals and their influence, for pairing with another run's (``None`` when the
+    fit does not carry them whole: a stored fit, one fitted without the influence)."""
+    frfs = tuple(fit.frfs)
+    influence = fit.influence
+    if influence is None or not all(name in fit.residuals for name in frfs):
+        return None
+    values = np.array([fit.residuals[name] for name in frfs], dtype=complex)
+    n = np.asarray(fit.frequency_hz).size
+    if values.shape != (len(frfs), n) or influence.shape != (len(fit.free), 2 * len(frfs) * n):
+        return None
+    # the floor of the noise model the fit was weighed with: the report and the API may show
+    # a fit beside another floor (the diagnosis's), which is not the one its residuals have
+    floor = fit.noise.floor_of(frfs) if fit.noise is not None else fit.noise_floor
+    return Residuals(np.asarray(fit.frequency_hz, dtype=float), frfs, values,
+                     np.asarray(influence, dtype=float), float(floor))
 
 
 @dataclass(frozen=True)
@@ -298,9 +182,9 @@ class Change:
 class Pair:
     """Two fits, and how their errors are related (the module text says how)."""
 
-    def __init__(self, before: object, after: object) -> None:
-        self.a = Estimates.of(before)
-        self.b = Estimates.of(after)
+    def __init__(self, before: FitResult, after: FitResult) -> None:
+        self.a = before
+        self.b = after
         self.shared = self._shared()
         self.basis: list[str] = []
         if self.shared:
@@ -339,10 +223,11 @@ class Pair:
             return ()
         order = {name: i for i, name in enumerate(a.model.names)}
         return tuple(sorted((n for n in candidates
-                             if a.values[n] == b.values[n] and a.stderr(n) == b.stderr(n)),
+                             if a.values[n] == b.values[n]
+                             and a.standard_error(n) == b.standard_error(n)),
                             key=lambda name: order.get(name, len(order))))
 
-    def _conditional(self, fit: Estimates, own: list[str]
+    def _conditional(self, fit: FitResult, own: list[str]
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(G, F)``: the own parameters' response to the shared ones, ``G = C_pq C_qq⁻¹``,
         and their covariance given them, ``F = C_pp − G C_qp``."""
@@ -357,7 +242,7 @@ class Pair:
         """``(rows, blocks, count, birge)`` of the two fits' paired residual contributions, or
         ``None`` when they cannot be paired (see the module text)."""
         a, b = self.a, self.b
-        ra, rb = a.residuals, b.residuals
+        ra, rb = residuals_of(a), residuals_of(b)
         if (ra is None or rb is None or a.noise_covariance is None
                 or b.noise_covariance is None or a.spec != b.spec or a.free != b.free
                 or set(ra.frfs) != set(rb.frfs) or list(a.free) != self._fitted_a
@@ -456,7 +341,7 @@ class Pair:
                       float(relative[0]), float(stderr[0]), tuple(self.basis), self.independent)
 
 
-def _gradient(function: Callable[[Values], ArrayLike], fit: Estimates, size: int
+def _gradient(function: Callable[[Values], ArrayLike], fit: FitResult, size: int
               ) -> NDArray[np.float64]:
     """``∂f/∂θ`` over the fit's ``covariance_names``, as ``size × names``."""
     names = list(fit.covariance_names)
@@ -466,18 +351,18 @@ def _gradient(function: Callable[[Values], ArrayLike], fit: Estimates, size: int
                                                                                       len(names))
 
 
-def change(before: object, after: object, function: Callable[[Values], float],
+def change(before: FitResult, after: FitResult, function: Callable[[Values], float],
            quantity: str, unit: str = "") -> Change:
     """The relative change of a function of the parameters, ``f(after)/f(before) − 1``, with
     its uncertainty (``function`` maps a fit's values to a number: ``lambda v: v["C_v"]``)."""
     return Pair(before, after).change(quantity, unit, function)
 
 
-def _unit(fit: Estimates, name: str) -> str:
+def _unit(fit: FitResult, name: str) -> str:
     return fit.model.by_name[name].unit if name in fit.model.by_name else ""
 
 
-def compare_fits(before: object, after: object, names: Iterable[str]) -> list[Change]:
+def compare_fits(before: FitResult, after: FitResult, names: Iterable[str]) -> list[Change]:
     """The change of parameters ``names`` from fit ``before`` to fit ``after``.
 
     Parameters missing from either fit are left out.
@@ -492,7 +377,7 @@ def _value_of(name: str) -> Callable[[Values], float]:
     return lambda values: values[name]
 
 
-def system_changes(before: object, after: object) -> list[Change]:
+def system_changes(before: FitResult, after: FitResult) -> list[Change]:
     """Changes of Table 2's ``f_r``, ``xi`` and ``B_r`` (Voigt fits with the table's values)."""
     pair = Pair(before, after)
     return [pair.change(name, unit, function)
@@ -520,15 +405,16 @@ def _kstar_part(model: Model, frequency_hz: ArrayLike, part: Callable) -> Callab
     return evaluate
 
 
-def kstar_at(fit: object, frequency_hz: float) -> tuple[tuple[float, float], tuple[float, float]]:
+def kstar_at(fit: FitResult, frequency_hz: float
+             ) -> tuple[tuple[float, float], tuple[float, float]]:
     """``((K', u), (η, u))`` of a fit's K* at one frequency."""
-    estimates = Estimates.of(fit)
-    storage: Quantity = derived(estimates, storage_stiffness_of(estimates.model, frequency_hz))
-    loss: Quantity = derived(estimates, loss_factor_of(estimates.model, frequency_hz))
+    storage: Quantity = derived(fit, storage_stiffness_of(fit.model, frequency_hz))
+    loss: Quantity = derived(fit, loss_factor_of(fit.model, frequency_hz))
     return (storage.value, storage.stderr), (loss.value, loss.stderr)
 
 
-def kstar_changes(before: object, after: object, frequencies_hz: Sequence[float]) -> list[Change]:
+def kstar_changes(before: FitResult, after: FitResult, frequencies_hz: Sequence[float]
+                  ) -> list[Change]:
     """Changes of ``K'`` and of ``η`` at each frequency, from the two fits' K* (the two models
     may differ)."""
     pair = Pair(before, after)

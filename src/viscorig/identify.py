@@ -28,10 +28,10 @@ from viscorig.estimates import (
     system_properties_with_uncertainty,
 )
 from viscorig.estimates import system_properties as voigt_system_properties
-from viscorig.fitting import FitResult, FrfData, Known, fit
+from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.rig import RigDescription
-from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
+from viscorig.storage import INPUT_OVERLOAD, Campaign, FitRecord, Run
 
 #: The paper's analysis band (physics.md), used by the campaign summary.
 PAPER_BAND_HZ = (20.0, 120.0)
@@ -225,6 +225,61 @@ def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
         correlation=(tuple(result.covariance_names), result.correlation),
         weighting=result.weighting,
     )
+
+
+def read_fit(record: FitRecord) -> FitResult:
+    """A fit stored in a campaign file (:meth:`Campaign.fits`), as the fit the rest of the
+    package uses.
+
+    Only what the file keeps is known: the values, the standard errors (every parameter with
+    one counts as fitted), their correlation matrix when stored (else taken as uncorrelated),
+    the band and the error measures. There are no residuals, so two stored fits are compared
+    as :mod:`viscorig.compare` says for fits without them.
+
+    Raises
+    ------
+    InputError
+        The stored spec is not a model, or the fit lacks some of its parameters.
+    """
+    where = f"run '{record.run}'"
+    model = parse_spec(record.model)
+    values = {name: float(p.value) for name, p in record.parameters.items()}
+    missing = sorted(set(model.names) - set(values))
+    if missing:
+        raise InputError(f"stored fit {record.id} lacks {', '.join(missing)}", where)
+    known = {name: float(p.stderr) for name, p in record.parameters.items()
+             if math.isfinite(p.stderr) and p.stderr > 0}
+    names = tuple(known)
+    correlation = np.eye(len(names))
+    if record.correlation is not None:
+        stored_names, matrix = record.correlation
+        index = {name: i for i, name in enumerate(stored_names)}
+        if all(name in index for name in names):
+            order = [index[name] for name in names]
+            correlation = np.asarray(matrix, dtype=float)[np.ix_(order, order)]
+    sigma = np.array([known[name] for name in names])
+    covariance = correlation * np.outer(sigma, sigma)
+    rms_error, noise_floor = float(record.rms_error), float(record.noise_floor)
+    return FitResult(
+        model=model, values=values, stderr=known, free=names, covariance=covariance,
+        rms_error=rms_error, noise_floor=noise_floor,
+        band_hz=(float(record.band_hz[0]), float(record.band_hz[1])), points=0,
+        frfs=tuple(model.frfs), frequency_hz=np.empty(0), residuals={}, bic=math.nan,
+        misfit_scale=max(1.0, (rms_error / noise_floor) ** 2) if noise_floor > 0 else 1.0,
+        fits_noise=bool(rms_error <= MISFIT_RATIO * noise_floor),
+        weighting=record.weighting or "uniform", source=f"stored fit {record.id}", stored=True)
+
+
+def stored_fits(campaign: Campaign, run_name: str) -> list[FitResult]:
+    """The fits of a run that the file stores whole (:func:`read_fit`), oldest first; one
+    that is not a whole fit (a spec no model reads, a parameter missing) is left out."""
+    out = []
+    for record in campaign.fits(run_name):
+        try:
+            out.append(read_fit(record))
+        except InputError:
+            continue
+    return out
 
 
 @dataclass(frozen=True)

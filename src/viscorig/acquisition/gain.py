@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike
 
 from viscorig.acquisition.limits import PROBE_LEVEL_FRACTION
 from viscorig.acquisition.sweep import START_LEVEL_V
+from viscorig.numbers import with_uncertainty
 
 __all__ = ["DISAGREE_STDERRS", "GAIN_SOURCE_V", "GainEstimate", "disagreement", "estimate_gain"]
 
@@ -62,7 +63,7 @@ class GainEstimate:
 
     def text(self) -> str:
         """``50.02 ± 0.03 N/V``."""
-        return f"{self.value_n_per_v:.5g} ± {self.stderr_n_per_v:.2g} N/V"
+        return with_uncertainty(self.value_n_per_v, self.stderr_n_per_v, "N/V")
 
     def attributes(self) -> dict[str, object]:
         """The run attributes that keep it (units in the names)."""

@@ -151,9 +151,10 @@ class SpecimenOutOfBand(_FlaggedInARow):
         soak = getattr(self.chamber, "soak", None)
         if soak is None:
             return True
-        if getattr(self.chamber, "pass_time", None) is not None:
+        pass_time = getattr(self.chamber, "pass_time", None)
+        if pass_time is not None:
             try:
-                self.chamber.wait(self.every_s)
+                pass_time(self.every_s)
             except Exception:
                 return False
         elif self.clock() - self._asked < self.every_s:

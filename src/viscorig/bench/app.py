@@ -24,6 +24,7 @@ import json
 import secrets
 import threading
 import time
+from collections.abc import Awaitable, Callable
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -35,6 +36,9 @@ from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.routing import Route
 
 from viscorig.bench.service import BenchError, BenchService
+
+#: A request handler of the application.
+Endpoint = Callable[[Request], Awaitable[Response]]
 
 #: Requests served per second, all clients together; a burst of that many is allowed.
 RATE_PER_S = 50
@@ -198,13 +202,11 @@ class Guard:
 def create_app(service: BenchService, token: str, port: int,
                address: str = "127.0.0.1") -> Guard:
     """The application of :class:`BenchService` at ``address:port`` with ``token``."""
-    from viscorig.watch.server import page_html as live_html
-    from viscorig.watch.snapshot import Snapshots
-
     cookie = f"viscorig_bench_{port}"
     client_cookie = f"viscorig_client_{port}"
     control = Control()
-    live: dict[str, Snapshots] = {}
+    journal = _journal_endpoint(service)
+    live_page, live_state = _live_endpoints(service)
 
     def client_of(request: Request) -> str:
         return (request.cookies.get(client_cookie)
@@ -262,54 +264,6 @@ def create_app(service: BenchService, token: str, port: int,
     def queue_move(request: Request, data: dict) -> None:
         service.move(request.path_params["item"], data.get("position"))
 
-    async def journal(request: Request) -> Response:
-        from viscorig.storage import Campaign
-
-        path = service.campaign_path
-        entries = []
-        if path is not None and Path(path).exists():
-            try:
-                entries = [e.__dict__ for e in Campaign.open(path).journal][-200:]
-            except Exception as failure:
-                return error(409, f"{path}: {failure}")
-        return JSONResponse({"campaign": None if path is None else str(path),
-                             "entries": entries}, headers={"Cache-Control": "no-store"})
-
-    async def live_page(request: Request) -> Response:
-        return HTMLResponse(live_html(), headers={
-            "Cache-Control": "no-store", "Content-Security-Policy": _LIVE_POLICY,
-            "X-Content-Type-Options": "nosniff"})
-
-    async def live_state(request: Request) -> Response:
-        path = service.campaign_path
-        if path is None:
-            return JSONResponse({"version": "", "error": "no campaign yet"})
-        snapshots = live.get(str(path))
-        if snapshots is None:
-            live.clear()
-            snapshots = live[str(path)] = Snapshots(Path(path))
-        version, snapshot = snapshots.latest()
-        known = request.query_params.get("version", "")
-        answer: dict[str, Any] = {"version": version, "error": snapshots.error}
-        if known == str(version) and snapshot is not None:
-            answer["unchanged"] = True
-        else:
-            answer["snapshot"] = snapshot
-        return Response(json.dumps(answer, allow_nan=False, separators=(",", ":")),
-                        media_type="application/json", headers={"Cache-Control": "no-store"})
-
-    async def not_found(request: Request, exc: Exception) -> Response:
-        return error(404, f"{request.method} {request.url.path}: no such endpoint")
-
-    async def not_allowed(request: Request, exc: Exception) -> Response:
-        return error(405, f"{request.method} {request.url.path}: method not allowed")
-
-    async def refused(request: Request, exc: Exception) -> Response:
-        return error(getattr(exc, "status", 400), str(exc))
-
-    async def failed(request: Request, exc: Exception) -> Response:
-        return error(500, f"internal error ({type(exc).__name__}); the run goes on")
-
     simple = {
         "start": lambda request, data: service.start(),
         "pause": lambda request, data: service.pause(),
@@ -334,9 +288,80 @@ def create_app(service: BenchService, token: str, port: int,
     hosts = {f"{address}:{port}"}
     if address == "127.0.0.1":
         hosts.add(f"localhost:{port}")
-    app = Starlette(routes=routes, exception_handlers={
-        404: not_found, 405: not_allowed, BenchError: refused, Exception: failed})
+    app = Starlette(routes=routes, exception_handlers=_exception_handlers())
     return Guard(app, token, hosts, cookie)
+
+
+def _journal_endpoint(service: BenchService) -> Endpoint:
+    """``GET /api/journal``: the last 200 entries of the current campaign's journal."""
+
+    async def journal(request: Request) -> Response:
+        from viscorig.storage import Campaign
+
+        path = service.campaign_path
+        entries = []
+        if path is not None and Path(path).exists():
+            try:
+                entries = [e.__dict__ for e in Campaign.open(path).journal][-200:]
+            except Exception as failure:
+                return error(409, f"{path}: {failure}")
+        return JSONResponse({"campaign": None if path is None else str(path),
+                             "entries": entries}, headers={"Cache-Control": "no-store"})
+
+    return journal
+
+
+def _live_endpoints(service: BenchService) -> tuple[Endpoint, Endpoint]:
+    """``GET /live/`` and ``/live/state.json``: the watch page of the campaign being measured,
+    its snapshots answered as ``unchanged`` while their version is the one the page has."""
+    from viscorig.watch.server import page_html as live_html
+    from viscorig.watch.snapshot import Snapshots
+
+    live: dict[str, Snapshots] = {}
+
+    async def live_page(request: Request) -> Response:
+        return HTMLResponse(live_html(), headers={
+            "Cache-Control": "no-store", "Content-Security-Policy": _LIVE_POLICY,
+            "X-Content-Type-Options": "nosniff"})
+
+    async def live_state(request: Request) -> Response:
+        path = service.campaign_path
+        if path is None:
+            return JSONResponse({"version": "", "error": "no campaign yet"})
+        snapshots = live.get(str(path))
+        if snapshots is None:
+            live.clear()
+            snapshots = live[str(path)] = Snapshots(Path(path))
+        version, snapshot = snapshots.latest()
+        known = request.query_params.get("version", "")
+        answer: dict[str, Any] = {"version": version, "error": snapshots.error}
+        if known == str(version) and snapshot is not None:
+            answer["unchanged"] = True
+        else:
+            answer["snapshot"] = snapshot
+        return Response(json.dumps(answer, allow_nan=False, separators=(",", ":")),
+                        media_type="application/json", headers={"Cache-Control": "no-store"})
+
+    return live_page, live_state
+
+
+def _exception_handlers() -> dict[Any, Callable[[Request, Exception], Awaitable[Response]]]:
+    """One JSON error for every failure: no endpoint, a method not allowed, a request the bench
+    refuses, an internal error (the run goes on)."""
+
+    async def not_found(request: Request, exc: Exception) -> Response:
+        return error(404, f"{request.method} {request.url.path}: no such endpoint")
+
+    async def not_allowed(request: Request, exc: Exception) -> Response:
+        return error(405, f"{request.method} {request.url.path}: method not allowed")
+
+    async def refused(request: Request, exc: Exception) -> Response:
+        return error(getattr(exc, "status", 400), str(exc))
+
+    async def failed(request: Request, exc: Exception) -> Response:
+        return error(500, f"internal error ({type(exc).__name__}); the run goes on")
+
+    return {404: not_found, 405: not_allowed, BenchError: refused, Exception: failed}
 
 
 class BenchServer:

@@ -26,7 +26,9 @@ from itertools import combinations
 
 import numpy as np
 
-__all__ = ["Limits", "Readings", "RigFacts", "Roles", "Verdict", "judge"]
+from viscorig.acquisition.sweep import Wiring
+
+__all__ = ["Limits", "Readings", "RigFacts", "Verdict", "judge", "transducer_names"]
 
 #: A healthy input reads its transducer within these bounds (magnitude ratio, phase).
 GAIN_TOLERANCE = (0.7, 1.4)
@@ -55,20 +57,11 @@ class Verdict:
         return f"{text}; {self.advice}" if self.advice and not self.passed else text
 
 
-@dataclass(frozen=True)
-class Roles:
-    """Analyser input of each transducer."""
-
-    excitation_force: int
-    table_acceleration: int
-    device_force: int
-    device_acceleration: int
-
-    def by_input(self) -> dict[int, str]:
-        """Input -> what it measures, for messages."""
-        return {self.excitation_force: "excitation force",
-                self.table_acceleration: "table accelerometer",
-                self.device_force: "device force", self.device_acceleration: "disc accelerometer"}
+def transducer_names(wiring: Wiring) -> dict[int, str]:
+    """Input -> what it measures, for messages."""
+    return {wiring.excitation_force: "excitation force",
+            wiring.table_acceleration: "table accelerometer",
+            wiring.device_force: "device force", wiring.device_acceleration: "disc accelerometer"}
 
 
 @dataclass(frozen=True)
@@ -130,13 +123,13 @@ class Readings:
     overloads: Mapping[int, list[str]] = field(default_factory=dict)
 
 
-def judge(readings: Readings, roles: Roles, rig: RigFacts,
+def judge(readings: Readings, wiring: Wiring, rig: RigFacts,
           limits: Limits = Limits()) -> list[Verdict]:
     """Every check of the station, in the order a technician fixes things."""
     verdicts = [_identity(readings)]
-    verdicts += _noise(readings, roles, limits)
+    verdicts += _noise(readings, wiring, limits)
     silent = _silent(readings)
-    names = roles.by_input()
+    names = transducer_names(wiring)
     for number in sorted(names):
         if number in silent:
             variance = float(np.median(readings.variance[number]))
@@ -147,7 +140,7 @@ def judge(readings: Readings, roles: Roles, rig: RigFacts,
                 f"reads nothing at {_list(readings.frequency_hz)} Hz ({found})",
                 "check the cable or the ICP supply"))
     clipped = {k for k, where in readings.overloads.items() if FIXED_DRIVE in where}
-    verdicts += _roles(readings, roles, rig, silent | clipped)
+    verdicts += _roles(readings, wiring, rig, silent | clipped)
     verdicts.append(_overload(readings, names))
     verdicts.append(_level(readings))
     return verdicts
@@ -170,9 +163,9 @@ def _identity(readings: Readings) -> Verdict:
     return Verdict("analyser", True, found)
 
 
-def _noise(readings: Readings, roles: Roles, limits: Limits) -> list[Verdict]:
+def _noise(readings: Readings, wiring: Wiring, limits: Limits) -> list[Verdict]:
     verdicts = []
-    forces = (roles.excitation_force, roles.device_force)
+    forces = (wiring.excitation_force, wiring.device_force)
     for number in sorted(readings.noise_density):
         density = readings.noise_density[number]
         unit = "N" if number in forces else "m/s²"
@@ -208,10 +201,10 @@ class _Solution:
     residual: float
 
 
-def _solve(amplitude: Mapping[int, np.ndarray], roles: Roles, rig: RigFacts,
+def _solve(amplitude: Mapping[int, np.ndarray], wiring: Wiring, rig: RigFacts,
            frequency_hz: np.ndarray, source_vpk: float) -> _Solution | None:
-    e, s, v, d = (roles.excitation_force, roles.table_acceleration, roles.device_force,
-                  roles.device_acceleration)
+    e, s, v, d = (wiring.excitation_force, wiring.table_acceleration, wiring.device_force,
+                  wiring.device_acceleration)
     m_e, m_s, m_v, m_d = (np.asarray(amplitude[k]) for k in (e, s, v, d))
     gains: dict[int, complex] = {}
     # the source's phase is not read back: the gain fixes the force's magnitude only
@@ -264,8 +257,8 @@ def _what_is_wrong(g: complex) -> tuple[str, str]:
             "check its sensitivity in the station file, the transducer and its wiring")
 
 
-def _roles(readings: Readings, roles: Roles, rig: RigFacts, silent: set[int]) -> list[Verdict]:
-    names = roles.by_input()
+def _roles(readings: Readings, wiring: Wiring, rig: RigFacts, silent: set[int]) -> list[Verdict]:
+    names = transducer_names(wiring)
     if silent:
         unusable = ", ".join(str(k) for k in sorted(silent))
         return [Verdict("transducer roles", False,
@@ -275,7 +268,7 @@ def _roles(readings: Readings, roles: Roles, rig: RigFacts, silent: set[int]) ->
         return [Verdict("transducer roles", True, "not checked: the station file gives no "
                         "[table] parameters (mass, stiffness, damping)")]
     f = readings.frequency_hz
-    plain = _solve(readings.amplitude, roles, rig, f, readings.source_vpk)
+    plain = _solve(readings.amplitude, wiring, rig, f, readings.source_vpk)
     if _explained(plain):
         assert plain is not None
         gains = ", ".join(f"{k}: {abs(g):.2f}" for k, g in sorted(plain.gains.items()))
@@ -287,7 +280,7 @@ def _roles(readings: Readings, roles: Roles, rig: RigFacts, silent: set[int]) ->
         ratio = readings.sensitivity[a] / readings.sensitivity[b]
         swapped[a], swapped[b] = (np.asarray(readings.amplitude[b]) / ratio,
                                   np.asarray(readings.amplitude[a]) * ratio)
-        if _explained(_solve(swapped, roles, rig, f, readings.source_vpk)):
+        if _explained(_solve(swapped, wiring, rig, f, readings.source_vpk)):
             return [Verdict(
                 "transducer roles", False,
                 f"inputs {a} and {b} read each other's transducer ({names[a]} and "
@@ -295,11 +288,11 @@ def _roles(readings: Readings, roles: Roles, rig: RigFacts, silent: set[int]) ->
     if plain is None:
         return [Verdict("transducer roles", False, "the readings fit no role of the rig",
                         "check every transducer's cable and sensitivity")]
-    others = [g for k, g in plain.gains.items() if k != roles.excitation_force]
-    if all(_healthy(-g) for g in others) and _healthy(plain.gains[roles.excitation_force]):
+    others = [g for k, g in plain.gains.items() if k != wiring.excitation_force]
+    if all(_healthy(-g) for g in others) and _healthy(plain.gains[wiring.excitation_force]):
         # every response turned over: the phase reference (the excitation force) is inverted
         found, advice = _what_is_wrong(-1.0)
-        number = roles.excitation_force
+        number = wiring.excitation_force
         return [Verdict(f"input {number} ({names[number]})", False, found, advice)]
     verdicts = []
     for number, g in sorted(plain.gains.items()):

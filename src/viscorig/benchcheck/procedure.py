@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from viscorig.acquisition.sweep import Wiring
-from viscorig.benchcheck.checks import FIXED_DRIVE, Readings, Roles
+from viscorig.benchcheck.checks import FIXED_DRIVE, Readings
 
 __all__ = ["BenchSettings", "measure"]
 
@@ -59,8 +59,7 @@ def _record_overloads(overloads: dict[int, list[str]], channels: tuple[int, ...]
         overloads.setdefault(channel, []).append(where)
 
 
-def measure(analyser: Any, roles: Roles, sensitivity: dict[int, float],
-            source_limit_v: float, force_limit_n: float | None,
+def measure(analyser: Any, wiring: Wiring, source_limit_v: float, force_limit_n: float | None,
             settings: BenchSettings = BenchSettings()) -> Readings:
     """Run the bench check's measurements on a connected analyser (the 35670A driver).
 
@@ -68,10 +67,8 @@ def measure(analyser: Any, roles: Roles, sensitivity: dict[int, float],
     ----------
     analyser
         ``agilent35670a.Agilent35670A`` (or anything with its calls).
-    roles
-        Which input measures what.
-    sensitivity
-        Input -> transducer sensitivity (V/N or V/(m/s²)).
+    wiring
+        Which input measures what, and each transducer's sensitivity.
     source_limit_v, force_limit_n
         The station's limits: the source never exceeds them.
     settings
@@ -82,8 +79,6 @@ def measure(analyser: Any, roles: Roles, sensitivity: dict[int, float],
     overloads: dict[int, list[str]] = {}
     start_vpk = min(settings.source_vpk, source_limit_v)
     low, high = min(settings.frequencies_hz), max(settings.frequencies_hz)
-    wiring = Wiring(roles.excitation_force, roles.table_acceleration, roles.device_force,
-                    roles.device_acceleration, sensitivity)
     analyser.configure_swept_sine(
         inputs=wiring.inputs(), reference_channel=wiring.reference_channel(bare_table=False),
         reference_level_eu=settings.level_m_per_s2, source_limit_vpk=source_limit_v,
@@ -120,14 +115,14 @@ def measure(analyser: Any, roles: Roles, sensitivity: dict[int, float],
     analyser.source.auto_level = True
     levelled = analyser.measure_points([low], poll_interval_s=0.05)
     _record_overloads(overloads, levelled.overload_channels, "the level loop")
-    held = float(np.asarray(levelled.amplitude_eu[roles.device_acceleration])[0])
+    held = float(np.asarray(levelled.amplitude_eu[wiring.device_acceleration])[0])
     return Readings(
         identity=identity, options=options, noise_density=density,
         noise_range_dbvrms=dict(spectra.ranges_dbvrms),
         frequency_hz=np.asarray(fixed.frequency_hz, dtype=float), amplitude=amplitude,
         variance={k: np.asarray(v, dtype=float) for k, v in fixed.variance.items()},
-        source_vpk=start_vpk, sensitivity=dict(sensitivity),
+        source_vpk=start_vpk, sensitivity=dict(wiring.sensitivities_v_per_eu),
         level_reached_m_per_s2=held if math.isfinite(held) else 0.0,
         level_m_per_s2=settings.level_m_per_s2, tolerance_db=settings.tolerance_db,
-        level_input=roles.device_acceleration, overloads=overloads,
+        level_input=wiring.device_acceleration, overloads=overloads,
     )

@@ -99,29 +99,26 @@ def check_command(args: argparse.Namespace) -> int:
     """Measure, judge, print one line per check."""
     from viscorig.acquisition import Wiring
     from viscorig.benchcheck import judge, measure
-    from viscorig.benchcheck.checks import RigFacts, Roles
+    from viscorig.benchcheck.checks import RigFacts
 
     with _opened(args) as opened:
         station = opened.station
         print(f"bench check of {station.source or station.resource} "
               f"(analyser {opened.analyser.resource})", flush=True)
         wiring = Wiring.from_station(station)
-        channels = station.channels
-        roles = Roles(channels.excitation_force, channels.table_acceleration,
-                      channels.device_force, channels.device_acceleration)
         gain = station.shaker_gain_n_per_v
         source_limit = station.source_limit_v
         if gain:
             source_limit = min(source_limit, station.shaker_force_limit_n / gain)
         try:
-            readings = measure(opened.analyser, roles, dict(wiring.sensitivities_v_per_eu),
-                               source_limit, station.shaker_force_limit_n)
+            readings = measure(opened.analyser, wiring, source_limit,
+                               station.shaker_force_limit_n)
         except opened.instrument_errors as error:
             raise InstrumentError(f"{opened.analyser.resource}: {error}") from None
     table = station.table
     rig = RigFacts(None if table is None else (table.mass_kg, table.stiffness_n_per_m,
                                           table.damping_ns_per_m), gain)
-    verdicts = judge(readings, roles, rig)
+    verdicts = judge(readings, wiring, rig)
     for verdict in verdicts:
         print(verdict.line())
     failed = [v for v in verdicts if not v.passed]

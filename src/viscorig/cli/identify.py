@@ -159,7 +159,7 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
              f"{low * 1e6:.3g}-{high * 1e6:.3g} µm, reduced chi-square "
              f"{fit.reduced_chi_square:.2f}"]
     for name, (value, stderr, unit) in fit.parameters.items():
-        lines.append(f"  {name:<4} = {value:<12.6g} ± {stderr:<10.4g} {unit}")
+        lines.append(f"  {name:<4} = {with_uncertainty(value, stderr, unit)}")
     lines.append("not stored (a fit of several runs)")
     print("\n".join(lines))
     return 0

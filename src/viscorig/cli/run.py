@@ -117,7 +117,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_command(args: argparse.Namespace) -> int:
     """``viscorig run``: check everything, create the file, run the sequence (or each sequence
     of a queue, in order, while each ends complete)."""
-    from viscorig.cli.check import check_files, refuse
+    from viscorig.cli.check import Checked, check_files, refuse
 
     if args.station is not None and args.sim_pace is not None:
         raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
@@ -125,7 +125,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.out and len(sequences) > 1:
         raise InputError("one campaign file for one sequence; a queue writes each to "
                          "<sequence name>.h5 here", "--out")
-    queue = []
+    queue: list[tuple[str, Checked, Path]] = []
     for text in sequences:  # everything checked before anything moves
         checked = check_files(text, args.station)
         if not checked.ok:

@@ -19,7 +19,7 @@ import numpy as np
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.numbers import with_uncertainty
-from viscorig.storage import FLAG_NAMES, Campaign, Fit, Run, count_flags
+from viscorig.storage import FLAG_NAMES, Campaign, FitRecord, Run, count_flags
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -68,7 +68,7 @@ def run_row(run: Run) -> list[str]:
     ]
 
 
-def fit_lines(fit: Fit) -> list[str]:
+def fit_lines(fit: FitRecord) -> list[str]:
     """The listing's lines for one fit."""
     lo, hi = fit.band_hz
     lines = [
@@ -166,7 +166,7 @@ def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def fit_json(fit: Fit) -> dict[str, Any]:
+def fit_json(fit: FitRecord) -> dict[str, Any]:
     """One stored fit as JSON (the ``identify --json`` parameter layout)."""
     return {
         "id": fit.id,
@@ -183,7 +183,7 @@ def fit_json(fit: Fit) -> dict[str, Any]:
     }
 
 
-def run_json(run: Run, fits: list[Fit]) -> dict[str, Any]:
+def run_json(run: Run, fits: list[FitRecord]) -> dict[str, Any]:
     """One run as JSON: metadata, points, band, flag counts and fits."""
     m = run.metadata
     counts = count_flags(run.flags) if run.points else {}

@@ -91,21 +91,39 @@ def format_summary(
     variations = preload_variations(runs) if variations is None else variations
     present = [run.run for run in runs]
     paper_names = any(name in PAPER_TABLE_1 for name in present)
-    lines = []
-    if table is not None:
-        lines.append(f"Table suspension (from {table.source}):")
-        known = table.known
-        for name, unit in TABLE_UNITS.items():
-            stderr = known.stderr(name)
-            text = f"  {name} = {_pm(table.values[name], stderr or math.nan)} {unit}"
-            if stderr is None:
-                text += "   (given, no uncertainty)"
-            if paper_names:
-                text += f"   (paper {PAPER_TABLE_PARAMETERS[name]:g})"
-            lines.append(text)
     specimen = [run for run in runs if not run.bare]
-    lines += ["", "Table 1: Voigt fit of X_s/F_e, table fixed, every point weighted the same as "
-              "in the paper (± one standard uncertainty)"]
+    lines = _table_lines(table, paper_names)
+    lines += _table_1_lines(specimen, paper_names)
+    lines += _weighted_lines(specimen)
+    lines += _table_2_lines(specimen, paper_names)
+    lines += _preload_lines(variations)
+    if paper_names:
+        lines += ["", "Notes on the paper's numbers:"]
+        lines += [f"  - {note}" for note in consistency_notes(present)]
+    return "\n".join(lines)
+
+
+def _table_lines(table: TableSource | None, paper_names: bool) -> list[str]:
+    """The table suspension's M_s, K_s, C_s and where they came from."""
+    if table is None:
+        return []
+    lines = [f"Table suspension (from {table.source}):"]
+    known = table.known
+    for name, unit in TABLE_UNITS.items():
+        stderr = known.stderr(name)
+        text = f"  {name} = {_pm(table.values[name], stderr or math.nan)} {unit}"
+        if stderr is None:
+            text += "   (given, no uncertainty)"
+        if paper_names:
+            text += f"   (paper {PAPER_TABLE_PARAMETERS[name]:g})"
+        lines.append(text)
+    return lines
+
+
+def _table_1_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
+    """Table 1: the paper's Voigt fit of each specimen run, its error against the floor."""
+    lines = ["", "Table 1: Voigt fit of X_s/F_e, table fixed, every point weighted the same as "
+             "in the paper (± one standard uncertainty)"]
     header = (
         f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18} "
         f"{'rms/floor':>9}"
@@ -134,21 +152,31 @@ def format_summary(
             "  * the Voigt model does not fit these runs to the noise: their ± are those of the "
             "model's band-average (scaled by the misfit), not of the specimen"
         )
-    weighted = [run for run in specimen if run.weighted is not None]
-    if weighted:
-        lines += ["", "The same fits by the project's estimate, each point weighted by its "
-                  "noise (as identify fits)"]
-        lines.append(f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18}")
-        for run in weighted:
-            assert run.weighted is not None
-            p = run.weighted.parameters
-            lines.append(
-                f"  {run.run:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
-                f"{_pm(p['C_v'].value, p['C_v'].stderr):>18} "
-                f"{_pm(p['M_v'].value, p['M_v'].stderr):>18}"
-                + ("" if run.weighted.fits_noise else "*")
-            )
-    lines += ["", "Table 2: system natural frequency, damping factor, half-power bandwidth"]
+    return lines
+
+
+def _weighted_lines(specimen: list[RunSummary]) -> list[str]:
+    """The same fits weighted by the noise, as ``identify`` fits."""
+    weighted = [(run.run, run.weighted) for run in specimen if run.weighted is not None]
+    if not weighted:
+        return []
+    lines = ["", "The same fits by the project's estimate, each point weighted by its "
+             "noise (as identify fits)"]
+    lines.append(f"  {'run':<10} {'K_v [N/m]':>22} {'C_v [N·s/m]':>18} {'M_v [kg]':>18}")
+    for name, fitted in weighted:
+        p = fitted.parameters
+        lines.append(
+            f"  {name:<10} {_pm(p['K_v'].value, p['K_v'].stderr):>22} "
+            f"{_pm(p['C_v'].value, p['C_v'].stderr):>18} "
+            f"{_pm(p['M_v'].value, p['M_v'].stderr):>18}"
+            + ("" if fitted.fits_noise else "*")
+        )
+    return lines
+
+
+def _table_2_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
+    """Table 2: natural frequency, damping factor and bandwidth, fitted and measured."""
+    lines = ["", "Table 2: system natural frequency, damping factor, half-power bandwidth"]
     header = (
         f"  {'run':<10} {'f_r [Hz]':>16} {'ξ':>18} {'B_r = 2ξf_r [Hz]':>17} "
         f"{'peak [Hz]':>9} {'B_r meas.':>9}"
@@ -169,28 +197,31 @@ def format_summary(
         if paper is not None:
             text += f" {paper['f_r']:>9.2f} {paper['xi']:>6.3f} {paper['B_r']:>6.3f}"
         lines.append(text)
-    if variations:
-        lines += ["", "Preload: change against the same specimen without preload"]
-        header = f"  {'run':<22}" + "".join(f" {name:>16}" for name in variations[0].changes)
-        lines.append(header)
-        for variation in variations:
-            label = f"{variation.base} → {variation.run}"
+    return lines
+
+
+def _preload_lines(variations: list[Variation]) -> list[str]:
+    """Each preloaded run's change against its base, with the paper's where it has one."""
+    if not variations:
+        return []
+    lines = ["", "Preload: change against the same specimen without preload"]
+    header = f"  {'run':<22}" + "".join(f" {name:>16}" for name in variations[0].changes)
+    lines.append(header)
+    for variation in variations:
+        label = f"{variation.base} → {variation.run}"
+        lines.append(
+            f"  {label:<22}"
+            + "".join(f" {_change(q):>16}" for q in variation.changes.values())
+        )
+        paper = paper_variation(variation.run, variation.base)
+        if paper is not None:
             lines.append(
-                f"  {label:<22}"
-                + "".join(f" {_change(q):>16}" for q in variation.changes.values())
+                f"  {'  paper':<22}"
+                + "".join(f" {paper[name]:>+14.2f} %" for name in variation.changes)
             )
-            paper = paper_variation(variation.run, variation.base)
-            if paper is not None:
-                lines.append(
-                    f"  {'  paper':<22}"
-                    + "".join(f" {paper[name]:>+14.2f} %" for name in variation.changes)
-                )
-        bases = dict.fromkeys(phrase for v in variations for phrase in v.basis)
-        lines.append(f"  ± of a change: {'; '.join(bases)}")
-    if paper_names:
-        lines += ["", "Notes on the paper's numbers:"]
-        lines += [f"  - {note}" for note in consistency_notes(present)]
-    return "\n".join(lines)
+    bases = dict.fromkeys(phrase for v in variations for phrase in v.basis)
+    lines.append(f"  ± of a change: {'; '.join(bases)}")
+    return lines
 
 
 def summary_json(

@@ -6,6 +6,9 @@ table=...)``) fits the model and gives ``d.failures`` (bands where it fails), ``
 (candidate effects fitted and tested, best first), ``d.residuals()`` (magnitude error in %,
 phase error in degrees); ``d.with_effect("fixture(58)")`` adds an effect in one step and
 ``d.auto()`` climbs the ladder until the error reaches the noise floor.
+
+A layer under the public API (:mod:`viscorig.api`, ``viscorig.open_campaign``): importable for work
+the API does not wrap, not documented as a second API; its names may change between versions.
 """
 
 from viscorig.diagnosis.core import (

@@ -252,18 +252,7 @@ def read_sdf_file(path: str | Path) -> SdfFile:
         Not an SDF file, another revision, a waterfall of several scans, a truncated or
         inconsistent record.
     """
-    path = Path(path)
-    where = str(path)
-    try:
-        size = path.stat().st_size
-        if size > MAX_SDF_BYTES:
-            raise InputError(f"{size} bytes; an SDF file is read up to {MAX_SDF_BYTES} (the "
-                             "analysers save to 1.44 MB disks)", where)
-        data = path.read_bytes()
-    except OSError as error:
-        raise InputError(f"cannot read the file ({error.strerror})", where) from None
-    if data[:2] != FILE_ID:
-        raise InputError("not an SDF file (it does not start with 'B\\0')", where)
+    data, where = _read_file(Path(path))
     b = _Bytes(data, where)
     head = 2
     (revision, application) = b.unpack("hh", head + 6, "file header")
@@ -291,11 +280,7 @@ def read_sdf_file(path: str | Path) -> SdfFile:
                          f"Y data record offset {ydata_at} is not in the file", where)
     y_end = ydata_at + b.record(ydata_at, YDATA, "Y data record")
     y_cursor = ydata_at + 6
-    x_cursor = x_end = None
-    if xdata_at >= 0 and n_xdata > 0:
-        x_end = xdata_at + b.record(xdata_at, XDATA, "X data record")
-        x_cursor = xdata_at + 6
-    file_axis: NDArray[np.float64] | None = None
+    x_axes = _XAxes(b, xdata_at, n_xdata)
     traces: list[SdfTrace] = []
     cursor = data_at
     for index in range(n_data):
@@ -309,28 +294,7 @@ def read_sdf_file(path: str | Path) -> SdfFile:
             raise InputError(f"{what}: {h.rows * h.cols} trace(s) of {h.points} points need "
                              f"{needed} bytes; the Y data record has {y_end - y_cursor} left",
                              where)
-        if h.x_resolution in (0, 1):
-            n = np.arange(h.points, dtype=float)
-            with np.errstate(over="ignore", invalid="ignore"):
-                axis = (h.first_x + h.delta_x * n if h.x_resolution == 0
-                        else h.first_x * h.delta_x ** n)
-        elif h.x_resolution in (2, 3):
-            if x_cursor is None or x_end is None:
-                raise InputError(f"{what}: arbitrary X resolution but no X data record", where)
-            if h.x_resolution == 2 and file_axis is not None:
-                axis = file_axis
-            else:
-                per = max(h.x_per_point, 1)
-                raw = b.numbers(x_cursor, h.x_type, h.points * per, x_end, f"{what}: X data")
-                axis = raw[::per].astype(float)
-                x_cursor += raw.nbytes
-                file_axis = axis if h.x_resolution == 2 else file_axis
-        else:
-            raise InputError(f"{what}: X resolution type {h.x_resolution} is not read "
-                             "(0 linear, 1 logarithmic, 2 or 3 arbitrary)", where)
-        if axis.size != h.points:
-            raise InputError(f"{what}: the X axis has {axis.size} points, the data header "
-                             f"{h.points}", where)
+        axis = x_axes.axis(h, what)
         valid = np.arange(h.points) <= h.last_valid
         if (measurement in (FFT_MEASUREMENT, FFT_NETWORK_MEASUREMENT)
                 and 0 <= start_index <= stop_index):
@@ -342,23 +306,88 @@ def read_sdf_file(path: str | Path) -> SdfFile:
                                  f"{len(vectors)}", where)
             raw = b.numbers(y_cursor, h.y_type, per_trace, y_end, f"{what}: Y data")
             y_cursor += raw.nbytes
-            values = raw.astype(float)
-            if h.complex:
-                values = values[0::2] + 1j * values[1::2]
-            values = values[:: max(h.y_per_point, 1)]
-            response, reference, *powers = vectors[number]
-            traces.append(SdfTrace(
-                title=h.title, domain=h.domain, data_type=h.data_type, x=axis,
-                x_unit=h.x_unit, values=values,
-                response=_channel(channels, response, what, where),
-                reference=_channel(channels, reference, what, where),
-                powers=(powers[0], powers[1]), y_unit=h.y_unit if h.y_unit_valid else "",
-                valid=valid,
-            ))
+            traces.append(_trace(h, raw, axis, valid, vectors[number], channels, what, where))
     if y_cursor != y_end:
         raise InputError(f"Y data record holds {y_end - ydata_at - 6} bytes, the data headers "
                          f"describe {y_cursor - ydata_at - 6}", where)
     return SdfFile(where, revision, application, measurement, scans, traces)
+
+
+def _read_file(path: Path) -> tuple[bytes, str]:
+    """The file's bytes (at most :data:`MAX_SDF_BYTES`) and its name for messages."""
+    where = str(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_SDF_BYTES:
+            raise InputError(f"{size} bytes; an SDF file is read up to {MAX_SDF_BYTES} (the "
+                             "analysers save to 1.44 MB disks)", where)
+        data = path.read_bytes()
+    except OSError as error:
+        raise InputError(f"cannot read the file ({error.strerror})", where) from None
+    if data[:2] != FILE_ID:
+        raise InputError("not an SDF file (it does not start with 'B\\0')", where)
+    return data, where
+
+
+class _XAxes:
+    """The X axis of each data header: computed (linear, logarithmic) or read in turn from the
+    X data record (arbitrary; resolution type 2 shares the first one read by the file)."""
+
+    def __init__(self, b: _Bytes, xdata_at: int, n_xdata: int) -> None:
+        self.b = b
+        self.cursor: int | None = None
+        self.end: int | None = None
+        self.file_axis: NDArray[np.float64] | None = None
+        if xdata_at >= 0 and n_xdata > 0:
+            self.end = xdata_at + b.record(xdata_at, XDATA, "X data record")
+            self.cursor = xdata_at + 6
+
+    def axis(self, h: _DataHeader, what: str) -> NDArray[np.float64]:
+        """The X values of the points of data header ``h``."""
+        where = self.b.where
+        if h.x_resolution in (0, 1):
+            n = np.arange(h.points, dtype=float)
+            with np.errstate(over="ignore", invalid="ignore"):
+                axis = (h.first_x + h.delta_x * n if h.x_resolution == 0
+                        else h.first_x * h.delta_x ** n)
+        elif h.x_resolution in (2, 3):
+            if self.cursor is None or self.end is None:
+                raise InputError(f"{what}: arbitrary X resolution but no X data record", where)
+            if h.x_resolution == 2 and self.file_axis is not None:
+                axis = self.file_axis
+            else:
+                per = max(h.x_per_point, 1)
+                raw = self.b.numbers(self.cursor, h.x_type, h.points * per, self.end,
+                                     f"{what}: X data")
+                axis = raw[::per].astype(float)
+                self.cursor += raw.nbytes
+                self.file_axis = axis if h.x_resolution == 2 else self.file_axis
+        else:
+            raise InputError(f"{what}: X resolution type {h.x_resolution} is not read "
+                             "(0 linear, 1 logarithmic, 2 or 3 arbitrary)", where)
+        if axis.size != h.points:
+            raise InputError(f"{what}: the X axis has {axis.size} points, the data header "
+                             f"{h.points}", where)
+        return axis
+
+
+def _trace(h: _DataHeader, raw: NDArray, axis: NDArray[np.float64], valid: NDArray[np.bool_],
+           vector: tuple[int, int, int, int], channels: list[SdfChannel], what: str,
+           where: str) -> SdfTrace:
+    """One trace of data header ``h`` from its raw Y numbers and its vector header."""
+    values = raw.astype(float)
+    if h.complex:
+        values = values[0::2] + 1j * values[1::2]
+    values = values[:: max(h.y_per_point, 1)]
+    response, reference, *powers = vector
+    return SdfTrace(
+        title=h.title, domain=h.domain, data_type=h.data_type, x=axis,
+        x_unit=h.x_unit, values=values,
+        response=_channel(channels, response, what, where),
+        reference=_channel(channels, reference, what, where),
+        powers=(powers[0], powers[1]), y_unit=h.y_unit if h.y_unit_valid else "",
+        valid=valid,
+    )
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,9 @@ Table 1 and as the error measure diagnosis compares models by. The noise model s
 core (noise floor, standard errors, significance tests) is in :mod:`viscorig.fitting.noise`
 (estimated from the data by :mod:`viscorig.fitting.noise_estimation`); how it and the inherited
 parameters enter the standard errors is in :mod:`viscorig.fitting.uncertainty`.
+
+A layer under the public API (:mod:`viscorig.api`, ``viscorig.open_campaign``): importable for work
+the API does not wrap, not documented as a second API; its names may change between versions.
 """
 
 from viscorig.fitting.baseline import nelder_mead_fit

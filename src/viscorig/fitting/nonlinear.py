@@ -44,7 +44,7 @@ from viscorig.fitting.noise_estimation import estimate_noise
 from viscorig.fitting.result import FitResult
 from viscorig.fitting.starts import linear_start
 from viscorig.fitting.uncertainty import CORRELATION_WARNING, Known, fit_covariance, si_jacobian
-from viscorig.models import Maxwell, Model, parse_spec
+from viscorig.models import Context, Maxwell, Model, parse_spec
 
 __all__ = ["CORRELATION_WARNING", "WEIGHTINGS", "fit", "resolve_frfs"]
 
@@ -253,9 +253,25 @@ def _select_order(
             break
     eligible = [r for r in results.values() if r.spec not in degenerate]
     chosen_one = min(eligible or list(results.values()), key=lambda result: result.bic)
-    # The comparison needs only coarse convergence; the chosen variant is then refined, and
-    # reduced while the refined fit leaves an arm dead.
-    best = _fit_concrete(chosen_one.model, data, frfs, fixed, chosen_one.values, noise,
+    best = _refine_chosen(chosen_one, data, frfs, fixed, noise, known, weighting, by_order,
+                          results, degenerate)
+    ordered = [results[spec] for spec in by_spec if spec in results]
+    best.candidates = [(r.spec, r.bic, r.rms_error) for r in ordered]
+    best.warnings += [
+        f"{spec} not chosen: {why} (it is the order below in disguise)"
+        for spec, why in degenerate.items()
+        if spec != best.spec
+    ]
+    return best
+
+
+def _refine_chosen(chosen: FitResult, data: FrfData, frfs: tuple[str, ...],
+                   fixed: Mapping[str, float], noise: NoiseModel, known: Known | None,
+                   weighting: str, by_order: Mapping[int | None, Model],
+                   results: dict[str, FitResult], degenerate: dict[str, str]) -> FitResult:
+    """The order search's choice refitted to full convergence with ``weighting``, and reduced
+    while the refined fit leaves an arm dead (``results`` and ``degenerate`` updated)."""
+    best = _fit_concrete(chosen.model, data, frfs, fixed, chosen.values, noise,
                          known=known, weighting=weighting)
     while (dead := dead_arms(best)) and (maxwell_order(best.model) or 0) > len(dead):
         degenerate[best.spec] = "; ".join(dead.values())
@@ -265,13 +281,6 @@ def _select_order(
                              weighting=weighting)
         if lower.spec not in results or best.bic < results[lower.spec].bic:
             results[lower.spec] = best
-    ordered = [results[spec] for spec in by_spec if spec in results]
-    best.candidates = [(r.spec, r.bic, r.rms_error) for r in ordered]
-    best.warnings += [
-        f"{spec} not chosen: {why} (it is the order below in disguise)"
-        for spec, why in degenerate.items()
-        if spec != best.spec
-    ]
     return best
 
 
@@ -348,13 +357,7 @@ def _fit_concrete(
     weighting: str = "uniform",
 ) -> FitResult:
     free = tuple(name for name in model.names if name not in fixed)
-    if start and all(name in start for name in free):  # a complete start: no linear start
-        values = {**model.defaults(), **fixed}
-        values.update({name: model.by_name[name].clip(float(start[name])) for name in free})
-    else:
-        values = linear_start(model, data, frfs, fixed)
-        if start:
-            values.update({k: v for k, v in start.items() if k in values and k not in fixed})
+    values = _start_values(model, data, frfs, fixed, start, free)
     coordinates = _Coordinates(model, free)
     ctx = data.context()
     measured = [data.frf(name) for name in frfs]
@@ -436,7 +439,35 @@ def _fit_concrete(
         )  # fmt: skip
     fitted = coordinates.to_values(solution.x)
     values.update(zip(free, fitted, strict=True))
-    r = residual(solution.x)
+    return _result(model, data, frfs, values, free, coordinates, solution, (lower, upper),
+                   residual(solution.x), noise, known, weights, ctx, measured)
+
+
+def _start_values(model: Model, data: FrfData, frfs: tuple[str, ...],
+                  fixed: Mapping[str, float], start: Mapping[str, float] | None,
+                  free: tuple[str, ...]) -> dict[str, float]:
+    """Every parameter's start: a complete ``start`` as given (clipped to the bounds), else
+    the linear start with what ``start`` gives over it."""
+    if start and all(name in start for name in free):  # a complete start: no linear start
+        values = {**model.defaults(), **fixed}
+        values.update({name: model.by_name[name].clip(float(start[name])) for name in free})
+        return values
+    values = linear_start(model, data, frfs, fixed)
+    if start:
+        values.update({k: v for k, v in start.items() if k in values and k not in fixed})
+    return values
+
+
+def _result(model: Model, data: FrfData, frfs: tuple[str, ...], values: dict[str, float],
+            free: tuple[str, ...], coordinates: _Coordinates, solution: OptimizeResult,
+            bounds: tuple[NDArray[np.float64], NDArray[np.float64]], r: NDArray[np.float64],
+            noise: NoiseModel, known: Known | None, weights: NDArray[np.float64] | None,
+            ctx: Context, measured: list[NDArray[np.complex128]]) -> FitResult:
+    """The :class:`FitResult` of a solved fit: error measures, uncertainty (with what was
+    inherited), warnings, residuals."""
+    fitted = coordinates.to_values(solution.x)
+    lower, upper = bounds
+    weighted = weights is not None
     n, k = r.size, len(free)
     rss = float(r @ r)
     half = r.size // 2

@@ -1,7 +1,15 @@
-"""The result of a fit: values, uncertainties, error measures, and the fitted model."""
+"""The fit: values, uncertainties, error measures, and the fitted model.
+
+:class:`FitResult` is the one representation of a fit in the package: fitting makes it,
+:func:`viscorig.identify.store_fit` writes it to the campaign file and
+:func:`viscorig.identify.read_fit` reads it back, and :mod:`viscorig.compare`, the report and the
+public API (:class:`viscorig.api.Fit` shows one in a notebook) consume it.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -9,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.fitting.noise import NoiseModel
-from viscorig.models import Context, Model
+from viscorig.models import Context, Model, parse_spec
 
 
 class Estimate(NamedTuple):
@@ -80,6 +88,13 @@ class FitResult:
         ``[Re; Im]`` of the points (``free × 2N``, FRFs in the order of ``frfs``, points in the
         order of ``frequency_hz``): ``δp = −influence @ ε``. Two fits of runs measured at the
         same frequencies are compared through it (:mod:`viscorig.compare`).
+    source
+        Where the fit comes from, in words for legends and the page (``"fitted here"``,
+        ``"stored fit 0002"``, ``"diagnosis ladder"``).
+    stored
+        Read back from a campaign file: only what the file keeps is known (values, standard
+        errors, their correlation, the error measures); every parameter with a standard error
+        counts as fitted, and there are no residuals.
     """
 
     model: Model
@@ -107,12 +122,45 @@ class FitResult:
     inherited_from: str = ""
     weighting: str = "uniform"
     influence: NDArray[np.float64] | None = field(default=None, repr=False)
+    source: str = ""
+    stored: bool = False
 
     def __post_init__(self) -> None:
         if not self.covariance_names:
             self.covariance_names = tuple(self.free)
         if self.joint_covariance is None:
             self.joint_covariance = np.asarray(self.covariance)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # a Model keys its terms by id(): it travels as its spec and is rebuilt on arrival
+        state = dict(self.__dict__)
+        state["model"] = self.model.spec
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        state = dict(state)
+        state["model"] = parse_spec(state["model"])
+        self.__dict__.update(state)
+
+    @property
+    def has_disc(self) -> bool:
+        """A specimen model (it predicts K*), not the bare table."""
+        term = self.model.modulus_term
+        return term is not None and term.has_disc
+
+    def standard_error(self, name: str) -> float:
+        """Standard uncertainty of one parameter from :attr:`joint_covariance` (NaN when the
+        parameter has none: held fixed exactly, or not in the model)."""
+        if name not in self.covariance_names:
+            return math.nan
+        i = self.covariance_names.index(name)
+        return float(math.sqrt(max(np.asarray(self.joint_covariance)[i, i], 0.0)))
+
+    def block(self, rows: Sequence[str], columns: Sequence[str]) -> NDArray[np.float64]:
+        """The joint covariance between two lists of parameter names."""
+        r = [self.covariance_names.index(name) for name in rows]
+        c = [self.covariance_names.index(name) for name in columns]
+        return np.asarray(self.joint_covariance)[np.ix_(r, c)]
 
     @property
     def inherited(self) -> tuple[str, ...]:

@@ -56,6 +56,7 @@ from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.prony import PronySeries, fit_prony_terms
 from viscorig.materials.shiftfunctions import GAS_CONSTANT_J_PER_MOL_K, KELVIN
+from viscorig.numbers import with_uncertainty
 
 FORMATS = ("abaqus", "ansys", "lsdyna")
 #: Cards ``GI, BETAI, KI, BETAKI`` that *MAT_GENERAL_VISCOELASTIC reads (LS-DYNA manual, MAT_076).
@@ -101,7 +102,7 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
     fit = master.prony_fit
     function = master.shift_function
     shift = "none fitted" if function is None else ", ".join(
-        f"{name} = {entry['value']:.6g} ± {entry['stderr']:.2g} {entry['unit']}"
+        f"{name} = {with_uncertainty(entry['value'], entry['stderr'], entry['unit'])}"
         for name, entry in function.to_json()["parameters"].items())
     lines = [
         f"viscorig {__version__}: linear viscoelastic material from a master curve",

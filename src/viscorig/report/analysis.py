@@ -24,125 +24,36 @@ import itertools
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from types import ModuleType
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from viscorig.compare import Estimates
 from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
 from viscorig.executor import default_jobs, executor
-from viscorig.fitting import FitResult, estimate_noise
+from viscorig.fitting import FitResult, estimate_noise, fit
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
     TableSource,
     is_bare_table,
+    read_fit,
     run_data,
     summarize,
 )
-from viscorig.models import Context, Model, parse_spec
 from viscorig.rig import RigDescription
-from viscorig.storage import INPUT_OVERLOAD, Campaign, Fit, Run
+from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
 
+_diagnosis: ModuleType | None
 try:  # diagnosis is optional: the report is built without its sections when it is absent
     from viscorig import diagnosis as _diagnosis
 except ImportError:  # pragma: no cover - depends on the installed tree
     _diagnosis = None
 
 _log = logging.getLogger(__name__)
-
-
-@dataclass
-class ModelCurve:
-    """A fitted model as the report shows it: plain values, picklable, evaluated on demand.
-
-    Attributes
-    ----------
-    spec
-        Canonical model spec.
-    source
-        Where it comes from, for legends and the page ("stored fit 0002", "diagnosis ladder").
-    values
-        Every parameter's value by name.
-    stderr
-        Standard error of every parameter the fit estimated (NaN when unknown).
-    free
-        Names of the estimated parameters.
-    estimates
-        What comparisons and uncertainty bands need (:class:`viscorig.compare.Estimates`): the
-        joint covariance of the fitted and inherited parameters (for a stored fit, from its
-        standard errors and correlation matrix), and a fit's residuals and their influence.
-    rms_error, noise_floor
-        As fitted (or stored).
-    frfs
-        FRFs fitted.
-    """
-
-    spec: str
-    source: str
-    values: dict[str, float]
-    stderr: dict[str, float]
-    free: tuple[str, ...]
-    estimates: Estimates
-    rms_error: float
-    noise_floor: float
-    frfs: tuple[str, ...] = ("table", "support")
-
-    @classmethod
-    def from_fit(cls, result: FitResult, source: str) -> ModelCurve:
-        """From a fit made here."""
-        return cls(result.spec, source, {k: float(v) for k, v in result.values.items()},
-                   {name: float(result.stderr.get(name, math.nan)) for name in result.free},
-                   tuple(result.free), Estimates.of(result), float(result.rms_error),
-                   float(result.noise_floor), tuple(result.frfs))
-
-    @classmethod
-    def from_stored(cls, stored: Fit) -> ModelCurve:
-        """From a fit stored in the campaign file."""
-        model = parse_spec(stored.model)
-        values = {name: parameter.value for name, parameter in stored.parameters.items()}
-        missing = sorted(set(model.names) - set(values))
-        if missing:
-            raise InputError(f"stored fit {stored.id} lacks {', '.join(missing)}",
-                             f"run '{stored.run}'")
-        estimates = Estimates.of(stored)
-        known = {name: estimates.stderr(name) for name in estimates.covariance_names}
-        return cls(model.spec, f"stored fit {stored.id}", values, known, tuple(known),
-                   estimates, stored.rms_error, stored.noise_floor)
-
-    @property
-    def model(self) -> Model:
-        """The model, rebuilt from the spec (once, by :attr:`estimates`)."""
-        return self.estimates.model
-
-    @property
-    def has_disc(self) -> bool:
-        """A specimen model (it predicts K*), not the bare table."""
-        term = self.model.modulus_term
-        return term is not None and term.has_disc
-
-    @property
-    def parameters(self) -> dict[str, tuple[float, float, str]]:
-        """``{name: (value, stderr, unit)}`` in the model's order; stderr NaN when fixed."""
-        return {p.name: (self.values[p.name], self.stderr.get(p.name, math.nan), p.unit)
-                for p in self.model.parameters}
-
-    @property
-    def ratio(self) -> float:
-        """``rms_error / noise_floor`` (NaN when the floor is unknown)."""
-        return self.rms_error / self.noise_floor if self.noise_floor > 0 else math.nan
-
-    def predict(self, frequency_hz, time_s=None, reference=None
-                ) -> dict[str, NDArray[np.complex128]]:
-        """The model's accelerances on any grid."""
-        return self.model.predict(Context(np.asarray(frequency_hz, float), time_s, reference),
-                                  self.values)
-
-    def kstar(self, frequency_hz) -> NDArray[np.complex128]:
-        """``K*`` (N/m) on any grid."""
-        return self.model.kstar(Context(np.asarray(frequency_hz, float)), self.values)
 
 
 @dataclass(frozen=True)
@@ -192,7 +103,8 @@ class Climb:
     """What the diagnosis of one run found, as plain data (returned by a worker process)."""
 
     rungs: list[Rung]
-    final: ModelCurve
+    final: FitResult
+    """The fit of the last rung (its ``noise_floor`` the diagnosis's)."""
     failures: list
     candidates: list[Candidate]
     """The first rung's candidate effects, best first."""
@@ -219,8 +131,8 @@ class ShownResidual:
 @dataclass
 class ModulusCurves:
     """``K*`` of a specimen run against frequency: Eq. (5) estimates and a model's, with the
-    model's ``K'`` and ``η`` uncertainty band (``band``, ``K'`` in N/m: θ = 1) and what a
-    comparison of two runs' models needs (``estimates``)."""
+    model's ``K'`` and ``η`` uncertainty band (``band``, ``K'`` in N/m: θ = 1) and the fit
+    itself, for comparing two runs' models (``fit``)."""
 
     frequency_hz: NDArray[np.float64]
     measured: NDArray[np.complex128]
@@ -229,7 +141,7 @@ class ModulusCurves:
     source: str
     disc_mass_kg: float
     band: ModulusBand | None = None
-    estimates: Estimates | None = None
+    fit: FitResult | None = None
 
 
 @dataclass
@@ -239,7 +151,7 @@ class RunAnalysis:
     run: Run
     bare: bool
     band_hz: tuple[float, float]
-    shown: ModelCurve | None = None
+    shown: FitResult | None = None
     residuals: list[ShownResidual] = field(default_factory=list)
     modulus: ModulusCurves | None = None
     summary: RunSummary | None = None
@@ -303,7 +215,7 @@ def _in_band(run: Run, band: tuple[float, float]) -> NDArray[np.intp]:
     return keep[np.argsort(run.frequency_hz[keep])]
 
 
-def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[ShownResidual]:
+def _residuals(run: Run, curve: FitResult, band: tuple[float, float]) -> list[ShownResidual]:
     """The shown model's residual of each FRF, beside the local σ of the run's noise model
     (estimated on the same points as a fit of the band estimates it)."""
     data = run_data(run).in_band(band)
@@ -322,7 +234,7 @@ def _residuals(run: Run, curve: ModelCurve, band: tuple[float, float]) -> list[S
                         noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
 
 
-def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
+def _modulus(run: Run, curve: FitResult, band: tuple[float, float], source: str
              ) -> ModulusCurves:
     index = _in_band(run, band)
     f = run.frequency_hz[index]
@@ -330,7 +242,7 @@ def _modulus(run: Run, curve: ModelCurve, band: tuple[float, float], source: str
     measured = kstar_from_support(f, run.accelerance_support[index], mass)
     grid = np.linspace(f.min(), f.max(), 121) if f.size else f
     return ModulusCurves(f, measured, curve.kstar(f), curve.spec, source, mass,
-                         modulus_band(curve.estimates, grid, 1.0), curve.estimates)
+                         modulus_band(curve, grid, 1.0), curve)
 
 
 class ReadOnce:
@@ -360,20 +272,21 @@ class ReadOnce:
 _READ: dict[tuple[str, int, int], ReadOnce] = {}
 
 
-def read_once(path: str, campaign: Campaign | None = None) -> ReadOnce:
+def read_once(path: str, campaign: Campaign | None = None) -> Campaign:
     """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
-    unless ``campaign`` is given)."""
+    unless ``campaign`` is given), typed as the campaign it stands in for: it answers every
+    attribute but :meth:`ReadOnce.run` with the campaign's own."""
     from pathlib import Path
 
     try:
         stat = Path(path).stat()
     except OSError:
-        return ReadOnce(Campaign.open(path))  # which says what is wrong with the path
+        return cast(Campaign, ReadOnce(Campaign.open(path)))  # which says what is wrong
     key = (str(Path(path).resolve()), stat.st_mtime_ns, stat.st_size)
     if key not in _READ:
         _READ.clear()  # one campaign at a time
         _READ[key] = ReadOnce(campaign if campaign is not None else Campaign.open(path))
-    return _READ[key]
+    return cast(Campaign, _READ[key])
 
 
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
@@ -383,6 +296,8 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
     Runs in a worker process: it opens the campaign itself and returns nothing that holds a
     fitted model object.
     """
+    if _diagnosis is None:  # analyse_campaign asks for no ladder then
+        return "the diagnosis package is not installed"
     started = time.perf_counter()
     try:
         with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
@@ -413,8 +328,8 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
                           () if added else tuple(removed)))
     first, last = steps[0], steps[-1]
     source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
-    final = ModelCurve.from_fit(last.fit, f"{source}, both FRFs")
-    final.noise_floor = float(last.noise_floor)
+    final = replace(last.fit, source=f"{source}, both FRFs",
+                    noise_floor=float(last.noise_floor))
     return Climb(rungs, final, list(last.failures), [Candidate.of(f) for f in first.findings],
                  [Candidate.of(f) for f in last.significant], list(last.advice), seconds,
                  climbed)
@@ -459,8 +374,6 @@ def analyse_campaign(
         ``tcp://HOST:PORT`` of a Dask cluster whose workers climb the ladders instead
         (:mod:`viscorig.executor`).
     """
-    from viscorig.fitting import fit
-
     started = time.perf_counter()
     campaign = read_once(str(campaign.path), campaign)
     rig = RigDescription.from_attributes(campaign.rig)
@@ -479,63 +392,17 @@ def analyse_campaign(
     analyses: list[RunAnalysis] = []
     requests: list[tuple[str, tuple[float, float], str]] = []
     for run in runs:
-        bare = is_bare_table(run)
-        if not run.points:
-            band = band_hz
-        elif bare:  # the table's own band, which covers its resonance
-            band = (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
-        else:
-            band = _band(run, band_hz)
-        analysis = RunAnalysis(run, bare, band, summary=by_name.get(run.name))
+        analysis = RunAnalysis(run, is_bare_table(run), _run_band(run, band_hz),
+                               summary=by_name.get(run.name))
         analyses.append(analysis)
-        if run.points < 10:
-            continue
-        stored = campaign.fits(run.name)
-        if stored:
-            try:
-                analysis.shown = ModelCurve.from_stored(stored[-1])
-            except InputError as error:
-                analysis.notes.append(f"stored fit not shown: {error}")
-        if bare or not use_diagnosis:
-            continue
-        if table is None:
-            analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
-                                        "run, no /rig values)")
-            continue
-        spec = "voigt"
-        if analysis.shown is not None and analysis.shown.has_disc:
-            spec = analysis.shown.spec
-            analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
-        requests.append((run.name, band, spec))
+        spec = _first_look(campaign, analysis, table, use_diagnosis)
+        if spec is not None:
+            requests.append((run.name, analysis.band_hz, spec))
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     climbs, workers = ({}, 1) if not requests else _climb_all(
         str(campaign.path), requests, ladder, jobs, scheduler)
     for analysis in analyses:
-        outcome = climbs.get(analysis.name)
-        if isinstance(outcome, str):
-            analysis.diagnosis_error = outcome
-        elif outcome is not None:
-            analysis.climb = outcome
-            analysis.shown = outcome.final
-        if analysis.shown is None and analysis.summary is not None:
-            frfs = "X_s/F_e" if not analysis.bare else "the bare table"
-            analysis.shown = ModelCurve.from_fit(analysis.summary.fit, f"fitted here to {frfs}")
-        run, band = analysis.run, analysis.band_hz
-        if analysis.shown is not None and run.points >= 10:
-            analysis.residuals = _residuals(run, analysis.shown, band)
-        if analysis.bare or run.points < 10:
-            continue
-        shown = analysis.shown
-        try:
-            if analysis.climb is not None and shown is not None and shown.has_disc:
-                analysis.modulus = _modulus(run, shown, band, f"{shown.spec} ({shown.source})")
-            else:
-                result = fit("maxwell", run_data(run), frfs=("support",), band_hz=band,
-                             fixed=table.values if table is not None else None)
-                analysis.modulus = _modulus(run, ModelCurve.from_fit(result, "Maxwell fit"),
-                                            band, "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)")
-        except (InputError, ValueError, np.linalg.LinAlgError) as error:
-            analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
+        _complete(analysis, climbs.get(analysis.name), table)
     if not use_diagnosis:
         notes.append("diagnosis sections left out: "
                      + ("the diagnosis package is not installed" if _diagnosis is None
@@ -546,6 +413,72 @@ def analyse_campaign(
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
                             min(workers, max(1, len(requests))))
+
+
+def _run_band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
+    """The band a run is analysed in: ``band_hz`` clipped to the run; a bare table's own band,
+    which covers its resonance."""
+    if not run.points:
+        return band_hz
+    if is_bare_table(run):
+        return float(run.frequency_hz.min()), float(run.frequency_hz.max())
+    return _band(run, band_hz)
+
+
+def _first_look(campaign: Campaign, analysis: RunAnalysis, table: TableSource | None,
+                use_diagnosis: bool) -> str | None:
+    """Show the run's latest stored fit; the spec its diagnosis starts from, or ``None`` when
+    it is not diagnosed (too few points, the bare table, no table values, no diagnosis)."""
+    run = analysis.run
+    if run.points < 10:
+        return None
+    stored = campaign.fits(run.name)
+    if stored:
+        try:
+            analysis.shown = read_fit(stored[-1])
+        except InputError as error:
+            analysis.notes.append(f"stored fit not shown: {error}")
+    if analysis.bare or not use_diagnosis:
+        return None
+    if table is None:
+        analysis.diagnosis_error = ("the table's M_s, K_s, C_s are unknown (no bare-table "
+                                    "run, no /rig values)")
+        return None
+    spec = "voigt"
+    if analysis.shown is not None and analysis.shown.has_disc:
+        spec = analysis.shown.spec
+        analysis.notes.append(f"diagnosis started from {analysis.shown.source} ({spec})")
+    return spec
+
+
+def _complete(analysis: RunAnalysis, outcome: Climb | str | None,
+              table: TableSource | None) -> None:
+    """The model shown (the ladder's last rung, else the stored or Table 1 fit), its residuals
+    and, for a specimen, K* from Eq. (5) with a model's."""
+    if isinstance(outcome, str):
+        analysis.diagnosis_error = outcome
+    elif outcome is not None:
+        analysis.climb = outcome
+        analysis.shown = outcome.final
+    if analysis.shown is None and analysis.summary is not None:
+        frfs = "X_s/F_e" if not analysis.bare else "the bare table"
+        analysis.shown = replace(analysis.summary.fit, source=f"fitted here to {frfs}")
+    run, band = analysis.run, analysis.band_hz
+    if analysis.shown is not None and run.points >= 10:
+        analysis.residuals = _residuals(run, analysis.shown, band)
+    if analysis.bare or run.points < 10:
+        return
+    shown = analysis.shown
+    try:
+        if analysis.climb is not None and shown is not None and shown.has_disc:
+            analysis.modulus = _modulus(run, shown, band, f"{shown.spec} ({shown.source})")
+        else:
+            result = fit("maxwell", run_data(run), frfs=("support",), band_hz=band,
+                         fixed=table.values if table is not None else None)
+            analysis.modulus = _modulus(run, replace(result, source="Maxwell fit"),
+                                        band, "Maxwell fit of ẍ_v/F_v (K* of Eq. 5)")
+    except (InputError, ValueError, np.linalg.LinAlgError) as error:
+        analysis.notes.append(f"K* from Eq. 5 not fitted: {error}")
 
 
 def storage_and_loss(curves: ModulusCurves, theta_m: float | None

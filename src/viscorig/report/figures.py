@@ -247,9 +247,9 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     pairs = {name: (members[0], members[-1]) for name, members in groups.items()
              if len(members) >= 2 and members[-1].run.metadata.preload_strain
              > members[0].run.metadata.preload_strain
-             and members[0].modulus is not None and members[0].modulus.estimates is not None
+             and members[0].modulus is not None and members[0].modulus.fit is not None
              and members[-1].modulus is not None
-             and members[-1].modulus.estimates is not None}
+             and members[-1].modulus.fit is not None}
     if not pairs:
         return None
     figure = Figure(figsize=(10.4, 3.4), layout=None)
@@ -260,7 +260,8 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
         lo = max(before.frequency_hz.min(), after.frequency_hz.min())
         hi = min(before.frequency_hz.max(), after.frequency_hz.max())
         f = np.linspace(lo, hi, 61)
-        pair = Pair(before.estimates, after.estimates)
+        assert before.fit is not None and after.fit is not None  # kept by the filter above
+        pair = Pair(before.fit, after.fit)
         colour = RUBBER_COLOURS[index % len(RUBBER_COLOURS)]
         label = f"{name}: {loaded.name} vs {none.name}"
         for ax, part in ((stiffness_ax, storage_stiffness_of), (loss_ax, loss_factor_of)):

@@ -93,6 +93,7 @@ def main_parameters(run: RunAnalysis) -> list[str]:
         if name not in parameters or (name in ("M_s", "K_s", "C_s") and not run.bare):
             continue
         value, stderr, unit = parameters[name]
+        stderr = stderr if name in shown.free else math.nan
         out.append(f"{name} {with_uncertainty(value, stderr, unit)}")
     return out
 
@@ -148,7 +149,7 @@ def headline(run: RunAnalysis) -> Headline:
     if shown is None:
         return Headline(run.name, describe_run(run), "", "", "no model", math.nan,
                         fails=failure_words(run), finding=finding(run))
-    ratio = shown.ratio
+    ratio = (shown.rms_error / shown.noise_floor if shown.noise_floor > 0 else math.nan)
     return Headline(run.name, describe_run(run), shown.spec, shown.source,
                     error_words(shown.rms_error, shown.noise_floor), ratio,
                     main_parameters(run), failure_words(run), finding(run),

@@ -22,6 +22,7 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve, build_master
 from viscorig.materials.sources import modulus_table
+from viscorig.numbers import with_uncertainty
 from viscorig.report.figures import SavedFigure, save
 from viscorig.storage import Campaign
 
@@ -35,6 +36,14 @@ class Material:
     problem: str = ""
 
 
+def _number(value: object, missing: float) -> float:
+    """A numeric run attribute as a float (0 is a value: a run at 0 °C has a temperature);
+    ``missing`` when it is absent or not a number."""
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
+        return float(value)
+    return missing
+
+
 def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
     """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures."""
     groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
@@ -42,10 +51,10 @@ def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
     for name in campaign.run_names:
         attributes = campaign.run_attributes(name)
         specimen = str(attributes.get("specimen", ""))
-        temperature = float(attributes.get("temperature_c", math.nan) or math.nan)
+        temperature = _number(attributes.get("temperature_c"), math.nan)
         if specimen.lower() in ("none", "") or not math.isfinite(temperature):
             continue
-        key = (specimen, round(float(attributes.get("preload_strain", 0.0) or 0.0), 4))
+        key = (specimen, round(_number(attributes.get("preload_strain"), 0.0), 4))
         by_specimen.setdefault(key, []).append((temperature, name))
     for members in by_specimen.values():
         if len({round(t, 1) for t, _ in members}) >= 2:
@@ -164,7 +173,7 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
                  f"{master.reference_temperature_c:.1f} °C.",
                  master.superposition.verdict[0].upper() + master.superposition.verdict[1:] + "."]
         if best is not None:
-            values = ", ".join(f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+            values = ", ".join(f"{k} = {with_uncertainty(v['value'], v['stderr'])}"
                                for k, v in best.to_json()["parameters"].items())
             fits = "describes" if best.to_json()["describes_shifts"] else "does not describe"
             words.append(f"Shift function: {best.kind} ({values}); it {fits} the shift factors "

@@ -10,8 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from viscorig.errors import InputError
-from viscorig.identify import is_bare_table
-from viscorig.report.analysis import ModelCurve, RunAnalysis
+from viscorig.identify import is_bare_table, read_fit
+from viscorig.report.analysis import RunAnalysis
 from viscorig.report.figures import frf_figure
 from viscorig.storage import Campaign
 
@@ -39,7 +39,7 @@ def plot_run(campaign_path: Path, run_name: str, out: Path) -> Path:
     stored = campaign.fits(run_name)
     if stored:
         try:
-            analysis.shown = ModelCurve.from_stored(stored[-1])
+            analysis.shown = read_fit(stored[-1])
         except InputError:
             analysis.shown = None
     figure = frf_figure(analysis)

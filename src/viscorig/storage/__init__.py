@@ -2,6 +2,9 @@
 
 Every change is an atomic commit, so a writer killed at any instant leaves a file that opens
 with every committed segment intact (:mod:`viscorig.storage.atomic`).
+
+A layer under the public API (:mod:`viscorig.api`, ``viscorig.open_campaign``): importable for work
+the API does not wrap, not documented as a second API; its names may change between versions.
 """
 
 from viscorig.storage.campaign import Campaign
@@ -14,7 +17,7 @@ from viscorig.storage.flags import (
     PointFlag,
     count_flags,
 )
-from viscorig.storage.records import Fit, FitParameter, Run, RunMetadata, RunSettings, Segment
+from viscorig.storage.records import FitParameter, FitRecord, Run, RunMetadata, RunSettings, Segment
 
 __all__ = [
     "FLAG_NAMES",
@@ -23,8 +26,8 @@ __all__ = [
     "LEVEL_NOT_REACHED",
     "SOURCE_AT_LIMIT",
     "Campaign",
-    "Fit",
     "FitParameter",
+    "FitRecord",
     "PointFlag",
     "Run",
     "RunMetadata",

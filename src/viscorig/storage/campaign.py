@@ -62,7 +62,7 @@ from numpy.typing import ArrayLike
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
-from viscorig.storage.records import Fit, Run, RunSettings, Segment
+from viscorig.storage.records import FitRecord, Run, RunSettings, Segment
 from viscorig.version import __version__
 
 
@@ -290,7 +290,7 @@ class Campaign:
         for name in self.run_names:
             yield self.run(name)
 
-    def fits(self, run_name: str) -> list[Fit]:
+    def fits(self, run_name: str) -> list[FitRecord]:
         """The fits stored for a run, oldest first."""
         where = f"/{layout.RUNS_GROUP}/{run_name}/{layout.FITS_GROUP}"
         with self._reading() as h5, reading.guarded(self.path, where):

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.storage import layout, untrusted
-from viscorig.storage.records import Fit, FitParameter, Run, RunMetadata
+from viscorig.storage.records import FitParameter, FitRecord, Run, RunMetadata
 from viscorig.storage.text import printable
 
 #: What h5py raises on damaged objects, missing members, or values of an unexpected type.
@@ -344,7 +344,7 @@ def read_run(h5: h5py.File, name: str, path: Path) -> Run:
         return Run(name=name, metadata=metadata, extra=extra, **columns)
 
 
-def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
+def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
     """The fits of a run, in id order."""
     group = run_group(h5, run_name, path)
     untrusted.check_link(group, layout.FITS_GROUP, path)
@@ -376,7 +376,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[Fit]:
             correlation = _read_correlation(fit, path)
             weighting = attribute(fit, "weighting", path)
             result.append(
-                Fit(
+                FitRecord(
                     id=fit_id,
                     run=run_name,
                     model=read_text(fit, "model", path),

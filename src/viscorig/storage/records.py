@@ -150,8 +150,10 @@ class FitParameter:
 
 
 @dataclass(frozen=True)
-class Fit:
-    """An identification result stored under ``/runs/<run>/fits/<id>``."""
+class FitRecord:
+    """A fit as the campaign file stores it under ``/runs/<run>/fits/<id>``: what the file
+    says, unchecked against the model library (:func:`viscorig.identify.read_fit` makes it the
+    fit the package uses)."""
 
     id: str
     run: str

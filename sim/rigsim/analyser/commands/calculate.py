@@ -77,10 +77,17 @@ def _bandwidth(a: Host) -> float:
 
 def register(tree: CommandTree, a: Host) -> None:
     """Register the ``CALCulate`` commands."""
+    _trace_data(tree, a)
+    _settings(tree, a)
+    _markers(tree, a)
+    _limits(tree, a)
+    _math(tree, a)
+    _curve_fit(tree, a)
+
+
+def _trace_data(t: CommandTree, a: Host) -> None:
+    """What a trace shows (feed, format) and its data, X values and point count."""
     store = a.store
-    t = tree
-    trace = {"scope": ("trace",)}
-    per_mode = {"scope": ("trace", "mode")}
     store.define("calc.feed", Spec("string", _trace_preset(_SINE_FEEDS, _FFT_FEEDS),
                                    scope=("trace", "mode")))
     store.define("calc.form", Spec("choice", _trace_preset(_SINE_FORMATS, _FFT_FORMATS),
@@ -118,6 +125,13 @@ def register(tree: CommandTree, a: Host) -> None:
     t.add("CALCulate#:X:DATA", query=x_data)
     t.add("CALCulate#:DATA:HEADer:POINts", query=points)
 
+
+def _settings(t: CommandTree, a: Host) -> None:
+    """The trace settings that are stored and read back: units, limits' switches, the
+    marker's options, math and waterfall."""
+    store = a.store
+    trace = {"scope": ("trace",)}
+    per_mode = {"scope": ("trace", "mode")}
     declare(t, store, [
         ("CALCulate#:ACTive", "calc.act", choice("A", "A", "B", "C", "D", "AB", "CD", "ABCD")),
         ("CALCulate#:GDAPerture:APERture", "calc.gdap",
@@ -194,9 +208,10 @@ def register(tree: CommandTree, a: Host) -> None:
     _string_choices(t, a, "CALCulate#:UNIT:VOLTage", "calc.unit.volt", "V2",
                     ("V", "V2", "V/RTHZ", "V2/HZ", "V2S/HZ"))
     _string_choices(t, a, "CALCulate#:UNIT:X", "calc.unit.x", "HZ", ("HZ", "CPM", "ORD", "USER"))
-    _markers(t, a)
-    _limits(t, a)
-    _math(t, a)
+
+
+def _curve_fit(t: CommandTree, a: Host) -> None:
+    """Curve fit and synthesis (option 1D3): accepted with the option, not modelled."""
     for node in ("CFIT:ABORt", "CFIT:COPY", "CFIT[:IMMediate]", "SYNThesis:COPY",
                  "SYNThesis[:IMMediate]"):
         action(t, f"CALCulate#:{node}", option="1D3", options=lambda: a.options)
@@ -236,11 +251,7 @@ def _markers(t: CommandTree, a: Host) -> None:
     store.define("calc.mark.x", Spec("real", 0.0, scope=("trace",)))
 
     def nearest(number: int, x_value: float) -> int:
-        x, _ = trace_values(a, number)
-        good = np.flatnonzero(np.isfinite(x))
-        if good.size == 0:
-            return 0
-        return int(good[np.argmin(np.abs(x[good] - x_value))])
+        return _nearest(a, number, x_value)
 
     def set_x(call: Call) -> None:
         number = _trace(call)
@@ -308,7 +319,21 @@ def _markers(t: CommandTree, a: Host) -> None:
     action(t, "CALCulate#:MARKer:MAXimum[:GLOBal]", peak)
     action(t, "CALCulate#:MARKer:MAXimum:LEFT", lambda c: peak(c, -1))
     action(t, "CALCulate#:MARKer:MAXimum:RIGHt", lambda c: peak(c, +1))
-    # the marker table: positions inserted by X value, read back as blocks
+    _marker_table(t, a)
+
+
+def _nearest(a: Host, number: int, x_value: float) -> int:
+    """Index of the displayed point of trace ``number`` nearest ``x_value``."""
+    x, _ = trace_values(a, number)
+    good = np.flatnonzero(np.isfinite(x))
+    if good.size == 0:
+        return 0
+    return int(good[np.argmin(np.abs(x[good] - x_value))])
+
+
+def _marker_table(t: CommandTree, a: Host) -> None:
+    """The marker table: positions inserted by X value, read back as blocks."""
+    store = a.store
     store.define("calc.mark.dtab", Spec("string", "", scope=("trace",)))
 
     def table(call: Call) -> list[float]:
@@ -332,7 +357,8 @@ def _markers(t: CommandTree, a: Host) -> None:
     def table_values(call: Call) -> bytes:
         number = _trace(call)
         _, values = trace_values(a, number)
-        picked = [values[nearest(number, x)] if values.size else math.nan for x in table(call)]
+        picked = [values[_nearest(a, number, x)] if values.size else math.nan
+                  for x in table(call)]
         return encode(np.array(picked, float), _data_format(a))
 
     t.add("CALCulate#:MARKer:DTABle:X:INSert", setter=insert,

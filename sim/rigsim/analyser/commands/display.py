@@ -26,9 +26,19 @@ def _x_preset(edge: str):
     return preset
 
 
+_WINDOW = "DISPlay[:WINDow#]"
+
+
 def register(tree: CommandTree, a: Host) -> None:
     """Register the ``DISPlay`` commands."""
-    window = "DISPlay[:WINDow#]"
+    _display_settings(tree, a)
+    _autoscale(tree, a)
+    _actions(tree, a)
+
+
+def _display_settings(tree: CommandTree, a: Host) -> None:
+    """The stored display settings: format, view, each trace's scales and waterfall."""
+    window = _WINDOW
     trace = {"scope": ("trace",)}
     scale = {"scope": ("trace", "mode")}
     wat = {"scope": ("trace",), "modes": _WATERFALL_MODES, "conflict": _NO_WATERFALL}
@@ -89,6 +99,11 @@ def register(tree: CommandTree, a: Host) -> None:
         (f"{window}:WATerfall[:STATe]", "disp.wat", boolean(False, **wat)),
         (f"{window}:WATerfall:TOP", "disp.wat.top", real(0.0, -9.9e37, 9.9e37, **wat)),
     ])
+
+
+def _autoscale(tree: CommandTree, a: Host) -> None:
+    """X and Y autoscale: ``ONCE`` scales to the data and leaves the setting as it was."""
+    window = _WINDOW
     store = a.store
     store.define("disp.x.auto", Spec("choice", "OFF", choices=("OFF", "ONCE"),
                                      scope=("trace",)))
@@ -120,6 +135,11 @@ def register(tree: CommandTree, a: Host) -> None:
              query=auto_query("disp.x.auto"))
     tree.add(f"{window}:TRACe:Y[:SCALe]:AUTO", setter=auto_setter("disp.y.auto", True),
              query=auto_query("disp.y.auto"))
+
+
+def _actions(tree: CommandTree, a: Host) -> None:
+    """Display actions that change nothing stored, and the 1C2 program display keys."""
+    window = _WINDOW
     action(tree, "DISPlay:BODE")
     action(tree, f"{window}:TRACe:X:MATCh#")
     action(tree, f"{window}:TRACe:Y:MATCh#")

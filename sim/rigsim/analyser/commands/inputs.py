@@ -38,6 +38,12 @@ def _channel(call: Call) -> int:
 
 def register(tree: CommandTree, a: Host) -> None:
     """Register the input and range commands."""
+    _inputs(tree, a)
+    _ranges(tree, a)
+
+
+def _inputs(tree: CommandTree, a: Host) -> None:
+    """``INPut``: which inputs are on (1 always; 3 and 4 together), coupling, filters."""
     store = a.store
     channel = {"scope": ("channel",)}
     store.define("inp.state", Spec("bool", lambda mode, index: index[0] <= 2, scope=("channel",)))
@@ -71,6 +77,11 @@ def register(tree: CommandTree, a: Host) -> None:
         ("INPut#:REFerence:POINt", "inp.ref.poin", integer(0, 0, 32767, keep=True, **channel)),
     ])
 
+
+def _ranges(tree: CommandTree, a: Host) -> None:
+    """``[SENSe:]VOLTage:RANGe``: each input's range, autorange and engineering units."""
+    store = a.store
+    channel = {"scope": ("channel",)}
     volt = "[SENSe:]VOLTage#[:DC]:RANGe"
     declare(tree, store, [
         (f"{volt}:AUTO", "volt.auto", boolean(True, **channel)),

@@ -432,11 +432,15 @@ def _guarded(a: Host, handler: Callable[[Call], object], modes: frozenset[str] |
 
 def register(tree: CommandTree, a: Host) -> None:
     """Register the mode, ``SENSe``, ``ARM`` and ``TRIGger`` commands."""
-    store = a.store
-    t = tree
     freq = Frequencies(a)
+    for part in (_register_mode, _register_frequency, _register_sweep, _register_window,
+                 _register_trigger):
+        part(tree, a, freq)
 
-    # ---------------------------------------------------------------- INSTrument
+
+def _register_mode(t: CommandTree, a: Host, freq: Frequencies) -> None:
+    """The instrument mode: ``INSTrument[:SELect]`` and ``INSTrument:NSELect``."""
+    store = a.store
     store.define("mode", Spec("choice", "FFT", choices=MODES))
 
     def select(mode: str) -> None:
@@ -468,7 +472,10 @@ def register(tree: CommandTree, a: Host) -> None:
     t.add("INSTrument:NSELect", setter=select_number,
           query=lambda c: format_int(MODES.index(a.mode)))
 
-    # ---------------------------------------------------------------- FREQuency
+
+def _register_frequency(t: CommandTree, a: Host, freq: Frequencies) -> None:
+    """``[SENSe:]FREQuency``: band, resolution, manual frequency, block size."""
+    store = a.store
     store.define("freq.start", Spec("real", _mode_preset({"SINE": 51.2}, 0.0), scope=("mode",)))
     store.define("freq.stop", Spec("real", _mode_preset({"SINE": 51200.0}, 51200.0),
                                    scope=("mode",)))
@@ -513,7 +520,10 @@ def register(tree: CommandTree, a: Host) -> None:
          choice("THIR", "FULL", "THIRd", "TWELfth", modes=frozenset({"OCT"}), option="1D1")),
     ])
 
-    # ---------------------------------------------------------------- SWEep
+
+def _register_sweep(t: CommandTree, a: Host, freq: Frequencies) -> None:
+    """``[SENSe:]SWEep`` (dwell, settle, overlap), ``AVERage``, and the other ``SENSe`` settings."""
+    store = a.store
     store.define("swe.dwel", Spec("pair", (5.0, "CYCLE"), scope=("mode",)))
     store.define("swe.stim", Spec("pair", (5.0, "CYCLE"), scope=("mode",)))
     t.add("[SENSe:]SWEep:DWELl",
@@ -600,6 +610,11 @@ def register(tree: CommandTree, a: Host) -> None:
         ("[SENSe:]ORDer:TRACk#:STATe", "ord.trac.stat",
          boolean(False, option="1D0", scope=("item:5",))),
     ])
+
+
+def _register_window(t: CommandTree, a: Host, freq: Frequencies) -> None:
+    """``[SENSe:]WINDow`` types and the average preview actions."""
+    store = a.store
     # WIND without a suffix sets every input, as the front panel's choice does; WINDn sets
     # input n (the force/exponential pair: WIND1 FORC;WIND2 EXP...) (inferred)
     store.define("wind.type", choice("FLAT", "HANNing", "FLATtop", "UNIForm", "FORCe",
@@ -617,7 +632,10 @@ def register(tree: CommandTree, a: Host) -> None:
     action(t, "[SENSe:]AVERage:PREView:ACCept")
     action(t, "[SENSe:]AVERage:PREView:REJect")
 
-    # ---------------------------------------------------------------- ARM and TRIGger
+
+def _register_trigger(t: CommandTree, a: Host, freq: Frequencies) -> None:
+    """``ARM`` and ``TRIGger``: accepted where the mode has them, never waiting in this model."""
+    store = a.store
     not_sine = frozenset({"FFT", "OCT", "ORD", "HIST", "CORR"})
     trig = {"modes": not_sine, "conflict": NO_TRIGGER}
     declare(t, store, [

@@ -1,0 +1,38 @@
+"""Which runs the report's materials section puts together: one specimen and preload measured
+at two or more temperatures, whatever the temperatures are (0 °C included)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from viscorig.report.materials import candidate_groups
+from viscorig.storage import Campaign, RunSettings, Segment
+
+
+def _segment() -> Segment:
+    f = np.linspace(20.0, 120.0, 5)
+    return Segment(frequency_hz=f, time_s=np.arange(f.size) * 2.0,
+                   accelerance_table=np.full(f.size, 1e-3 + 0j),
+                   accelerance_support=np.full(f.size, 1e-3 + 0j),
+                   reference_amplitude=np.ones(f.size), source_amplitude=np.full(f.size, 0.1),
+                   force_amplitude=np.full(f.size, 10.0), flags=np.zeros(f.size, np.uint16))
+
+
+def test_a_run_at_zero_celsius_is_grouped_and_one_of_unknown_temperature_is_not(tmp_path: Path):
+    path = tmp_path / "c.h5"
+    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+        for name, temperature, preload in (("soft-0c", 0.0, 0.0), ("soft-25c", 25.0, 0.0),
+                                           ("soft-unknown", math.nan, 0.0),
+                                           ("soft-10-0c", 0.0, 0.104),
+                                           ("soft-10-25c", 25.0, 0.104)):
+            settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
+                                   settle_cycles=100, integrate_cycles=100, resolution_hz=25.0,
+                                   preload_strain=preload, temperature_c=temperature,
+                                   simulated=True)
+            campaign.add_run(name, settings, _segment())
+    with Campaign.open(path) as campaign:
+        assert candidate_groups(campaign) == [("soft-0c", "soft-25c"),
+                                              ("soft-10-0c", "soft-10-25c")]
