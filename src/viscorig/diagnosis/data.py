@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.fitting.noise import MarkovWhitening
-from viscorig.storage import Campaign, Run
+from viscorig.storage import CampaignFile, RunRecord
 
 
 @dataclass(frozen=True)
@@ -353,14 +353,14 @@ def combine(
     )
 
 
-def _started(run: Run) -> datetime | None:
+def _started(run: RunRecord) -> datetime | None:
     try:
         return datetime.fromisoformat(str(run.metadata.started).replace("Z", "+00:00"))
     except ValueError:
         return None
 
 
-def same_specimen(a: Run, b: Run) -> bool:
+def same_specimen(a: RunRecord, b: RunRecord) -> bool:
     """The two runs measure the same specimen in the same state (text, hardness, preload)."""
     ma, mb = a.metadata, b.metadata
     hard_a, hard_b = float(ma.hardness_shore_a), float(mb.hardness_shore_a)
@@ -376,14 +376,14 @@ def same_specimen(a: Run, b: Run) -> bool:
 SAME_TEMPERATURE_K = 1.0
 
 
-def _same_temperature(a: Run, b: Run) -> bool:
+def _same_temperature(a: RunRecord, b: RunRecord) -> bool:
     ta, tb = a.metadata.temperature_c, b.metadata.temperature_c
     if math.isnan(ta) or math.isnan(tb):
         return math.isnan(ta) and math.isnan(tb)
     return abs(ta - tb) <= SAME_TEMPERATURE_K
 
 
-def recorded_temperature_range(run: Run) -> tuple[float, float] | None:
+def recorded_temperature_range(run: RunRecord) -> tuple[float, float] | None:
     """Lowest and highest per-point ``temperature_c`` of a run, or None where not recorded."""
     if "temperature_c" not in run.extra:
         return None
@@ -392,7 +392,7 @@ def recorded_temperature_range(run: Run) -> tuple[float, float] | None:
     return (float(values.min()), float(values.max())) if values.size else None
 
 
-def companions(campaign: Campaign, main: Run) -> list[Run]:
+def companions(campaign: CampaignFile, main: RunRecord) -> list[RunRecord]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
     from viscorig.identify import is_bare_table
 
@@ -412,7 +412,7 @@ def companions(campaign: Campaign, main: Run) -> list[Run]:
 
 
 def from_campaign(
-    campaign: Campaign,
+    campaign: CampaignFile,
     run_name: str,
     *,
     band_hz: tuple[float, float] | None = None,
