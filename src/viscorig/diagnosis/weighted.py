@@ -226,7 +226,7 @@ def ml_fit(
         base = cached_ratio(x)
         if "whitened" not in last:
             last["whitened"] = data.whiten(base, exact)
-        return last["whitened"]  # type: ignore[return-value]
+        return last["whitened"]
 
     prior_at = [free.index(name) for name in nuisance]
 
