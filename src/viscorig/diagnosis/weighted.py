@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -213,19 +214,19 @@ def ml_fit(
 
     # The last point evaluated: its x, residual ratio and whitened residual (the solver asks
     # for the Jacobian where it just evaluated the residual).
-    last: dict[str, object] = {}
+    last: dict[str, Any] = {}
 
     def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
         if "x" not in last or not np.array_equal(last["x"], x):
             last.clear()
             last.update(x=x.copy(), ratio=ratio(x))
-        return last["ratio"]  # type: ignore[return-value]
+        return last["ratio"]
 
     def cached_whitened(x: NDArray[np.float64]) -> NDArray[np.float64]:
         base = cached_ratio(x)
         if "whitened" not in last:
             last["whitened"] = data.whiten(base, exact)
-        return last["whitened"]  # type: ignore[return-value]
+        return last["whitened"]
 
     prior_at = [free.index(name) for name in nuisance]
 
