@@ -20,7 +20,7 @@ from agilent35670a import connection
 
 from viscorig.cli import main
 from viscorig.sequences import load_sequence
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "sequences" / "paper.toml"
@@ -68,7 +68,7 @@ def main_benchmark() -> None:
         in_process_s = time.perf_counter() - started
         if status != 0:
             raise SystemExit(f"in-process run failed with status {status}")
-        stored = sum(run.points for run in Campaign.open(out).runs())
+        stored = sum(run.points for run in CampaignFile.open(out).runs())
         size_kb = out.stat().st_size / 1024
 
     messages = counts["write"] + counts["query"] + counts["query_block"]

@@ -45,7 +45,7 @@ from viscorig.identify import (  # noqa: E402
     run_data,
     table_parameters,
 )
-from viscorig.storage import Campaign  # noqa: E402
+from viscorig.storage import CampaignFile  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -81,7 +81,7 @@ def campaign_main() -> None:
     with contextlib.redirect_stdout(io.StringIO()):
         _, sim_wall, sim_cpu = clocked(lambda: cli(
             ["run", str(ROOT / "sequences" / "paper.toml"), "--yes", "--out", str(path)]))
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     print(f"paper campaign simulated: {sim_wall:.1f} s wall, {sim_cpu:.1f} s CPU "
           f"(load {os.getloadavg()[0]:.1f}); ratios below are wall/wall and CPU/CPU")
     worst = 0.0

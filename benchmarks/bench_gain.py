@@ -30,7 +30,7 @@ from rigsim.rigfile import parse_rig
 from rigsim.server import SimulatedAnalyserServer
 
 from viscorig.cli import main
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 PAPER_S = 1643.1
 TARGETS = {"K_v": 2.09e-6, "C_v": 9.77e-6}
@@ -62,7 +62,7 @@ def run_once(folder: Path, seed: int, gain_given: bool) -> dict:
         with contextlib.redirect_stdout(io.StringIO()):
             status = main(["run", str(folder / "sequence.toml"), "--station",
                            str(folder / f"{tag}.toml"), "--out", str(out), "--yes"])
-    attributes = Campaign.open(out).run_attributes("voigt")
+    attributes = CampaignFile.open(out).run_attributes("voigt")
     return {"status": status, "test_time_s": float(attributes["test_time_s"]),
             "reason": attributes["plan_reason"], "gain": attributes.get("shaker_gain_n_per_v"),
             "gain_stderr": attributes.get("shaker_gain_stderr_n_per_v"),

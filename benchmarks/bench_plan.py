@@ -12,7 +12,7 @@ paper's 1.4 m/s² peak:
 
 Both plans are fitted by the project's estimator, as ``identify`` fits a run: each point
 weighted by its noise (:func:`viscorig.fitting.fit`, ``weighting="noise"``), the run read as
-analysis reads it (the adaptive plan's repeats merged, :meth:`viscorig.storage.Run.merged`),
+analysis reads it (the adaptive plan's repeats merged, :meth:`viscorig.storage.RunRecord.merged`),
 the noise estimated as ``identify`` estimates it; the paper's uniform weighting of the paper
 plan is shown beside it. Then a loose target (0.2 % on K_v and C_v, a damper datasheet's need),
 the floor for each rig preset of the paper (``sim/rigs``), and diagnosis on what the adaptive

@@ -37,7 +37,7 @@ from viscorig.identify import PAPER_BAND_HZ, summarize
 from viscorig.report.analysis import analyse_campaign
 from viscorig.report.figures import campaign_figures
 from viscorig.report.page import build_page
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 20.0  # for the report without the ladder; the ladder's cost is the diagnosis's
@@ -65,7 +65,7 @@ def run(ladder: bool) -> None:
     campaign_path = folder / "paper.h5"
     _, sim_wall, sim_cpu = timed(lambda: main_quiet(
         ["run", str(ROOT / "sequences" / "paper.toml"), "--yes", "--out", str(campaign_path)]))
-    campaign = Campaign.open(campaign_path)
+    campaign = CampaignFile.open(campaign_path)
     points = sum(campaign.run(name).points for name in campaign.run_names)
     print(f"campaign: {len(campaign.run_names)} runs, {points} points (simulated in "
           f"{sim_wall:.1f} s wall, {sim_cpu:.1f} s CPU; load {os.getloadavg()[0]:.1f})")

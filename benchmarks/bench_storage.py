@@ -26,7 +26,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 SETTINGS = RunSettings(specimen="soft", level_m_per_s2=1.4, direction="up", settle_cycles=100,
                        integrate_cycles=100, resolution_hz=0.25)
@@ -52,7 +52,7 @@ def in_place_append(path: Path, run: str, part: Segment) -> None:
 def time_commits(folder: Path, durable: bool | None, runs: int = 7, points: int = 400) -> float:
     """Mean seconds per segment appended over a whole campaign (None: in place)."""
     path = folder / f"bench-{durable}.h5"
-    campaign = Campaign.create(path, sequence_text="", durable=bool(durable))
+    campaign = CampaignFile.create(path, sequence_text="", durable=bool(durable))
     elapsed, count = 0.0, 0
     for index in range(runs):
         name = f"run-{index}"

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from simdata import simulate_run
 
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 #: run -> (specimen, hardness, preload strain); the names of sequences/paper.toml
 PAPER_RUNS = {
@@ -26,7 +26,7 @@ PAPER_RUNS = {
 }
 
 
-def add_run(campaign: Campaign, name: str, *, step_hz: float = 0.25, segments: int = 4,
+def add_run(campaign: CampaignFile, name: str, *, step_hz: float = 0.25, segments: int = 4,
             finish: bool = True, points: int | None = None, level: float = 1.4) -> None:
     """Sweep preset ``name`` and store it as run ``name`` in a few segments."""
     specimen, hardness, preload = PAPER_RUNS[name]
@@ -56,7 +56,7 @@ def add_run(campaign: Campaign, name: str, *, step_hz: float = 0.25, segments: i
 
 def paper_campaign(path: Path, runs: tuple[str, ...] = tuple(PAPER_RUNS), **options) -> Path:
     """A campaign file with the paper's runs (or a subset) swept on the simulated rig."""
-    campaign = Campaign.create(path, sequence_text="# simulated\n", durable=False,
+    campaign = CampaignFile.create(path, sequence_text="# simulated\n", durable=False,
                                rig={"specimen_height_m": 0.012, "specimen_count": 2})
     for name in runs:
         add_run(campaign, name, **options)

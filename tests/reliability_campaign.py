@@ -13,7 +13,7 @@ from rigsim.faults import Fault, FaultInjector
 from rigsim.rigfile import load_preset
 
 from viscorig.cli import main
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def station_text(resource: str, *, preset: str = "soft-0", source_limit_v: float = 5.0,
@@ -87,7 +87,7 @@ def one_clear_line(err: str) -> str:
 
 def check_prefix(path: Path, run: str, grid_hz: np.ndarray) -> int:
     """The run holds the first N points of ``grid_hz``, no gap, no duplicate; return N."""
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         if run not in campaign.run_names:
             return 0
         stored = campaign.run(run)
@@ -103,7 +103,7 @@ def snapshot(path: Path) -> dict[str, dict[str, np.ndarray]]:
     """Every run's arrays, to check later that they are kept exactly."""
     if not path.exists():
         return {}
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         return {
             run.name: {"frequency_hz": run.frequency_hz, "time_s": run.time_s,
                        "accelerance_table": run.accelerance_table,

@@ -32,7 +32,7 @@ from viscorig.storage import (
     INPUT_OVERLOAD,
     LEVEL_NOT_REACHED,
     SOURCE_AT_LIMIT,
-    Campaign,
+    CampaignFile,
     RunSettings,
 )
 
@@ -199,7 +199,7 @@ WIRING = Wiring(1, 2, 3, 4, {1: 0.01, 2: 0.01, 3: 0.01, 4: 0.01})
 
 def measure_fake(tmp_path, analyser: FakeAnalyser, sequence: str = SEQUENCE):
     step = parse_sequence(sequence).sweeps[0]
-    campaign = Campaign.create(tmp_path / "c.h5", sequence_text=sequence, durable=False)
+    campaign = CampaignFile.create(tmp_path / "c.h5", sequence_text=sequence, durable=False)
     campaign.start_run(step.run, RunSettings(
         specimen=step.specimen, level_m_per_s2=step.level_m_per_s2, direction="up",
         settle_cycles=10, integrate_cycles=10, resolution_hz=0.25))
@@ -246,7 +246,7 @@ def test_an_overloaded_segment_is_measured_again_once(tmp_path) -> None:
 def test_an_axis_off_the_plan_is_an_instrument_fault_and_nothing_is_written(tmp_path) -> None:
     with pytest.raises(InstrumentError, match=r"FAKE::1::INSTR.*returned"):
         measure_fake(tmp_path, FakeAnalyser(axis_shift_hz=0.125))
-    assert Campaign.open(tmp_path / "c.h5").run("r").points == 0
+    assert CampaignFile.open(tmp_path / "c.h5").run("r").points == 0
 
 
 def test_the_wiring_decides_the_analysers_inputs_and_reference() -> None:

@@ -19,7 +19,7 @@ from reliability_campaign import station_text
 
 from viscorig.acquisition.gain import estimate_gain
 from viscorig.cli import main
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 server_module = pytest.importorskip("rigsim.server")
 
@@ -70,7 +70,7 @@ def test_a_station_without_the_gain_runs_an_adaptive_plan_and_stores_the_gain(
     assert "WARNING" not in printed.out and "gain_n_per_v" not in printed.err
     assert re.search(r"run 'voigt': shaker gain [0-9.]+ ± [0-9.e-]+ N/V \(measured at 20 and "
                      r"120 Hz", printed.out), printed.out
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     attributes = campaign.run_attributes("voigt")
     assert attributes["plan_reason"] == "dwell limit" and campaign.run("voigt").points >= 10
     gain, stderr = attributes["shaker_gain_n_per_v"], attributes["shaker_gain_stderr_n_per_v"]
@@ -88,7 +88,7 @@ def test_a_station_gain_that_disagrees_is_warned_about_and_the_measured_one_used
     assert warning.startswith("WARNING: run 'voigt': the station file's [shaker]")
     assert f"gain_n_per_v = {0.8 * _true_gain():g} N/V disagrees with the" in warning
     assert "the measured gain is used" in warning
-    gain = Campaign.open(out).run_attributes("voigt")["shaker_gain_n_per_v"]
+    gain = CampaignFile.open(out).run_attributes("voigt")["shaker_gain_n_per_v"]
     assert gain == pytest.approx(_true_gain(), rel=0.01)
 
 
@@ -108,7 +108,7 @@ def test_the_measured_gain_keeps_the_plans_efficiency(tmp_path, voigt_rig, capsy
     for name, gain in (("given", _true_gain()), ("measured", None)):
         status, out = _run(tmp_path, voigt_rig, gain, tight, name, extra="")
         assert status == 0, capsys.readouterr().err
-        attributes = Campaign.open(out).run_attributes("voigt")
+        attributes = CampaignFile.open(out).run_attributes("voigt")
         assert attributes["plan_reason"] == "targets met"
         times[name] = float(attributes["test_time_s"])
     print(f"\nrig time: gain given {times['given']:.1f} s, measured {times['measured']:.1f} s "

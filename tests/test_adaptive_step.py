@@ -16,7 +16,7 @@ from planning_rig import ADAPTIVE_SEQUENCE, VOIGT_RIG, VOIGT_TRUTH
 from reliability_campaign import station_text
 
 from viscorig.cli import main
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 server_module = pytest.importorskip("rigsim.server")
 
@@ -56,7 +56,7 @@ def test_an_adaptive_step_meets_its_targets_and_identify_reads_them_back(
     assert "first look: 10 points" in printed
     assert re.search(r"run 'voigt' complete \(adaptive plan: targets met\): \d+ points at "
                      r"\d+ frequencies", printed), printed
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("voigt")
     attributes = campaign.run_attributes("voigt")
     assert attributes["plan"] == "adaptive" and attributes["plan_reason"] == "targets met"
@@ -109,7 +109,7 @@ def test_a_plan_stopped_by_a_fault_resumes_from_the_points_the_file_holds(
     voigt_rig.analyser.on_point = fault_after_the_first_look
     assert main(["run", sequence, "--station", station, "--out", out, "--yes"]) == 3
     assert "hardware fault" in capsys.readouterr().err
-    stopped = Campaign.open(out).run("voigt")
+    stopped = CampaignFile.open(out).run("voigt")
     assert stopped.metadata.status == "aborted" and stopped.points >= 10
     kept = stopped.frequency_hz.copy()
 
@@ -117,7 +117,7 @@ def test_a_plan_stopped_by_a_fault_resumes_from_the_points_the_file_holds(
     assert main(["resume", out, "--yes"]) == 0
     printed = capsys.readouterr().out
     assert f"its {stopped.points} points handed to the plan again" in printed
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("voigt")
     assert run.metadata.status == "complete"
     np.testing.assert_array_equal(run.frequency_hz[: kept.size], kept)  # nothing lost or redone
@@ -130,7 +130,7 @@ def test_an_adaptive_step_keeps_to_its_dwell_limit(tmp_path, voigt_rig, capsys) 
     sequence, station, out = files(tmp_path, voigt_rig, "dwell_limit_s = 60",
                                    {"K_v": 1e-6, "C_v": 1e-5})
     assert main(["run", sequence, "--station", station, "--out", out, "--yes"]) == 0
-    attributes = Campaign.open(out).run_attributes("voigt")
+    attributes = CampaignFile.open(out).run_attributes("voigt")
     assert attributes["plan_reason"] == "dwell limit"
     assert attributes["test_time_s"] <= 60.0
     assert "adaptive plan: dwell limit" in capsys.readouterr().out
@@ -154,7 +154,7 @@ def test_an_adaptive_step_runs_on_sim_serve_through_the_driver_and_pyvisa_py(tmp
         assert main(["run", str(sequence), "--station", str(station), "--out", str(out),
                      "--yes"]) == 0
     assert "adaptive plan: targets met" in capsys.readouterr().out
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("voigt")
     assert run.metadata.resource == resource and run.metadata.status == "complete"
     assert campaign.run_attributes("voigt")["plan_reason"] == "targets met"
@@ -173,7 +173,7 @@ def test_the_example_sequence_on_the_embedded_rig_reads_as_any_run(tmp_path, cap
     printed = capsys.readouterr().out
     assert printed.index("predicted test time:") < printed.index(">>> Remove the damper")
     assert "adaptive plan: model misfit" in printed
-    attributes = Campaign.open(out).run_attributes("soft-0")
+    attributes = CampaignFile.open(out).run_attributes("soft-0")
     assert attributes["plan_reason"] == "model misfit" and attributes["test_time_s"] < 120.0
     assert main(["diagnose", str(out), "--run", "soft-0", "--json"]) == 0
     import json

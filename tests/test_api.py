@@ -13,7 +13,7 @@ from campaigndata import paper_campaign
 
 import viscorig
 from viscorig.errors import InputError
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +27,7 @@ def test_runs_by_name_and_in_order(path: Path):
     assert [run.name for run in campaign] == ["table", "soft-0", "soft-10"] == campaign.names
     assert len(campaign) == 3 and "soft-0" in campaign and "hard-0" not in campaign
     run = campaign["soft-0"]
-    stored = Campaign.open(path).run("soft-0")
+    stored = CampaignFile.open(path).run("soft-0")
     assert np.array_equal(run.frequency_hz, stored.frequency_hz)  # the stored run's arrays
     assert run.metadata.specimen == "soft" and not run.bare and campaign["table"].bare
     with pytest.raises(InputError, match="no such run"):
@@ -40,7 +40,7 @@ def test_run_as_pandas_and_xarray_keeps_points_and_units(path: Path):
     pytest.importorskip("pandas")
     pytest.importorskip("xarray")
     run = viscorig.open_campaign(path)["soft-0"]
-    stored = Campaign.open(path).run("soft-0")
+    stored = CampaignFile.open(path).run("soft-0")
     frame = run.to_pandas()
     assert frame.index.name == "frequency_hz"
     assert np.array_equal(frame.index.to_numpy(), stored.frequency_hz)
@@ -67,7 +67,7 @@ def test_a_fit_as_tables_matches_its_own_prediction(path: Path):
     assert fit.result is not None and fit.model.startswith("maxwell(")
     frame = fit.to_pandas()
     assert frame.index.min() >= 30 and frame.index.max() <= 110
-    stored = Campaign.open(path).run("soft-0")
+    stored = CampaignFile.open(path).run("soft-0")
     inside = (stored.frequency_hz >= 30) & (stored.frequency_hz <= 110)
     model = fit.result.predict(stored.frequency_hz[inside])["support"]
     assert np.allclose(frame["model_support"].to_numpy(), model)
@@ -126,7 +126,7 @@ def test_compare_runs_gives_the_change_with_its_uncertainty(path: Path):
 
     campaign = viscorig.open_campaign(path)
     comparison = campaign.compare("soft-0", "soft-10")
-    stored = Campaign.open(path)
+    stored = CampaignFile.open(path)
     before, _ = identify_run(stored, "soft-0", "voigt", band_hz=(20, 120))
     after, _ = identify_run(stored, "soft-10", "voigt", band_hz=(20, 120))
     (expected,) = compare_fits(before, after, ["K_v"])

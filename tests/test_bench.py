@@ -15,7 +15,7 @@ from rigsim.faults import parse_fault_spec
 
 from viscorig.bench import API_STATES, BenchError, BenchService
 from viscorig.sequences.station import BenchSettings
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
@@ -51,10 +51,10 @@ def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
         paused = wait_until(lambda: (s := client.state())["state"] == "paused" and s,
                             what="paused")
         path = tmp_path / "a.h5"
-        committed = Campaign.open(path).run("soft-0").points
+        committed = CampaignFile.open(path).run("soft-0").points
         assert committed == paused["points_done"] and 0 < committed < 81
         time.sleep(0.6)
-        assert Campaign.open(path).run("soft-0").points == committed  # nothing while paused
+        assert CampaignFile.open(path).run("soft-0").points == committed  # nothing while paused
         assert client.post("/api/notes", {"text": "specimen warm to the touch"}).status_code == 200
         assert client.post("/api/pause").status_code == 409
         assert client.post("/api/resume").status_code == 200
@@ -64,7 +64,7 @@ def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
         assert "viscorig resume" in client.state()["message"]
         journal = client.http.get("/api/journal").json()["entries"]
         client.close()
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("soft-0")
         assert run.metadata.status == "aborted" and committed < run.points < 81
         kinds = [(entry.kind, entry.run) for entry in campaign.journal]
@@ -97,7 +97,7 @@ def test_an_overloading_input_holds_the_run_and_it_goes_on_when_the_fault_clears
         time.sleep(0.01)
     assert service.state()["state"] == "complete", service.state()["message"]
     assert states <= set(API_STATES) and "held" in states
-    with Campaign.open(tmp_path / "held.h5") as campaign:
+    with CampaignFile.open(tmp_path / "held.h5") as campaign:
         assert campaign.run("soft-0").points == 81
         kinds = [entry.kind for entry in campaign.journal]
         assert kinds[0] == "hold" and "hold_cleared" in kinds
@@ -141,7 +141,7 @@ def test_aborting_at_a_prompt_stops_before_anything_is_measured(tmp_path) -> Non
     state = service.state()
     assert state["state"] == "stopped" and state["prompt"] is None
     assert [item["out"][-9:] for item in state["queue"]] == ["second.h5"]  # the queue waits
-    with Campaign.open(tmp_path / "first.h5") as campaign:
+    with CampaignFile.open(tmp_path / "first.h5") as campaign:
         assert campaign.run_names == []
     # the stopped campaign is continued from the page, as 'viscorig resume' would
     (tmp_path / "other.toml").write_text(SMALL_SEQUENCE.replace('"small"', '"other"'))
@@ -155,5 +155,5 @@ def test_aborting_at_a_prompt_stops_before_anything_is_measured(tmp_path) -> Non
     service.answer(prompt["id"], "done")
     wait_until(lambda: not service.busy, what="the end")
     assert service.state()["state"] == "complete", service.state()["message"]
-    with Campaign.open(tmp_path / "first.h5") as campaign:
+    with CampaignFile.open(tmp_path / "first.h5") as campaign:
         assert campaign.run("soft-0").points == 81

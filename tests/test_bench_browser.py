@@ -21,7 +21,7 @@ from benchrig import Client, bench_server, wait_until
 from browser import CHROMIUM
 from rigsim.faults import parse_fault_spec
 
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 playwright = pytest.importorskip("playwright.sync_api")
 pytestmark = [pytest.mark.slow,
@@ -82,10 +82,10 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
         page.click("#pause")
         page.wait_for_selector("#state[data-state='paused']", timeout=30_000)
         done = state()["points_done"]
-        committed = Campaign.open(path).run("table").points
+        committed = CampaignFile.open(path).run("table").points
         assert committed == done and 0 < done < 129
         time.sleep(1.5)
-        assert Campaign.open(path).run("table").points == committed  # nothing while paused
+        assert CampaignFile.open(path).run("table").points == committed  # nothing while paused
         assert state()["state"] == "paused"
         page.fill("#note-text", "table paused to check the shaker's fixing bolts")
         page.click("#note-add")
@@ -134,7 +134,7 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
     api.close()
     server.close()
 
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run("medium-10").metadata.status == "aborted"
         kinds = [entry.kind for entry in campaign.journal]
     assert kinds == ["pause", "note", "resume", "hold", "hold_cleared", "abort"], kinds
@@ -145,7 +145,7 @@ def test_the_paper_sequence_from_the_page(tmp_path) -> None:
     assert resumed.returncode == 0, resumed.stderr
     _, err = reference.communicate(timeout=600)
     assert reference.returncode == 0, err
-    with Campaign.open(path) as campaign, Campaign.open(tmp_path / "reference.h5") as base:
+    with CampaignFile.open(path) as campaign, CampaignFile.open(tmp_path / "reference.h5") as base:
         assert campaign.run_names == base.run_names
         for name in base.run_names:
             run, uninterrupted = campaign.run(name), base.run(name)

@@ -14,7 +14,7 @@ import pytest
 from benchrig import Client, bench_server, wait_until
 
 from viscorig.sequences.station import BenchSettings
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 SEQUENCE = """
 name = "chamber-hold"
@@ -73,7 +73,7 @@ def test_a_chamber_fault_holds_the_run_until_the_specimen_is_back_in_its_band(tm
         final = client.state()
         client.close()
     assert final["state"] == "complete", final["message"]
-    with Campaign.open(tmp_path / "chamber.h5") as campaign:
+    with CampaignFile.open(tmp_path / "chamber.h5") as campaign:
         run = campaign.run("medium_0C")
         journal = campaign.journal
     temperature, units = run.extra["temperature_c"]

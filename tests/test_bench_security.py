@@ -12,7 +12,7 @@ import pytest
 from benchrig import Client, bench_server, small_sequence, wait_until
 
 from viscorig.bench.app import MAX_BODY_BYTES, RATE_PER_S
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def one_line_error(answer: httpx.Response, status: int) -> str:
@@ -113,7 +113,7 @@ def test_refusals_leave_a_run_unharmed(tmp_path) -> None:
             "measuring", "checking", "waiting_for_operator") and s, 60, "the end of the run")
         assert final["state"] == "complete", final["message"]
         owner.close()
-    with Campaign.open(tmp_path / "run.h5") as campaign:
+    with CampaignFile.open(tmp_path / "run.h5") as campaign:
         run = campaign.run("soft-0")
         assert run.metadata.status == "complete" and run.points == 81
         assert campaign.journal == []  # no refused request reached the file

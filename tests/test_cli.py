@@ -90,10 +90,10 @@ def test_verbosity_sets_the_logging_level_and_goes_to_stderr(
 ) -> None:
     import logging
 
-    from viscorig.storage import Campaign
+    from viscorig.storage import CampaignFile
 
     path = tmp_path / "c.h5"
-    Campaign.create(path, sequence_text="", durable=False)
+    CampaignFile.create(path, sequence_text="", durable=False)
     expected = {(): logging.WARNING, ("-v",): logging.INFO, ("-vv",): logging.DEBUG,
                 ("-q",): logging.ERROR, ("-v", "-v"): logging.DEBUG, ("-v", "-q"): logging.WARNING}
     for options, level in expected.items():

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "sequences" / "paper.toml"
@@ -68,7 +68,7 @@ def test_the_paper_campaign_runs_whole_on_the_embedded_rig(paper_campaign) -> No
     path, result = paper_campaign
     assert result.returncode == 0, result.stderr
     assert "sequence complete" in result.stdout
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     assert campaign.run_names == list(RUNS)
     assert campaign.attributes["format"] == "viscorig"
     assert campaign.attributes["format_version"] == 1
@@ -170,12 +170,12 @@ def test_a_run_killed_mid_sweep_resumes_without_losing_or_repeating_a_point(
     assert process.poll() is None, f"finished before the kill (seed {seed})"
     process.send_signal(signal.SIGKILL)
     process.communicate()
-    before = {run.name: (run.metadata.status, run.points) for run in Campaign.open(path).runs()}
+    before = {run.name: (run.metadata.status, run.points) for run in CampaignFile.open(path).runs()}
     assert any(status == "running" for status, _ in before.values()) or len(before) < 7
 
     result = viscorig("resume", str(path), "--yes", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    resumed, reference = Campaign.open(path), Campaign.open(reference_path)
+    resumed, reference = CampaignFile.open(path), CampaignFile.open(reference_path)
     assert resumed.run_names == list(RUNS)
     for name in RUNS:
         run, uninterrupted = resumed.run(name), reference.run(name)
@@ -200,7 +200,7 @@ def test_ctrl_c_aborts_the_run_keeps_its_data_and_says_how_to_resume(tmp_path) -
     assert process.returncode == 130, err
     assert f"viscorig resume {path}" in err and "interrupted in run 'table'" in err
     assert "Traceback" not in err
-    run = Campaign.open(path).run("table")
+    run = CampaignFile.open(path).run("table")
     assert run.metadata.status == "aborted" and 0 < run.points < 129
     # the segment in flight was dropped whole: only planned points, in order
     np.testing.assert_allclose(run.frequency_hz, 12.0 + 0.125 * np.arange(run.points))
@@ -291,4 +291,4 @@ def test_a_low_level_run_probes_at_the_lowest_level_the_analyser_holds(tmp_path)
     assert said, result.stdout
     assert float(said.group(1)) == pytest.approx(0.0476, rel=0.02)
     assert said.group(2) == "the lowest level the analyser's auto level holds"
-    assert Campaign.open(tmp_path / "low.h5").run("low").points == 3
+    assert CampaignFile.open(tmp_path / "low.h5").run("low").points == 3

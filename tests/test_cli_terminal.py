@@ -20,7 +20,7 @@ from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 
 from viscorig.acquisition import notebox
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 #: 13 points; at --sim-pace 10 a point takes about 0.15 s.
 SHORT = """
@@ -50,7 +50,7 @@ def _write(folder: Path, name: str, stop: float = 23.0) -> Path:
 
 
 def _points(path: Path) -> int:
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         return campaign.run("soft-0").points if "soft-0" in campaign.run_names else 0
 
 
@@ -99,7 +99,7 @@ def test_signals_pause_and_resume_a_run_and_a_note_reaches_its_journal(tmp_path)
             process.wait(10)
     assert process.returncode == 0, stderr
     assert "resumed by the technician" in stdout
-    with Campaign.open(out) as campaign:
+    with CampaignFile.open(out) as campaign:
         run = campaign.run("soft-0")
         entries = [(entry.kind, entry.run, entry.text) for entry in campaign.journal]
     assert run.points == 13 and run.metadata.status == "complete"
@@ -123,7 +123,7 @@ def test_in_process_signals_pause_and_resume_and_a_note_is_carried(tmp_path) -> 
             time.sleep(0.01)
         os.kill(os.getpid(), signal.SIGUSR1)
         while time.monotonic() < deadline and not [
-                e for e in Campaign.open(out).journal if e.kind == "pause"]:
+                e for e in CampaignFile.open(out).journal if e.kind == "pause"]:
             time.sleep(0.01)
         seen["paused_at"] = _points(out)
         seen["note"] = main(["note", str(out), "warm", "specimen"])
@@ -138,7 +138,7 @@ def test_in_process_signals_pause_and_resume_and_a_note_is_carried(tmp_path) -> 
     assert status == 0, err
     assert seen["note"] == 0 and seen["still"] == seen["paused_at"]
     assert "pausing at the point being measured" in stdout and "resuming" in stdout
-    with Campaign.open(out) as campaign:
+    with CampaignFile.open(out) as campaign:
         entries = [(entry.kind, entry.text) for entry in campaign.journal]
         assert campaign.run("soft-0").points == 13
     assert entries[0][0] == "pause" and entries[-1][0] == "resume"
@@ -148,27 +148,27 @@ def test_in_process_signals_pause_and_resume_and_a_note_is_carried(tmp_path) -> 
 def test_a_note_on_a_file_nobody_writes_is_stored_at_once_and_bad_ones_are_one_line(
         tmp_path) -> None:
     path = tmp_path / "c.h5"
-    Campaign.create(path, sequence_text="").close()
+    CampaignFile.create(path, sequence_text="").close()
     status, out, err = cli(["note", path, "humid", "today"])
     assert status == 0, err
     assert "note stored" in out
-    assert [(e.kind, e.text) for e in Campaign.open(path).journal] == [("note", "humid today")]
+    assert [(e.kind, e.text) for e in CampaignFile.open(path).journal] == [("note", "humid today")]
     status, _, err = cli(["note", tmp_path / "missing.h5", "x"])
     assert status == 2 and "no such file" in one_clear_line(err)
     status, _, err = cli(["note", path, "x" * 2001])
     assert status == 2 and "at most 2000" in one_clear_line(err)
-    assert len(Campaign.open(path).journal) == 1
+    assert len(CampaignFile.open(path).journal) == 1
 
 
 def test_a_note_for_a_writer_that_takes_none_is_taken_back(tmp_path, monkeypatch) -> None:
     import viscorig.cli.note as note
 
     path = tmp_path / "c.h5"
-    Campaign.create(path, sequence_text="").close()
+    CampaignFile.create(path, sequence_text="").close()
     monkeypatch.setattr(note, "WAIT_S", 0.3)
     holder = subprocess.Popen(  # another process writes the file and takes no notes
-        [sys.executable, "-c", "import sys, time; from viscorig.storage import Campaign; "
-         f"c = Campaign.open({str(path)!r}, 'a'); print('held', flush=True); time.sleep(30)"],
+        [sys.executable, "-c", "import sys, time; from viscorig.storage import CampaignFile; "
+         f"c = CampaignFile.open({str(path)!r}, 'a'); print('held', flush=True); time.sleep(30)"],
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
@@ -178,7 +178,7 @@ def test_a_note_for_a_writer_that_takes_none_is_taken_back(tmp_path, monkeypatch
         holder.wait(10)
     assert status == 2 and "did not take the note" in one_clear_line(err)
     assert not list(notebox.inbox(path).glob("*.note"))
-    assert Campaign.open(path).journal == []
+    assert CampaignFile.open(path).journal == []
 
 
 def test_a_queue_runs_in_order_and_is_checked_whole_before_anything_moves(tmp_path,
@@ -222,7 +222,7 @@ def test_holds_on_the_terminal_use_the_station_bench_settings(tmp_path) -> None:
         def fix_when_held() -> None:
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline:
-                if out.exists() and "hold" in [e.kind for e in Campaign.open(out).journal]:
+                if out.exists() and "hold" in [e.kind for e in CampaignFile.open(out).journal]:
                     seen["held_at"] = _points(out)
                     break
                 time.sleep(0.01)
@@ -237,7 +237,7 @@ def test_holds_on_the_terminal_use_the_station_bench_settings(tmp_path) -> None:
         helper.join(30)
     assert status == 0, err
     assert seen["while_held"] == seen["held_at"] == 8  # held after the first segment
-    with Campaign.open(out) as campaign:
+    with CampaignFile.open(out) as campaign:
         run = campaign.run("soft-0")
         journal = campaign.journal
     assert run.points == 21 and run.metadata.status == "complete"
@@ -282,6 +282,6 @@ def test_a_note_from_the_terminal_reaches_a_run_of_the_bench_page(tmp_path) -> N
     finally:
         service.shutdown()
     assert note.returncode == 0 and "handed to the run in progress" in note.stdout, note.stderr
-    entries = [(e.kind, e.run, e.text) for e in Campaign.open(tmp_path / "bench.h5").journal]
+    entries = [(e.kind, e.run, e.text) for e in CampaignFile.open(tmp_path / "bench.h5").journal]
     assert entries[1] == ("note", "soft-0", "from the terminal")
     assert [kind for kind, _, _ in entries] == ["pause", "note", "resume"]

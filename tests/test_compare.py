@@ -29,7 +29,7 @@ from viscorig.compare import (
 from viscorig.fitting import FitResult, Known, fit
 from viscorig.identify import read_fit, store_fit
 from viscorig.models import Context, parse_spec
-from viscorig.storage import Campaign, FitParameter, FitRecord, RunSettings, Segment
+from viscorig.storage import CampaignFile, FitParameter, FitRecord, RunSettings, Segment
 
 VOIGT = parse_spec("voigt")
 TABLE = {"M_s": 3.4, "K_s": 5e4, "C_s": 5.0}
@@ -264,7 +264,7 @@ def test_a_stored_pair_compares_as_the_fits_do_without_their_residuals(tmp_path:
                                                                         table_known):
     results = [fit("voigt", run.frf_data(), known=table_known) for run in runs]
     path = tmp_path / "c.h5"
-    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         for name, run in zip(("soft-0", "soft-10"), runs, strict=True):
             campaign.start_run(name, RunSettings(specimen="soft", level_m_per_s2=1.0,
                                                  direction="up", settle_cycles=100,

@@ -25,7 +25,7 @@ from viscorig.estimates import (
 )
 from viscorig.fitting import Known, fit
 from viscorig.models import Context
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
 TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
@@ -74,7 +74,7 @@ def test_storage_modulus_and_loss_factor_bands(result) -> None:
 
 def _campaign(path: Path, rig: dict) -> None:
     run = simulate_run(rig_text(VOIGT, noise=DEFAULT_NOISE), seed=72)
-    with Campaign.create(path, sequence_text="", rig=rig, durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", rig=rig, durable=False) as campaign:
         campaign.start_run("soft-0", RunSettings(
             specimen="soft", level_m_per_s2=1.0, direction="up", settle_cycles=100,
             integrate_cycles=100, resolution_hz=0.25, simulated=True))

@@ -19,9 +19,9 @@ from rigsim.rigfile import parse_rig
 from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 
 from viscorig.cli import main
-from viscorig.diagnosis import Diagnosis, diagnose, diagnose_run
+from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
 from viscorig.models import EFFECTS
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
 RIG_ATTRIBUTES = {
@@ -42,17 +42,17 @@ AMPLITUDE = (
 )
 
 
-def single(rig: str, seed: int = 3, step_hz: float = 0.5) -> Diagnosis:
+def single(rig: str, seed: int = 3, step_hz: float = 0.5) -> DiagnosisResult:
     run = simulate_run(rig, seed=seed, step_hz=step_hz)
     return diagnose(run.frf_data("run"), "voigt", table=TABLE)
 
 
-def top(diagnosis: Diagnosis) -> str:
+def top(diagnosis: DiagnosisResult) -> str:
     assert diagnosis.significant, "no significant finding"
     return diagnosis.significant[0].effect
 
 
-def assert_at_floor_after(diagnosis: Diagnosis) -> Diagnosis:
+def assert_at_floor_after(diagnosis: DiagnosisResult) -> DiagnosisResult:
     better = diagnosis.with_effect(diagnosis.significant[0])
     assert better.rms_error < diagnosis.rms_error / 3
     assert better.rms_error <= 1.5 * better.noise_floor
@@ -165,7 +165,7 @@ def test_frequency_dependent_modulus_replaces_voigt() -> None:
 
 
 def add_run(
-    campaign: Campaign, name: str, run: SimulatedRun, level: float, direction: str = "up"
+    campaign: CampaignFile, name: str, run: SimulatedRun, level: float, direction: str = "up"
 ) -> None:
     settings = RunSettings(
         specimen="soft", level_m_per_s2=level, direction=direction, settle_cycles=100,
@@ -181,7 +181,7 @@ def add_run(
 
 def write_campaign(path: Path, runs: list[tuple[str, SimulatedRun, float, str, float]]) -> Path:
     """Runs ``(name, run, level, direction, start_s)``; ``started`` stamps follow ``start_s``."""
-    with Campaign.create(path, sequence_text="", rig=RIG_ATTRIBUTES, durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", rig=RIG_ATTRIBUTES, durable=False) as campaign:
         for name, run, level, direction, _ in runs:
             add_run(campaign, name, run, level, direction)
     origin = datetime(2026, 1, 5, 9, 0, tzinfo=UTC)
@@ -204,7 +204,7 @@ def test_amplitude_dependence_is_found_with_two_levels(tmp_path: Path) -> None:
     path = write_campaign(tmp_path / "c.h5", [
         ("soft-0", low, 1.0, "up", 0.0), ("soft-0-level2", high, 3.0, "up", 3600.0),
     ])  # fmt: skip
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         diagnosis = diagnose_run(campaign, "soft-0")
     assert diagnosis.data.runs == ("soft-0", "soft-0-level2")
     assert top(diagnosis) == "amplitude_dependence"
@@ -230,7 +230,7 @@ def test_thermal_drift_is_found_with_an_up_and_a_down_sweep(tmp_path: Path) -> N
     path = write_campaign(tmp_path / "c.h5", [
         ("soft-0", up, 1.0, "up", 0.0), ("soft-0-down", down, 1.0, "down", start_down),
     ])  # fmt: skip
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         diagnosis = diagnose_run(campaign, "soft-0")
     assert diagnosis.data.directions == ("up", "down")
     assert top(diagnosis) == "thermal_drift"

@@ -14,7 +14,7 @@ from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.dmafile import read_dma_csv
 from viscorig.materials.dmastore import dma_run_names, read_dma
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 SWEEP = "pyvisco_freq_user_raw.csv"
 
@@ -90,7 +90,7 @@ def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv
     path = tmp_path / "c.h5"
     assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
     assert "210 points, 21 temperatures" in capsys.readouterr().out
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     assert dma_run_names(campaign) == ["eca"] and campaign.run_names == []
     table = read_dma(campaign, "eca")
     assert np.array_equal(table.storage_pa, read_dma_csv(sweep_csv).storage_pa)
@@ -115,7 +115,7 @@ def test_a_modulus_below_zero_is_stored_named_and_left_out_of_the_master_curve(
     warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(warned) == 1 and "row 14, column 'E_loss'" in warned[0], warned
     assert "210 points" in capsys.readouterr().out
-    stored = read_dma(Campaign.open(path), "eca")
+    stored = read_dma(CampaignFile.open(path), "eca")
     assert stored.loss_pa[11] == pytest.approx(-0.02e6)  # kept as measured
     assert main(["master", str(path), "--run", "eca", "--json"]) == 0
     import json
@@ -170,7 +170,7 @@ def test_excel_workbook_in_the_eplexor_layout(tmp_path, capsys, sweep_csv):
     book.save(path)
     path_h5 = tmp_path / "c.h5"
     assert main(["import", str(path_h5), "--run", "epl", "--dma", str(path)]) == 0
-    table = read_dma(Campaign.open(path_h5), "epl")
+    table = read_dma(CampaignFile.open(path_h5), "epl")
     assert table.sets.size == 21  # no set column: grouped by temperature
     assert np.allclose(table.storage_pa, csv_table.storage_pa, rtol=1e-12)
     assert np.allclose(table.loss_pa, csv_table.loss_pa, rtol=1e-12)
@@ -186,7 +186,7 @@ def test_modulus_option_names_the_kind_and_belongs_to_dma_only(tmp_path, capsys,
     path = tmp_path / "c.h5"
     assert main(["import", str(path), "--run", "g", "--dma", str(sweep_csv), "--modulus", "G"]) == 0
     assert "modulus G" in capsys.readouterr().out
-    assert read_dma(Campaign.open(path), "g").modulus == "G"
+    assert read_dma(CampaignFile.open(path), "g").modulus == "G"
     assert main(["import", str(path), "--run", "h", "--uff", str(sweep_csv), "--modulus", "E"]) == 2
     assert "--modulus: only with --dma" in capsys.readouterr().err
 
@@ -245,7 +245,7 @@ def test_trios_text_export_is_read_by_content_each_step_one_set(trios_file, tmp_
     h5 = tmp_path / "c.h5"
     assert main(["import", str(h5), "--run", "trios", "--dma", str(path), "--modulus", "G"]) == 0
     assert "35 points, 5 temperatures" in capsys.readouterr().out
-    assert read_dma(Campaign.open(h5), "trios").modulus == "G"
+    assert read_dma(CampaignFile.open(h5), "trios").modulus == "G"
 
 
 def _spoil_frequency(lines: list[str], row: int) -> list[str]:

@@ -10,7 +10,7 @@ import pytest
 from viscorig.acquisition import Console, EngineState, Msg, RunEngine, RunRefused, Wiring
 from viscorig.acquisition.engine import Rig
 from viscorig.errors import InstrumentError
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 class Analyser:
@@ -22,7 +22,7 @@ class Analyser:
 
 @pytest.fixture
 def engine(tmp_path) -> RunEngine:
-    campaign = Campaign.create(tmp_path / "c.h5", sequence_text="", durable=False)
+    campaign = CampaignFile.create(tmp_path / "c.h5", sequence_text="", durable=False)
     rig = Rig(Analyser(), Wiring(1, 2, 3, 4, {1: 0.01, 2: 0.01, 3: 0.01, 4: 0.01}),
               real_time_waits=False)
     return RunEngine(campaign, rig, Console(yes=True, out=io.StringIO(), interactive=False))

@@ -18,7 +18,7 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.fitting import FrfData, estimate_noise, fit
 from viscorig.fitting.noise_estimation import regular_grid
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 NAMES = ("K_v", "C_v", "M_v")
 
@@ -60,7 +60,7 @@ def test_a_noise_weighted_fit_of_a_misfitting_model_says_so_and_scales_its_error
 
 def _store(tmp_path, frequency, table, variance, integrate=None):
     n = frequency.size
-    campaign = Campaign.create(tmp_path / "c.h5", sequence_text="", durable=False)
+    campaign = CampaignFile.create(tmp_path / "c.h5", sequence_text="", durable=False)
     campaign.start_run("r", RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
                                         settle_cycles=10, integrate_cycles=10,
                                         resolution_hz=0.25))

@@ -22,7 +22,7 @@ from viscorig.exchange import (
     write_csv,
     write_uff,
 )
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +36,7 @@ def _digest(path: Path) -> str:
 
 
 def test_uff_round_trip_is_exact_and_declares_accelerance(campaign_file: Path, tmp_path: Path):
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     out = tmp_path / "soft.uff"
     assert main(["export", str(campaign_file), "--run", "soft-0", "--format", "uff",
                  "--out", str(out)]) == 0
@@ -58,13 +58,13 @@ def test_uff_round_trip_is_exact_and_declares_accelerance(campaign_file: Path, t
 
 
 def test_uff_import_makes_a_run_equal_to_the_original(campaign_file: Path, tmp_path: Path):
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     uff = tmp_path / "soft.uff"
     write_uff(run, uff)
     target = tmp_path / "imported.h5"
     assert main(["import", str(target), "--run", "soft-0", "--uff", str(uff),
                  "--specimen", "soft", "--hardness", "25"]) == 0
-    imported = Campaign.open(target).run("soft-0")
+    imported = CampaignFile.open(target).run("soft-0")
     assert np.array_equal(imported.frequency_hz, run.frequency_hz)
     assert np.array_equal(imported.accelerance_table, run.accelerance_table)
     assert np.array_equal(imported.accelerance_support, run.accelerance_support)
@@ -73,7 +73,7 @@ def test_uff_import_makes_a_run_equal_to_the_original(campaign_file: Path, tmp_p
 
 
 def test_ascii_uff_keeps_twelve_digits_and_bare_table_has_one_record(campaign_file, tmp_path):
-    table = Campaign.open(campaign_file).run("table")
+    table = CampaignFile.open(campaign_file).run("table")
     out = tmp_path / "table.uff"
     assert write_uff(table, out, binary=False) == 1
     back = read_uff(out)
@@ -83,7 +83,7 @@ def test_ascii_uff_keeps_twelve_digits_and_bare_table_has_one_record(campaign_fi
 
 
 def test_uff_receptance_in_mm_is_converted_to_accelerance(campaign_file, tmp_path):
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     records = uff_records(run)[:2]  # units (164), then the table FRF
     omega = 2 * np.pi * run.frequency_hz
     records[1].update(ordinate_spec_data_type=8, ordinate_axis_units_lab="mm",
@@ -107,7 +107,7 @@ def test_uff_receptance_in_mm_is_converted_to_accelerance(campaign_file, tmp_pat
 def test_uff_with_wrong_units_is_refused(campaign_file, tmp_path, change, message):
     import pyuff
 
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     records = uff_records(run)[:2]
     records[1].update(change)
     pyuff.UFF(str(tmp_path / "bad.uff")).write_sets(records, mode="overwrite")
@@ -116,7 +116,7 @@ def test_uff_with_wrong_units_is_refused(campaign_file, tmp_path, change, messag
 
 
 def test_csv_round_trip_keeps_values_flags_and_units(campaign_file: Path, tmp_path: Path):
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     out = tmp_path / "soft.csv"
     assert main(["export", str(campaign_file), "--run", "soft-0", "--format", "csv",
                  "--out", str(out)]) == 0
@@ -132,7 +132,7 @@ def test_csv_round_trip_keeps_values_flags_and_units(campaign_file: Path, tmp_pa
 
 
 def test_csv_with_flags_survives_and_bad_cell_is_named(tmp_path: Path, campaign_file: Path):
-    run = Campaign.open(campaign_file).run("table")
+    run = CampaignFile.open(campaign_file).run("table")
     out = tmp_path / "t.csv"
     write_csv(run, out)
     back = read_csv(out)
@@ -172,7 +172,7 @@ def test_sdf_import_of_two_files_with_linear_axis_and_g_units(tmp_path: Path):
     target = tmp_path / "c.h5"
     assert main(["import", str(target), "--run", "soft-0", "--sdf", str(first),
                  "--sdf", str(second), "--specimen", "soft"]) == 0
-    run = Campaign.open(target).run("soft-0")
+    run = CampaignFile.open(target).run("soft-0")
     assert np.allclose(run.frequency_hz, F, rtol=1e-12)
     assert np.allclose(run.accelerance_table, H_TABLE * 9.80665, rtol=1e-6, atol=0)
     assert np.allclose(run.accelerance_support, H_SUPPORT / 4.4482216152605, rtol=1e-6, atol=0)
@@ -249,7 +249,7 @@ def test_bad_import_is_one_line_exit_2_and_leaves_the_campaign_unchanged(
     bad = tmp_path / "bad.bin"
     bad.write_bytes(b"    -1\n    58\n garbage\n    -1\n")
     good = tmp_path / "good.uff"
-    write_uff(Campaign.open(campaign_file).run("soft-0"), good)
+    write_uff(CampaignFile.open(campaign_file).run("soft-0"), good)
     values = {"bad": bad, "missing": tmp_path / "nothing.uff", "good": good}
     arguments = [a.format(**values) for a in arguments]
     if "--run" not in arguments:

@@ -32,7 +32,7 @@ from reliability_campaign import cli, one_clear_line
 from viscorig.errors import InputError
 from viscorig.exchange import read_csv, read_uff, write_uff
 from viscorig.exchange.csvfile import COLUMNS
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def test_pandas_reads_the_csv_with_no_options(campaign_file: Path, tmp_path: Pat
     out = tmp_path / f"{run}.csv"
     export(campaign_file, run, out)
     frame = pandas.read_csv(out)
-    stored = Campaign.open(campaign_file).run(run)
+    stored = CampaignFile.open(campaign_file).run(run)
     assert tuple(frame.columns) == COLUMNS
     assert all(frame[name].dtype.kind in "fi" for name in COLUMNS)
     np.testing.assert_array_equal(frame["frequency_hz"], stored.frequency_hz)
@@ -106,7 +106,7 @@ def test_exports_are_written_with_the_users_umask(campaign_file: Path, tmp_path:
 
 
 def test_xarray_sees_frequency_as_the_coordinate(campaign_file: Path) -> None:
-    stored = Campaign.open(campaign_file).run("soft-0")
+    stored = CampaignFile.open(campaign_file).run("soft-0")
     with xarray.open_dataset(campaign_file, group="runs/soft-0", engine="h5netcdf") as dataset:
         assert "frequency_hz" in dataset.coords
         assert dataset["accelerance_table"].dims == ("frequency_hz",)
@@ -119,7 +119,7 @@ def test_xarray_sees_frequency_as_the_coordinate(campaign_file: Path) -> None:
 
 def _plain_file_without_scales(path: Path) -> None:
     """A campaign as a version without dimension scales wrote it."""
-    campaign = Campaign.create(path, sequence_text="", durable=False)
+    campaign = CampaignFile.create(path, sequence_text="", durable=False)
     campaign.start_run("r", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
                                         settle_cycles=1, integrate_cycles=1,
                                         resolution_hz=1.0))
@@ -137,7 +137,7 @@ def _plain_file_without_scales(path: Path) -> None:
 def test_a_file_without_scales_reads_and_gains_them_when_written(tmp_path: Path) -> None:
     path = tmp_path / "old.h5"
     _plain_file_without_scales(path)
-    with Campaign.open(path, "a") as campaign:
+    with CampaignFile.open(path, "a") as campaign:
         assert campaign.run("r").points == 0
         f = np.array([10.0, 11.0])
         campaign.append_segment("r", Segment(f, f, f * 1j, f * 1j, f, f, f, np.zeros(2)))
@@ -149,7 +149,7 @@ def test_a_file_without_scales_reads_and_gains_them_when_written(tmp_path: Path)
 
 def test_a_truncated_uff_is_refused_and_nothing_imported(campaign_file: Path, tmp_path: Path):
     good = tmp_path / "good.uff"
-    write_uff(Campaign.open(campaign_file).run("soft-0"), good)
+    write_uff(CampaignFile.open(campaign_file).run("soft-0"), good)
     data = good.read_bytes()
     cut = tmp_path / "cut.uff"
     for keep in (0.3, 0.7, 0.99):
@@ -223,7 +223,7 @@ sys.exit(main(["import", sys.argv[1], "--run", "copy", "--uff", sys.argv[2]]))
 def test_an_import_that_cannot_be_written_leaves_no_partial_run(campaign_file: Path,
                                                                   tmp_path: Path) -> None:
     uff = tmp_path / "soft.uff"
-    write_uff(Campaign.open(campaign_file).run("soft-0"), uff)
+    write_uff(CampaignFile.open(campaign_file).run("soft-0"), uff)
     target = tmp_path / "c.h5"
     target.write_bytes(campaign_file.read_bytes())
     before = target.read_bytes()

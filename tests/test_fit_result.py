@@ -15,7 +15,7 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 from viscorig.errors import InputError
 from viscorig.fitting import Known, fit
 from viscorig.identify import read_fit, store_fit
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 DEVICE = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5,
           "damping_ns_per_m": 114.59}
@@ -45,7 +45,7 @@ def test_a_fit_pickles_as_its_spec_and_predicts_the_same(result):
 
 def test_a_stored_fit_reads_back_as_the_fit_the_file_keeps(tmp_path: Path, run, result):
     path = tmp_path / "c.h5"
-    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
                                settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
                                simulated=True)
@@ -74,7 +74,7 @@ def test_a_stored_fit_reads_back_as_the_fit_the_file_keeps(tmp_path: Path, run, 
 
 def test_a_stored_fit_that_is_not_whole_is_refused_in_one_line(tmp_path: Path):
     path = tmp_path / "c.h5"
-    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
                                settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
                                simulated=True)

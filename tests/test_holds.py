@@ -14,7 +14,7 @@ from viscorig.acquisition.holds import (
     LevelNotHeld,
 )
 from viscorig.errors import InputError
-from viscorig.storage import Campaign, Segment
+from viscorig.storage import CampaignFile, Segment
 
 
 def segment(flags, force=None, start_hz: float = 20.0) -> Segment:
@@ -90,7 +90,7 @@ def test_a_silent_analyser_holds_until_it_answers_and_is_asked_at_most_once_a_se
 
 def test_the_journal_takes_known_kinds_and_bounded_texts(tmp_path) -> None:
     path = tmp_path / "journal.h5"
-    with Campaign.create(path, sequence_text="") as campaign:
+    with CampaignFile.create(path, sequence_text="") as campaign:
         assert campaign.journal == []
         campaign.add_journal_entry("note", "  humid today  ", run="soft-0")
         with pytest.raises(InputError, match="journal kind 'gossip'"):
@@ -99,7 +99,7 @@ def test_the_journal_takes_known_kinds_and_bounded_texts(tmp_path) -> None:
             campaign.add_journal_entry("note", "   ")
         with pytest.raises(InputError, match="at most 2000"):
             campaign.add_journal_entry("note", "x" * 2001)
-    entries = Campaign.open(path).journal
+    entries = CampaignFile.open(path).journal
     assert [(e.kind, e.run, e.text) for e in entries] == [("note", "soft-0", "humid today")]
 
 
@@ -131,7 +131,7 @@ def test_the_engine_pauses_at_a_checkpoint_and_goes_on_where_it_was(tmp_path) ->
         return "done"
 
     source = Source()
-    campaign = Campaign.create(tmp_path / "pause.h5", sequence_text="")
+    campaign = CampaignFile.create(tmp_path / "pause.h5", sequence_text="")
     engine = RunEngine(campaign, Rig(source, None), Console(out=io.StringIO()))
     result = []
     worker = threading.Thread(target=lambda: result.append(engine.run(plan(), signals=False)))
@@ -180,7 +180,7 @@ def test_a_silent_analyser_holds_the_measurement_which_is_measured_again_when_it
     def plan():
         return (yield Msg("measure", (request,)))
 
-    campaign = Campaign.create(tmp_path / "silent.h5", sequence_text="")
+    campaign = CampaignFile.create(tmp_path / "silent.h5", sequence_text="")
     holds = [AnalyserNotAnswering(identify, (SilentError,), every_s=0.0)]
     engine = RunEngine(campaign, Rig(Source(), None), Console(out=io.StringIO()), holds=holds,
                        hold_resume="auto")

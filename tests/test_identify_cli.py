@@ -13,12 +13,12 @@ import pytest
 from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 
 from viscorig.cli import main
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
 
 
-def add_run(campaign: Campaign, name: str, run: SimulatedRun, specimen: str) -> None:
+def add_run(campaign: CampaignFile, name: str, run: SimulatedRun, specimen: str) -> None:
     settings = RunSettings(
         specimen=specimen,
         level_m_per_s2=1.0,
@@ -48,7 +48,7 @@ def add_run(campaign: Campaign, name: str, run: SimulatedRun, specimen: str) -> 
 @pytest.fixture(scope="module")
 def campaign_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("campaign") / "paper.h5"
-    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
         add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
     return path
@@ -78,7 +78,7 @@ def test_identify_json_follows_the_design_and_stores_the_fit(
     rho = np.array(document["correlation"]["matrix"])
     assert names[-3:] == ["M_s", "K_s", "C_s"] and "K_0" in names
     assert np.allclose(np.diag(rho), 1.0) and np.allclose(rho, rho.T)
-    with Campaign.open(campaign_file) as campaign:
+    with CampaignFile.open(campaign_file) as campaign:
         stored = campaign.fits("soft-0")[-1]
     assert stored.model == document["model"]
     assert stored.parameters["K_0"].value == pytest.approx(document["parameters"]["K_0"]["value"])

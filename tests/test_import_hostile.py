@@ -19,7 +19,7 @@ from campaigndata import paper_campaign
 from reliability_campaign import cli, one_clear_line
 
 from viscorig.exchange.uff import uff_records
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 HEADER = ["frequency_hz", "time_s", "accelerance_table_real_m_per_s2_per_n",
           "accelerance_table_imag_m_per_s2_per_n", "accelerance_support_real_m_per_s2_per_n",
@@ -75,7 +75,7 @@ def test_rows_from_high_to_low_frequency_are_stored_rising(tmp_path: Path) -> No
     rows = _voigt_rows(F)
     status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "down.csv", rows[::-1]))
     assert status == 0, err
-    run = Campaign.open(tmp_path / "c.h5").run("x")
+    run = CampaignFile.open(tmp_path / "c.h5").run("x")
     assert np.all(np.diff(run.frequency_hz) > 0)
     np.testing.assert_array_equal(run.frequency_hz, F)
     expected = np.array([complex(float(r[2]), float(r[3])) for r in rows])
@@ -88,7 +88,7 @@ def test_rows_in_no_order_are_stored_rising(tmp_path: Path) -> None:
     shuffled = [rows[i] for i in np.random.default_rng(1).permutation(len(rows))]
     status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "mixed.csv", shuffled))
     assert status == 0, err
-    run = Campaign.open(tmp_path / "c.h5").run("x")
+    run = CampaignFile.open(tmp_path / "c.h5").run("x")
     np.testing.assert_array_equal(run.frequency_hz, F)
 
 
@@ -110,7 +110,7 @@ def campaign_file(tmp_path_factory) -> Path:
 
 
 def _uff(tmp_path: Path, campaign_file: Path, change) -> Path:
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     records = uff_records(run)
     change(records)
     path = tmp_path / "changed.uff"
@@ -121,7 +121,7 @@ def _uff(tmp_path: Path, campaign_file: Path, change) -> Path:
 def test_a_uff_frf_with_a_nan_point_is_refused_naming_the_point(tmp_path: Path,
                                                                   campaign_file: Path) -> None:
     # pyuff writes NaN as 0: the NaN is put in the ASCII text, as an editor or a tool could
-    run = Campaign.open(campaign_file).run("soft-0")
+    run = CampaignFile.open(campaign_file).run("soft-0")
     path = tmp_path / "nan.uff"
     pyuff.UFF(str(path)).write_sets(uff_records(run, binary=False), mode="overwrite")
     lines = path.read_text().splitlines()
@@ -158,8 +158,8 @@ def test_a_uff_from_high_to_low_frequency_is_stored_rising(tmp_path: Path,
 
     status, _, err = _import(tmp_path, "--uff", _uff(tmp_path, campaign_file, change))
     assert status == 0, err
-    stored = Campaign.open(tmp_path / "c.h5").run("x")
-    original = Campaign.open(campaign_file).run("soft-0")
+    stored = CampaignFile.open(tmp_path / "c.h5").run("x")
+    original = CampaignFile.open(campaign_file).run("soft-0")
     assert np.all(np.diff(stored.frequency_hz) > 0)
     np.testing.assert_allclose(stored.frequency_hz, original.frequency_hz, rtol=1e-5)
     np.testing.assert_allclose(stored.accelerance_support, original.accelerance_support,
@@ -194,6 +194,6 @@ def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> N
     falling = F[::-1].copy()
     status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))
     assert status == 0, err
-    run = Campaign.open(tmp_path / "c.h5").run("x")
+    run = CampaignFile.open(tmp_path / "c.h5").run("x")
     np.testing.assert_allclose(run.frequency_hz, F, rtol=1e-12)
     np.testing.assert_allclose(run.accelerance_table, _table(F), rtol=1e-12)

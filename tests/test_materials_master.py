@@ -15,7 +15,7 @@ from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.master import build_master
 from viscorig.materials.table import ModulusTable
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 TEMPERATURES = np.arange(-30.0, 71.0, 10.0)
 FREQUENCIES = np.logspace(-1, 2, 10)
@@ -111,7 +111,7 @@ def _rig_campaign(path, per_point_temperature: bool = True, geometry: bool = Tru
     if geometry:
         rig["geometry_factor_m"] = THETA_M
     frequency = np.linspace(20.0, 120.0, 41)
-    with Campaign.create(path, sequence_text="", rig=rig) as campaign:
+    with CampaignFile.create(path, sequence_text="", rig=rig) as campaign:
         for i, temperature in enumerate(RIG_TEMPERATURES):
             # the specimen warms by 0.1 K over a sweep: each point has its own temperature
             local = temperature + np.linspace(-0.05, 0.05, frequency.size)
@@ -168,7 +168,7 @@ def test_rig_runs_use_a_stored_disc_mass_or_say_what_is_missing(tmp_path, capsys
     argv = ["master", str(path), "--run", runs[0], "--run", runs[1]]
     assert main(argv) == 2
     assert "no disc mass M_v" in capsys.readouterr().err
-    with Campaign.open(path, "a") as campaign:
+    with CampaignFile.open(path, "a") as campaign:
         for run in runs[:2]:
             campaign.add_fit(run, model="voigt", band_hz=(20.0, 120.0), rms_error=0.01,
                              noise_floor=0.01, parameters={
@@ -264,12 +264,12 @@ def test_rig_modulus_from_a_stored_fit_is_its_kstar_over_theta(tmp_path):
 
     path = tmp_path / "rig.h5"
     runs = _rig_campaign(path)
-    with Campaign.open(path, "a") as campaign:
+    with CampaignFile.open(path, "a") as campaign:
         campaign.add_fit(runs[0], model="voigt", band_hz=(20.0, 120.0), rms_error=0.01,
                          noise_floor=0.01, parameters={
                              "K_v": (2.0e5, 1e3, "N/m"), "C_v": (150.0, 1.0, "N s/m"),
                              "M_v": (DISC_MASS_KG, 0.001, "kg")})
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     table = rig_modulus_table(campaign, runs[0], kstar_source="fit")
     omega = 2 * np.pi * table.frequency_hz
     assert np.allclose(table.storage_pa, 2.0e5 / THETA_M)

@@ -10,7 +10,7 @@ from pathlib import Path
 from benchrig import wait_until
 
 from viscorig.bench import BenchService
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 SEQUENCE = """
 name = "adaptive-pause"
@@ -51,11 +51,11 @@ def test_an_adaptive_plan_pauses_after_the_point_being_measured(tmp_path: Path) 
         paused = wait_until(lambda: (s := service.state())["state"] == "paused" and s, 10,
                             "paused")
         paused_at = time.monotonic()
-        committed = Campaign.open(tmp_path / "out.h5").run("table")
+        committed = CampaignFile.open(tmp_path / "out.h5").run("table")
         time.sleep(0.3)  # several points' time
         after_request = [f for t, f in revealed if t > asked]
         assert [f for t, f in revealed if t > paused_at] == []  # nothing measured while paused
-        assert Campaign.open(tmp_path / "out.h5").run("table").points == committed.points
+        assert CampaignFile.open(tmp_path / "out.h5").run("table").points == committed.points
         assert committed.points == paused["points_done"] > 0
         assert paused["points_done"] < paused["points_total"]  # inside the request, not after
         assert len(after_request) <= 1  # at most the point being measured
@@ -68,7 +68,7 @@ def test_an_adaptive_plan_pauses_after_the_point_being_measured(tmp_path: Path) 
         assert revealed[count][1] > committed.frequency_hz[-1]
         service.abort()
         wait_until(lambda: not service.busy, 30, "the end")
-        with Campaign.open(tmp_path / "out.h5") as campaign:
+        with CampaignFile.open(tmp_path / "out.h5") as campaign:
             kinds = [entry.kind for entry in campaign.journal]
             assert kinds[:2] == ["pause", "resume"]
     finally:
@@ -90,15 +90,19 @@ def test_point_by_point_measurements_end_after_the_point_in_flight() -> None:
                 stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
                 tolerance_db=1.0, start_level_vpk=0.1)
             frequencies = [20.0, 21.5, 23.0, 24.5, 26.0, 27.5]
-            started: list[float] = []
+            revealed: list[int] = []
+            server.analyser.on_point = lambda count: revealed.append(count)
+            asked: list[int] = []
 
-            def progress(report) -> None:  # about one and a half points in
-                started.append(time.monotonic())
-                if started[-1] - started[0] > 0.12:
+            def progress(report) -> None:  # once the first point is measured
+                if revealed and not asked:
+                    asked.append(len(revealed))
                     analyser.end_after_point()
 
             cut = analyser.measure_points(frequencies, progress=progress)
-            assert cut.ended_early and 1 <= len(cut) <= 2  # the point in flight, no further
+            # the points measured when it was asked, and at most the one in flight
+            assert cut.ended_early and asked[0] <= len(cut) <= asked[0] + 1 < len(frequencies)
+            assert len(cut) == len(revealed)  # no point measured after the end
             assert list(cut.frequency_hz) == frequencies[:len(cut)]
             whole = analyser.measure_points(frequencies[:2])  # the next call is whole again
             assert not whole.ended_early and len(whole) == 2

@@ -15,7 +15,7 @@ from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 
 from viscorig.bench import BenchService
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 #: 13 points in segments of 8; at pace 60 a point takes about 25 ms of wall time.
 SEQUENCE = """
@@ -61,12 +61,12 @@ def _measure(folder: Path, out: str, pause_after: int | None) -> dict:
             paused = wait_until(lambda: (s := service.state())["state"] == "paused" and s,
                                 what="paused")
             paused_at = time.monotonic()
-            seen["committed"] = Campaign.open(folder / out).run("soft-0").points
+            seen["committed"] = CampaignFile.open(folder / out).run("soft-0").points
             seen["points_done"] = paused["points_done"]
             time.sleep(0.3)  # a dozen points' time
             seen["after_request"] = [f for t, f in revealed if t > asked]
             seen["while_paused"] = [f for t, f in revealed if t > paused_at]
-            seen["still_committed"] = Campaign.open(folder / out).run("soft-0").points
+            seen["still_committed"] = CampaignFile.open(folder / out).run("soft-0").points
             count = len(revealed)
             service.resume()
             wait_until(lambda: len(revealed) > count, what="a point after the resume")
@@ -90,7 +90,7 @@ def test_a_pause_ends_the_sweep_at_a_point_and_the_file_equals_an_uninterrupted_
     assert 8 <= committed < 13  # inside the second segment: not at a segment's end
     assert len(paused["after_request"]) <= 1  # at most the point being measured
     assert paused["while_paused"] == []
-    with Campaign.open(tmp_path / "paused.h5") as campaign:
+    with CampaignFile.open(tmp_path / "paused.h5") as campaign:
         run = campaign.run("soft-0")
         kinds = [entry.kind for entry in campaign.journal]
         # the point measured after the request, if any, is the last one committed
@@ -98,7 +98,7 @@ def test_a_pause_ends_the_sweep_at_a_point_and_the_file_equals_an_uninterrupted_
         # the sweep goes on from the next frequency
         assert paused["first_after_resume"] == run.frequency_hz[committed]
         assert run.metadata.status == "complete" and kinds == ["pause", "resume"]
-        with Campaign.open(tmp_path / "straight.h5") as straight:
+        with CampaignFile.open(tmp_path / "straight.h5") as straight:
             other = straight.run("soft-0")
             np.testing.assert_array_equal(run.frequency_hz, other.frequency_hz)
             np.testing.assert_array_equal(run.flags, other.flags)

@@ -26,7 +26,7 @@ import reliability_tally as tally
 from reliability_campaign import check_prefix, points_lost, snapshot
 from smallcampaign import GRIDS, SEQUENCE
 
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 KILLS = 20
 
@@ -74,7 +74,7 @@ def check_file(path: Path) -> None:
     """The file opens and every run is a gap-free, duplicate-free prefix of its grid."""
     if not path.exists():
         return
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         names = campaign.run_names
     assert set(names) <= set(GRIDS)
     for name in names:
@@ -133,11 +133,11 @@ def test_sigkill_at_random_moments_then_resume_loses_nothing(tmp_path: Path) -> 
         else:
             complete(sequence, path, log)
 
-    with Campaign.open(reference) as one, Campaign.open(second) as two:
+    with CampaignFile.open(reference) as one, CampaignFile.open(second) as two:
         noise = {name: relative_rms(two.run(name).accelerance_table,
                                     one.run(name).accelerance_table) for name in GRIDS}
     for path in campaigns:
-        with Campaign.open(path) as campaign, Campaign.open(reference) as base:
+        with CampaignFile.open(path) as campaign, CampaignFile.open(reference) as base:
             assert campaign.run_names == base.run_names
             for name in GRIDS:
                 run, expected = campaign.run(name), base.run(name)

@@ -36,7 +36,7 @@ from rigsim.faults import Fault
 from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 
-from viscorig.storage import Campaign, PointFlag
+from viscorig.storage import CampaignFile, PointFlag
 
 GRID_HZ = 20.0 + 0.25 * np.arange(41)  # 20-30 Hz
 SEGMENT_POINTS = 8
@@ -70,7 +70,7 @@ def resume_and_check(server, station: Path, path: Path, before: dict) -> None:
     status, _, err = cli(["resume", path, "--yes"])
     assert status == 0, err
     assert check_prefix(path, "soft-0", GRID_HZ) == GRID_HZ.size
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run("soft-0").metadata.status == "complete"
     lost = points_lost(before, snapshot(path))
     tally.add("points lost", lost)
@@ -102,7 +102,7 @@ def stopping_fault(rig, fault: Fault) -> None:
     assert "kept" in line
     stored = check_prefix(path, "soft-0", GRID_HZ)
     assert stored == COMMITTED_SEGMENTS * SEGMENT_POINTS == reported_points(out)
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run("soft-0").metadata.status == "aborted"
     assert not server.analyser.source_on, "the source was left on after the fault"
     resume_and_check(server, station, path, snapshot(path))
@@ -159,7 +159,7 @@ def test_an_input_overload_is_remeasured_or_flagged(rig, points, flagged: bool) 
     tally.add("faults tried")
     assert status == 0, err
     assert check_prefix(path, "soft-0", GRID_HZ) == GRID_HZ.size
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("soft-0")
     overloaded = run.flagged(PointFlag.INPUT_OVERLOAD)
     if flagged:
@@ -182,7 +182,7 @@ def test_a_level_that_cannot_be_reached_is_flagged_not_hidden(tmp_path: Path) ->
         status, _, err = cli(["run", sequence, "--station", station, "--out", path, "--yes"])
     tally.add("faults tried")
     assert status == 0, err
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("soft-0")
     missed = np.abs(20 * np.log10(run.reference_amplitude / 1.0)) > 1.0
     assert missed.any()
@@ -209,6 +209,6 @@ def test_a_force_the_shaker_cannot_give_is_refused_before_the_sweep(tmp_path: Pa
     assert status == 2, err
     line = one_clear_line(err)
     assert "exceeds the shaker limit 5 N" in line and "from a probe of the mounted rig" in line
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run_names == []
     assert not source_on

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.cli import main
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 RUNS = ("table", "soft-0")
 DATASETS = ("frequency_hz", "time_s", "accelerance_table", "accelerance_support",
@@ -63,7 +63,7 @@ def assert_clean_outcome(status: int, err: str, allowed: tuple[int, ...] = (0, 2
 # -- a valid campaign to damage -----------------------------------------------------------------
 
 
-def add_run(campaign: Campaign, name: str, specimen: str, rig: str, seed: int) -> None:
+def add_run(campaign: CampaignFile, name: str, specimen: str, rig: str, seed: int) -> None:
     run = simulate_run(rig, seed=seed, start_hz=15.0, stop_hz=25.0, step_hz=0.25)
     campaign.start_run(name, RunSettings(
         specimen=specimen, level_m_per_s2=1.0, direction="up", settle_cycles=100,
@@ -77,7 +77,7 @@ def add_run(campaign: Campaign, name: str, specimen: str, rig: str, seed: int) -
 @pytest.fixture(scope="module")
 def good_campaign(tmp_path_factory: pytest.TempPathFactory) -> bytes:
     path = tmp_path_factory.mktemp("good") / "campaign.h5"
-    with Campaign.create(path, sequence_text="name = 'x'", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="name = 'x'", durable=False) as campaign:
         add_run(campaign, "table", "none", rig_text(noise=DEFAULT_NOISE), 1)
         add_run(campaign, "soft-0", "soft", "soft-0", 2)
     status, _, err = run_cli(["show", str(path)])

@@ -27,7 +27,7 @@ from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 from test_reliability_replies import DamagedAnalyser
 
-from viscorig.storage import Campaign, PointFlag
+from viscorig.storage import CampaignFile, PointFlag
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -78,7 +78,7 @@ def heavy(tmp_path: Path):
 
 
 def check_reduced(path: Path) -> None:
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("table")
     assert run.metadata.status == "complete" and run.points == 41
     assert 30.0 < run.metadata.level_m_per_s2 < 50.0
@@ -93,7 +93,7 @@ def test_a_sweep_over_the_shaker_limit_is_refused_then_reduced_on_resume(heavy) 
     line = one_clear_line(err)
     assert "exceeds the shaker limit 100 N" in line and "--over-limit reduce" in line
     assert re.search(r"estimated force 1[01]\d N", line), line
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run_names == []  # nothing measured
     assert server.analyser.source_on is False and server.analyser.points_measured == 0
     status, _, err = cli(["resume", path, "--yes", "--over-limit", "reduce"])

@@ -16,7 +16,7 @@ from campaigndata import add_run, paper_campaign
 from viscorig.cli import main
 from viscorig.identify import identify_run, store_fit
 from viscorig.report import analyse_campaign, build_report
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_report_tables_sit_beside_the_papers_values_and_say_its_inconsistencies(
 def test_stored_fit_is_the_model_shown(tmp_path: Path, campaign_file: Path):
     path = tmp_path / "c.h5"
     path.write_bytes(campaign_file.read_bytes())
-    with Campaign.open(path, "a") as campaign:
+    with CampaignFile.open(path, "a") as campaign:
         result, _ = identify_run(campaign, "soft-0", "maxwell(2)", band_hz=(20, 120))
         fit_id = store_fit(campaign, "soft-0", result)
         analysis = analyse_campaign(campaign, diagnosis=False)
@@ -83,7 +83,7 @@ def quick_report(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) 
 def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
     pytest.importorskip("viscorig.diagnosis")
     path = paper_campaign(tmp_path / "c.h5", runs=("table", "hard-10"))
-    analysis = analyse_campaign(Campaign.open(path), jobs=1)
+    analysis = analyse_campaign(CampaignFile.open(path), jobs=1)
     hard = analysis.run("hard-10")
     assert analysis.diagnosis_available and analysis.ladder
     assert hard.ladder[0].model == "voigt" and len(hard.ladder) >= 3
@@ -118,7 +118,7 @@ def test_report_climbs_the_ladder_and_shows_the_model_reached(tmp_path: Path):
 def test_shading_is_only_where_the_model_shown_fails(quick_report: Path, campaign_file: Path):
     from viscorig.report.figures import BAND, frf_figure
 
-    analysis = analyse_campaign(Campaign.open(campaign_file), ladder=False, jobs=1)
+    analysis = analyse_campaign(CampaignFile.open(campaign_file), ladder=False, jobs=1)
     soft = analysis.run("soft-0")
     assert soft.shown.spec == soft.ladder[-1].model == "voigt"
     assert soft.failures  # Voigt fails somewhere on this rubber
@@ -163,7 +163,7 @@ def test_preload_pairs_are_compared_with_their_uncertainty(quick_report: Path,
     from viscorig.identify import summarize
 
     page = (quick_report / "index.html").read_text(encoding="utf-8")
-    _, summaries = summarize(Campaign.open(campaign_file))
+    _, summaries = summarize(CampaignFile.open(campaign_file))
     fits = {s.run: s.fit for s in summaries}
     (k_v, c_v) = compare_fits(fits["soft-0"], fits["soft-10"], ["K_v", "C_v"])
     assert k_v.significant and 0.05 < k_v.relative < 0.15  # the rig's preload stiffens K_v
@@ -203,8 +203,8 @@ def test_report_and_summary_print_the_same_numbers(report_dir: Path, campaign_fi
 
 
 def test_residuals_are_shown_against_the_runs_noise_model(campaign_file: Path):
-    analysis = analyse_campaign(Campaign.open(campaign_file), diagnosis=False)
-    result, _ = identify_run(Campaign.open(campaign_file), "soft-0", "voigt", band_hz=(20, 120))
+    analysis = analyse_campaign(CampaignFile.open(campaign_file), diagnosis=False)
+    result, _ = identify_run(CampaignFile.open(campaign_file), "soft-0", "voigt", band_hz=(20, 120))
     residuals = {r.frf: r for r in analysis.run("soft-0").residuals}
     assert set(residuals) == {"table", "support"}
     order = np.argsort(result.frequency_hz)
@@ -221,7 +221,7 @@ def test_moduli_and_preload_figures_carry_the_uncertainty_bands(campaign_file: P
     from viscorig.report.analysis import rubbers
     from viscorig.report.figures import moduli_figure, preload_figure
 
-    analysis = analyse_campaign(Campaign.open(campaign_file), diagnosis=False)
+    analysis = analyse_campaign(CampaignFile.open(campaign_file), diagnosis=False)
     groups = rubbers(analysis)
     soft = groups["soft"]
     stiffness_ax = moduli_figure("soft", soft, None).get_axes()[0]
@@ -245,7 +245,7 @@ def test_moduli_and_preload_figures_carry_the_uncertainty_bands(campaign_file: P
 
 def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, capsys):
     assert main(["report", str(tmp_path / "none.h5"), "--out", str(tmp_path / "r")]) == 2
-    Campaign.create(tmp_path / "empty.h5", sequence_text="", durable=False)
+    CampaignFile.create(tmp_path / "empty.h5", sequence_text="", durable=False)
     assert main(["report", str(tmp_path / "empty.h5"), "--out", str(tmp_path / "r")]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 2 and "has no run" in errors[1]
@@ -254,7 +254,7 @@ def test_report_of_a_missing_file_or_no_runs_is_one_line_exit_2(tmp_path: Path, 
 @pytest.mark.slow
 def test_report_of_a_campaign_still_being_measured(tmp_path: Path):
     path = tmp_path / "live.h5"
-    campaign = Campaign.create(path, sequence_text="", durable=False)
+    campaign = CampaignFile.create(path, sequence_text="", durable=False)
     add_run(campaign, "table")
     add_run(campaign, "soft-0", points=140, finish=False)
     add_run(campaign, "soft-10", points=5, finish=False)
@@ -262,13 +262,13 @@ def test_report_of_a_campaign_still_being_measured(tmp_path: Path):
     assert "running" in page and "5 points, too few to fit" in page
     assert (tmp_path / "r" / "frf-soft-0.png").exists()
     assert (tmp_path / "r" / "frf-soft-10.png").exists()
-    analysis = analyse_campaign(Campaign.open(path), diagnosis=False)
+    analysis = analyse_campaign(CampaignFile.open(path), diagnosis=False)
     assert analysis.run("soft-0").band_hz == (20.0, pytest.approx(54.75))
 
 
 def test_quick_look_of_a_run_being_measured(tmp_path: Path, capsys):
     path = tmp_path / "live.h5"
-    campaign = Campaign.create(path, sequence_text="", durable=False)
+    campaign = CampaignFile.create(path, sequence_text="", durable=False)
     add_run(campaign, "soft-0", points=37, finish=False)
     out = tmp_path / "look.png"
     assert main(["show", str(path), "--plot", "soft-0", "--out", str(out)]) == 0

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from viscorig.report.materials import candidate_groups
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 
 
 def _segment() -> Segment:
@@ -23,7 +23,7 @@ def _segment() -> Segment:
 
 def test_a_run_at_zero_celsius_is_grouped_and_one_of_unknown_temperature_is_not(tmp_path: Path):
     path = tmp_path / "c.h5"
-    with Campaign.create(path, sequence_text="", durable=False) as campaign:
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         for name, temperature, preload in (("soft-0c", 0.0, 0.0), ("soft-25c", 25.0, 0.0),
                                            ("soft-unknown", math.nan, 0.0),
                                            ("soft-10-0c", 0.0, 0.104),
@@ -33,6 +33,6 @@ def test_a_run_at_zero_celsius_is_grouped_and_one_of_unknown_temperature_is_not(
                                    preload_strain=preload, temperature_c=temperature,
                                    simulated=True)
             campaign.add_run(name, settings, _segment())
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert candidate_groups(campaign) == [("soft-0c", "soft-25c"),
                                               ("soft-10-0c", "soft-10-25c")]

@@ -10,10 +10,10 @@ import pytest
 from campaigndata import paper_campaign
 
 from viscorig.report import analyse_campaign
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
-class CountingCampaign(Campaign):
+class CountingCampaign(CampaignFile):
     """A campaign that counts the runs read from its file."""
 
     reads: Counter

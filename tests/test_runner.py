@@ -19,7 +19,7 @@ from viscorig.storage import (
     INPUT_OVERLOAD,
     LEVEL_NOT_REACHED,
     SOURCE_AT_LIMIT,
-    Campaign,
+    CampaignFile,
 )
 
 server_module = pytest.importorskip("rigsim.server")
@@ -68,7 +68,7 @@ def run_cli(*args: str) -> int:
 def test_a_station_run_is_recorded_with_its_metadata(tmp_path, rig, capsys) -> None:
     sequence, station, out = write_files(tmp_path, rig)
     assert run_cli(sequence, "--station", station, "--out", out) == 0
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("soft-0")
     assert run.points == 17 and run.metadata.status == "complete"
     assert run.metadata.resource == rig.resource and not run.metadata.simulated
@@ -88,7 +88,7 @@ def test_a_level_the_source_cannot_reach_is_flagged_as_source_limited(tmp_path, 
     # 0.02 V is 1 N of shaker force; the soft rig needs about 13 N at 20 Hz for 1.4 m/s^2
     sequence, station, out = write_files(tmp_path, rig, source_limit=0.02)
     assert run_cli(sequence, "--station", station, "--out", out) == 0
-    run = Campaign.open(out).run("soft-0")
+    run = CampaignFile.open(out).run("soft-0")
     assert np.all(run.flags == LEVEL_NOT_REACHED | SOURCE_AT_LIMIT)
     assert np.all(run.force_amplitude < 1.1)
 
@@ -111,7 +111,7 @@ def test_a_level_held_back_by_the_shaker_limit_is_flagged_but_not_as_source_limi
     wiring = Wiring.from_station(load_station(station))
     settings = SweepSettings(step=step, level_m_per_s2=1.4, force_limit_n=5.0,
                              source_limit_v=0.1, time_base="test", poll_interval_s=0.01)
-    campaign = Campaign.create(out, sequence_text=Path(sequence).read_text(), durable=False)
+    campaign = CampaignFile.create(out, sequence_text=Path(sequence).read_text(), durable=False)
     campaign.start_run("soft-0", RunSettings(specimen="soft", level_m_per_s2=1.4, direction="up",
                                              settle_cycles=10, integrate_cycles=10,
                                              resolution_hz=0.25))
@@ -121,7 +121,7 @@ def test_a_level_held_back_by_the_shaker_limit_is_flagged_but_not_as_source_limi
         SweepMeasurement(campaign, analyser, wiring, settings).run()
     finally:
         analyser.close()
-    run = Campaign.open(out).run("soft-0")
+    run = CampaignFile.open(out).run("soft-0")
     assert run.points == 17
     assert np.all(run.force_amplitude <= 5.0 * 1.01)
     assert np.all(run.flags == LEVEL_NOT_REACHED)
@@ -137,7 +137,7 @@ def test_a_sweep_over_the_shaker_limit_is_refused_and_nothing_is_measured(
     assert run_cli(sequence, "--station", station, "--out", out) == 2
     error = capsys.readouterr().err
     assert "exceeds the shaker limit 100 N" in error and "--over-limit reduce" in error
-    assert Campaign.open(out).run_names == []
+    assert CampaignFile.open(out).run_names == []
 
 
 @pytest.mark.parametrize("rig", ["table"], indirect=True)
@@ -145,7 +145,7 @@ def test_a_sweep_over_the_shaker_limit_can_run_at_a_reduced_level(tmp_path, rig)
     sequence, station, out = write_files(tmp_path, rig, level="300 m/s^2", run="table",
                                          specimen="none", band=(12.0, 14.0))
     assert run_cli(sequence, "--station", station, "--out", out, "--over-limit", "reduce") == 0
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("table")
     assert run.metadata.level_m_per_s2 < 300.0
     assert np.all(run.force_amplitude < 100.0)
@@ -163,11 +163,11 @@ def test_an_input_overload_is_measured_again_or_flagged(tmp_path, rig) -> None:
     sequence, station, out = write_files(tmp_path, rig)
     rig.analyser.force_overload(4, points=2)  # a transient: gone when measured again
     assert run_cli(sequence, "--station", station, "--out", out) == 0
-    assert not (Campaign.open(out).run("soft-0").flags & INPUT_OVERLOAD).any()
+    assert not (CampaignFile.open(out).run("soft-0").flags & INPUT_OVERLOAD).any()
     out2 = str(tmp_path / "again.h5")
     rig.analyser.force_overload(4, points=10_000)  # persistent: flagged
     assert run_cli(sequence, "--station", station, "--out", out2) == 0
-    assert np.all(Campaign.open(out2).run("soft-0").flags & INPUT_OVERLOAD)
+    assert np.all(CampaignFile.open(out2).run("soft-0").flags & INPUT_OVERLOAD)
 
 
 def test_an_instrument_fault_mid_sweep_keeps_the_data_and_resume_completes(
@@ -186,13 +186,13 @@ def test_an_instrument_fault_mid_sweep_keeps_the_data_and_resume_completes(
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "hardware fault" in error and rig.resource in error
     assert f"viscorig resume {out}" in error
-    run = Campaign.open(out).run("soft-0")
+    run = CampaignFile.open(out).run("soft-0")
     assert run.metadata.status == "aborted" and 0 < run.points < 25
     kept = run.frequency_hz.copy()
 
     rig.analyser.on_point = None
     assert main(["resume", out, "--yes"]) == 0
-    run = Campaign.open(out).run("soft-0")
+    run = CampaignFile.open(out).run("soft-0")
     assert run.metadata.status == "complete"
     np.testing.assert_allclose(run.frequency_hz, 20.0 + 0.25 * np.arange(25))
     np.testing.assert_array_equal(run.frequency_hz[: kept.size], kept)
@@ -258,7 +258,7 @@ def test_a_hard_specimen_is_probed_and_refused_before_anything_is_measured(
     assert found and 140 < int(found.group(1)) < 175, line
     assert "from a probe of the mounted rig at 20 and 21 Hz" in line
     assert 'over_limit in the sequence is "refuse"' in line and "--over-limit reduce" in line
-    assert Campaign.open(out).run_names == []  # nothing measured for the run
+    assert CampaignFile.open(out).run_names == []  # nothing measured for the run
     assert rig.analyser.source_on is False
     # the probe itself stayed at a tenth of the level: about 16 N, far below the limit
     forces = probe_forces(captured.out)
@@ -273,7 +273,7 @@ def test_a_hard_specimen_runs_reduced_when_its_step_says_so(tmp_path, rig, capsy
     found = re.search(r"level reduced to ([\d.]+) m/s\^2 \(requested 2 m/s\^2; over_limit in "
                       r"the sequence is \"reduce\"\)", printed)
     assert found, printed
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     run = campaign.run("hard-10")
     assert run.metadata.level_m_per_s2 == pytest.approx(float(found.group(1)), rel=1e-3)
     assert 1.0 < run.metadata.level_m_per_s2 < 1.3
@@ -311,10 +311,10 @@ def test_the_over_limit_option_overrides_the_sequence(
     captured = capsys.readouterr()
     if status == 2:
         assert '--over-limit is "refuse"' in captured.err
-        assert Campaign.open(out).run_names == []
+        assert CampaignFile.open(out).run_names == []
     else:
         assert '--over-limit is "reduce"' in captured.out
-        assert Campaign.open(out).run("hard-10").metadata.level_m_per_s2 < 1.3
+        assert CampaignFile.open(out).run("hard-10").metadata.level_m_per_s2 < 1.3
 
 
 def test_a_second_run_on_the_same_mounting_is_predicted_from_the_first(tmp_path, rig,
@@ -330,7 +330,7 @@ def test_a_second_run_on_the_same_mounting_is_predicted_from_the_first(tmp_path,
     found = re.search(r"run 'soft-0-level2': estimated force up to ([\d.]+) N at 20 Hz .*"
                       r"the specimen of run 'soft-0' \(same mounting\)", printed)
     assert found, printed
-    campaign = Campaign.open(out)
+    campaign = CampaignFile.open(out)
     reached = campaign.run("soft-0-level2").force_amplitude[0]
     assert float(found.group(1)) == pytest.approx(reached, rel=0.05)
     import h5py
@@ -356,13 +356,13 @@ def test_a_fault_during_the_probe_stops_before_the_run_and_resume_probes_again(
     captured = capsys.readouterr()
     assert "newly mounted; probing" in captured.out
     assert "hardware fault" in captured.err and "before run 'soft-0' started" in captured.err
-    assert Campaign.open(out).run_names == []
+    assert CampaignFile.open(out).run_names == []
     assert rig.analyser.source_on is False
 
     rig.analyser.on_point = None
     assert main(["resume", out, "--yes"]) == 0
     assert "newly mounted; probing" in capsys.readouterr().out
-    assert Campaign.open(out).run("soft-0").points == 17
+    assert CampaignFile.open(out).run("soft-0").points == 17
 
 
 # -- a probe that cannot be right: wiring or mounting, never an absurd level -------------------
@@ -382,7 +382,7 @@ def test_a_specimen_run_on_a_rig_without_specimen_says_wiring_or_mounting(tmp_pa
                      r"cannot move [\d.e+]+ times less than the table it is linked to", line), line
     assert "The wiring or the mounting is wrong" in line and "input 4" in line
     assert "--over-limit reduce" not in line and "e-0" not in line.split("dB short")[1]
-    assert Campaign.open(out).run_names == []
+    assert CampaignFile.open(out).run_names == []
     assert rig.analyser.source_on is False
 
 
@@ -399,4 +399,4 @@ def test_a_reference_on_a_dead_input_says_so_before_anything_is_measured(tmp_pat
     assert run_cli(sequence, "--station", station, "--out", out) == 2
     line = capsys.readouterr().err.strip()
     assert "dB short" in line and "The wiring or the mounting is wrong" in line, line
-    assert Campaign.open(out).run_names == []
+    assert CampaignFile.open(out).run_names == []

@@ -14,7 +14,7 @@ from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.exchange import read_sdf, read_sdf_frfs
 from viscorig.sequences import parse_station
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 STATION_ROLES = parse_station(STATION, "station.toml")
 S = STATION_ROLES.sensitivity
@@ -55,7 +55,7 @@ def test_fft_mode_h1_of_both_frfs_in_one_file_goes_by_the_station_roles(tmp_path
     target = tmp_path / "c.h5"
     assert main(["import", str(target), "--run", "soft-0", "--specimen", "soft",
                  "--sdf", str(path), "--station", str(station)]) == 0
-    run = Campaign.open(target).run("soft-0")
+    run = CampaignFile.open(target).run("soft-0")
     f = F_FFT[1:801]  # the 0 Hz line and the lines past 1600 Hz are not kept
     assert np.array_equal(run.frequency_hz, f)
     assert np.allclose(run.accelerance_table, _table(f), rtol=2e-7, atol=0)  # float32 data

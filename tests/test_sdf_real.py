@@ -19,7 +19,7 @@ from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.exchange import read_sdf, read_sdf_file, read_sdf_frfs
 from viscorig.sequences import parse_station
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 DATA = real_data("sdf", "HP35665A.DAT", "HP35670A.DAT", "ASCII3KH.TXT", "ASCII3KH.X")
 FRF_35665A = DATA / "HP35665A.DAT"
@@ -73,7 +73,7 @@ def test_a_real_35665a_response_imports_with_a_station_as_one_frf_run(
     assert main(["import", str(target), "--run", "table", "--specimen", "none",
                  "--sdf", str(FRF_35665A), "--station", str(station_file)]) == 0
     assert "ẍ_s/F_e only" in capsys.readouterr().out
-    run = Campaign.open(target).run("table")
+    run = CampaignFile.open(target).run("table")
     independent = _sdfascii_frf().astype(complex)
     # m/s² per N = (V/V) · (V/N) / (V/(m/s²))
     expected = independent * SENSITIVITY_F_V_PER_N / SENSITIVITY_A_V_PER_M_S2

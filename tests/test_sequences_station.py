@@ -9,7 +9,7 @@ from tomlwrite import dumps
 
 from viscorig.errors import InputError
 from viscorig.sequences import parse_station
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def document() -> dict:
@@ -40,7 +40,7 @@ def test_a_full_station_is_read_and_gives_the_rig_attributes(tmp_path) -> None:
         "table_mass_kg": 3.4, "table_stiffness_n_per_m": 50194.0, "table_damping_ns_per_m": 5.05,
         "specimen_diameter_m": 0.02, "specimen_height_m": 0.012, "specimen_count": 2,
     }
-    campaign = Campaign.create(tmp_path / "c.h5", sequence_text="", rig=rig, durable=False)
+    campaign = CampaignFile.create(tmp_path / "c.h5", sequence_text="", rig=rig, durable=False)
     assert campaign.rig == rig
 
 

@@ -12,14 +12,14 @@ import pytest
 from test_storage import SETTINGS, make_segment
 
 from viscorig.cli import main
-from viscorig.storage import Campaign, RunSettings
+from viscorig.storage import CampaignFile, RunSettings
 from viscorig.storage.atomic import staging_path
 
 
 @pytest.fixture()
 def campaign_path(tmp_path: Path) -> Path:
     path = tmp_path / "paper.h5"
-    campaign = Campaign.create(path, sequence_text="name = 'paper'", sequence_file="paper.toml",
+    campaign = CampaignFile.create(path, sequence_text="name = 'paper'", sequence_file="paper.toml",
                                rig={"table_mass_kg": 3.4}, durable=False)
     table = RunSettings(specimen="none", level_m_per_s2=1.4, direction="up", settle_cycles=200,
                         integrate_cycles=100, resolution_hz=0.125, simulated=True)
@@ -56,7 +56,7 @@ def test_lists_runs_flags_and_fits(campaign_path: Path, capsys: pytest.CaptureFi
 
 def test_crashed_writer_leaves_a_file_show_reads(campaign_path: Path,
                                                  capsys: pytest.CaptureFixture) -> None:
-    campaign = Campaign.open(campaign_path, mode="a", durable=False)
+    campaign = CampaignFile.open(campaign_path, mode="a", durable=False)
     campaign.start_run("hard-0", SETTINGS)  # started, no segment yet
     staging_path(campaign_path).write_bytes(b"half a commit")  # a writer killed mid-commit
     assert main(["show", str(campaign_path)]) == 0

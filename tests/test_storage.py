@@ -17,7 +17,7 @@ from viscorig.storage import (
     INPUT_OVERLOAD,
     LEVEL_NOT_REACHED,
     SOURCE_AT_LIMIT,
-    Campaign,
+    CampaignFile,
     PointFlag,
     RunSettings,
     Segment,
@@ -77,7 +77,7 @@ def digest(path: Path) -> str:
 @pytest.fixture()
 def campaign_path(tmp_path: Path) -> Path:
     path = tmp_path / "campaign.h5"
-    campaign = Campaign.create(
+    campaign = CampaignFile.create(
         path,
         sequence_text='name = "paper"\n',
         sequence_file="paper.toml",
@@ -126,7 +126,7 @@ def test_written_file_holds_exactly_the_layout(campaign_path: Path) -> None:
 
 def test_round_trip_with_derived_forms(campaign_path: Path) -> None:
     first, second = make_segment(20.0, 30), make_segment(27.5, 10)
-    with Campaign.open(campaign_path) as campaign:
+    with CampaignFile.open(campaign_path) as campaign:
         assert campaign.run_names == ["soft-0"]
         run = campaign.run("soft-0")
         assert campaign.rig == {"table_mass_kg": 3.4, "specimen_count": 2}
@@ -153,7 +153,7 @@ def test_round_trip_with_derived_forms(campaign_path: Path) -> None:
 
 def test_optional_variance_is_stored_with_units(tmp_path: Path) -> None:
     path = tmp_path / "v.h5"
-    campaign = Campaign.create(path, sequence_text="", durable=False)
+    campaign = CampaignFile.create(path, sequence_text="", durable=False)
     campaign.start_run("table", SETTINGS)
     campaign.append_segment("table", make_segment(10.0, 5, variance=True))
     assert campaign.append_segment("table", make_segment(11.25, 3, variance=True)) == 8
@@ -182,7 +182,7 @@ def test_flag_bits_are_the_contract_values() -> None:
 
 
 def test_fits_are_numbered_and_read_back(campaign_path: Path) -> None:
-    with Campaign.open(campaign_path, mode="a", durable=False) as campaign:
+    with CampaignFile.open(campaign_path, mode="a", durable=False) as campaign:
         first = campaign.add_fit(
             "soft-0", model="voigt", band_hz=(20.0, 120.0), rms_error=0.012, noise_floor=0.004,
             parameters={"K_v": (149986.61, 120.0, "N/m"), "C_v": (114.59, 0.8, "N*s/m")},
@@ -206,14 +206,14 @@ def test_fits_are_numbered_and_read_back(campaign_path: Path) -> None:
 
 def test_read_only_campaign_refuses_changes(campaign_path: Path) -> None:
     before = digest(campaign_path)
-    with Campaign.open(campaign_path) as campaign, pytest.raises(InputError, match="read-only"):
+    with CampaignFile.open(campaign_path) as campaign, pytest.raises(InputError, match="read-only"):
         campaign.add_fit("soft-0", model="voigt", band_hz=(20, 120), rms_error=0.1,
                          noise_floor=0.1, parameters={})
     assert digest(campaign_path) == before
 
 
 def test_lifecycle_errors_name_the_run(campaign_path: Path) -> None:
-    campaign = Campaign.open(campaign_path, mode="a", durable=False)
+    campaign = CampaignFile.open(campaign_path, mode="a", durable=False)
     with pytest.raises(InputError, match=r"/runs/soft-0: run is complete"):
         campaign.append_segment("soft-0", make_segment(30.0, 2))
     with pytest.raises(InputError, match="run exists"):
@@ -227,7 +227,7 @@ def test_lifecycle_errors_name_the_run(campaign_path: Path) -> None:
     assert not staging_path(campaign_path).exists()
     before = digest(campaign_path)
     with pytest.raises(InputError, match="never overwritten"):
-        Campaign.create(campaign_path, sequence_text="")
+        CampaignFile.create(campaign_path, sequence_text="")
     assert digest(campaign_path) == before
 
 
@@ -276,7 +276,7 @@ def write_plain_campaign(path: Path, *, real_imag_names: tuple[str, str] = ("r",
 def test_reads_a_file_written_with_plain_h5py(tmp_path: Path, names: tuple[str, str]) -> None:
     path = tmp_path / "other.h5"
     write_plain_campaign(path, real_imag_names=names)
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("table")
         assert campaign.rig == {"table_stiffness_n_per_m": 50194.0}
         assert campaign.sequence_text is None and campaign.fits("table") == []
@@ -361,14 +361,14 @@ DAMAGES = [
 def test_damaged_file_is_one_input_error_and_unchanged(campaign_path: Path, how: str) -> None:
     expected = damage(campaign_path, how)
     before = digest(campaign_path)
-    with pytest.raises(InputError) as caught, Campaign.open(campaign_path) as campaign:
+    with pytest.raises(InputError) as caught, CampaignFile.open(campaign_path) as campaign:
         campaign.run("soft-0")
     message = str(caught.value)
     assert message.startswith(str(campaign_path)), message
     assert expected in message
     assert "\n" not in message
     with pytest.raises(InputError):  # appending is refused as well, and writes nothing
-        campaign = Campaign.open(campaign_path, mode="a", durable=False)
+        campaign = CampaignFile.open(campaign_path, mode="a", durable=False)
         campaign.append_segment("soft-0", make_segment(40.0, 2))
     assert digest(campaign_path) == before
     assert not staging_path(campaign_path).exists()
@@ -376,11 +376,11 @@ def test_damaged_file_is_one_input_error_and_unchanged(campaign_path: Path, how:
 
 def test_missing_file_and_folder_are_input_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no such file"):
-        Campaign.open(tmp_path / "absent.h5")
+        CampaignFile.open(tmp_path / "absent.h5")
     with pytest.raises(InputError, match="not a file"):
-        Campaign.open(tmp_path)
+        CampaignFile.open(tmp_path)
     with pytest.raises(InputError, match="cannot create"):
-        Campaign.create(tmp_path / "no-folder" / "c.h5", sequence_text="")
+        CampaignFile.create(tmp_path / "no-folder" / "c.h5", sequence_text="")
     with pytest.raises(InputError, match="unknown /rig attribute 'mass'"):
-        Campaign.create(tmp_path / "c.h5", sequence_text="", rig={"mass": 3.4})
+        CampaignFile.create(tmp_path / "c.h5", sequence_text="", rig={"mass": 3.4})
     assert not (tmp_path / "c.h5").exists()

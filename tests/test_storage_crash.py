@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 from viscorig.storage.atomic import staging_path
 
 KILLS = 24
@@ -32,7 +32,7 @@ WRITER = textwrap.dedent(
     import sys
     import time
     import numpy as np
-    from viscorig.storage import Campaign, RunSettings, Segment
+    from viscorig.storage import CampaignFile, RunSettings, Segment
 
     path = sys.argv[1]
     real_fsync = os.fsync
@@ -44,7 +44,7 @@ WRITER = textwrap.dedent(
 
     os.fsync = slow_fsync
     print("ready", flush=True)
-    campaign = Campaign.create(path, sequence_text="name = 'kill'", durable=True)
+    campaign = CampaignFile.create(path, sequence_text="name = 'kill'", durable=True)
     campaign.start_run("kill", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
                        settle_cycles=1, integrate_cycles=1, resolution_hz=0.25))
     for index in range(10_000):
@@ -63,7 +63,7 @@ def segment_size(index: int) -> int:
 
 def check_whole_segments(path: Path) -> int:
     """Number of whole segments in the file; fails on a partial or repeated one."""
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         if campaign.run_names == []:
             return 0
         run = campaign.run("kill")

@@ -20,7 +20,7 @@ from reliability_campaign import cli, one_clear_line
 from smallcampaign import peak_rss_mb
 
 from viscorig.errors import InputError
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 #: Commands that read a campaign, with their arguments after the file.
 READERS = {
@@ -72,7 +72,7 @@ def test_writers_refuse_hostile_files_too(good: Path, tmp_path: Path, name: str)
     path, words = hostile(good, tmp_path, hostilefiles.REFUSED[name])
     before = sha256(path)
     with pytest.raises(InputError, match=words):
-        Campaign.open(path, "a")
+        CampaignFile.open(path, "a")
     assert sha256(path) == before
     assert not list(tmp_path.glob(".campaign.h5.*"))  # no lock or staging file left
 
@@ -110,7 +110,7 @@ def test_escape_sequences_never_reach_the_terminal(good: Path, tmp_path: Path) -
         assert "soft[2J]0;owned31m" in printed or command == "summary"
         for char in printed:
             assert char.isprintable() or char in "\n\t", (command, repr(char))
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         run = campaign.run("soft-0")
         fit = campaign.fits("soft-0")[0]
         assert run.metadata.specimen == "soft[2J]0;owned31m"

@@ -24,7 +24,7 @@ import reliability_tally as tally
 from reliability_campaign import check_prefix
 from smallcampaign import GRIDS, SEQUENCE
 
-from viscorig.storage import Campaign, room
+from viscorig.storage import CampaignFile, room
 
 VISCORIG = [sys.executable, "-m", "viscorig"]
 
@@ -81,11 +81,11 @@ CRASHER = textwrap.dedent(
     import resource, signal, sys
     import numpy as np
     from viscorig.errors import InputError
-    from viscorig.storage import Campaign, RunSettings, Segment, room
+    from viscorig.storage import CampaignFile, RunSettings, Segment, room
     signal.signal(signal.SIGXFSZ, signal.SIG_DFL)  # as an embedding program might leave it
     room.check_room = lambda path, needed: None    # so that the write itself hits the limit
     path = sys.argv[1]
-    campaign = Campaign.create(path, sequence_text="")
+    campaign = CampaignFile.create(path, sequence_text="")
     campaign.start_run("r", RunSettings(specimen="none", level_m_per_s2=1.0, direction="up",
                        settle_cycles=1, integrate_cycles=1, resolution_hz=0.25))
     resource.setrlimit(resource.RLIMIT_FSIZE, (60 * 1024, resource.RLIM_INFINITY))
@@ -108,7 +108,7 @@ def test_a_write_past_the_file_size_limit_is_an_error_not_a_crash(tmp_path: Path
     assert "file size limit reached: 60 KiB (ulimit -f)" in done.stdout, done.stdout
     assert done.stderr == ""
     segments = int(done.stdout.split()[0])
-    with Campaign.open(path) as campaign:
+    with CampaignFile.open(path) as campaign:
         assert campaign.run("r").points == 50 * segments
     assert not list(tmp_path.glob(".c.h5.*"))
     tally.add("storage faults")
@@ -152,8 +152,8 @@ run {viscorig} resume c.h5 --yes
 """
 CHECK = """
 import sys
-from viscorig.storage import Campaign
-with Campaign.open("c.h5") as c:
+from viscorig.storage import CampaignFile
+with CampaignFile.open("c.h5") as c:
     print(sys.argv[1], *(f"{n}={c.run(n).points}/{len(set(c.run(n).frequency_hz))}"
                          for n in c.run_names))
 """

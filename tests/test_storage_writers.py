@@ -23,14 +23,14 @@ import reliability_tally as tally
 from reliability_campaign import cli, one_clear_line
 from smallcampaign import GRIDS, SEQUENCE
 
-from viscorig.storage import Campaign, writelock
+from viscorig.storage import CampaignFile, writelock
 from viscorig.storage.writelock import CampaignInUseError, Holder, lock_path
 
 HOLDER = textwrap.dedent(
     """
     import sys
-    from viscorig.storage import Campaign
-    campaign = Campaign.open(sys.argv[1], "a")
+    from viscorig.storage import CampaignFile
+    campaign = CampaignFile.open(sys.argv[1], "a")
     print("holding", flush=True)
     sys.stdin.read()
     """
@@ -52,7 +52,7 @@ def holder(path: Path) -> subprocess.Popen:
 @pytest.fixture()
 def campaign(tmp_path: Path) -> Path:
     path = tmp_path / "c.h5"
-    with Campaign.create(path, sequence_text="", durable=False):
+    with CampaignFile.create(path, sequence_text="", durable=False):
         pass
     return path
 
@@ -63,14 +63,14 @@ def test_a_second_writer_is_refused_at_once_naming_the_holder(campaign: Path) ->
         before = campaign.read_bytes()
         started = time.monotonic()
         with pytest.raises(CampaignInUseError) as refused:
-            Campaign.open(campaign, "a")
+            CampaignFile.open(campaign, "a")
         assert time.monotonic() - started < 1.0
         message = str(refused.value)
         assert f"pid {first.pid} on {socket.gethostname()}, since 20" in message, message
         assert message.startswith(f"{campaign}: in use by another writer: python -c")
         assert campaign.read_bytes() == before
         tally.add("writers refused")
-        with Campaign.open(campaign) as reader:  # a reader is not refused
+        with CampaignFile.open(campaign) as reader:  # a reader is not refused
             assert reader.run_names == []
         table = campaign.with_name("frf.csv")
         table.write_text("frequency_hz,time_s,accelerance_table_real_m_per_s2_per_n,"
@@ -94,7 +94,7 @@ def test_a_lock_left_by_a_killed_writer_is_taken_over(campaign: Path) -> None:
     stale = writelock.read_holder(campaign)
     assert stale is not None and stale.pid == first.pid  # its record is still there
     started = time.monotonic()
-    with Campaign.open(campaign, "a") as second:
+    with CampaignFile.open(campaign, "a") as second:
         assert time.monotonic() - started < 1.0
         assert writelock.read_holder(campaign).pid == os.getpid()
         second.start_run("after-kill", _settings())
@@ -110,7 +110,7 @@ def _settings():
 
 
 def test_one_process_is_one_writer_and_close_releases(campaign: Path) -> None:
-    one, two = Campaign.open(campaign, "a"), Campaign.open(campaign, "a")
+    one, two = CampaignFile.open(campaign, "a"), CampaignFile.open(campaign, "a")
     one.close()
     assert writelock.holds(campaign)  # the second object still writes
     two.start_run("r", _settings())
@@ -122,11 +122,11 @@ def test_one_process_is_one_writer_and_close_releases(campaign: Path) -> None:
 
 
 def test_a_forked_child_is_another_writer(campaign: Path) -> None:
-    with Campaign.open(campaign, "a"):
+    with CampaignFile.open(campaign, "a"):
         child = os.fork()
         if child == 0:  # pragma: no cover - in the child
             try:
-                Campaign.open(campaign, "a")
+                CampaignFile.open(campaign, "a")
             except CampaignInUseError:
                 os._exit(7)
             os._exit(0)
@@ -148,12 +148,12 @@ def test_without_file_system_locks_a_record_decides(campaign: Path, monkeypatch)
     for record, taken in ((dead, True), (alive, False), (remote, False)):
         lock.write_text(__import__("json").dumps(record.__dict__))
         if taken:
-            with Campaign.open(campaign, "a"):
+            with CampaignFile.open(campaign, "a"):
                 assert writelock.read_holder(campaign).pid == os.getpid()
             assert not lock.exists()
             continue
         with pytest.raises(CampaignInUseError) as refused:
-            Campaign.open(campaign, "a")
+            CampaignFile.open(campaign, "a")
         assert record.describe() in str(refused.value)
         assert ("delete" in str(refused.value)) == (record is remote)
     lock.unlink()
@@ -163,7 +163,7 @@ def _wait_for_points(path: Path, process: subprocess.Popen, points: int = 1) -> 
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and process.poll() is None:
         try:
-            with Campaign.open(path) as reader:
+            with CampaignFile.open(path) as reader:
                 if sum(reader.run(name).points for name in reader.run_names) >= points:
                     return
         except Exception:  # not created yet
@@ -173,7 +173,7 @@ def _wait_for_points(path: Path, process: subprocess.Popen, points: int = 1) -> 
 
 
 def _check_no_duplicates(path: Path) -> None:
-    with Campaign.open(path) as done:
+    with CampaignFile.open(path) as done:
         for name, grid in GRIDS.items():
             run = done.run(name)
             assert run.metadata.status == "complete"

@@ -17,7 +17,7 @@ from viscorig.acquisition import Console, Outcome, Runner, RunnerOptions
 from viscorig.acquisition.chamber import ChamberMonitor
 from viscorig.cli.stations import simulated_station
 from viscorig.sequences import parse_sequence
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 HEAD = """\
 name = "chamber"
@@ -51,7 +51,7 @@ def _run(tmp_path: Path, text: str, monitor: type[ChamberMonitor] | None = None,
             link.simulated = chamber
         if prepare is not None:
             prepare(opened.analyser, chamber)
-        campaign = Campaign.create(out, sequence_text=text, sequence_file="chamber.toml",
+        campaign = CampaignFile.create(out, sequence_text=text, sequence_file="chamber.toml",
                                    station_text=None, station_file="",
                                    rig=opened.station.rig_attributes())
         options = RunnerOptions(simulated=True, time_base="test", real_time_waits=False,
@@ -83,7 +83,7 @@ temperature_c = 30.0
     printed = capsys.readouterr().out
     assert "chamber set to 30 °C, ramp 5 °C/min" in printed and "soaked: specimen" in printed
     assert target == 25.0 and "chamber left at the safe set point 25 °C" in printed
-    run = Campaign.open(out).run("hot")
+    run = CampaignFile.open(out).run("hot")
     values, units = run.extra["temperature_c"]
     assert units == "degC" and values.size == run.points == 6
     assert np.all(np.abs(values - 30.0) <= 1.0)
@@ -120,7 +120,7 @@ temperature_c = 20.0
 """
     result, out, _ = _run(tmp_path, text, prepare=disturb_at_the_first_segment)
     assert result.outcome is Outcome.COMPLETE, result.message
-    run = Campaign.open(out).run("drifting")
+    run = CampaignFile.open(out).run("drifting")
     values, _ = run.extra["temperature_c"]
     outside = np.abs(values - 20.0) > 0.5
     assert values[-1] > values[0] + 1.0  # warming through the run
@@ -165,7 +165,7 @@ run = "broken"
     assert "sensor break on the specimen thermocouple" in result.message
     assert "TCPIP::" not in result.message  # the chamber's fault, not the analyser's
     assert "in run 'broken' after" in result.message and "(kept)" in result.message
-    run = Campaign.open(out).run("broken")
+    run = CampaignFile.open(out).run("broken")
     assert run.metadata.status == "aborted" and run.points == 4  # two segments before it
     assert target == 25.0
 
@@ -280,6 +280,6 @@ temperature_c = 23.0
             assert chamber.target_c == 20.0  # the station's safe set point, at the end
     finally:
         analyser.close()
-    run = Campaign.open(out).run("lab")
+    run = CampaignFile.open(out).run("lab")
     values, _ = run.extra["temperature_c"]
     assert values.size == run.points == 6 and np.all(np.abs(values - 23.0) < 0.1)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 from viscorig.strain import identify_payne
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,7 +44,7 @@ def _truth():
 
 @pytest.mark.slow
 def test_every_run_at_its_temperature(campaign: Path) -> None:
-    file = Campaign.open(campaign)
+    file = CampaignFile.open(campaign)
     for name in file.run_names:
         if not name.startswith("medium_"):
             continue
@@ -59,7 +59,7 @@ def test_every_run_at_its_temperature(campaign: Path) -> None:
 @pytest.mark.slow
 def test_payne_parameters_within_three_standard_errors(campaign: Path) -> None:
     truth = _truth().payne
-    fit = identify_payne(Campaign.open(campaign), [
+    fit = identify_payne(CampaignFile.open(campaign), [
         "medium_25C_strain1", "medium_25C_strain2", "medium_25C_strain3"])
     expected = {"K_f": truth.storage_drop_n_per_m, "L_f": truth.loss_peak_n_per_m,
                 "x_c": truth.critical_displacement_m, "m_k": truth.exponent}
@@ -90,7 +90,7 @@ def _master_available() -> bool:
 def test_shift_factors_within_three_standard_errors_of_the_wlf(campaign: Path) -> None:
     if not _master_available():
         pytest.skip("viscorig master is not in this tree yet")
-    file = Campaign.open(campaign)
+    file = CampaignFile.open(campaign)
     runs = [name for name in file.run_names if name.startswith("medium_T")]
     command = [sys.executable, "-m", "viscorig", "master", str(campaign), "--json",
                "--reference-temperature", "25", "--disc-mass", str(DISC_MASS_KG)]

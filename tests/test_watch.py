@@ -26,7 +26,7 @@ from browser import CHROMIUM, Browser
 from campaigndata import add_run
 
 from viscorig.cli import main
-from viscorig.storage import Campaign, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment
 from viscorig.watch import WatchServer, page_html, read_snapshot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,7 +96,7 @@ def get(url: str, host: str | None = None) -> tuple[int, dict, bytes]:
 
 def measuring_campaign(path: Path) -> Path:
     """A campaign whose second run is being measured: 5 of 41 points, one flagged."""
-    campaign = Campaign.create(path, sequence_text=LIVE.replace("resolution_hz = 1.0",
+    campaign = CampaignFile.create(path, sequence_text=LIVE.replace("resolution_hz = 1.0",
                                                                 "resolution_hz = 2.5"))
     add_run(campaign, "table")
     settings = RunSettings(specimen="soft", level_m_per_s2=1.4, direction="up",

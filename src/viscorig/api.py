@@ -42,7 +42,7 @@ from viscorig.report.analysis import RunAnalysis, climb_from
 from viscorig.report.figures import frf_figure
 from viscorig.report.headline import describe_specimen, headline
 from viscorig.report.page import diagnosis_section
-from viscorig.storage import Campaign as StoredCampaign
+from viscorig.storage import CampaignFile
 
 _DEFAULT_BAND = None  # every point, as identify and diagnose do
 
@@ -60,7 +60,7 @@ class Campaign:
 
     def __init__(self, stored) -> None:
         self.stored = stored
-        """The :class:`viscorig.storage.Campaign`."""
+        """The :class:`viscorig.storage.CampaignFile`."""
 
     @property
     def path(self) -> Path:
@@ -430,7 +430,7 @@ class Diagnosis:
     def __init__(self, run: Run, internal, ladder: list | None = None) -> None:
         self.run = run
         self.internal = internal
-        """The :class:`viscorig.diagnosis.Diagnosis`."""
+        """The :class:`viscorig.diagnosis.DiagnosisResult`."""
         self._ladder = ladder
 
     @property
@@ -579,7 +579,7 @@ def open_campaign(path: str | Path, mode: str = "r") -> Campaign:
         The file is missing, not HDF5, or not a viscorig campaign.
     """
 
-    return Campaign(StoredCampaign.open(path, mode))
+    return Campaign(CampaignFile.open(path, mode))
 
 
 __all__ = ["Campaign", "Comparison", "Diagnosis", "Fit", "Run", "open_campaign"]

@@ -31,20 +31,20 @@ from viscorig.estimates import system_properties as voigt_system_properties
 from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.rig import RigDescription
-from viscorig.storage import INPUT_OVERLOAD, Campaign, FitRecord, Run
+from viscorig.storage import INPUT_OVERLOAD, CampaignFile, FitRecord, RunRecord
 
 #: The paper's analysis band (physics.md), used by the campaign summary.
 PAPER_BAND_HZ = (20.0, 120.0)
 
 
-def is_bare_table(run: Run) -> bool:
+def is_bare_table(run: RunRecord) -> bool:
     """The run has no specimen (``specimen == "none"``)."""
     return str(run.metadata.specimen).strip().lower() in {"none", ""}
 
 
-def run_data(run: Run) -> FrfData:
+def run_data(run: RunRecord) -> FrfData:
     """A run's FRFs as every analysis reads them (:class:`FrfData`): without the overloaded
-    points, in frequency order, repeats of one frequency merged (:meth:`Run.merged`), so that
+    points, in frequency order, repeats of one frequency merged (:meth:`RunRecord.merged`), so that
     a run an adaptive plan measured (repeats, any order) is fitted, diagnosed and reported as a
     full sweep is."""
     run = run.select(~run.flagged(INPUT_OVERLOAD)).merged()
@@ -87,7 +87,7 @@ class TableSource:
         return Known.exact(self.values, self.source)
 
 
-def table_parameters(campaign: Campaign, spec: str = "table") -> TableSource | None:
+def table_parameters(campaign: CampaignFile, spec: str = "table") -> TableSource | None:
     """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``.
 
     The bare-table run is fitted over every point it has: its band was chosen to cover the
@@ -121,7 +121,7 @@ def _band_within(data: FrfData, band_hz: tuple[float, float] | None) -> tuple[fl
 
 
 def identify_run(
-    campaign: Campaign,
+    campaign: CampaignFile,
     run_name: str,
     spec: str | None = None,
     *,
@@ -160,8 +160,8 @@ def identify_run(
 
 
 def _identify(
-    campaign: Campaign,
-    run: Run,
+    campaign: CampaignFile,
+    run: RunRecord,
     spec: str | None,
     *,
     band_hz: tuple[float, float] | None,
@@ -203,7 +203,7 @@ def _identify(
                weighting=weighting), table
 
 
-def store_fit(campaign: Campaign, run_name: str, result: FitResult) -> str:
+def store_fit(campaign: CampaignFile, run_name: str, result: FitResult) -> str:
     """Store a fit under ``/runs/<run>/fits/<id>`` and return its id.
 
     A parameter held fixed exactly in the fit is stored with ``stderr`` NaN, the campaign
@@ -270,7 +270,7 @@ def read_fit(record: FitRecord) -> FitResult:
         weighting=record.weighting or "uniform", source=f"stored fit {record.id}", stored=True)
 
 
-def stored_fits(campaign: Campaign, run_name: str) -> list[FitResult]:
+def stored_fits(campaign: CampaignFile, run_name: str) -> list[FitResult]:
     """The fits of a run that the file stores whole (:func:`read_fit`), oldest first; one
     that is not a whole fit (a spec no model reads, a parameter missing) is left out."""
     out = []
@@ -354,7 +354,7 @@ def preload_variations(summaries: Sequence[RunSummary]) -> list[Variation]:
 
 
 def summarize(
-    campaign: Campaign,
+    campaign: CampaignFile,
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     table_model: str = "table",
 ) -> tuple[TableSource | None, list[RunSummary]]:

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.models.effects import KRAUS_PARAMETERS, kraus_stiffness
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 __all__ = ["PayneFit", "identify_payne"]
 
@@ -71,7 +71,7 @@ class _Level:
     displacement_m: NDArray[np.float64]
 
 
-def _level(campaign: Campaign, name: str, band_hz: tuple[float, float] | None) -> _Level:
+def _level(campaign: CampaignFile, name: str, band_hz: tuple[float, float] | None) -> _Level:
     run = campaign.run(name)
     if run.points == 0:
         raise InputError("has no points", f"{campaign.path}: run {name}")
@@ -91,7 +91,7 @@ def _level(campaign: Campaign, name: str, band_hz: tuple[float, float] | None) -
     return _Level(name, f[keep], dynamic[keep], sigma[keep], displacement[keep])
 
 
-def identify_payne(campaign: Campaign, runs: Sequence[str],
+def identify_payne(campaign: CampaignFile, runs: Sequence[str],
                    band_hz: tuple[float, float] | None = None) -> PayneFit:
     """Identify Kraus's Payne-effect parameters from runs of one specimen at several levels
     (module text).

@@ -62,7 +62,7 @@ from viscorig.planning import (
     sweep_segments,
 )
 from viscorig.sequences import SweepStep, point_durations_s
-from viscorig.storage import Campaign, Run, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunRecord, RunSettings, Segment
 
 __all__ = ["DEFAULT_RESOLUTION_HZ", "adaptive_run_settings", "adaptive_settings",
            "adaptive_sweep", "check_adaptive", "shaker_gain", "stored_points"]
@@ -316,7 +316,7 @@ def _usable(values: ArrayLike | None) -> np.ndarray | None:
     return values if np.all(np.isfinite(values) & (values > 0)) else None
 
 
-def _as_points(source: Segment | Run, settle, integrate, durations_s, bare: bool
+def _as_points(source: Segment | RunRecord, settle, integrate, durations_s, bare: bool
                ) -> MeasuredPoints:
     """A stored segment or run as the plan's measured points."""
     return MeasuredPoints(
@@ -339,7 +339,7 @@ def _points(segment: Segment, rig_s: np.ndarray, bare: bool) -> MeasuredPoints:
     return _as_points(segment, segment.settle_cycles, segment.integrate_cycles, rig_s, bare)
 
 
-def stored_points(run: Run) -> MeasuredPoints:
+def stored_points(run: RunRecord) -> MeasuredPoints:
     """An adaptive run's points as stored, in measurement order, as the plan was given them
     (each point's rig time from the running sum ``time_s``)."""
     bare = str(run.metadata.specimen).strip().lower() in ("none", "")
@@ -524,7 +524,7 @@ def join_segments(segments: list[Segment]) -> Segment:
         "variance_table", "variance_support", "settle_cycles", "integrate_cycles")})
 
 
-def _attributes(campaign: Campaign, run: str) -> dict[str, object]:
+def _attributes(campaign: CampaignFile, run: str) -> dict[str, object]:
     return campaign.run_attributes(run)
 
 

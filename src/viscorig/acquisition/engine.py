@@ -66,7 +66,7 @@ from viscorig.acquisition.sweep import (
     Wiring,
     configure,
 )
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 __all__ = ["EngineState", "Msg", "Plan", "RunEngine", "RunRefused", "StopRequest"]
 
@@ -205,7 +205,7 @@ class RunEngine:
         writer of the same file in this process).
     """
 
-    def __init__(self, campaign: Campaign, rig: Rig, console: Console, *,
+    def __init__(self, campaign: CampaignFile, rig: Rig, console: Console, *,
                  holds: list | None = None, hold_resume: str = "technician",
                  file_lock: threading.RLock | None = None) -> None:
         self.campaign = campaign

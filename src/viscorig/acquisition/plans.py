@@ -53,7 +53,7 @@ from viscorig.sequences import (
     resume_index,
     time_left_s,
 )
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 __all__ = ["SweepMeasurement", "full_sweep", "sequence_plan", "step_kind", "step_name"]
 
@@ -193,7 +193,7 @@ def identify_table_step(session: Session, step: IdentifyTableStep, record: StepR
     record.move("done", f"fit {fit_id}")
 
 
-def _table_fit(campaign: Campaign, run: str, band_hz: tuple[float, float] | None):
+def _table_fit(campaign: CampaignFile, run: str, band_hz: tuple[float, float] | None):
     from viscorig.identify import identify_run  # scipy: only when needed
 
     result, _ = identify_run(campaign, run, "table", band_hz=band_hz)
@@ -421,7 +421,7 @@ def measure_run(wiring: Wiring, settings: SweepSettings, resource: str) -> Plan:
     return planned.size
 
 
-def _attributes(campaign: Campaign, run: str) -> dict[str, object]:
+def _attributes(campaign: CampaignFile, run: str) -> dict[str, object]:
     return {**campaign.run_attributes(run), "path": str(campaign.path)}
 
 
@@ -460,7 +460,7 @@ class SweepMeasurement:
         Stop request and progress callbacks.
     """
 
-    def __init__(self, campaign: Campaign, analyser, wiring: Wiring, settings: SweepSettings,
+    def __init__(self, campaign: CampaignFile, analyser, wiring: Wiring, settings: SweepSettings,
                  hooks: SweepHooks | None = None) -> None:
         self.campaign = campaign
         self.analyser = analyser

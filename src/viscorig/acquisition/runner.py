@@ -27,7 +27,7 @@ from viscorig.acquisition.session import RunnerOptions, RunState, Session, StepR
 from viscorig.acquisition.sweep import SweepInterrupted, Wiring
 from viscorig.errors import InstrumentError
 from viscorig.sequences import OVER_LIMIT_CHOICES, Sequence, Station
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 __all__ = ["OVER_LIMIT_CHOICES", "Outcome", "RunRefused", "RunResult", "RunState", "Runner",
            "RunnerOptions", "StepRecord"]
@@ -80,7 +80,7 @@ class Runner:
 
     def __init__(
         self,
-        campaign: Campaign,
+        campaign: CampaignFile,
         sequence: Sequence,
         station: Station,
         analyser: Analyser,

@@ -296,13 +296,13 @@ def _journal_endpoint(service: BenchService) -> Endpoint:
     """``GET /api/journal``: the last 200 entries of the current campaign's journal."""
 
     async def journal(request: Request) -> Response:
-        from viscorig.storage import Campaign
+        from viscorig.storage import CampaignFile
 
         path = service.campaign_path
         entries = []
         if path is not None and Path(path).exists():
             try:
-                entries = [e.__dict__ for e in Campaign.open(path).journal][-200:]
+                entries = [e.__dict__ for e in CampaignFile.open(path).journal][-200:]
             except Exception as failure:
                 return error(409, f"{path}: {failure}")
         return JSONResponse({"campaign": None if path is None else str(path),

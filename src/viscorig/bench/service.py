@@ -148,10 +148,10 @@ class BenchService:
             It cannot be read, holds another sequence, or was measured elsewhere.
         """
         from viscorig.sequences.sequence import read_text
-        from viscorig.storage import Campaign
+        from viscorig.storage import CampaignFile
 
         try:
-            with Campaign.open(out_path) as campaign:
+            with CampaignFile.open(out_path) as campaign:
                 stored, station = campaign.sequence_text, campaign.station_text
             given = read_text(sequence_path)
         except InputError as error:
@@ -276,7 +276,7 @@ class BenchService:
         from viscorig.cli.check import check_files
         from viscorig.cli.run import open_station, runner_options
         from viscorig.cli.stations import station_holds
-        from viscorig.storage import Campaign
+        from viscorig.storage import CampaignFile
 
         checked = check_files(item.sequence, self.station_path)
         if not checked.ok:
@@ -291,9 +291,9 @@ class BenchService:
             station = opened.station
             bench = self.bench_override or station.bench
             if out.exists():
-                campaign = Campaign.open(out, "a")
+                campaign = CampaignFile.open(out, "a")
             else:
-                campaign = Campaign.create(
+                campaign = CampaignFile.create(
                     out, sequence_text=checked.sequence_text, sequence_file=item.sequence,
                     station_text=checked.station_text, station_file=self.station_path or "",
                     rig=station.rig_attributes())
@@ -384,7 +384,7 @@ class BenchService:
     def note(self, text: object) -> dict[str, str]:
         """Store a note with its time in the campaign file of the run in progress (or of the
         last one run)."""
-        from viscorig.storage import Campaign
+        from viscorig.storage import CampaignFile
         from viscorig.storage.journal import MAX_TEXT
 
         if not isinstance(text, str) or not text.strip():
@@ -399,7 +399,7 @@ class BenchService:
             if engine is not None:
                 entry = engine.campaign.add_journal_entry("note", text, engine.current_run)
             else:
-                with Campaign.open(path, "a") as campaign:
+                with CampaignFile.open(path, "a") as campaign:
                     entry = campaign.add_journal_entry("note", text)
         return {"time_utc": entry.time_utc, "run": entry.run, "text": entry.text}
 

@@ -18,8 +18,8 @@ import shlex
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.cli.identify import FRF_CHOICES
-from viscorig.diagnosis import DEFAULT_MODEL, Diagnosis, diagnose_run
-from viscorig.storage import Campaign
+from viscorig.diagnosis import DEFAULT_MODEL, DiagnosisResult, diagnose_run
+from viscorig.storage import CampaignFile
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -51,7 +51,7 @@ def handler(args: argparse.Namespace) -> int:
     """Run ``diagnose``."""
     band = parse_band(args.band)
     frfs = FRF_CHOICES[args.frf] if args.frf else None
-    with Campaign.open(args.file, "r") as campaign:
+    with CampaignFile.open(args.file, "r") as campaign:
         diagnosis = diagnose_run(
             campaign, args.run, args.model, band_hz=band, frfs=frfs,
             with_companions=not args.alone,
@@ -76,9 +76,9 @@ def next_command(file: str, run: str, spec: str, band: tuple[float, float] | Non
 
 
 def format_diagnosis(
-    d: Diagnosis,
+    d: DiagnosisResult,
     file: str,
-    ladder: list[Diagnosis] | None = None,
+    ladder: list[DiagnosisResult] | None = None,
     band_hz: tuple[float, float] | None = None,
 ) -> str:
     """Human-readable diagnosis: where it fails, what is missing, what to run next."""

@@ -45,7 +45,7 @@ from viscorig.exchange import (
     write_uff,
 )
 from viscorig.sequences import load_station
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def _paragraph(index: int) -> str:
@@ -128,7 +128,7 @@ def export_handler(args: argparse.Namespace) -> int:
         return _export_material(args, out)
     if len(args.run) != 1:
         raise InputError(f"{len(args.run)} runs; --format exports one", "--run")
-    run = Campaign.open(path).run(args.run[0])
+    run = CampaignFile.open(path).run(args.run[0])
     if args.format == "uff":
         count = write_uff(run, out, path.name, binary=not args.uff_ascii)
         kind = "ASCII" if args.uff_ascii else "binary"

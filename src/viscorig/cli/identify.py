@@ -25,7 +25,7 @@ from viscorig.identify import (
     table_parameters,
 )
 from viscorig.numbers import with_uncertainty
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
 
@@ -78,7 +78,7 @@ def handler(args: argparse.Namespace) -> int:
     args.run = args.run[0]
     frfs = FRF_CHOICES[args.frf] if args.frf else None
     mode = "r" if args.no_store else "a"
-    with Campaign.open(args.file, mode) as campaign:
+    with CampaignFile.open(args.file, mode) as campaign:
         table = None
         if not is_bare_table(campaign.run(args.run)):
             table = table_parameters(campaign, args.table_model)
@@ -148,7 +148,7 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
     if args.model != "kraus":
         raise InputError("several runs are fitted together only for the strain-amplitude "
                          "dependence: add --model kraus (or give one --run)", "--run")
-    with Campaign.open(args.file, "r") as campaign:
+    with CampaignFile.open(args.file, "r") as campaign:
         fit = identify_payne(campaign, args.run, band_hz=band)
     if args.json:
         print(json.dumps(fit.to_json()))

@@ -21,7 +21,7 @@ from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
 from viscorig.materials.master import MasterCurve, build_master
 from viscorig.materials.sources import modulus_table
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -47,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def master_of(path: str, runs: list[str], reference_c: float | None = None,
               disc_mass_kg: float | None = None, kstar_source: str = "support") -> MasterCurve:
     """The master curve of named runs of a campaign file."""
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     table = modulus_table(campaign, runs, disc_mass_kg, kstar_source)
     return build_master(table, tuple(runs), reference_c)
 

@@ -33,16 +33,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def note_command(args: argparse.Namespace) -> int:
     """Store the note, or hand it to the process writing the file."""
     from viscorig.acquisition import notebox
-    from viscorig.storage import Campaign
+    from viscorig.storage import CampaignFile
     from viscorig.storage.writelock import CampaignInUseError
 
     path = Path(args.file)
     text = " ".join(args.text)
     try:
-        with Campaign.open(path, "a") as campaign:
+        with CampaignFile.open(path, "a") as campaign:
             entry = campaign.add_journal_entry("note", text)
     except CampaignInUseError as busy:
-        Campaign.open(path)  # a campaign file at all? (its own error otherwise)
+        CampaignFile.open(path)  # a campaign file at all? (its own error otherwise)
         try:
             posted = notebox.post(path, text)
         except OSError as error:

@@ -44,7 +44,7 @@ from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import Sequence
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
@@ -159,7 +159,7 @@ def _run_new(text: str, checked, out: Path, args: argparse.Namespace) -> int:
     """Create ``out`` and run one checked sequence into it."""
     sequence, station = checked.passed(), checked.station
     with open_station(sequence, station, args.sim_pace) as opened:
-        campaign = Campaign.create(
+        campaign = CampaignFile.create(
             out, sequence_text=checked.sequence_text, sequence_file=str(text),
             station_text=checked.station_text, station_file=args.station or "",
             rig=opened.station.rig_attributes(),
@@ -178,7 +178,7 @@ def resume_command(args: argparse.Namespace) -> int:
     """``viscorig resume``: the file holds the sequence and station texts."""
     from viscorig.cli.check import check_texts, refuse
 
-    campaign = Campaign.open(args.file, "a")
+    campaign = CampaignFile.open(args.file, "a")
     sequence_text = campaign.sequence_text
     if sequence_text is None:
         raise InputError("holds no sequence (/setup/sequence_toml); it was not written by "
@@ -204,7 +204,7 @@ def resume_command(args: argparse.Namespace) -> int:
         return _run(campaign, sequence, opened, args)
 
 
-def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
+def _forecast(campaign: CampaignFile, sequence: Sequence, opened) -> dict:
     """Print the predicted test time of the steps left (as ``viscorig plan`` does); return the
     floors of the adaptive steps, for the time left."""
     from viscorig.acquisition import forecast_sequence, format_forecast
@@ -225,7 +225,7 @@ def _forecast(campaign: Campaign, sequence: Sequence, opened) -> dict:
     return floors
 
 
-def _identified(campaign: Campaign, sequence: Sequence) -> bool:
+def _identified(campaign: CampaignFile, sequence: Sequence) -> bool:
     from viscorig.sequences import IdentifyTableStep
 
     return all(
@@ -268,7 +268,7 @@ def runner_options(opened, over_limit: str | None) -> RunnerOptions:
     )
 
 
-def _run(campaign: Campaign, sequence: Sequence, opened, args: argparse.Namespace) -> int:
+def _run(campaign: CampaignFile, sequence: Sequence, opened, args: argparse.Namespace) -> int:
     fast = opened.simulated and args.sim_pace is None
     options = runner_options(opened, args.over_limit)
     console = Console(yes=args.yes)

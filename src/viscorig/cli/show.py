@@ -19,7 +19,7 @@ import numpy as np
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.numbers import with_uncertainty
-from viscorig.storage import FLAG_NAMES, Campaign, FitRecord, Run, count_flags
+from viscorig.storage import FLAG_NAMES, CampaignFile, FitRecord, RunRecord, count_flags
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -39,7 +39,7 @@ def _number(value: float, digits: int = 3) -> str:
     return "-" if math.isnan(value) else f"{value:.{digits}g}"
 
 
-def _flag_summary(run: Run) -> str:
+def _flag_summary(run: RunRecord) -> str:
     if not run.points:
         return "-"
     flagged = int(run.flagged().sum())
@@ -51,7 +51,7 @@ def _flag_summary(run: Run) -> str:
     return f"{flagged} ({counts})"
 
 
-def run_row(run: Run) -> list[str]:
+def run_row(run: RunRecord) -> list[str]:
     """The listing's cells for one run."""
     metadata = run.metadata
     band = f"{run.frequency_hz.min():.2f}-{run.frequency_hz.max():.2f}" if run.points else "-"
@@ -92,7 +92,7 @@ def table(rows: list[list[str]]) -> list[str]:
 
 def describe(path: Path) -> tuple[list[str], list[str]]:
     """The listing of a campaign file, and the problems met on the way (one line each)."""
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     attributes = campaign.attributes
     lines = [
         f"{path}: viscorig campaign, format {attributes.get('format_version')}, created "
@@ -143,7 +143,7 @@ def describe(path: Path) -> tuple[list[str], list[str]]:
     return lines, problems
 
 
-def plan_line(run: Run, attributes: dict[str, Any]) -> str:
+def plan_line(run: RunRecord, attributes: dict[str, Any]) -> str:
     """One line on a run an adaptive plan measured (``""`` for a full sweep)."""
     if attributes.get("plan") != "adaptive":
         return ""
@@ -183,7 +183,7 @@ def fit_json(fit: FitRecord) -> dict[str, Any]:
     }
 
 
-def run_json(run: Run, fits: list[FitRecord]) -> dict[str, Any]:
+def run_json(run: RunRecord, fits: list[FitRecord]) -> dict[str, Any]:
     """One run as JSON: metadata, points, band, flag counts and fits."""
     m = run.metadata
     counts = count_flags(run.flags) if run.points else {}
@@ -209,7 +209,7 @@ def run_json(run: Run, fits: list[FitRecord]) -> dict[str, Any]:
     }
 
 
-def dma_runs(campaign: Campaign, problems: list[str]) -> list[dict[str, Any]]:
+def dma_runs(campaign: CampaignFile, problems: list[str]) -> list[dict[str, Any]]:
     """The DMA runs of the file (``/dma``), each summarised; unreadable ones go to problems."""
     from viscorig.materials.dmastore import dma_run_names, read_dma
 
@@ -237,7 +237,7 @@ def dma_runs(campaign: Campaign, problems: list[str]) -> list[dict[str, Any]]:
 
 def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
     """The ``show --json`` object of a campaign file, and the problems met on the way."""
-    campaign = Campaign.open(path)
+    campaign = CampaignFile.open(path)
     attributes = campaign.attributes
     files = campaign.setup_files
     document: dict[str, Any] = {

@@ -36,7 +36,7 @@ from viscorig.paper import (
     paper_values,
     paper_variation,
 )
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 TABLE_UNITS = {"M_s": "kg", "K_s": "N/m", "C_s": "N·s/m"}
 
@@ -60,7 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def handler(args: argparse.Namespace) -> int:
     """Run ``summary``."""
     band = parse_band(args.band) or PAPER_BAND_HZ
-    with Campaign.open(args.file) as campaign:
+    with CampaignFile.open(args.file) as campaign:
         table, runs = summarize(campaign, band, args.table_model)
     variations = preload_variations(runs)
     if args.json:

@@ -14,7 +14,7 @@ the API does not wrap, not documented as a second API; its names may change betw
 from viscorig.diagnosis.core import (
     AT_FLOOR_RATIO,
     DEFAULT_MODEL,
-    Diagnosis,
+    DiagnosisResult,
     analyse,
     diagnose,
     diagnose_run,
@@ -31,8 +31,8 @@ __all__ = [
     "DEFAULT_MODEL",
     "FAMILY_ALPHA",
     "Candidate",
-    "Diagnosis",
     "DiagnosisData",
+    "DiagnosisResult",
     "FailureBand",
     "Finding",
     "FrfResidual",

@@ -33,7 +33,7 @@ from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import Fixture, parse_spec
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 #: ``rms_error`` within this factor of the noise floor counts as "at the noise floor".
 AT_FLOOR_RATIO = 1.25
@@ -47,7 +47,7 @@ MAX_AUTO_STEPS = 6
 
 
 @dataclass
-class Diagnosis:
+class DiagnosisResult:
     """A fitted model, where it fails, and the effects that would improve it, best first.
 
     Attributes
@@ -135,7 +135,7 @@ class Diagnosis:
         """Magnitude (%) and phase (°) error of every FRF of every run, and whitened."""
         return residuals(self.fit, self.data)
 
-    def with_effect(self, effect: str | Finding) -> Diagnosis:
+    def with_effect(self, effect: str | Finding) -> DiagnosisResult:
         """The diagnosis of this model with one more effect (or another K* term).
 
         ``effect`` is a finding, a term (``"fixture(58)"``, ``"load_cell"``, ``"maxwell"``),
@@ -152,12 +152,12 @@ class Diagnosis:
         candidate_spec(self.fit.model, text)  # checks the term
         return analyse(self.data, fit_with(self.fit, self.data, text))
 
-    def _with_finding(self, finding: Finding) -> Diagnosis:
+    def _with_finding(self, finding: Finding) -> DiagnosisResult:
         if finding.fit is None:
             finding.fit = identify_fit(finding.likelihood, self.data)
         return analyse(self.data, finding.fit, finding.likelihood)
 
-    def with_significant(self) -> Diagnosis:
+    def with_significant(self) -> DiagnosisResult:
         """The diagnosis of this model with its best finding added, and with every local mode
         found significant next to it (local modes at other frequencies do not compete with
         it; any other effect waits for the next step, where it is judged against a model that
@@ -175,7 +175,7 @@ class Diagnosis:
                           if k not in start})
         return analyse(self.data, refit(spec, self.data, start))
 
-    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[Diagnosis]:
+    def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[DiagnosisResult]:
         """Add the significant effects and refit, until nothing significant is left.
 
         At the noise floor a small effect can still be significant (a local mode a few points
@@ -199,7 +199,7 @@ class Diagnosis:
             ladder.append(lighter)
         return ladder
 
-    def without_unpaid(self) -> Diagnosis | None:
+    def without_unpaid(self) -> DiagnosisResult | None:
         """The diagnosis of this model less the effect term that no longer pays for itself in
         it (:func:`~viscorig.diagnosis.findings.unpaid_term`), or ``None``."""
         threshold = self.scan.threshold if self.scan is not None else 0.0
@@ -209,7 +209,7 @@ class Diagnosis:
         _, reduced = found
         return analyse(self.data, identify_fit(reduced, self.data))
 
-    def to_json(self, ladder: Sequence[Diagnosis] | None = None) -> dict[str, object]:
+    def to_json(self, ladder: Sequence[DiagnosisResult] | None = None) -> dict[str, object]:
         """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
         ``outlier_points`` and ``scan``: what the thresholds rest on)."""
         document: dict[str, object] = {
@@ -286,7 +286,7 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
 
 def analyse(
     data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None
-) -> Diagnosis:
+) -> DiagnosisResult:
     """Failures, screening and confirmed findings of a fit already made on ``data``.
 
     ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
@@ -316,8 +316,8 @@ def analyse(
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    return Diagnosis(data, result, current, peaks, findings, failure_bands(result, data), advice,
-                     together)
+    return DiagnosisResult(data, result, current, peaks, findings, failure_bands(result, data),
+                           advice, together)
 
 
 def diagnose(
@@ -327,7 +327,7 @@ def diagnose(
     table: dict[str, float] | Known | None = None,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
-) -> Diagnosis:
+) -> DiagnosisResult:
     """Fit ``model`` (default :data:`DEFAULT_MODEL`) and diagnose it.
 
     Parameters
@@ -356,14 +356,14 @@ def diagnose(
 
 
 def diagnose_run(
-    campaign: Campaign,
+    campaign: CampaignFile,
     run: str,
     model: str | None = None,
     *,
     band_hz: tuple[float, float] | None = None,
     frfs: Sequence[str] | None = None,
     with_companions: bool = True,
-) -> Diagnosis:
+) -> DiagnosisResult:
     """Diagnose a stored run (with the same specimen's runs at other levels or directions)."""
     data = from_campaign(
         campaign, run, band_hz=band_hz, frfs=frfs, with_companions=with_companions

@@ -20,7 +20,8 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
-from viscorig.storage import Campaign, Run
+from viscorig.fitting.noise import MarkovWhitening
+from viscorig.storage import CampaignFile, RunRecord
 
 
 @dataclass(frozen=True)
@@ -194,22 +195,26 @@ class DiagnosisData:
         they are noise, in the noise model's layout (real parts of every FRF, then imaginary
         parts). Outlier points are left out (their residual counts as zero).
 
-        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening matrix
-        formed once (a diagonal for white noise, ``L⁻¹`` of a drift's Cholesky factor ``L``)
-        so that the many evaluations of a fit cost a product each. ``exact=False`` divides
-        each point by its total ``σ`` instead (the drift's correlation left out): a cheap
-        stand-in for fits whose result is then judged with the exact whitening."""
+        The same operation as :meth:`NoiseModel.whiten`, with each block's whitening formed
+        once (a diagonal for white noise, the O(n) Kalman whitening of a drift,
+        :class:`~viscorig.fitting.noise.MarkovWhitening`, or ``L⁻¹`` of its Cholesky factor
+        ``L`` where the points are not in time order) so that the many evaluations of a fit
+        cost little each. ``exact=False`` divides each point by its total ``σ`` instead (the
+        drift's correlation left out): a cheap stand-in for fits whose result is then judged
+        with the exact whitening."""
         masks = self._masks()
         operators = self._operators() if exact else self._diagonal_operators()
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
-            keep = masks[frf] if r.ndim == 1 else masks[frf][:, None]
-            r = np.where(keep, r, 0.0)
+            if not masks[frf].all():
+                r = np.where(masks[frf] if r.ndim == 1 else masks[frf][:, None], r, 0.0)
             for rows, by_part in operators[frf]:
                 for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
                     operator = by_part[part]
-                    if operator.ndim == 1:
+                    if isinstance(operator, MarkovWhitening):
+                        parts[part].append(operator.apply(values))
+                    elif operator.ndim == 1:
                         scale = operator if values.ndim == 1 else operator[:, None]
                         parts[part].append(values * scale)
                     else:
@@ -236,7 +241,9 @@ class DiagnosisData:
                     for part in ("re", "im"):
                         white, correlated = block.part_variance(part)
                         if exact and correlated > 0:
-                            by_part[part] = block.whiten_part(part, np.eye(block.size))
+                            operator = block.whitening(part)
+                            by_part[part] = (operator if operator is not None
+                                             else block.whiten_part(part, np.eye(block.size)))
                         else:
                             by_part[part] = 1.0 / np.sqrt(white + (0.0 if exact else correlated))
                     blocks.append((rows, by_part))
@@ -346,14 +353,14 @@ def combine(
     )
 
 
-def _started(run: Run) -> datetime | None:
+def _started(run: RunRecord) -> datetime | None:
     try:
         return datetime.fromisoformat(str(run.metadata.started).replace("Z", "+00:00"))
     except ValueError:
         return None
 
 
-def same_specimen(a: Run, b: Run) -> bool:
+def same_specimen(a: RunRecord, b: RunRecord) -> bool:
     """The two runs measure the same specimen in the same state (text, hardness, preload)."""
     ma, mb = a.metadata, b.metadata
     hard_a, hard_b = float(ma.hardness_shore_a), float(mb.hardness_shore_a)
@@ -369,14 +376,14 @@ def same_specimen(a: Run, b: Run) -> bool:
 SAME_TEMPERATURE_K = 1.0
 
 
-def _same_temperature(a: Run, b: Run) -> bool:
+def _same_temperature(a: RunRecord, b: RunRecord) -> bool:
     ta, tb = a.metadata.temperature_c, b.metadata.temperature_c
     if math.isnan(ta) or math.isnan(tb):
         return math.isnan(ta) and math.isnan(tb)
     return abs(ta - tb) <= SAME_TEMPERATURE_K
 
 
-def recorded_temperature_range(run: Run) -> tuple[float, float] | None:
+def recorded_temperature_range(run: RunRecord) -> tuple[float, float] | None:
     """Lowest and highest per-point ``temperature_c`` of a run, or None where not recorded."""
     if "temperature_c" not in run.extra:
         return None
@@ -385,7 +392,7 @@ def recorded_temperature_range(run: Run) -> tuple[float, float] | None:
     return (float(values.min()), float(values.max())) if values.size else None
 
 
-def companions(campaign: Campaign, main: Run) -> list[Run]:
+def companions(campaign: CampaignFile, main: RunRecord) -> list[RunRecord]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
     from viscorig.identify import is_bare_table
 
@@ -405,7 +412,7 @@ def companions(campaign: Campaign, main: Run) -> list[Run]:
 
 
 def from_campaign(
-    campaign: Campaign,
+    campaign: CampaignFile,
     run_name: str,
     *,
     band_hz: tuple[float, float] | None = None,

@@ -41,6 +41,7 @@ from viscorig.diagnosis.significance import alpha_of, scan_threshold, threshold
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
+from viscorig.fitting.jacobian import predict_many
 from viscorig.models import Fixture, Frame, Model
 from viscorig.models.effects import compliance_estimate
 from viscorig.models.sensors import force_channel, response_channel
@@ -282,17 +283,15 @@ def _frame_length(model: Model, framed: Model, current: Likelihood, data: Diagno
     names = framed.local_names(frame)
     base = model.predict(ctx, current.values)
     length = 0.0
+    values = {**current.values, names["M_f"]: FRAME_START["M_f"]}
+    family = (names["f_g"], names["zeta_g"])
     for zeta in FRAME_SCAN_ZETA:
-        columns: dict[str, list] = {frf: [] for frf in data.frfs}
-        for f_g in FRAME_SCAN_HZ:
-            values = {**current.values, names["M_f"]: FRAME_START["M_f"], names["f_g"]: f_g,
-                      names["zeta_g"]: zeta}
-            moved = framed.predict(ctx, values)
-            with np.errstate(all="ignore"):
-                for frf in data.frfs:
-                    columns[frf].append(np.log(moved[frf] / base[frf]))
-        t = residual.template({frf: np.nan_to_num(np.stack(c, axis=1))
-                               for frf, c in columns.items()})
+        # every frequency of the family in one evaluation of the framed model
+        rows = np.column_stack([FRAME_SCAN_HZ, np.full(FRAME_SCAN_HZ.size, zeta)])
+        moved = predict_many(framed, ctx, values, family, rows)
+        with np.errstate(all="ignore"):
+            columns = {frf: np.log(moved[frf] / base[frf][None, :]).T for frf in data.frfs}
+        t = residual.template({frf: np.nan_to_num(c) for frf, c in columns.items()})
         norm = np.sqrt(np.einsum("ij,ij->j", t, t))
         ok = norm > 0
         unit = t[:, ok] / norm[ok]

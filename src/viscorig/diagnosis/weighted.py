@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -211,12 +212,21 @@ def ml_fit(
             predicted = model.predict(ctx, current)
             return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
 
-    last: list[tuple[NDArray[np.float64], dict[str, NDArray[np.complex128]]]] = []
+    # The last point evaluated: its x, residual ratio and whitened residual (the solver asks
+    # for the Jacobian where it just evaluated the residual).
+    last: dict[str, Any] = {}
 
     def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
-        if not last or not np.array_equal(last[0][0], x):
-            last[:] = [(x.copy(), ratio(x))]
-        return last[0][1]
+        if "x" not in last or not np.array_equal(last["x"], x):
+            last.clear()
+            last.update(x=x.copy(), ratio=ratio(x))
+        return last["ratio"]
+
+    def cached_whitened(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        base = cached_ratio(x)
+        if "whitened" not in last:
+            last["whitened"] = data.whiten(base, exact)
+        return last["whitened"]
 
     prior_at = [free.index(name) for name in nuisance]
 
@@ -231,7 +241,7 @@ def ml_fit(
     robust_here = bool(nuisance)
 
     def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        e = data.whiten(cached_ratio(x), exact)
+        e = cached_whitened(x)
         if robust_here:
             e = np.sign(e) * np.sqrt(huber(e))
         e = np.concatenate([e, prior_of(x)])
@@ -250,7 +260,7 @@ def ml_fit(
                        for frf in base}
         matrix = data.whiten(columns, exact)
         if robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
-            e = np.abs(data.whiten(base, exact))
+            e = np.abs(cached_whitened(x))
             slope = np.where(e <= HUBER_SCALE, 1.0,
                              HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
             matrix = matrix * slope[:, None]

@@ -36,7 +36,7 @@ import numpy as np
 from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.exchange.frfset import FrfSet
-from viscorig.storage import FLAG_NAMES, Run
+from viscorig.storage import FLAG_NAMES, RunRecord
 from viscorig.storage.layout import MAX_RUN_POINTS
 from viscorig.version import __version__
 
@@ -76,7 +76,7 @@ def _number(value: float) -> str:
     return "" if math.isnan(value) else repr(float(value))
 
 
-def metadata(run: Run, csv_name: str, campaign_name: str) -> dict:
+def metadata(run: RunRecord, csv_name: str, campaign_name: str) -> dict:
     """The CSVW sidecar document of a run's CSV."""
     columns = [
         {"name": name, "titles": name, "datatype": "integer" if name == "flags" else "double",
@@ -97,7 +97,7 @@ def metadata(run: Run, csv_name: str, campaign_name: str) -> dict:
     }
 
 
-def write_csv(run: Run, path: Path, campaign_name: str = "") -> Path:
+def write_csv(run: RunRecord, path: Path, campaign_name: str = "") -> Path:
     """Write a run's FRFs to ``path`` and its metadata beside it (each replaced atomically).
 
     Parameters

@@ -43,7 +43,7 @@ from viscorig.errors import InputError
 from viscorig.exchange import units
 from viscorig.exchange.atomicfile import write_via_path
 from viscorig.exchange.frfset import FrfSet, combine
-from viscorig.storage import Run
+from viscorig.storage import RunRecord
 from viscorig.storage.layout import MAX_RUN_POINTS
 from viscorig.version import __version__
 
@@ -67,7 +67,7 @@ _NODES = {
 }
 
 
-def _frf_record(run: Run, name: str, campaign_name: str, binary: bool) -> dict[str, Any]:
+def _frf_record(run: RunRecord, name: str, campaign_name: str, binary: bool) -> dict[str, Any]:
     node, entity, description = _NODES[name]
     values = np.asarray(getattr(run, name), dtype=complex)
     flagged = int(np.count_nonzero(run.flags))
@@ -125,7 +125,8 @@ def _frf_record(run: Run, name: str, campaign_name: str, binary: bool) -> dict[s
     return record
 
 
-def uff_records(run: Run, campaign_name: str = "", binary: bool = True) -> list[dict[str, Any]]:
+def uff_records(run: RunRecord, campaign_name: str = "",
+                binary: bool = True) -> list[dict[str, Any]]:
     """The pyuff datasets for a run: dataset 164 (SI), then one dataset 58 per FRF it has."""
     if not run.points:
         raise InputError("has no measured point to export", f"run '{run.name}'")
@@ -142,7 +143,7 @@ def uff_records(run: Run, campaign_name: str = "", binary: bool = True) -> list[
     return records
 
 
-def write_uff(run: Run, path: Path, campaign_name: str = "", *, binary: bool = True) -> int:
+def write_uff(run: RunRecord, path: Path, campaign_name: str = "", *, binary: bool = True) -> int:
     """Write a run's FRFs to a universal file (replaced atomically); return the FRF count."""
     records = uff_records(run, campaign_name, binary)
 

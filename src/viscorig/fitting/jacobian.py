@@ -66,13 +66,25 @@ def stiffness_derivatives(
 _BATCHABLE: dict[int, tuple[Model, bool]] = {}
 
 
+#: The last contexts repeated (``(id(ctx), count)`` -> ``(ctx, repeated)``): a fit asks for the
+#: same one at every Jacobian.
+_TILED: dict[tuple[int, int], tuple[Context, Context]] = {}
+
+
 def _tiled(ctx: Context, count: int) -> Context:
     """``ctx`` repeated ``count`` times end to end."""
-    return Context(
+    known = _TILED.get((id(ctx), count))
+    if known is not None and known[0] is ctx:
+        return known[1]
+    tiled = Context(
         np.tile(ctx.frequency_hz, count),
         None if ctx.time_s is None else np.tile(ctx.time_s, count),
         None if ctx.reference_amplitude is None else np.tile(ctx.reference_amplitude, count),
     )
+    if len(_TILED) >= 16:
+        _TILED.clear()
+    _TILED[(id(ctx), count)] = (ctx, tiled)
+    return tiled
 
 
 def predict_many(

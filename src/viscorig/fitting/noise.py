@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import cho_factor, solve_triangular
+from scipy.linalg.lapack import dtbtrs
 
 #: Parts of the relative error, in the order of the fitter's stacked real residual.
 PARTS = ("re", "im")
@@ -98,6 +99,70 @@ def _causal_exponential(s: NDArray[np.float64], x: NDArray[np.float64]) -> NDArr
     return y
 
 
+@dataclass(frozen=True)
+class MarkovWhitening:
+    """``L⁻¹`` of ``Σ = diag(d) + σ² R`` (``R_ij = exp(−|t_i − t_j|/τ)``, ``Σ = L Lᵀ``) for
+    points in monotone time order, applied in O(n) per column.
+
+    Along a monotone axis the correlated part is a Markov process observed with white noise,
+    so ``(L⁻¹ y)_i`` is the normalised innovation of its Kalman filter,
+    ``(y_i − a_i m_{i−1}) / √S_i``, with ``a_i = exp(−|t_i − t_{i−1}|/τ)`` and the filtered
+    mean ``m_i = a_i (1 − K_i) m_{i−1} + K_i y_i``. The gains ``K_i`` and innovation variances
+    ``S_i`` depend on the covariance alone (computed once); the mean is one bidiagonal
+    triangular solve. The same numbers as the dense Cholesky factor's triangular solve, without
+    its ``n²`` cost per column.
+    """
+
+    step: NDArray[np.float64]
+    """``a_i`` (the first ``0``): the process's decay from the previous point."""
+    decay: NDArray[np.float64]
+    """``a_i (1 − K_i)``: the filtered mean's decay."""
+    gain: NDArray[np.float64]
+    """``K_i``."""
+    scale: NDArray[np.float64]
+    """``1/√S_i``."""
+    band: NDArray[np.float64] = field(repr=False)
+    """``I − B`` of the filtered mean's recursion in LAPACK's lower band storage."""
+
+    @classmethod
+    def of(
+        cls, white: NDArray[np.float64], sigma2: float, axis: NDArray[np.float64], tau: float
+    ) -> MarkovWhitening | None:
+        """The whitening of ``diag(white) + sigma2 R``; ``None`` when ``axis`` is not monotone
+        (the points are then not in the process's order)."""
+        axis = np.asarray(axis, dtype=float)
+        gaps = np.diff(axis)
+        if axis.size == 0 or not (np.all(gaps >= 0) or np.all(gaps <= 0)):
+            return None
+        step = np.concatenate([[0.0], np.exp(-np.abs(gaps) / tau)])
+        n = axis.size
+        gain, variance = np.empty(n), np.empty(n)
+        filtered = 0.0
+        for i in range(n):  # the Riccati recursion: once per block, O(n)
+            a = step[i]
+            predicted = a * a * filtered + sigma2 * (1.0 - a * a)
+            variance[i] = predicted + white[i]
+            gain[i] = predicted / variance[i]
+            filtered = (1.0 - gain[i]) * predicted
+        decay = step * (1.0 - gain)
+        band = np.zeros((2, n))
+        band[0] = 1.0
+        band[1, :-1] = -decay[1:]
+        return cls(step, decay, gain, 1.0 / np.sqrt(variance), band)
+
+    def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``L⁻¹ values`` (rows: points; a vector or a matrix)."""
+        y = np.asarray(values, dtype=float)
+        flat = y.ndim == 1
+        matrix = y[:, None] if flat else y.reshape(y.shape[0], -1)
+        mean, info = dtbtrs(self.band, self.gain[:, None] * matrix, uplo="L", diag="U")
+        if info != 0:
+            raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
+        out = matrix * self.scale[:, None]
+        out[1:] -= (self.step[1:] * self.scale[1:])[:, None] * mean[:-1]
+        return out[:, 0] if flat else out.reshape(y.shape)
+
+
 @dataclass
 class FrfNoise:
     """The noise of one FRF of one run (see the module text for the model).
@@ -142,6 +207,9 @@ class FrfNoise:
         default_factory=dict, repr=False, compare=False
     )
     _effective: float | None = field(default=None, repr=False, compare=False)
+    _whitenings: dict[str, MarkovWhitening | NDArray[np.float64] | None] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         self.white_power = np.maximum(np.asarray(self.white_power, dtype=float), 1e-300)
@@ -206,13 +274,28 @@ class FrfNoise:
                 self._factors[part] = (np.sqrt(white), False)
         return self._factors[part]
 
+    def whitening(self, part: str) -> MarkovWhitening | NDArray[np.float64] | None:
+        """What :meth:`whiten_part` applies, cached: ``1/σ`` of each point (a white part), the
+        O(n) whitening of the drift along a monotone axis (:class:`MarkovWhitening`), or
+        ``None`` (an axis out of order: the dense Cholesky factor is used)."""
+        if part not in self._whitenings:
+            white, sigma2 = self.part_variance(part)
+            self._whitenings[part] = (
+                MarkovWhitening.of(white, sigma2, self._positions, self.correlation_length)
+                if sigma2 > 0.0 else 1.0 / np.sqrt(white)
+            )
+        return self._whitenings[part]
+
     def whiten_part(self, part: str, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``L⁻¹ values`` with ``Σ_part = L Lᵀ`` (rows: points; a vector or a matrix)."""
-        factor, dense = self._factor(part)
         values = np.asarray(values, dtype=float)
-        if dense:
-            return solve_triangular(factor, values, lower=True, check_finite=False)
-        return values / factor.reshape((-1,) + (1,) * (values.ndim - 1))
+        operator = self.whitening(part)
+        if isinstance(operator, MarkovWhitening):
+            return operator.apply(values)
+        if operator is not None:
+            return values * operator.reshape((-1,) + (1,) * (values.ndim - 1))
+        factor, _ = self._factor(part)
+        return solve_triangular(factor, values, lower=True, check_finite=False)
 
     def logdet(self) -> float:
         """``log det Σ`` of both parts."""

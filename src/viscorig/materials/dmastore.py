@@ -23,7 +23,7 @@ import numpy as np
 
 from viscorig.errors import InputError
 from viscorig.materials.table import ModulusTable
-from viscorig.storage import Campaign, layout, reading, untrusted
+from viscorig.storage import CampaignFile, layout, reading, untrusted
 from viscorig.storage.campaign import campaign_for_import, check_name, utc_now
 
 DMA_GROUP = "dma"
@@ -69,7 +69,7 @@ def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
     return table.points
 
 
-def dma_run_names(campaign: Campaign) -> list[str]:
+def dma_run_names(campaign: CampaignFile) -> list[str]:
     """Names of the DMA runs of a campaign file ([] when it has none)."""
     with campaign.reading() as h5, reading.guarded(campaign.path, f"/{DMA_GROUP}"):
         untrusted.check_link(h5, DMA_GROUP, campaign.path)
@@ -84,7 +84,7 @@ def dma_run_names(campaign: Campaign) -> list[str]:
         return names
 
 
-def read_dma(campaign: Campaign, name: str) -> ModulusTable:
+def read_dma(campaign: CampaignFile, name: str) -> ModulusTable:
     """DMA run ``name`` as a :class:`ModulusTable`, every object checked before it is read."""
     path = campaign.path
     where = f"{path}: /{DMA_GROUP}/{name}"

@@ -21,10 +21,10 @@ from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support
 from viscorig.materials.table import ModulusTable
 from viscorig.rig import RigDescription
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
-def disc_mass_of(campaign: Campaign, run_name: str) -> float | None:
+def disc_mass_of(campaign: CampaignFile, run_name: str) -> float | None:
     """``M_v`` (kg) of the newest fit of the run that identified one, else ``None``."""
     for fit in reversed(campaign.fits(run_name)):
         parameter = fit.parameters.get("M_v")
@@ -33,7 +33,7 @@ def disc_mass_of(campaign: Campaign, run_name: str) -> float | None:
     return None
 
 
-def _kstar_of_fit(campaign: Campaign, run_name: str, frequency_hz: np.ndarray,
+def _kstar_of_fit(campaign: CampaignFile, run_name: str, frequency_hz: np.ndarray,
                   where: str) -> np.ndarray:
     """K* of the newest stored fit of the run whose model has a specimen."""
     from viscorig.models import Context, parse_spec
@@ -54,7 +54,7 @@ def _kstar_of_fit(campaign: Campaign, run_name: str, frequency_hz: np.ndarray,
                      where)
 
 
-def rig_modulus_table(campaign: Campaign, run_name: str,
+def rig_modulus_table(campaign: CampaignFile, run_name: str,
                       disc_mass_kg: float | None = None,
                       kstar_source: str = "support") -> ModulusTable:
     """The shear modulus table of one rig run (one set).

@@ -7,10 +7,10 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names, read_dma
 from viscorig.materials.rigdata import rig_modulus_table
 from viscorig.materials.table import ModulusTable, concatenate
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
-def modulus_table(campaign: Campaign, runs: list[str], disc_mass_kg: float | None = None,
+def modulus_table(campaign: CampaignFile, runs: list[str], disc_mass_kg: float | None = None,
                   kstar_source: str = "support") -> ModulusTable:
     """One table of the named runs (see the module text).
 

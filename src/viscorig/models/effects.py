@@ -148,9 +148,15 @@ class Fixture(Term):
         )
 
     def disc_stiffness(self, ctx, p):
+        # −c (a + ib)/(a − c + ib) with a = m ω_n², b = 2ζ m ω_n ω, c = m ω², in real arithmetic:
+        # (a + ib)/(a − c + ib) = (a (a − c) + b² − i b c)/((a − c)² + b²)
         w_n = 2 * np.pi * p["f_n"]
-        spring = p["m"] * w_n**2 + 2j * p["zeta"] * p["m"] * w_n * ctx.omega
-        return -(ctx.omega**2) * p["m"] * spring / (spring - ctx.omega**2 * p["m"])
+        a = p["m"] * w_n**2
+        b = 2 * p["zeta"] * p["m"] * w_n * ctx.omega
+        c = ctx.omega**2 * p["m"]
+        detuned = a - c
+        scale = -c / (detuned * detuned + b * b)
+        return scale * (a * detuned + b * b) - 1j * (scale * b * c)
 
     def start_from_data(self, model, ctx, values, measured) -> dict[str, float]:
         """Put the mode at the largest narrow peak of the residual of the rest of the model."""

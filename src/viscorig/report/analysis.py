@@ -3,7 +3,7 @@
 Which model a specimen run shows: the best the diagnosis reached. The run is diagnosed (both
 FRFs, the table held at the bare-table run's values) starting from its latest stored fit's
 model when the file has one, else from Voigt, and the diagnosis ladder is climbed
-(:meth:`~viscorig.diagnosis.Diagnosis.auto`: the best significant effect is added and the
+(:meth:`~viscorig.diagnosis.DiagnosisResult.auto`: the best significant effect is added and the
 model refitted until the error reaches the noise floor or nothing significant is left). The
 shown model, its failure bands and its parameters' ± all come from the last rung. Without the
 ladder (``ladder=False``) the first rung is shown, with the effect most likely missing; without
@@ -45,7 +45,7 @@ from viscorig.identify import (
     summarize,
 )
 from viscorig.rig import RigDescription
-from viscorig.storage import INPUT_OVERLOAD, Campaign, Run
+from viscorig.storage import INPUT_OVERLOAD, CampaignFile, RunRecord
 
 _diagnosis: ModuleType | None
 try:  # diagnosis is optional: the report is built without its sections when it is absent
@@ -148,7 +148,7 @@ class ModulusCurves:
 class RunAnalysis:
     """What the report shows for one run."""
 
-    run: Run
+    run: RunRecord
     bare: bool
     band_hz: tuple[float, float]
     shown: FitResult | None = None
@@ -202,20 +202,20 @@ class CampaignAnalysis:
         return next(r for r in self.runs if r.name == name)
 
 
-def _band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
+def _band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:
     lo = max(band_hz[0], float(run.frequency_hz.min()))
     hi = min(band_hz[1], float(run.frequency_hz.max()))
     return (lo, hi) if lo < hi else (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
 
 
-def _in_band(run: Run, band: tuple[float, float]) -> NDArray[np.intp]:
+def _in_band(run: RunRecord, band: tuple[float, float]) -> NDArray[np.intp]:
     """Indices of the unoverloaded points in the band, in frequency order."""
     keep = np.flatnonzero((run.frequency_hz >= band[0]) & (run.frequency_hz <= band[1])
                           & ~run.flagged(INPUT_OVERLOAD))
     return keep[np.argsort(run.frequency_hz[keep])]
 
 
-def _residuals(run: Run, curve: FitResult, band: tuple[float, float]) -> list[ShownResidual]:
+def _residuals(run: RunRecord, curve: FitResult, band: tuple[float, float]) -> list[ShownResidual]:
     """The shown model's residual of each FRF, beside the local σ of the run's noise model
     (estimated on the same points as a fit of the band estimates it)."""
     data = run_data(run).in_band(band)
@@ -234,7 +234,7 @@ def _residuals(run: Run, curve: FitResult, band: tuple[float, float]) -> list[Sh
                         noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
 
 
-def _modulus(run: Run, curve: FitResult, band: tuple[float, float], source: str
+def _modulus(run: RunRecord, curve: FitResult, band: tuple[float, float], source: str
              ) -> ModulusCurves:
     index = _in_band(run, band)
     f = run.frequency_hz[index]
@@ -253,11 +253,11 @@ class ReadOnce:
     sixty reads of seven runs. Everything else is the campaign's own.
     """
 
-    def __init__(self, campaign: Campaign) -> None:
+    def __init__(self, campaign: CampaignFile) -> None:
         self._campaign = campaign
-        self._runs: dict[str, Run] = {}
+        self._runs: dict[str, RunRecord] = {}
 
-    def run(self, name: str) -> Run:
+    def run(self, name: str) -> RunRecord:
         """Run ``name``, read on the first call only."""
         if name not in self._runs:
             self._runs[name] = self._campaign.run(name)
@@ -272,7 +272,7 @@ class ReadOnce:
 _READ: dict[tuple[str, int, int], ReadOnce] = {}
 
 
-def read_once(path: str, campaign: Campaign | None = None) -> Campaign:
+def read_once(path: str, campaign: CampaignFile | None = None) -> CampaignFile:
     """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
     unless ``campaign`` is given), typed as the campaign it stands in for: it answers every
     attribute but :meth:`ReadOnce.run` with the campaign's own."""
@@ -281,12 +281,12 @@ def read_once(path: str, campaign: Campaign | None = None) -> Campaign:
     try:
         stat = Path(path).stat()
     except OSError:
-        return cast(Campaign, ReadOnce(Campaign.open(path)))  # which says what is wrong
+        return cast(CampaignFile, ReadOnce(CampaignFile.open(path)))  # which says what is wrong
     key = (str(Path(path).resolve()), stat.st_mtime_ns, stat.st_size)
     if key not in _READ:
         _READ.clear()  # one campaign at a time
-        _READ[key] = ReadOnce(campaign if campaign is not None else Campaign.open(path))
-    return cast(Campaign, _READ[key])
+        _READ[key] = ReadOnce(campaign if campaign is not None else CampaignFile.open(path))
+    return cast(CampaignFile, _READ[key])
 
 
 def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, ladder: bool,
@@ -317,7 +317,7 @@ def climb(path: str, run_name: str, band_hz: tuple[float, float], spec: str, lad
 
 
 def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb:
-    """The plain-data :class:`Climb` of a ladder of :class:`viscorig.diagnosis.Diagnosis`
+    """The plain-data :class:`Climb` of a ladder of :class:`viscorig.diagnosis.DiagnosisResult`
     (one element when the ladder was not climbed)."""
     rungs = [Rung(steps[0].model, float(steps[0].rms_error), float(steps[0].noise_floor))]
     for before, after in itertools.pairwise(steps):
@@ -348,7 +348,7 @@ def _climb_all(path: str, requests: list[tuple[str, tuple[float, float], str]], 
 
 
 def analyse_campaign(
-    campaign: Campaign,
+    campaign: CampaignFile,
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     *,
     diagnosis: bool = True,
@@ -415,7 +415,7 @@ def analyse_campaign(
                             min(workers, max(1, len(requests))))
 
 
-def _run_band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
+def _run_band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:
     """The band a run is analysed in: ``band_hz`` clipped to the run; a bare table's own band,
     which covers its resonance."""
     if not run.points:
@@ -425,7 +425,7 @@ def _run_band(run: Run, band_hz: tuple[float, float]) -> tuple[float, float]:
     return _band(run, band_hz)
 
 
-def _first_look(campaign: Campaign, analysis: RunAnalysis, table: TableSource | None,
+def _first_look(campaign: CampaignFile, analysis: RunAnalysis, table: TableSource | None,
                 use_diagnosis: bool) -> str | None:
     """Show the run's latest stored fit; the spec its diagnosis starts from, or ``None`` when
     it is not diagnosed (too few points, the bare table, no table values, no diagnosis)."""

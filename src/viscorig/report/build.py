@@ -15,7 +15,7 @@ from viscorig.report.figures import campaign_figures
 from viscorig.report.materials import analyse_materials, material_figures, material_section
 from viscorig.report.page import build_page, figure_html, materials_page
 from viscorig.report.parallel import default_jobs
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 PAGE_NAME = "index.html"
 
@@ -42,7 +42,7 @@ def build_report(
     InputError
         The campaign cannot be read, has no run, or ``out_dir`` cannot be written.
     """
-    campaign = Campaign.open(campaign_path)
+    campaign = CampaignFile.open(campaign_path)
     materials = analyse_materials(campaign)
     if not campaign.run_names and not materials:
         raise InputError("has no run to report", str(campaign_path))

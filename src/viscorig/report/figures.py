@@ -19,7 +19,7 @@ from viscorig.report.analysis import (
     storage_and_loss,
     term_change,
 )
-from viscorig.storage import INPUT_OVERLOAD, Run
+from viscorig.storage import INPUT_OVERLOAD, RunRecord
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
 MEASURED = "#1f4e79"
@@ -51,7 +51,7 @@ def save(figure: Figure, folder: Path | None, stem: str, caption: str) -> SavedF
     return SavedFigure(stem, caption, png)
 
 
-def _frfs(run: Run) -> list[tuple[str, np.ndarray]]:
+def _frfs(run: RunRecord) -> list[tuple[str, np.ndarray]]:
     out = [("table", run.accelerance_table)]
     if np.any(np.isfinite(run.accelerance_support)):
         out.append(("support", run.accelerance_support))

@@ -18,7 +18,7 @@ from viscorig.report.words import (
     finding_sentence,
     times,
 )
-from viscorig.storage import Run
+from viscorig.storage import RunRecord
 
 #: Names of the FRFs for people.
 FRF_WORDS = {"table": "table FRF ẍ_s/F_e", "support": "disc FRF ẍ_v/F_v"}
@@ -46,7 +46,7 @@ class Headline:
     at_floor: bool = False
 
 
-def describe_specimen(run: Run, bare: bool) -> str:
+def describe_specimen(run: RunRecord, bare: bool) -> str:
     """``"soft, 25 Shore A, preload 0.104"``, or ``"bare table"``."""
     m = run.metadata
     if bare:

@@ -24,7 +24,7 @@ from viscorig.materials.master import MasterCurve, build_master
 from viscorig.materials.sources import modulus_table
 from viscorig.numbers import with_uncertainty
 from viscorig.report.figures import SavedFigure, save
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ def _number(value: object, missing: float) -> float:
     return missing
 
 
-def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
+def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
     """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures."""
     groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
     by_specimen: dict[tuple[str, float], list[tuple[float, str]]] = {}
@@ -62,7 +62,7 @@ def candidate_groups(campaign: Campaign) -> list[tuple[str, ...]]:
     return groups
 
 
-def analyse_materials(campaign: Campaign) -> list[Material]:
+def analyse_materials(campaign: CampaignFile) -> list[Material]:
     """The master curve of every candidate group (see :func:`candidate_groups`)."""
     out = []
     for runs in candidate_groups(campaign):

@@ -13,7 +13,7 @@ from viscorig.errors import InputError
 from viscorig.identify import is_bare_table, read_fit
 from viscorig.report.analysis import RunAnalysis
 from viscorig.report.figures import frf_figure
-from viscorig.storage import Campaign
+from viscorig.storage import CampaignFile
 
 
 def default_png(campaign_path: Path, run_name: str, out: str | None) -> Path:
@@ -31,7 +31,7 @@ def plot_run(campaign_path: Path, run_name: str, out: Path) -> Path:
     InputError
         No such run, a run with no point yet, or ``out`` cannot be written.
     """
-    campaign = Campaign.open(campaign_path)
+    campaign = CampaignFile.open(campaign_path)
     run = campaign.run(run_name).merged()  # one point per frequency, as analysis reads a run
     if not run.points:
         raise InputError("has no measured point yet", f"run '{run_name}'")

@@ -7,7 +7,7 @@ A layer under the public API (:mod:`viscorig.api`, ``viscorig.open_campaign``): 
 the API does not wrap, not documented as a second API; its names may change between versions.
 """
 
-from viscorig.storage.campaign import Campaign
+from viscorig.storage.campaign import CampaignFile
 from viscorig.storage.flags import (
     FLAG_NAMES,
     FORCE_ABOVE_SHAKER_LIMIT,
@@ -17,7 +17,14 @@ from viscorig.storage.flags import (
     PointFlag,
     count_flags,
 )
-from viscorig.storage.records import FitParameter, FitRecord, Run, RunMetadata, RunSettings, Segment
+from viscorig.storage.records import (
+    FitParameter,
+    FitRecord,
+    RunMetadata,
+    RunRecord,
+    RunSettings,
+    Segment,
+)
 
 __all__ = [
     "FLAG_NAMES",
@@ -25,12 +32,12 @@ __all__ = [
     "INPUT_OVERLOAD",
     "LEVEL_NOT_REACHED",
     "SOURCE_AT_LIMIT",
-    "Campaign",
+    "CampaignFile",
     "FitParameter",
     "FitRecord",
     "PointFlag",
-    "Run",
     "RunMetadata",
+    "RunRecord",
     "RunSettings",
     "Segment",
     "count_flags",

@@ -29,7 +29,7 @@ Additions to the contract, both readable by any HDF5 tool:
   the step allowed), ``time_s`` being the running sum of each point's rig time; attributes
   ``plan`` ("adaptive"), ``plan_model``, ``plan_targets`` (``K_v=0.001 C_v=0.002``),
   ``plan_reason`` (why it stopped: "targets met", "dwell limit", ...), ``plan_state`` and
-  ``plan_relative_stderr``. Analysis reads such a run merged (:meth:`Run.merged`: frequency
+  ``plan_relative_stderr``. Analysis reads such a run merged (:meth:`RunRecord.merged`: frequency
   order, one point per frequency).
 - A fit may carry the attribute ``weighting``: ``"noise"`` (generalised least squares under
   the run's noise model, the project's estimate) or ``"uniform"`` (the paper's method).
@@ -62,7 +62,7 @@ from numpy.typing import ArrayLike
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
-from viscorig.storage.records import FitRecord, Run, RunSettings, Segment
+from viscorig.storage.records import FitRecord, RunRecord, RunSettings, Segment
 from viscorig.version import __version__
 
 
@@ -78,7 +78,7 @@ def check_name(name: str, what: str) -> str:
     return name
 
 
-class Campaign:
+class CampaignFile:
     """One campaign file, read-only (``mode="r"``) or appendable (``mode="a"``).
 
     Use :meth:`open` for an existing file and :meth:`create` for a new one; both work as context
@@ -86,7 +86,7 @@ class Campaign:
 
     Examples
     --------
-    >>> with Campaign.open("paper.h5") as campaign:          # doctest: +SKIP
+    >>> with CampaignFile.open("paper.h5") as campaign:      # doctest: +SKIP
     ...     run = campaign.run("soft-0")
     ...     k_star = run.dynamic_stiffness_support()
     """
@@ -267,7 +267,7 @@ class Campaign:
                 untrusted.check_name(name, self.path, f"/{layout.RUNS_GROUP}", "run")
             return names
 
-    def run(self, name: str) -> Run:
+    def run(self, name: str) -> RunRecord:
         """Read run ``name`` whole (metadata and every dataset).
 
         Raises
@@ -285,7 +285,7 @@ class Campaign:
         with self._reading() as h5, reading.guarded(self.path, where):
             return reading.attributes(reading.run_group(h5, name, self.path), self.path)
 
-    def runs(self) -> Iterator[Run]:
+    def runs(self) -> Iterator[RunRecord]:
         """Every run, in the order they were started."""
         for name in self.run_names:
             yield self.run(name)
@@ -685,13 +685,13 @@ def _checked_rig(rig: Mapping[str, Any], where: str) -> dict[str, object]:
 
 
 @contextlib.contextmanager
-def campaign_for_import(path: Path, run_name: str) -> Iterator[Campaign]:
+def campaign_for_import(path: Path, run_name: str) -> Iterator[CampaignFile]:
     """The campaign file an import adds the run ``run_name`` to: opened for appending, or created
     where there is none. A run of that name is refused (imports never overwrite a run), and a
     file this import created is removed again when the import fails."""
     created = not path.exists()
-    campaign = Campaign.create(path, sequence_text="", sequence_file="") if created \
-        else Campaign.open(path, "a")
+    campaign = CampaignFile.create(path, sequence_text="", sequence_file="") if created \
+        else CampaignFile.open(path, "a")
     try:
         with campaign:
             if run_name in campaign.run_names:

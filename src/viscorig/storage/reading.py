@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.storage import layout, untrusted
-from viscorig.storage.records import FitParameter, FitRecord, Run, RunMetadata
+from viscorig.storage.records import FitParameter, FitRecord, RunMetadata, RunRecord
 from viscorig.storage.text import printable
 
 #: What h5py raises on damaged objects, missing members, or values of an unexpected type.
@@ -314,7 +314,7 @@ def read_column(group: h5py.Group, spec: layout.DatasetSpec, path: Path) -> NDAr
     return _values(dataset)
 
 
-def read_run(h5: h5py.File, name: str, path: Path) -> Run:
+def read_run(h5: h5py.File, name: str, path: Path) -> RunRecord:
     """A whole run, checked: attributes, datasets, equal lengths."""
     group = run_group(h5, name, path)
     with guarded(path, group.name):
@@ -341,7 +341,7 @@ def read_run(h5: h5py.File, name: str, path: Path) -> Run:
         for values in (*columns.values(), *(value for value, _ in extra.values())):
             if values is not None:
                 values.setflags(write=False)
-        return Run(name=name, metadata=metadata, extra=extra, **columns)
+        return RunRecord(name=name, metadata=metadata, extra=extra, **columns)
 
 
 def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:

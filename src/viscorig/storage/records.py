@@ -171,7 +171,7 @@ class FitRecord:
 
 
 @dataclass(frozen=True, eq=False)
-class Run:
+class RunRecord:
     """One sweep run read from a campaign file; arrays are read-only numpy arrays.
 
     Accelerances are what the analyser measured; receptance and dynamic stiffness are derived
@@ -215,7 +215,7 @@ class Run:
                      else np.full(size, self.metadata.integrate_cycles, dtype=np.int64))
         return settle, integrate
 
-    def select(self, keep: ArrayLike) -> Run:
+    def select(self, keep: ArrayLike) -> RunRecord:
         """The run at some of its points (a boolean mask or indices), in the order given."""
         index = np.asarray(keep)
         columns: dict[str, Any] = {
@@ -225,7 +225,7 @@ class Run:
         extra = {key: (values[index], units) for key, (values, units) in self.extra.items()}
         return replace(self, extra=extra, **columns)
 
-    def merged(self) -> Run:
+    def merged(self) -> RunRecord:
         """The run as analysis reads it: points in frequency order, repeats of one frequency
         merged into one point.
 

@@ -1,7 +1,7 @@
 """One writer per campaign file: an exclusive lock from before the first write to the end.
 
 Every writer (``run``, ``resume``, ``import``, ``identify`` storing a fit, any program opening a
-:class:`~viscorig.storage.Campaign` with ``mode="a"``) takes the lock of the campaign file when
+:class:`~viscorig.storage.CampaignFile` with ``mode="a"``) takes the lock of the campaign file when
 it opens it and holds it until it closes it or exits. A second writer is refused at once with
 an error naming the holder (command, process id, host, since when); readers never take it and
 keep working, because a commit replaces the file atomically (:mod:`viscorig.storage.atomic`).
@@ -31,7 +31,7 @@ not writers of two hosts; and a writer that ignores the lock (plain h5py) is not
 A stale record (its process was killed) is simply overwritten: the operating system released
 the lock when the process died, so the next writer gets it at once.
 
-Within one process the lock is counted, not exclusive: several :class:`Campaign` objects of the
+Within one process the lock is counted, not exclusive: several :class:`CampaignFile` objects of the
 same file in one program are one writer.
 """
 

@@ -1,6 +1,6 @@
 """What the live view shows, read from the committed state of a campaign file.
 
-The file is opened read-only through :class:`viscorig.storage.Campaign`, only when it changed
+The file is opened read-only through :class:`viscorig.storage.CampaignFile`, only when it changed
 (its size, time or inode), and never more than :data:`MIN_READ_INTERVAL_S` apart. A writer
 commits by replacing the file whole, so every reading is one committed state, and a reader
 never holds the file between readings: watching takes nothing from the measurement, whichever
@@ -35,7 +35,7 @@ from viscorig.sequences import (
     parse_station,
     time_left_s,
 )
-from viscorig.storage import Campaign, Run
+from viscorig.storage import CampaignFile, RunRecord
 
 #: Readings of a changing file are at least this far apart, s.
 MIN_READ_INTERVAL_S = 0.5
@@ -82,7 +82,7 @@ def _limits(path: Path, names: Iterable[str]) -> dict[str, dict[str, float]]:
     return found
 
 
-def _run_state(run: Run, step: SweepStep | None, limits: dict[str, float],
+def _run_state(run: RunRecord, step: SweepStep | None, limits: dict[str, float],
                station_limit_n: float | None) -> dict[str, Any]:
     metadata = run.metadata
     if step is not None and step.adaptive:  # its points in any order: drawn by frequency
@@ -126,7 +126,7 @@ def _run_state(run: Run, step: SweepStep | None, limits: dict[str, float],
         }
 
 
-def _soaks_left(campaign: Campaign, sequence: Sequence, after: int) -> float:
+def _soaks_left(campaign: CampaignFile, sequence: Sequence, after: int) -> float:
     """Predicted time of the soaks after step ``after`` (the last sweep started), s: the
     station's chamber where the file holds a station, else the forecast's defaults."""
     keywords: dict = {}
@@ -145,7 +145,7 @@ def _soaks_left(campaign: Campaign, sequence: Sequence, after: int) -> float:
     return left
 
 
-def _station_limit(campaign: Campaign) -> float | None:
+def _station_limit(campaign: CampaignFile) -> float | None:
     text = campaign.station_text
     if text is None:
         return None
@@ -155,7 +155,7 @@ def _station_limit(campaign: Campaign) -> float | None:
         return None
 
 
-def _sequence(campaign: Campaign) -> Sequence | None:
+def _sequence(campaign: CampaignFile) -> Sequence | None:
     text = campaign.sequence_text
     if text is None:
         return None
@@ -173,7 +173,7 @@ def read_snapshot(path: Path) -> dict[str, Any]:
     InputError
         The file cannot be read as a campaign (missing, damaged, not a campaign).
     """
-    campaign = Campaign.open(path, "r")
+    campaign = CampaignFile.open(path, "r")
     stat = path.stat()
     sequence = _sequence(campaign)
     steps = {step.run: step for step in sequence.sweeps} if sequence is not None else {}
