@@ -14,9 +14,12 @@ import rigsim.server  # noqa: F401 (the simulated analyser's imports, once, at c
 from viscorig.bench import BenchService
 from viscorig.bench.app import BenchServer
 
-#: One prompt that mounts the soft specimens, then 81 points in segments of 8.
-SMALL_SEQUENCE = """
-name = "small"
+
+def soft_sweep_sequence(name: str, stop_hz: float, segment_points: int = 8) -> str:
+    """One prompt that mounts the soft specimens, then one sweep of run ``soft-0`` from 20 Hz to
+    ``stop_hz`` every 0.25 Hz, in segments of ``segment_points``."""
+    return f"""
+name = "{name}"
 [[steps]]
 type = "prompt"
 message = "Mount the soft specimens."
@@ -26,13 +29,17 @@ type = "sweep"
 run = "soft-0"
 specimen = "soft"
 hardness_shore_a = 25
-band_hz = [20.0, 40.0]
+band_hz = [20.0, {stop_hz}]
 resolution_hz = 0.25
 settle_cycles = 20
 integrate_cycles = 20
 level = "1 m/s^2"
-segment_points = 8
+segment_points = {segment_points}
 """
+
+
+#: 81 points in segments of 8.
+SMALL_SEQUENCE = soft_sweep_sequence("small", 40.0)
 
 
 def small_sequence(folder: Path) -> Path:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from benchrig import soft_sweep_sequence
 from reliability_campaign import cli, one_clear_line, station_text, sweep_sequence
 from rigsim.faults import parse_fault_spec
 from rigsim.rigfile import load_preset
@@ -22,30 +23,12 @@ from rigsim.server import SimulatedAnalyserServer
 from viscorig.acquisition import notebox
 from viscorig.storage import CampaignFile
 
-#: 13 points; at --sim-pace 10 a point takes about 0.15 s.
-SHORT = """
-name = "short"
-[[steps]]
-type = "prompt"
-message = "Mount the soft specimens."
-simulated_rig = "soft-0"
-[[steps]]
-type = "sweep"
-run = "soft-0"
-specimen = "soft"
-hardness_shore_a = 25
-band_hz = [20.0, {stop}]
-resolution_hz = 0.25
-settle_cycles = 20
-integrate_cycles = 20
-level = "1 m/s^2"
-segment_points = 8
-"""
-
 
 def _write(folder: Path, name: str, stop: float = 23.0) -> Path:
+    """A soft-0 sweep from 20 Hz to ``stop`` (13 points at 23 Hz; at --sim-pace 10 a point
+    takes about 0.15 s)."""
     path = folder / name
-    path.write_text(SHORT.format(stop=stop))
+    path.write_text(soft_sweep_sequence("short", stop))
     return path
 
 

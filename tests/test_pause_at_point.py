@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from agilent35670a import Agilent35670A
-from benchrig import wait_until
+from benchrig import soft_sweep_sequence, wait_until
 from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 
@@ -18,24 +18,7 @@ from viscorig.bench import BenchService
 from viscorig.storage import CampaignFile
 
 #: 13 points in segments of 8; at pace 60 a point takes about 25 ms of wall time.
-SEQUENCE = """
-name = "pause-at-a-point"
-[[steps]]
-type = "prompt"
-message = "Mount the soft specimens."
-simulated_rig = "soft-0"
-[[steps]]
-type = "sweep"
-run = "soft-0"
-specimen = "soft"
-hardness_shore_a = 25
-band_hz = [20.0, 23.0]
-resolution_hz = 0.25
-settle_cycles = 20
-integrate_cycles = 20
-level = "1 m/s^2"
-segment_points = 8
-"""
+SEQUENCE = soft_sweep_sequence("pause-at-a-point", 23.0)
 PACE = 60.0
 
 
