@@ -21,12 +21,14 @@ file: a complete run is skipped, an interrupted one continues from what the file
 from __future__ import annotations
 
 import functools
+import io
 import time
 from collections.abc import Callable
 
 import numpy as np
 
 from viscorig.acquisition import stubs
+from viscorig.acquisition.console import Console
 from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, Rig, RunEngine, RunRefused
 from viscorig.acquisition.limits import ForceEstimate
 from viscorig.acquisition.prediction import learn_from_run, level_for
@@ -488,10 +490,11 @@ class SweepMeasurement:
                           signals=False)
 
 
-class _HookedConsole:
-    """The progress a plan reports, handed to a sweep's hooks."""
+class _HookedConsole(Console):
+    """The progress a plan reports, handed to a sweep's hooks; nothing is printed."""
 
     def __init__(self, hooks: SweepHooks) -> None:
+        super().__init__(yes=True, out=io.StringIO(), interactive=False)
         self.hooks = hooks
         self.campaign_left_s = 0.0
 
@@ -508,5 +511,5 @@ class _HookedConsole:
         if self.hooks.on_segment is not None:
             self.hooks.on_segment(done)
 
-    def start_run(self, *args: object) -> None:
+    def start_run(self, run: str, points_done: int, points_total: int, flags: int = 0) -> None:
         pass

@@ -191,6 +191,11 @@ def configure(
     if band_hz is None:
         grid = np.sort(step.frequencies_hz())
         band_hz = (float(grid[0]), float(grid[min(grid.size - 1, 800)]))
+    resolution = step.resolution_hz if resolution_hz is None else resolution_hz
+    settle = step.settle_cycles if settle_cycles is None else settle_cycles
+    integrate = step.integrate_cycles if integrate_cycles is None else integrate_cycles
+    if resolution is None or settle is None or integrate is None:
+        raise ValueError("an adaptive step is configured with its resolution and cycles given")
     analyser.configure_swept_sine(
         inputs=wiring.inputs(),
         reference_channel=wiring.reference_channel(step.bare_table),
@@ -198,11 +203,11 @@ def configure(
         source_limit_vpk=settings.source_limit_v,
         input_limit_eu=settings.force_limit_n if wiring.force_limit_acts_on_excitation else None,
         pairing=Wiring.PAIRING,
-        resolution_hz=step.resolution_hz if resolution_hz is None else resolution_hz,
+        resolution_hz=resolution,
         start_hz=float(band_hz[0]),
         stop_hz=float(band_hz[1]),
-        settle_cycles=step.settle_cycles if settle_cycles is None else settle_cycles,
-        integrate_cycles=step.integrate_cycles if integrate_cycles is None else integrate_cycles,
+        settle_cycles=settle,
+        integrate_cycles=integrate,
         direction=step.direction.upper(),
         tolerance_db=step.tolerance_db,
         start_level_vpk=min(settings.start_level_v, settings.source_limit_v),
@@ -313,7 +318,7 @@ def segment_of(
     temperatures = getattr(measured, "specimen_temperature_c", None)
     if temperatures is not None:  # a segment measured in a temperature chamber
         extra["temperature_c"] = (np.asarray(temperatures, dtype=float), "degC")
-        outside = np.asarray(measured.outside_soak_band, dtype=bool)
+        outside = np.asarray(getattr(measured, "outside_soak_band", False), dtype=np.bool_)
         flags = np.where(outside, flags | np.uint16(OUTSIDE_SOAK_BAND), flags)
     return Segment(
         frequency_hz=np.asarray(measured.frequency_hz, dtype=float),

@@ -28,6 +28,7 @@ Every problem is one :class:`InputError` naming the file, the row and the column
 from __future__ import annotations
 
 import csv
+import importlib
 import io
 import logging
 import re
@@ -241,10 +242,7 @@ def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
     package = "xlrd" if suffix == ".xls" else "openpyxl"
     reader: Any
     try:  # imported here: the excel extra is optional
-        if package == "xlrd":
-            import xlrd as reader
-        else:
-            import openpyxl as reader
+        reader = importlib.import_module(package)
     except ImportError:
         raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
                          "'viscorig[excel]')", where) from None

@@ -287,7 +287,7 @@ def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
              f"$ material {name}; density {density_kg_per_m3} kg/m^3 (a placeholder to set)",
              "*MAT_GENERAL_VISCOELASTIC"]
     tref, a, b = 0.0, 0.0, 0.0
-    if wlf:
+    if wlf and function is not None:
         tref, a, b = (master.reference_temperature_c, function.values[0] * math.log(10.0),
                       function.values[1])
     lines.append("$ MID, RO, BULK, PCF, EF, TREF, A, B")

@@ -59,7 +59,8 @@ def _robust_sigma(values: NDArray[np.float64]) -> float:
 
 
 def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
-                         scatter: tuple[float, float] | None = None) -> KramersKronigCheck:
+                         scatter: tuple[ArrayLike, ArrayLike] | None = None
+                         ) -> KramersKronigCheck:
     """Fit a dense non-negative Maxwell series to E' and E''; flag the points it cannot follow.
 
     Parameters

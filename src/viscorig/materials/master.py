@@ -155,11 +155,12 @@ class MasterCurve:
         else:
             lines.append("Kramers-Kronig: every point is consistent with a linear viscoelastic "
                          "material")
-        fit = master.prony_fit
+        prony_fit = master.prony_fit
         lines.append(f"Prony series: {master.prony.terms} terms, {m}_inf = "
                      f"{master.prony.long_term_modulus_pa:.4g} Pa, {m}_0 = "
                      f"{master.prony.instantaneous_modulus_pa:.4g} Pa; rms log error "
-                     f"storage {fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f} "
+                     f"storage {prony_fit.storage_rms_log_error:.3f}, "
+                     f"loss {prony_fit.loss_rms_log_error:.3f} "
                      f"(data scatter {master.shifts.storage_scatter:.3f}, "
                      f"{master.shifts.loss_scatter:.3f})")
         frac = master.fractional_fit

@@ -191,6 +191,7 @@ def fit_prony(
         # stop once BIC has not improved for four more terms: the data says no more
         if terms - best[0].terms >= 4:
             break
+    assert best is not None, "the ladder tries one number of terms at least"
     series = best[0]
     start = np.concatenate([[np.log(series.long_term_modulus_pa)], np.log(series.moduli_pa),
                             np.log(series.tau_s)])
@@ -261,5 +262,6 @@ def fit_fractional(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: ArrayLike,
                                          [np.inf, np.inf, np.inf, 1.0]), max_nfev=400)
         if best is None or solution.cost < best.cost:
             best = solution
+    assert best is not None
     fitted = model(best.x)
     return fitted, model_fit(fitted.complex_modulus(omega), storage, loss, scatter, 4)

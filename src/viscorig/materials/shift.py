@@ -197,6 +197,7 @@ class _Problem:
                ) -> NDArray[np.float64] | tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Master-curve values of ``ln E'``, ``ln E''`` at every point (two columns), and with
         ``leverage`` each point's leverage on them (the weighted fit's hat-matrix diagonal)."""
+        assert self.knots is not None, "knots are set before the first fit"
         basis = _basis(self.reduced(free), self.knots)
         out, hat = np.empty_like(self.y), np.empty_like(self.y)
         for k in range(self.y.shape[1]):
@@ -312,6 +313,7 @@ def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.
     # Gaussian likelihood with each set's own variance (the weights), so that fits with
     # different knots compare whatever scatter each leaves
     residual = solution.fun
+    assert problem.knots is not None
     parameters = solution.x.size + 2 * (problem.knots.size - 4)
     bic = float(residual @ residual - 2.0 * np.log(problem.weights).sum()
                 + parameters * np.log(residual.size))

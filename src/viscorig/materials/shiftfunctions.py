@@ -99,8 +99,10 @@ class ShiftFunction:
         def moved(p: NDArray) -> NDArray:
             return np.array([p[0] * p[1] / (p[1] + shift), p[1] + shift])
 
-        jac = np.stack([_gradient(lambda p, k=k: float(moved(np.asarray(p))[k]), self.values)
-                        for k in range(2)])
+        def component(k: int) -> Callable[[NDArray], float]:
+            return lambda p: float(moved(np.asarray(p))[k])
+
+        jac = np.stack([_gradient(component(k), self.values) for k in range(2)])
         covariance = jac @ self.covariance @ jac.T
         values = tuple(float(v) for v in moved(np.asarray(self.values)))
         return ShiftFunction("wlf", reference_c, values,
@@ -124,7 +126,8 @@ class ShiftFunction:
 
 
 def _function(kind: str) -> Callable[..., NDArray]:
-    return {"wlf": wlf, "arrhenius": arrhenius}[kind]
+    functions: dict[str, Callable[..., NDArray]] = {"wlf": wlf, "arrhenius": arrhenius}
+    return functions[kind]
 
 
 def _gradient(function: Callable[[NDArray], float], values: tuple[float, ...]) -> NDArray:
