@@ -28,7 +28,6 @@ Every problem is one :class:`InputError` naming the file, the row and the column
 from __future__ import annotations
 
 import csv
-import importlib
 import io
 import logging
 import re
@@ -242,7 +241,12 @@ def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
     package = "xlrd" if suffix == ".xls" else "openpyxl"
     reader: Any
     try:  # imported here: the excel extra is optional
-        reader = importlib.import_module(package)
+        if package == "xlrd":
+            import xlrd  # type: ignore[import-untyped, unused-ignore]
+            reader = xlrd
+        else:
+            import openpyxl  # type: ignore[import-untyped, unused-ignore]
+            reader = openpyxl
     except ImportError:
         raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
                          "'viscorig[excel]')", where) from None
