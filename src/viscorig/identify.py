@@ -13,8 +13,9 @@ does not depend on the level.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -303,6 +304,8 @@ class RunSummary:
     hardness_shore_a: float = math.nan
     preload_strain: float = 0.0
     weighted: FitResult | None = None
+    direction: str = "up"
+    level_m_per_s2: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -329,23 +332,45 @@ class Variation:
         return next(iter(self.changes.values())).basis if self.changes else ()
 
 
-def _same_specimen(a: RunSummary, b: RunSummary) -> bool:
-    same_hardness = (a.hardness_shore_a == b.hardness_shore_a) or (
-        math.isnan(a.hardness_shore_a) and math.isnan(b.hardness_shore_a))
-    return a.specimen == b.specimen and same_hardness
+Mounted = TypeVar("Mounted")
+
+
+def preload_pairs(runs: Sequence[Mounted],
+                  describe: Callable[[Mounted], tuple[str, float, str, float, float]]
+                  ) -> list[tuple[Mounted, Mounted]]:
+    """``(without, with preload)`` pairs of specimen runs: the one rule the summary and the
+    report pair a preloaded run with its base by.
+
+    Each preloaded run is paired with its specimen's (name and hardness) least preloaded run of
+    the same sweep direction, at the level nearest its own (a run measured at a reduced level is
+    still compared). ``describe(run)`` gives ``(specimen, hardness_shore_a, direction,
+    preload_strain, level_m_per_s2)``; pass specimen runs only.
+    """
+    groups: dict[tuple, list[tuple[Mounted, float, float]]] = {}
+    for run in runs:
+        specimen, hardness, direction, preload, level = describe(run)
+        key = (specimen, hardness if math.isfinite(hardness) else None, direction)
+        groups.setdefault(key, []).append((run, preload, level))
+    pairs = []
+    for members in groups.values():
+        least = min(preload for _, preload, _ in members)
+        bases = [(run, level) for run, preload, level in members if preload == least]
+        for other, preload, level in members:
+            if preload <= least:
+                continue
+            base = min(bases, key=lambda b: abs(math.log(b[1] / level))
+                       if b[1] > 0 and level > 0 else math.inf)[0]
+            pairs.append((base, other))
+    return pairs
 
 
 def preload_variations(summaries: Sequence[RunSummary]) -> list[Variation]:
-    """For every preloaded specimen run, its change against the same specimen (text and
-    hardness) without preload, as the paper's Tables 1 and 2 discuss them."""
+    """For every preloaded specimen run, its change against its base (:func:`preload_pairs`),
+    as the paper's Tables 1 and 2 discuss them."""
     variations = []
-    for run in summaries:
-        if run.bare or not run.preload_strain > 0:
-            continue
-        base = next((b for b in summaries if not b.bare and b.preload_strain == 0
-                     and _same_specimen(b, run)), None)
-        if base is None:
-            continue
+    specimens = [run for run in summaries if not run.bare]
+    for base, run in preload_pairs(specimens, lambda r: (
+            r.specimen, r.hardness_shore_a, r.direction, r.preload_strain, r.level_m_per_s2)):
         found = compare_fits(base.fit, run.fit, ("K_v", "C_v")) + system_changes(base.fit,
                                                                                  run.fit)
         changes = {change.quantity: change for change in found}
@@ -411,6 +436,8 @@ def summarize(
                 hardness,
                 preload if math.isfinite(preload) else 0.0,
                 weighted,
+                str(metadata.direction),
+                float(metadata.level_m_per_s2),
             )
         )
     return table, summaries

@@ -44,6 +44,9 @@ from viscorig.identify import (
     run_data,
     summarize,
 )
+from viscorig.identify import (
+    preload_pairs as pair_preloaded,
+)
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, CampaignFile, RunRecord
 
@@ -502,29 +505,13 @@ def rubbers(analysis: CampaignAnalysis) -> dict[str, list[RunAnalysis]]:
 
 
 def preload_pairs(analysis: CampaignAnalysis) -> list[tuple[RunAnalysis, RunAnalysis]]:
-    """``(without, with preload)`` runs of the same specimen and sweep direction.
-
-    Each preloaded run is paired with the specimen's least preloaded run, at the level nearest
-    its own (a run measured at a reduced level is still compared, and the page says so).
-    """
-    groups: dict[tuple, list[RunAnalysis]] = {}
-    for run in analysis.runs:
-        m = run.run.metadata
-        if run.bare or run.run.points < 10:
-            continue
-        hardness = m.hardness_shore_a if math.isfinite(m.hardness_shore_a) else None
-        groups.setdefault((m.specimen, hardness, m.direction), []).append(run)
-    pairs = []
-    for members in groups.values():
-        least = min(r.run.metadata.preload_strain for r in members)
-        bases = [r for r in members if r.run.metadata.preload_strain == least]
-        for other in members:
-            if other.run.metadata.preload_strain <= least:
-                continue
-            level = other.run.metadata.level_m_per_s2
-            base = min(bases, key=lambda r: abs(math.log(r.run.metadata.level_m_per_s2 / level)))
-            pairs.append((base, other))
-    return pairs
+    """``(without, with preload)`` runs of the report (:func:`viscorig.identify.preload_pairs`,
+    specimen runs of ten points or more)."""
+    specimens = [run for run in analysis.runs if not run.bare and run.run.points >= 10]
+    return pair_preloaded(specimens, lambda r: (
+        str(r.run.metadata.specimen), float(r.run.metadata.hardness_shore_a),
+        str(r.run.metadata.direction), float(r.run.metadata.preload_strain),
+        float(r.run.metadata.level_m_per_s2)))
 
 
 def finite(value: float) -> bool:
