@@ -37,7 +37,7 @@ States::
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 from itertools import pairwise
@@ -396,16 +396,9 @@ class AdaptivePlan:
         self._fit()
         self._pending = self._decide()
 
-    def steps(self) -> Generator[NextPoints, MeasuredPoints, PlanOutcome]:
-        """The plan as a generator: yields requests, is sent the measured points."""
-        while self._pending is not None:
-            measured = yield self._pending
-            self.deliver(measured)
-        assert self.outcome is not None
-        return self.outcome
-
     def run(self, measure: MeasureFunction) -> PlanOutcome:
-        """Run the plan to its end with ``measure``."""
+        """Run the plan to its end with ``measure`` (:attr:`request` and :meth:`deliver` in a
+        loop, as the acquisition drives it point group by point group)."""
         while self._pending is not None:
             self.deliver(measure(self._pending.points))
         assert self.outcome is not None
