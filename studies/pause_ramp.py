@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import random
+import sys
 import tempfile
 import threading
 import time
@@ -20,24 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from benchrig import ADAPTIVE_TABLE_SEQUENCE
+
 from viscorig.bench import BenchService
 
-SEQUENCE = """
-name = "adaptive-pause"
-[[steps]]
-type = "prompt"
-message = "Remove the damper device."
-simulated_rig = "table"
-[[steps]]
-type = "sweep"
-run = "table"
-specimen = "none"
-band_hz = [12.0, 28.0]
-level = "1 m/s^2"
-plan = "adaptive"
-model = "table"
-target_uncertainty = { K_s = 1e-4 }
-"""
+SEQUENCE = ADAPTIVE_TABLE_SEQUENCE
 SLEW_V_PER_S = 1.0  # the embedded station's default
 
 

@@ -41,6 +41,35 @@ segment_points = {segment_points}
 #: 81 points in segments of 8.
 SMALL_SEQUENCE = soft_sweep_sequence("small", 40.0)
 
+#: An adaptive plan of the bare table (12-28 Hz, K_s to 1e-4).
+ADAPTIVE_TABLE_SEQUENCE = """
+name = "adaptive-pause"
+[[steps]]
+type = "prompt"
+message = "Remove the damper device."
+simulated_rig = "table"
+[[steps]]
+type = "sweep"
+run = "table"
+specimen = "none"
+band_hz = [12.0, 28.0]
+level = "1 m/s^2"
+plan = "adaptive"
+model = "table"
+target_uncertainty = { K_s = 1e-4 }
+"""
+
+
+def configure_soft_sweep(analyser: Any) -> None:
+    """Set a driver's analyser up for a 20-30 Hz swept sine every 0.25 Hz (soft-0's wiring:
+    forces on inputs 1 and 3, accelerations on 2 and 4, held at 1 m/s^2 on input 4)."""
+    analyser.configure_swept_sine(
+        inputs=[(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)],
+        reference_channel=4, reference_level_eu=1.0, source_limit_vpk=2.0,
+        input_limit_eu=None, pairing="PAIR", resolution_hz=0.25, start_hz=20.0,
+        stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
+        tolerance_db=1.0, start_level_vpk=0.1)
+
 
 def small_sequence(folder: Path) -> Path:
     path = folder / "small.toml"

@@ -7,27 +7,12 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from benchrig import wait_until
+from benchrig import ADAPTIVE_TABLE_SEQUENCE, configure_soft_sweep, wait_until
 
 from viscorig.bench import BenchService
 from viscorig.storage import CampaignFile
 
-SEQUENCE = """
-name = "adaptive-pause"
-[[steps]]
-type = "prompt"
-message = "Remove the damper device."
-simulated_rig = "table"
-[[steps]]
-type = "sweep"
-run = "table"
-specimen = "none"
-band_hz = [12.0, 28.0]
-level = "1 m/s^2"
-plan = "adaptive"
-model = "table"
-target_uncertainty = { K_s = 1e-4 }
-"""
+SEQUENCE = ADAPTIVE_TABLE_SEQUENCE
 PACE = 60.0
 
 
@@ -83,12 +68,7 @@ def test_point_by_point_measurements_end_after_the_point_in_flight() -> None:
     with SimulatedAnalyserServer(load_preset("soft-0"), pace=PACE) as server:
         analyser = Agilent35670A.open(server.socket_resource, timeout_s=5.0)
         try:
-            analyser.configure_swept_sine(
-                inputs=[(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)],
-                reference_channel=4, reference_level_eu=1.0, source_limit_vpk=2.0,
-                input_limit_eu=None, pairing="PAIR", resolution_hz=0.25, start_hz=20.0,
-                stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
-                tolerance_db=1.0, start_level_vpk=0.1)
+            configure_soft_sweep(analyser)
             frequencies = [20.0, 21.5, 23.0, 24.5, 26.0, 27.5]
             revealed: list[int] = []
             server.analyser.on_point = lambda count: revealed.append(count)

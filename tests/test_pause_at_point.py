@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from agilent35670a import Agilent35670A
-from benchrig import soft_sweep_sequence, wait_until
+from benchrig import configure_soft_sweep, soft_sweep_sequence, wait_until
 from rigsim.rigfile import load_preset
 from rigsim.server import SimulatedAnalyserServer
 
@@ -96,12 +96,7 @@ def test_the_driver_returns_the_points_measured_before_the_boundary(tmp_path) ->
     with SimulatedAnalyserServer(load_preset("soft-0"), pace=PACE) as server:
         analyser = Agilent35670A.open(server.socket_resource, timeout_s=5.0)
         try:
-            analyser.configure_swept_sine(
-                inputs=[(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)],
-                reference_channel=4, reference_level_eu=1.0, source_limit_vpk=2.0,
-                input_limit_eu=None, pairing="PAIR", resolution_hz=0.25, start_hz=20.0,
-                stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
-                tolerance_db=1.0, start_level_vpk=0.1)
+            configure_soft_sweep(analyser)
             asked: list[int] = []
 
             def progress(report) -> None:
@@ -128,12 +123,7 @@ def test_an_unpaced_analyser_told_in_process_ends_at_a_point_too(tmp_path) -> No
     with SimulatedAnalyserServer(load_preset("soft-0")) as server:  # as fast as possible
         analyser = Agilent35670A.open(server.socket_resource, timeout_s=5.0)
         try:
-            analyser.configure_swept_sine(
-                inputs=[(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)],
-                reference_channel=4, reference_level_eu=1.0, source_limit_vpk=2.0,
-                input_limit_eu=None, pairing="PAIR", resolution_hz=0.25, start_hz=20.0,
-                stop_hz=30.0, settle_cycles=20, integrate_cycles=20, direction="UP",
-                tolerance_db=1.0, start_level_vpk=0.1)
+            configure_soft_sweep(analyser)
             def progress(report) -> None:
                 server.analyser.end_after_point()
                 analyser.end_after_point()
