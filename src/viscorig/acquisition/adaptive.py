@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -139,35 +139,15 @@ def _targets_text(step: SweepStep) -> str:
 
 
 def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level: float) -> Plan:
-    """Measure (or continue) an adaptive run (module text)."""
+    """Measure (or continue) an adaptive run (module text): announce the plan, measure the
+    shaker's gain, set the analyser up, then measure each request the plan makes and hand it
+    the points, until it asks for none; then keep its outcome with the run."""
     settings = adaptive_settings(step, level, _fixed(session, step),
                                  session.station.shaker_force_limit_n)
     plan = AdaptivePlan(settings)
     sweep = session.sweep_settings(step, level)
-    run = yield from stubs.read_run(step.run, "adaptive")
-    attributes = yield Msg("compute", (_attributes, step.run), step="adaptive")
-    test_time_s = float(attributes.get("test_time_s", 0.0))
-    said = 0
-    partial = None
-    if run.points:
-        stored = stored_points(run)
-        partial, _ = _replay(plan, stored)
-        said = len(plan.history)
-        yield from stubs.say(
-            f"continuing run '{step.run}': its {run.points} points handed to the plan again, "
-            "which asks for the rest", "adaptive")
-    else:
-        yield from stubs.annotate(step.run, {"plan_model": str(step.model),
-                                             "plan_targets": _targets_text(step)},
-                                  step="adaptive")
-    yield Msg("progress", ("start_run", step.run, run.points,
-                           run.points + _pending(plan, partial), int((run.flags != 0).sum())),
-              step="adaptive")
-    yield from stubs.say(
-        f"run '{step.run}': adaptive plan for {settings.spec}, targets "
-        + ", ".join(f"{name} {100 * value:g} %" for name, value in settings.targets.items())
-        + f", {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz, level {level:.4g} m/s^2"
-        + (f", dwell limit {step.dwell_limit_s:g} s" if step.dwell_limit_s else ""), "adaptive")
+    course = _Course(session, step, plan, settings, sweep)
+    yield from course.open(level)
     record.move(RunState.CONFIGURING)
     yield from shaker_gain(session, step, sweep)
     yield from stubs.configure(sweep, "adaptive", band_hz=step.band_hz,
@@ -175,89 +155,176 @@ def adaptive_sweep(session: Session, step: SweepStep, record: StepRecord, level:
                                settle_cycles=step.settle_cycles or 0,
                                integrate_cycles=step.integrate_cycles or 1)
     record.move(RunState.MEASURING)
-    points_done, commits = run.points, 0
     while plan.request is not None:
-        for entry in plan.history[said:]:
+        yield from course.say_notes()
+        delivered = yield from course.measure_request()
+        plan.deliver(delivered)
+    yield from course.say_notes()
+    yield from course.close()
+
+
+@dataclass
+class _Batch:
+    """What one request has measured so far: the plan's points (an earlier run's part of it
+    first), the segments not yet committed and their rig time, and the time the request's
+    prediction leaves."""
+
+    left_s: float
+    measured: list[MeasuredPoints]
+    pending: list[Segment] = field(default_factory=list)
+    pending_s: float = 0.0
+
+
+@dataclass
+class _Course:
+    """One adaptive run as it goes: the plan and what the run has done (rig time, points
+    stored, commits, plan notes said, and the points of a request an earlier run stopped
+    in), with one method per part of :func:`adaptive_sweep`."""
+
+    session: Session
+    step: SweepStep
+    plan: AdaptivePlan
+    settings: AdaptiveSettings
+    sweep: SweepSettings
+    test_time_s: float = 0.0
+    points_done: int = 0
+    commits: int = 0
+    said: int = 0
+    partial: MeasuredPoints | None = None
+
+    def open(self, level: float) -> Plan:
+        """Read the run; hand a stopped run's points to the plan again (or mark a new run with
+        the plan's model and targets); start the progress display and say what the plan is
+        for."""
+        step, plan, settings = self.step, self.plan, self.settings
+        run = yield from stubs.read_run(step.run, "adaptive")
+        attributes = yield Msg("compute", (_attributes, step.run), step="adaptive")
+        self.test_time_s = float(attributes.get("test_time_s", 0.0))
+        self.points_done = run.points
+        if run.points:
+            self.partial, _ = _replay(plan, stored_points(run))
+            self.said = len(plan.history)
+            yield from stubs.say(
+                f"continuing run '{step.run}': its {run.points} points handed to the plan "
+                "again, which asks for the rest", "adaptive")
+        else:
+            yield from stubs.annotate(step.run, {"plan_model": str(step.model),
+                                                 "plan_targets": _targets_text(step)},
+                                      step="adaptive")
+        yield Msg("progress", ("start_run", step.run, run.points,
+                               run.points + _pending(plan, self.partial),
+                               int((run.flags != 0).sum())), step="adaptive")
+        yield from stubs.say(
+            f"run '{step.run}': adaptive plan for {settings.spec}, targets "
+            + ", ".join(f"{name} {100 * value:g} %" for name, value in settings.targets.items())
+            + f", {step.band_hz[0]:g}-{step.band_hz[1]:g} Hz, level {level:.4g} m/s^2"
+            + (f", dwell limit {step.dwell_limit_s:g} s" if step.dwell_limit_s else ""),
+            "adaptive")
+
+    def say_notes(self) -> Plan:
+        """Say the plan's notes not said yet."""
+        for entry in self.plan.history[self.said:]:
             yield from stubs.say(f"  {entry.state.value}: {entry.note}", "adaptive")
-        said = len(plan.history)
-        request = plan.request
-        skip = 0 if partial is None else len(partial)
-        left = float(request.predicted_s)
-        measured: list[MeasuredPoints] = [] if partial is None else [partial]
-        partial = None
-        pending: list[Segment] = []
-        pending_s = 0.0
+        self.said = len(self.plan.history)
+
+    def measure_request(self) -> Plan:
+        """Measure what is left of the plan's request, analyser group by group, committing at
+        least every ``segment_s`` of rig time, at the request's end, and where a pause takes
+        hold; return the request's points, for the plan."""
+        request = self.plan.request
+        assert request is not None
+        skip = 0 if self.partial is None else len(self.partial)
+        batch = _Batch(float(request.predicted_s), [] if self.partial is None else [self.partial])
+        self.partial = None
         groups = analyser_groups(request.points[skip:])
         while groups:
             group = groups.pop(0)
-            f = np.array([p.frequency_hz for p in group.points])
-            settle = np.array([p.settle_cycles for p in group.points], dtype=np.int64)
-            integrate = np.array([p.integrate_cycles for p in group.points], dtype=np.int64)
-            base_s = (settle + integrate) / f
-            so_far = _joined([*([] if plan.points is None else [plan.points]), *measured])
-            levels = start_levels(f, plan, so_far, settings, session)
-            call = MeasureRequest(step.run, session.resource, f, base_s,
-                                  max(left - float(base_s.sum()), 0.0), _call(group, levels),
-                                  ends_at_a_point=True)
-            segment_measured, remeasured = yield from stubs.measure_segment(
-                call, functools.partial(check_piece, frequencies=f, resource=session.resource),
-                "adaptive")
-            count = np.asarray(segment_measured.frequency_hz).size  # fewer when paused
-            ended = count < f.size
+            count, remeasured = yield from self.measure_group(group, batch)
+            ended = count < len(group.points)  # fewer when paused
             if ended:  # the rest of the group after the pause
                 groups[:0] = analyser_groups(group.points[count:])
-            if count:
-                rows = slice(0, count)
-                left = max(left - float(base_s[rows].sum()), 0.0)
-                rig_s = point_times_s(segment_measured, base_s[rows], sweep.time_base)
-                time_s = test_time_s + np.cumsum(rig_s)
-                test_time_s = float(time_s[-1])
-                segment = segment_of(segment_measured, session.wiring, sweep, time_s,
-                                     (settle[rows], integrate[rows]))
-                measured.append(_points(segment, rig_s, step.bare_table))
-                pending.append(segment)
-                pending_s += float(rig_s.sum())
-            pause = bool(pending) and not ended and bool(groups) and (
+            pause = bool(batch.pending) and not ended and bool(groups) and (
                 yield from stubs.pausing("adaptive"))  # between one-point groups
-            if pending and (pending_s >= step.segment_s or ended or not groups or pause):
-                joined = join_segments(pending)
-                total = yield from stubs.commit(step.run, joined, {
-                    "test_time_s": test_time_s, "plan_state": plan.state.value,
-                }, "adaptive")  # a pause takes hold at the checkpoint after the commit
-                commits += 1
-                points_done = total
+            if batch.pending and (batch.pending_s >= self.step.segment_s or ended or not groups
+                                  or pause):
                 remaining = sum(len(later.points) for later in groups)
-                yield Msg("progress", ("segment", SegmentDone(
-                    run=step.run, number=commits, count=commits, points_done=total,
-                    points_total=total + remaining,
-                    frequency_hz=np.asarray(joined.frequency_hz),
-                    reference_amplitude=np.asarray(joined.reference_amplitude),
-                    force_amplitude=np.asarray(joined.force_amplitude),
-                    flags=np.asarray(joined.flags, dtype=np.uint16), remeasured=remeasured,
-                    seconds_left=left)), step="adaptive")
-                pending, pending_s = [], 0.0
+                yield from self.commit(batch, remaining, remeasured)
             elif ended:  # a pause ended the sweep before its first point: pause here
                 yield from stubs.checkpoint("adaptive")
-        delivered = _joined(measured)
+        delivered = _joined(batch.measured)
         assert delivered is not None
-        plan.deliver(delivered)
-    for entry in plan.history[said:]:
-        yield from stubs.say(f"  {entry.state.value}: {entry.note}", "adaptive")
-    outcome = plan.outcome
-    assert outcome is not None
-    stderr_text = " ".join(f"{name}={value:.4g}" for name, value in
-                           outcome.relative_stderr.items())
-    history = "; ".join(f"{entry.state.value}: {entry.note}" for entry in outcome.history)
-    yield from stubs.annotate(step.run, {
-        "plan_reason": outcome.reason, "plan_state": "done",
-        "plan_relative_stderr": stderr_text, "test_time_s": test_time_s,
-        "plan_history": history[-HISTORY_CHARACTERS:],
-    }, step="adaptive")
-    frequencies = np.unique(outcome.points.frequency_hz).size
-    yield from stubs.say(
-        f"run '{step.run}' complete (adaptive plan: {outcome.reason}): {points_done} points at "
-        f"{frequencies} frequencies, {relative_text(outcome.relative_stderr)}; rig time "
-        f"{_clock(test_time_s)}", "adaptive")
+        return delivered
+
+    def measure_group(self, group: SweepSegment, batch: _Batch) -> Plan:
+        """Measure one analyser group, each point started at the source level it needs; add
+        what was measured to ``batch`` (the plan's points, a segment to commit, on the run's
+        clock). Returns the points measured (fewer than the group's when a pause ended it) and
+        whether the analyser measured the group again (an overload, a point without data)."""
+        session, sweep = self.session, self.sweep
+        f = np.array([p.frequency_hz for p in group.points])
+        settle = np.array([p.settle_cycles for p in group.points], dtype=np.int64)
+        integrate = np.array([p.integrate_cycles for p in group.points], dtype=np.int64)
+        base_s = (settle + integrate) / f
+        plan = self.plan
+        so_far = _joined([*([] if plan.points is None else [plan.points]), *batch.measured])
+        levels = start_levels(f, plan, so_far, self.settings, session)
+        call = MeasureRequest(self.step.run, session.resource, f, base_s,
+                              max(batch.left_s - float(base_s.sum()), 0.0), _call(group, levels),
+                              ends_at_a_point=True)
+        measured, remeasured = yield from stubs.measure_segment(
+            call, functools.partial(check_piece, frequencies=f, resource=session.resource),
+            "adaptive")
+        count = np.asarray(measured.frequency_hz).size
+        if count:
+            rows = slice(0, count)
+            batch.left_s = max(batch.left_s - float(base_s[rows].sum()), 0.0)
+            rig_s = point_times_s(measured, base_s[rows], sweep.time_base)
+            time_s = self.test_time_s + np.cumsum(rig_s)
+            self.test_time_s = float(time_s[-1])
+            segment = segment_of(measured, session.wiring, sweep, time_s,
+                                 (settle[rows], integrate[rows]))
+            batch.measured.append(_points(segment, rig_s, self.step.bare_table))
+            batch.pending.append(segment)
+            batch.pending_s += float(rig_s.sum())
+        return count, remeasured
+
+    def commit(self, batch: _Batch, remaining: int, remeasured: bool) -> Plan:
+        """Store the segments of ``batch`` not yet committed as one, with the run's rig time
+        and the plan's state, and show them (``remaining``: points of the request still to
+        measure). A pause takes hold at the checkpoint after the commit."""
+        joined = join_segments(batch.pending)
+        total = yield from stubs.commit(self.step.run, joined, {
+            "test_time_s": self.test_time_s, "plan_state": self.plan.state.value,
+        }, "adaptive")
+        self.commits += 1
+        self.points_done = total
+        yield Msg("progress", ("segment", SegmentDone(
+            run=self.step.run, number=self.commits, count=self.commits, points_done=total,
+            points_total=total + remaining, frequency_hz=np.asarray(joined.frequency_hz),
+            reference_amplitude=np.asarray(joined.reference_amplitude),
+            force_amplitude=np.asarray(joined.force_amplitude),
+            flags=np.asarray(joined.flags, dtype=np.uint16), remeasured=remeasured,
+            seconds_left=batch.left_s)), step="adaptive")
+        batch.pending, batch.pending_s = [], 0.0
+
+    def close(self) -> Plan:
+        """Keep the plan's outcome in the run's attributes (reason, relative standard errors,
+        history, rig time) and say it."""
+        step, outcome = self.step, self.plan.outcome
+        assert outcome is not None
+        stderr_text = " ".join(f"{name}={value:.4g}" for name, value in
+                               outcome.relative_stderr.items())
+        history = "; ".join(f"{entry.state.value}: {entry.note}" for entry in outcome.history)
+        yield from stubs.annotate(step.run, {
+            "plan_reason": outcome.reason, "plan_state": "done",
+            "plan_relative_stderr": stderr_text, "test_time_s": self.test_time_s,
+            "plan_history": history[-HISTORY_CHARACTERS:],
+        }, step="adaptive")
+        frequencies = np.unique(outcome.points.frequency_hz).size
+        yield from stubs.say(
+            f"run '{step.run}' complete (adaptive plan: {outcome.reason}): {self.points_done} "
+            f"points at {frequencies} frequencies, {relative_text(outcome.relative_stderr)}; "
+            f"rig time {_clock(self.test_time_s)}", "adaptive")
 
 
 def _clock(seconds: float) -> str:
