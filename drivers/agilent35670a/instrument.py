@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 
 from .blocks import check_axis
-from .channels import InputChannel, check_inputs
+from .channels import InputChannel, InputSetting, check_inputs
 from .connection import Connection
 from .errors import (
     ConnectionLost,
@@ -295,110 +295,118 @@ class Agilent35670A(Subsystem):
 
     # -- one composite per measurement -----------------------------------------------------------
     def configure_swept_sine(
-        self,
-        *,
-        inputs: Iterable[tuple[int, str, float]],
-        reference_channel: int,
-        reference_level_eu: float,
-        source_limit_vpk: float,
-        input_limit_eu: float | None = None,
-        pairing: str | None = "PAIR",
-        resolution_hz: float = 0.25,
-        start_hz: float = 10.0,
-        stop_hz: float = 60.0,
-        settle_cycles: float = 100.0,
-        integrate_cycles: float = 100.0,
-        direction: str = "UP",
-        tolerance_db: float = 2.0,
-        start_level_vpk: float = 0.1,
-        data_format: str = "REAL,64",
-        source_slew_v_per_s: float = DEFAULT_SLEW_V_PER_S,
+        self, *, inputs: Iterable[tuple[int, str, float]], reference_channel: int,
+        reference_level_eu: float, source_limit_vpk: float, input_limit_eu: float | None = None,
+        pairing: str | None = "PAIR", resolution_hz: float = 0.25, start_hz: float = 10.0,
+        stop_hz: float = 60.0, settle_cycles: float = 100.0, integrate_cycles: float = 100.0,
+        direction: str = "UP", tolerance_db: float = 2.0, start_level_vpk: float = 0.1,
+        data_format: str = "REAL,64", source_slew_v_per_s: float = DEFAULT_SLEW_V_PER_S,
     ) -> None:
         """Set up an auto-levelled swept sine and read every setting back.
 
-        Swept-sine mode, the inputs of ``inputs`` (:meth:`configure_inputs`, with ``pairing``),
-        a linear grid of ``resolution_hz`` with automatic resolution off, settle and
-        integration in cycles, the source limit (always written before the level), auto level
-        holding ``reference_channel`` at ``reference_level_eu`` within ``tolerance_db``
-        (:meth:`set_reference_channel`) and optionally the input limit (every input but the
-        reference stays below ``input_limit_eu`` of its own unit). Which transducer is on which
-        input, and so which input is the reference, is the caller's: the driver knows no rig.
-        Each value is validated before anything is sent, the error queue is checked after each
-        setting, and all settings are read back at the end.
+        Every value is validated before anything is sent (:meth:`_check_swept_sine`); then
+        swept-sine mode, the data format, the inputs (:meth:`configure_inputs`), the linear
+        grid and timing (:meth:`SweptSine.set_linear_sweep`) and the auto-level controller
+        (:meth:`_set_auto_level`), the error queue checked after each setting. Which transducer
+        is on which input, and so which input is the reference, is the caller's: the driver
+        knows no rig.
 
         Parameters
         ----------
         inputs
             ``(number, label, sensitivity_v_per_eu)`` per input in use.
-        reference_channel
-            Auto-level reference input (one of ``inputs``).
-        reference_level_eu
-            Amplitude (peak) the controller holds on the reference, in its unit (> 0, ≤ 1e6).
-        source_limit_vpk
-            Highest source level, volts peak (≤ 5).
+        reference_channel, reference_level_eu, tolerance_db
+            Auto-level reference input (one of ``inputs``), the amplitude (peak, in its unit,
+            > 0, ≤ 1e6) the controller holds on it, within ``tolerance_db`` dB.
+        source_limit_vpk, start_level_vpk
+            Highest source level (≤ 5 Vpk) and the level the controller starts from (≤ limit).
         input_limit_eu
             Auto-level input limit (peak, in each input's unit); ``None`` for none.
         pairing
             ``"PAIR"``, ``"SING"`` or ``None`` (not sent), see :meth:`configure_inputs`.
-        resolution_hz, start_hz, stop_hz
-            Linear grid (Hz) and the first band (set before the resolution, which must give at
-            most 801 points over the band in use); :meth:`measure` sets each segment's band.
+        resolution_hz, start_hz, stop_hz, direction
+            Linear grid (Hz; at most 801 points over the band), the first band (:meth:`measure`
+            sets each segment's) and ``"UP"``/``"DOWN"``.
         settle_cycles, integrate_cycles
             Settle (0..1e6) and integration (1..234) cycles per point.
-        direction, tolerance_db, start_level_vpk, data_format
-            ``"UP"``/``"DOWN"``, auto-level tolerance (dB), level the controller starts from
-            (≤ the source limit), ``"REAL,64"`` (falls back to ASCII if refused).
+        data_format
+            ``"REAL,64"`` (falls back to ASCII if refused, :meth:`set_data_format`).
         source_slew_v_per_s
-            Ramp rate of the source (``SOUR:VOLT:SLEW``, 0 to 10000 V/s, 0 for none): the
-            analyser ramps the source up as a sweep starts and down to 0 when it ends or is
-            aborted (a pause, a hold, Ctrl-C), so the shaker never sees a step (module
-            :mod:`.running`).
+            Source ramp rate (``SOUR:VOLT:SLEW``, 0 to 10000 V/s, 0 for none): the source
+            ramps up as a sweep starts and down to 0 when it ends or is aborted, so the shaker
+            never sees a step (module :mod:`.running`).
 
         Raises
         ------
         SettingOutOfRange, SCPIError, SettingNotApplied, MissingOption
         """
-        settings = check_inputs(inputs, self)
-        channels = tuple(setting.number for setting in settings)
-        if reference_channel not in channels:
-            raise SettingOutOfRange(f"reference channel {reference_channel} is not in use")
-        strict_range(0.0, 1e6, "EU", low_inclusive=False)(reference_level_eu, self)
-        if pairing is not None:
-            SweptSine.reference_pairing.validator(pairing, self.sweep)
-        self._check_band(start_hz, stop_hz, resolution_hz)
-        strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(source_limit_vpk, self)
-        Source.slew_v_per_s.validator(source_slew_v_per_s, self.source)
-        strict_range(0.0, 1e6, "cycles")(settle_cycles, self)
-        strict_range(1.0, 234.0, "cycles")(integrate_cycles, self)
-        if not 0.0 < start_level_vpk <= source_limit_vpk:
-            raise SettingOutOfRange(
-                f"start level {start_level_vpk:g} Vpk must be above 0 and at most the source "
-                f"limit {source_limit_vpk:g} Vpk"
-            )
+        settings = self._check_swept_sine(
+            inputs, reference_channel, reference_level_eu, pairing,
+            (start_hz, stop_hz, resolution_hz), (settle_cycles, integrate_cycles),
+            (source_limit_vpk, start_level_vpk, source_slew_v_per_s))
         self.identify()
+        channels = tuple(setting.number for setting in settings)
         self.require_options(any(number in (3, 4) for number in channels))
         self.channels_in_use = channels
         self.instrument_mode = "SINE"
         self.set_data_format(data_format)
         self.configure_inputs(settings, pairing=pairing)
-        sweep = self.sweep
-        sweep.sweep_mode = "AUTO"
-        sweep.spacing = "LIN"
-        sweep.direction = direction
-        sweep.auto_resolution = False
-        sweep.set_band(start_hz, stop_hz)
-        sweep.resolution_hz = resolution_hz
-        sweep.set_timing(settle_cycles, integrate_cycles, "CYCLE")
+        self.sweep.set_linear_sweep(start_hz, stop_hz, resolution_hz, direction)
+        self.sweep.set_timing(settle_cycles, integrate_cycles, "CYCLE")
+        self._set_auto_level(source_limit_vpk, source_slew_v_per_s, start_level_vpk,
+                             (reference_channel, reference_level_eu, tolerance_db),
+                             input_limit_eu)
+        self.verify_configuration()
+
+    def _check_swept_sine(
+        self, inputs: Iterable[tuple[int, str, float]], reference_channel: int,
+        reference_level_eu: float, pairing: str | None, grid: tuple[float, float, float],
+        cycles: tuple[float, float], source: tuple[float, float, float],
+    ) -> tuple[InputSetting, ...]:
+        """Validate a swept-sine set-up before anything is sent: the inputs and reference, the
+        pairing, the band on its grid (``start, stop, resolution``), the settle and integration
+        ``cycles``, and the ``source`` (limit, start level within it, slew rate). Returns the
+        input settings.
+
+        Raises
+        ------
+        SettingOutOfRange
+            Naming the first value out of range.
+        """
+        settings = check_inputs(inputs, self)
+        if reference_channel not in (setting.number for setting in settings):
+            raise SettingOutOfRange(f"reference channel {reference_channel} is not in use")
+        strict_range(0.0, 1e6, "EU", low_inclusive=False)(reference_level_eu, self)
+        if pairing is not None:
+            SweptSine.reference_pairing.validator(pairing, self.sweep)
+        self._check_band(*grid)
+        limit_vpk, start_level_vpk, slew_v_per_s = source
+        strict_range(0.0, MAX_SOURCE_VPK, "Vpk", low_inclusive=False)(limit_vpk, self)
+        Source.slew_v_per_s.validator(slew_v_per_s, self.source)
+        strict_range(0.0, 1e6, "cycles")(cycles[0], self)
+        strict_range(1.0, 234.0, "cycles")(cycles[1], self)
+        if not 0.0 < start_level_vpk <= limit_vpk:
+            raise SettingOutOfRange(
+                f"start level {start_level_vpk:g} Vpk must be above 0 and at most the source "
+                f"limit {limit_vpk:g} Vpk"
+            )
+        return settings
+
+    def _set_auto_level(self, limit_vpk: float, slew_v_per_s: float, start_level_vpk: float,
+                        reference: tuple[int, float, float], input_limit_eu: float | None) -> None:
+        """Set the source and switch auto level on, in the only safe order: the limit first,
+        then the slew rate (before the source can start: it ramps up), the start level, the
+        ``reference`` (input, level in its unit, tolerance in dB,
+        :meth:`set_reference_channel`), the input limit if any, and auto level last."""
         source = self.source
-        source.limit_vpk = source_limit_vpk  # the limit always goes first
-        source.slew_v_per_s = source_slew_v_per_s  # before the source can start: it ramps up
+        source.limit_vpk = limit_vpk
+        source.slew_v_per_s = slew_v_per_s
         source.level_vpk = start_level_vpk
-        self.set_reference_channel(reference_channel, reference_level_eu,
-                                   tolerance_db=tolerance_db)
+        channel, level_eu, tolerance_db = reference
+        self.set_reference_channel(channel, level_eu, tolerance_db=tolerance_db)
         if input_limit_eu is not None:
             source.input_limit_eu = input_limit_eu
         source.auto_level = True
-        self.verify_configuration()
 
     def set_data_format(self, data_format: str = "REAL,64") -> str:
         """Select the data format; if the analyser refuses ``REAL``, fall back to ``ASC,12``.

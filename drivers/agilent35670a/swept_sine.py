@@ -166,6 +166,18 @@ class SweptSine(Subsystem):
             self.start_frequency_hz = start_hz
             self.stop_frequency_hz = stop_hz
 
+    def set_linear_sweep(self, start_hz: float, stop_hz: float, resolution_hz: float,
+                         direction: str = "UP") -> None:
+        """An automatic sweep on a linear grid: mode, spacing, ``direction`` (``"UP"`` or
+        ``"DOWN"``), automatic resolution off, the band (:meth:`set_band`), then
+        ``resolution_hz``, which must give at most 801 points over the band just set."""
+        self.sweep_mode = "AUTO"
+        self.spacing = "LIN"
+        self.direction = direction
+        self.auto_resolution = False
+        self.set_band(start_hz, stop_hz)
+        self.resolution_hz = resolution_hz
+
     def set_timing(self, settle: float, integrate: float, unit: str) -> None:
         """Settle and integration time per point, both in ``"CYCLE"`` or both in ``"S"``."""
         if unit == "CYCLE":
