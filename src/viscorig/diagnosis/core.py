@@ -55,7 +55,8 @@ class DiagnosisResult:
     data
         The runs diagnosed (:class:`~viscorig.diagnosis.data.DiagnosisData`).
     fit
-        The fit of the model diagnosed (as ``identify`` makes it).
+        The fit of the model diagnosed, by ``identify``'s fitter with uniform weights
+        (:func:`~viscorig.diagnosis.findings.refit`: the fit that minimises ``rms_error``).
     likelihood
         Its maximum-likelihood fit on the whitened residual, which the tests compare.
     scan

@@ -2,10 +2,10 @@
 
 Fits. Every candidate is fitted by maximum likelihood on the whitened residual
 (:mod:`viscorig.diagnosis.weighted`), warm-started from the current model and the start
-screening found (a K* that replaces the current one is first fitted as ``identify`` fits it).
-Its ``χ²`` drop ``Δχ²`` against the current model, and ``delta_bic = −Δχ² + k ln n`` (``k`` added
-parameters, ``n`` the independent observations the noise model says the data are worth), rank
-the candidates, best first.
+screening found (a K* that replaces the current one is first fitted by ``identify``'s fitter,
+from its linear start). Its ``χ²`` drop ``Δχ²`` against the current model, and ``delta_bic =
+−Δχ² + k ln n`` (``k`` added parameters, ``n`` the independent observations the noise model
+says the data are worth), rank the candidates, best first.
 
 Significance. Candidates are taken best first, and each is tested against the best model so
 far, that is the current model with every effect already found significant: it is fitted with
@@ -206,7 +206,7 @@ def fit_with(
     term_text: str,
     start: dict[str, float] | None = None,
 ) -> FitResult:
-    """Fit (as ``identify`` does) the current model plus ``term_text``, warm-started."""
+    """Fit (as :func:`refit` does) the current model plus ``term_text``, warm-started."""
     model = parse_spec(candidate_spec(current.model, term_text))
     values = carried_values(current, model)
     values.update(_start_of(model, term_text, start or {}))
@@ -214,15 +214,16 @@ def fit_with(
 
 
 def refit(model: Model | str, data: DiagnosisData, start: dict[str, float]) -> FitResult:
-    """The fit ``identify --model`` makes of ``model`` on ``data`` (the table's values held),
-    started at ``start``."""
+    """The fit ``identify --model ... --weights uniform`` makes of ``model`` on ``data`` (the
+    table's values held, their covariance propagated), started at ``start``: the fit that
+    minimises ``rms_error``, which diagnosis reports for a model."""
     fixed = dict(data.table or {})
     return fit(model, data.data, frfs=data.frfs, fixed=fixed, known=data.table_prior,
                noise=data.noise, start={k: v for k, v in start.items() if k not in fixed})
 
 
 def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
-    """The fit ``identify --model`` makes of a model, started at its likelihood fit."""
+    """The :func:`refit` of a model, started at its likelihood fit."""
     return refit(likelihood.model, data, likelihood.values)
 
 

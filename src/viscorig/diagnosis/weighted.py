@@ -1,13 +1,20 @@
 """Maximum-likelihood fits on the residual whitened by the noise model.
 
-The fitter of ``identify`` minimises the design's error measure, the plain mean of
-``|H_model/H_measured − 1|²``, in which the noisiest points (high frequency, where the force is
-small) weigh most. Comparing models by a likelihood is only calibrated when each model maximises
-that likelihood: fitted otherwise, one more parameter can move the curve at the quiet points by
-more than noise allows and fake an improvement. So every model diagnosis compares is fitted
-here, on the residual whitened by the noise model (:meth:`DiagnosisData.whiten`), with a Huber
+The fitter of ``identify`` (:func:`viscorig.fitting.fit`) minimises, over the stacked real and
+imaginary parts ``r`` of ``H_model/H_measured − 1``, either ``Σ (r_i/s_i)²`` with ``s_i²`` the
+noise model's variance of that component (``weighting="noise"``, ``identify``'s default: the
+drift's correlation enters the ± but not the weights) or the plain ``Σ r_i²`` that
+``rms_error`` measures (``weighting="uniform"``, ``identify --weights uniform``, the paper's
+estimate; the fits diagnosis reports for a model, :func:`viscorig.diagnosis.findings.refit`,
+are these). Neither maximises the likelihood diagnosis compares models by. Comparing models by a
+likelihood is only calibrated when each model maximises that likelihood: fitted otherwise, one
+more parameter can move the curve at the quiet points by more than noise allows and fake an
+improvement. So every model diagnosis compares is fitted here, on the residual whitened by the
+whole noise model, drift correlation included (:meth:`DiagnosisData.whiten`), with a Huber
 loss (quadratic within :data:`HUBER_SCALE` standard deviations, linear beyond) so that an
-outlier point, which heavy-tailed noise makes, neither drives a fit nor fakes a finding.
+outlier point, which heavy-tailed noise makes, neither drives a fit nor fakes a finding, and
+with the table's parameters as nuisance parameters (below) where ``identify`` holds them fixed
+and propagates their error into the ± (:mod:`viscorig.fitting.uncertainty`).
 
 The statistic is ``χ² = Σ ρ(e_i)`` over the whitened residual ``e`` (``ρ(e) = e²`` inside the
 Huber scale): a chi-square with as many degrees of freedom as real residuals, less the

@@ -4,7 +4,9 @@
 user guess is ever needed. The project's estimate weights each point by its noise under the noise
 model (``weighting="noise"``: maximum likelihood under white noise; what ``identify``, ``summary``
 and the adaptive plans use); the paper's uniform weighting (``"uniform"``) is kept to reproduce its
-Table 1 and as the error measure diagnosis compares models by. The noise model shared by the whole
+Table 1: it minimises the design's error measure ``rms_error`` itself, which diagnosis reports
+for each model (diagnosis compares models by its own maximum-likelihood fits,
+:mod:`viscorig.diagnosis.weighted`). The noise model shared by the whole
 core (noise floor, standard errors, significance tests) is in :mod:`viscorig.fitting.noise`
 (estimated from the data by :mod:`viscorig.fitting.noise_estimation`); how it and the inherited
 parameters enter the standard errors is in :mod:`viscorig.fitting.uncertainty`.

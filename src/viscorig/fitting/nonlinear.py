@@ -13,7 +13,8 @@ maximum-likelihood estimate (:mod:`viscorig.fitting.uncertainty` says why a drif
 correlation enters its covariance but not its weights): from the same linear start, it solves
 the weighted problem directly. ``"uniform"`` (the default of :func:`fit`) is the paper's
 method, every point weighing the same, which reproduces the paper's Table 1 and minimises the
-error measure ``rms_error`` that diagnosis compares candidate models by.
+error measure ``rms_error`` itself (the fits diagnosis reports are these; it compares models by
+maximum-likelihood fits of its own, :mod:`viscorig.diagnosis.weighted`).
 
 Standard errors (:mod:`viscorig.fitting.uncertainty`): the covariance of the estimate under
 the noise model, scaled up by the misfit when the model does not reach the noise floor, plus
@@ -140,8 +141,7 @@ def fit(
     weighting
         ``"noise"`` (each point weighted by its noise: the project's estimate, which
         ``identify``, ``summary`` and the plans use) or ``"uniform"`` (every point the same:
-        the paper's method, and the error measure diagnosis compares models by); see the
-        module text.
+        the paper's method, minimising ``rms_error`` itself); see the module text.
 
     Raises
     ------
