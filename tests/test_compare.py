@@ -29,7 +29,8 @@ from viscorig.compare import (
 from viscorig.fitting import FitResult, Known, fit
 from viscorig.identify import read_fit, store_fit
 from viscorig.models import Context, parse_spec
-from viscorig.storage import CampaignFile, FitParameter, FitRecord, RunSettings, Segment
+from viscorig.numbers import Estimate
+from viscorig.storage import CampaignFile, FitRecord, RunSettings, Segment
 
 VOIGT = parse_spec("voigt")
 TABLE = {"M_s": 3.4, "K_s": 5e4, "C_s": 5.0}
@@ -191,7 +192,7 @@ def test_a_shared_table_counts_once_as_sampling_the_joint_distribution_shows(sha
 def _stored(fit_id: str, values: dict[str, float], sigma: dict[str, float],
             correlation: np.ndarray) -> FitRecord:
     names = tuple(sigma)
-    parameters = {name: FitParameter(value, sigma.get(name, math.nan), "")
+    parameters = {name: Estimate(value, sigma.get(name, math.nan), "")
                   for name, value in values.items()}
     return FitRecord(fit_id, "r", "voigt", (20.0, 120.0), 1e-3, 1e-3, "", parameters,
                      (names, correlation))
@@ -214,7 +215,7 @@ def test_stored_fits_use_their_correlation_and_a_table_given_alike_is_shared():
     assert Pair(read_fit(stored["before"]), read_fit(stored["after"])).shared == tuple(TABLE)
     # The table given differently in one of them: two tables, independent.
     other = dict(stored["after"].parameters)
-    other["K_s"] = FitParameter(other["K_s"].value + 1.0, other["K_s"].stderr, "")
+    other["K_s"] = Estimate(other["K_s"].value + 1.0, other["K_s"].stderr, "")
     moved = replace(stored["after"], parameters=other)
     assert Pair(read_fit(stored["before"]), read_fit(moved)).shared == ("M_s", "C_s")
 

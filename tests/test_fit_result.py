@@ -15,6 +15,7 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 from viscorig.errors import InputError
 from viscorig.fitting import Known, fit
 from viscorig.identify import read_fit, store_fit
+from viscorig.numbers import Estimate
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
 DEVICE = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5,
@@ -54,6 +55,10 @@ def test_a_stored_fit_reads_back_as_the_fit_the_file_keeps(tmp_path: Path, run, 
             run.reference_amplitude, np.ones_like(run.time_s), run.force_amplitude, run.flags))
         assert store_fit(campaign, "soft-0", result) == "0001"
         (record,) = campaign.fits("soft-0")
+    # the file's record holds the fit's own estimates, in the one value type of the package
+    for name in result.covariance_names:
+        assert isinstance(record.parameters[name], Estimate)
+        assert record.parameters[name] == result.parameters[name]
     stored = read_fit(record)
     assert stored.stored and not result.stored and stored.source == "stored fit 0001"
     assert stored.spec == result.spec and stored.weighting == "noise"

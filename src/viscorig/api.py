@@ -36,7 +36,7 @@ from viscorig.identify import (
     stored_fits,
     table_parameters,
 )
-from viscorig.numbers import with_uncertainty
+from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.report import build_report, words
 from viscorig.report.analysis import RunAnalysis, climb_from
 from viscorig.report.figures import frf_figure
@@ -338,10 +338,11 @@ class Fit:
         return float(lo), float(hi)
 
     @property
-    def parameters(self) -> dict[str, tuple[float, float, str]]:
-        """``{name: (value, stderr, unit)}``; stderr NaN for a parameter held fixed."""
+    def parameters(self) -> dict[str, Estimate]:
+        """``{name: Estimate(value, stderr, unit)}``; stderr NaN for a parameter held fixed."""
         free = set(self.result.free)
-        return {name: (float(e.value), float(e.stderr) if name in free else math.nan, e.unit)
+        return {name: Estimate(float(e.value), float(e.stderr) if name in free else math.nan,
+                               e.unit)
                 for name, e in self.result.parameters.items()}
 
     def predict(self, frequency_hz) -> dict[str, np.ndarray]:

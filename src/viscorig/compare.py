@@ -55,7 +55,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from viscorig.estimates import TABLE_2_QUANTITIES, Quantity, derived, gradient
+from viscorig.estimates import TABLE_2_QUANTITIES, derived, gradient
 from viscorig.fitting.result import FitResult
 from viscorig.fitting.uncertainty import bartlett_meat
 from viscorig.models import Context, Model
@@ -408,8 +408,8 @@ def _kstar_part(model: Model, frequency_hz: ArrayLike, part: Callable) -> Callab
 def kstar_at(fit: FitResult, frequency_hz: float
              ) -> tuple[tuple[float, float], tuple[float, float]]:
     """``((K', u), (η, u))`` of a fit's K* at one frequency."""
-    storage: Quantity = derived(fit, storage_stiffness_of(fit.model, frequency_hz))
-    loss: Quantity = derived(fit, loss_factor_of(fit.model, frequency_hz))
+    storage = derived(fit, storage_stiffness_of(fit.model, frequency_hz))
+    loss = derived(fit, loss_factor_of(fit.model, frequency_hz))
     return (storage.value, storage.stderr), (loss.value, loss.stderr)
 
 

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
 from viscorig.models import Context
-from viscorig.numbers import with_uncertainty
+from viscorig.numbers import Estimate
 
 
 def kstar_from_table(
@@ -141,23 +141,6 @@ def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> Measu
 # -- the same quantities with their uncertainty -------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Quantity:
-    """A number with its standard uncertainty and unit."""
-
-    value: float
-    stderr: float
-    unit: str = ""
-
-    def text(self) -> str:
-        """``"39.41 ± 0.02 Hz"``, written by :func:`viscorig.numbers.with_uncertainty`."""
-        return with_uncertainty(self.value, self.stderr, self.unit)
-
-    def to_json(self) -> dict[str, float | str]:
-        """``{"value", "stderr", "unit"}`` as in the fits' JSON."""
-        return {"value": float(self.value), "stderr": float(self.stderr), "unit": self.unit}
-
-
 def gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np.float64]:
     """Central differences of a scalar or array ``function(values)`` by the named values
     (relative step 1e-6); the last axis runs over ``names``."""
@@ -171,16 +154,16 @@ def gradient(function, values: dict[str, float], names: list[str]) -> NDArray[np
     return np.stack(columns, axis=-1) if columns else np.zeros((0,))
 
 
-def derived(result, function, unit: str = "") -> Quantity:
+def derived(result, function, unit: str = "") -> Estimate:
     """A function of a fit's parameters, with its uncertainty (first order, every parameter with
     a standard error: fitted and inherited, with their correlations)."""
     names = list(result.covariance_names)
     value = float(function(result.values))
     if not names:
-        return Quantity(value, 0.0, unit)
+        return Estimate(value, 0.0, unit)
     g = gradient(function, dict(result.values), names)
     variance = float(g @ np.asarray(result.joint_covariance) @ g)
-    return Quantity(value, float(np.sqrt(max(variance, 0.0))), unit)
+    return Estimate(value, float(np.sqrt(max(variance, 0.0))), unit)
 
 
 def natural_frequency(values: Mapping[str, float]) -> float:
@@ -206,7 +189,7 @@ TABLE_2_QUANTITIES = {
 }
 
 
-def system_properties_with_uncertainty(result) -> dict[str, Quantity]:
+def system_properties_with_uncertainty(result) -> dict[str, Estimate]:
     """Table 2 (``f_r``, ``xi``, ``B_r``) of a Voigt fit, each with its uncertainty."""
     return {name: derived(result, function, unit)
             for name, (function, unit) in TABLE_2_QUANTITIES.items()}

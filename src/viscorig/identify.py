@@ -23,7 +23,6 @@ from viscorig.compare import Change, compare_fits, system_changes
 from viscorig.errors import InputError
 from viscorig.estimates import (
     MeasuredResonance,
-    Quantity,
     SystemProperties,
     measured_resonance,
     system_properties_with_uncertainty,
@@ -31,6 +30,7 @@ from viscorig.estimates import (
 from viscorig.estimates import system_properties as voigt_system_properties
 from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
+from viscorig.numbers import Estimate
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, CampaignFile, FitRecord, RunRecord
 
@@ -220,7 +220,7 @@ def store_fit(campaign: CampaignFile, run_name: str, result: FitResult) -> str:
         rms_error=result.rms_error,
         noise_floor=result.noise_floor,
         parameters={
-            name: (e.value, e.stderr if name in uncertain else math.nan, e.unit)
+            name: e._replace(stderr=e.stderr if name in uncertain else math.nan)
             for name, e in result.parameters.items()
         },
         correlation=(tuple(result.covariance_names), result.correlation),
@@ -299,7 +299,7 @@ class RunSummary:
     fit: FitResult
     system: SystemProperties | None
     measured: MeasuredResonance
-    system_uncertain: dict[str, Quantity] | None = None
+    system_uncertain: dict[str, Estimate] | None = None
     specimen: str = ""
     hardness_shore_a: float = math.nan
     preload_strain: float = 0.0

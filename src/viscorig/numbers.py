@@ -1,12 +1,39 @@
-"""How a number with its standard uncertainty is written, everywhere the package prints one.
+"""A number with its standard uncertainty: how the package holds one and how it writes one.
 
-``summary``, ``report``, ``identify``, ``show``, ``diagnose`` and ``compare`` all write a value
-and its standard error through :func:`with_uncertainty`, so one number reads the same in each.
+Every estimated value with a standard error and a unit is an :class:`Estimate`, whoever
+estimated it (a fit of the core, a fit stored in a campaign file, a quantity derived from a fit
+such as Table 2's, the Payne fit, a shift function). ``summary``, ``report``, ``identify``,
+``show``, ``diagnose`` and ``compare`` all write a value and its standard error through
+:func:`with_uncertainty`, so one number reads the same in each.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
+
+__all__ = ["Estimate", "with_uncertainty"]
+
+
+class Estimate(NamedTuple):
+    """One estimated value: value, standard error and unit (SI).
+
+    ``stderr`` is 0 for a value held fixed exactly and NaN where it is unknown (a campaign file
+    that stores none). As a tuple it unpacks as ``value, stderr, unit``.
+    """
+
+    value: float
+    stderr: float
+    unit: str = ""
+
+    def text(self, *, signed: bool = False) -> str:
+        """``"152.6 ± 0.6 kN/m"`` (:func:`with_uncertainty`)."""
+        return with_uncertainty(self.value, self.stderr, self.unit, signed=signed)
+
+    def to_json(self) -> dict[str, float | str]:
+        """``{"value", "stderr", "unit"}``, the shape of a parameter in the JSON output."""
+        return {"value": float(self.value), "stderr": float(self.stderr), "unit": self.unit}
+
 
 #: SI prefixes for newtons, metres and seconds, largest first.
 _PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"))

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.models.effects import KRAUS_PARAMETERS, kraus_stiffness
+from viscorig.numbers import Estimate
 from viscorig.storage import CampaignFile
 
 __all__ = ["PayneFit", "identify_payne"]
@@ -37,7 +38,7 @@ class PayneFit:
     runs
         The runs, lowest level first (the reference of the differences).
     parameters
-        name -> (value, standard error, unit): ``K_f``, ``L_f``, ``x_c``, ``m_k``.
+        ``K_f``, ``L_f``, ``x_c``, ``m_k``, each an :class:`~viscorig.numbers.Estimate`.
     points
         Differences fitted (complex values).
     reduced_chi_square
@@ -47,7 +48,7 @@ class PayneFit:
     """
 
     runs: tuple[str, ...]
-    parameters: dict[str, tuple[float, float, str]]
+    parameters: dict[str, Estimate]
     points: int
     reduced_chi_square: float
     displacement_range_m: tuple[float, float]
@@ -57,8 +58,7 @@ class PayneFit:
             "runs": list(self.runs), "model": "kraus", "points": self.points,
             "reduced_chi_square": self.reduced_chi_square,
             "displacement_range_m": list(self.displacement_range_m),
-            "parameters": {name: {"value": value, "stderr": stderr, "unit": unit}
-                           for name, (value, stderr, unit) in self.parameters.items()},
+            "parameters": {name: p.to_json() for name, p in self.parameters.items()},
         }
 
 
@@ -169,7 +169,7 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
     displacement = np.concatenate([x_low, x_high])
     return PayneFit(
         runs=tuple(level.name for level in levels),
-        parameters={name: (values[name], errors[name], units[name]) for name in names},
+        parameters={name: Estimate(values[name], errors[name], units[name]) for name in names},
         points=int(measured.size), reduced_chi_square=chi2,
         displacement_range_m=(float(displacement.min()), float(displacement.max())),
     )

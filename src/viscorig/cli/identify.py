@@ -158,8 +158,8 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
              f"of K* (Eq. 5) between levels, {fit.points} points, displacement "
              f"{low * 1e6:.3g}-{high * 1e6:.3g} µm, reduced chi-square "
              f"{fit.reduced_chi_square:.2f}"]
-    for name, (value, stderr, unit) in fit.parameters.items():
-        lines.append(f"  {name:<4} = {with_uncertainty(value, stderr, unit)}")
+    for name, parameter in fit.parameters.items():
+        lines.append(f"  {name:<4} = {parameter.text()}")
     lines.append("not stored (a fit of several runs)")
     print("\n".join(lines))
     return 0

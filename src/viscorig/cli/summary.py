@@ -19,7 +19,6 @@ from typing import Any
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.compare import Change
-from viscorig.estimates import Quantity
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -28,7 +27,7 @@ from viscorig.identify import (
     preload_variations,
     summarize,
 )
-from viscorig.numbers import with_uncertainty
+from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.paper import (
     PAPER_TABLE_1,
     PAPER_TABLE_PARAMETERS,
@@ -74,7 +73,7 @@ def _pm(value: float, stderr: float) -> str:
     return with_uncertainty(value, stderr)
 
 
-def _q(quantity: Quantity) -> str:
+def _q(quantity: Estimate) -> str:
     return with_uncertainty(quantity.value, quantity.stderr)
 
 

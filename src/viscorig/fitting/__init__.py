@@ -25,9 +25,10 @@ from viscorig.fitting.noise_estimation import (
     noise_floor,
 )
 from viscorig.fitting.nonlinear import CORRELATION_WARNING, WEIGHTINGS, fit
-from viscorig.fitting.result import Estimate, FitResult
+from viscorig.fitting.result import FitResult
 from viscorig.fitting.starts import disc_stiffness_samples, linear_start, table_linear_fit
 from viscorig.fitting.uncertainty import MISFIT_RATIO, Known
+from viscorig.numbers import Estimate
 
 __all__ = [
     "CORRELATION_WARNING",

@@ -11,21 +11,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.fitting.noise import NoiseModel
 from viscorig.models import Context, Model, parse_spec
-
-
-class Estimate(NamedTuple):
-    """One parameter: value, standard error (0 when held fixed exactly), SI unit."""
-
-    value: float
-    stderr: float
-    unit: str
+from viscorig.numbers import Estimate
 
 
 @dataclass

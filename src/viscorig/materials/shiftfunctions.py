@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import curve_fit
 
+from viscorig.numbers import Estimate
+
 GAS_CONSTANT_J_PER_MOL_K = 8.314462618
 KELVIN = 273.15
 
@@ -53,7 +55,8 @@ class ShiftFunction:
     reference_temperature_c
         Where ``log10 aT = 0``.
     values, stderr
-        Parameter values and standard errors, in the order of :data:`PARAMETERS`.
+        Parameter values and standard errors, in the order of :data:`PARAMETERS` (by name
+        with their units: :attr:`parameters`).
     covariance
         Their covariance.
     chi2, dof
@@ -67,6 +70,13 @@ class ShiftFunction:
     covariance: NDArray[np.float64] = field(repr=False)
     chi2: float
     dof: int
+
+    @property
+    def parameters(self) -> dict[str, Estimate]:
+        """``{name: Estimate(value, stderr, unit)}`` in the order of :data:`PARAMETERS`."""
+        names, units = PARAMETERS[self.kind]
+        return {name: Estimate(float(value), float(error), unit) for name, value, error, unit
+                in zip(names, self.values, self.stderr, units, strict=True)}
 
     @property
     def aic(self) -> float:
@@ -111,15 +121,10 @@ class ShiftFunction:
 
     def to_json(self) -> dict:
         """``{"kind", "parameters": {name: {"value", "stderr", "unit"}}, ...}``."""
-        names, units = PARAMETERS[self.kind]
         return {
             "kind": self.kind,
             "reference_temperature_c": self.reference_temperature_c,
-            "parameters": {
-                name: {"value": value, "stderr": error, "unit": unit}
-                for name, value, error, unit in zip(names, self.values, self.stderr, units,
-                                                    strict=True)
-            },
+            "parameters": {name: p.to_json() for name, p in self.parameters.items()},
             "chi2_per_dof": None if math.isnan(self.reduced_chi2) else self.reduced_chi2,
             "describes_shifts": bool(not self.reduced_chi2 > 2.0),
         }

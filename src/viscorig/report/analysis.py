@@ -47,6 +47,7 @@ from viscorig.identify import (
 from viscorig.identify import (
     preload_pairs as pair_preloaded,
 )
+from viscorig.numbers import Estimate
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, CampaignFile, RunRecord
 
@@ -70,12 +71,12 @@ class Candidate:
     delta_bic: float
     significant: bool
     explanation: str
-    parameters: dict[str, tuple[float, float, str]] = field(default_factory=dict)
+    parameters: dict[str, Estimate] = field(default_factory=dict)
 
     @classmethod
     def of(cls, finding) -> Candidate:
         """From a :class:`viscorig.diagnosis.Finding`."""
-        parameters = {name: (float(p["value"]), float(p["stderr"]), str(p["unit"]))
+        parameters = {name: Estimate(float(p["value"]), float(p["stderr"]), str(p["unit"]))
                       for name, p in finding.parameters().items()}
         return cls(finding.effect, finding.model, finding.term, float(finding.rms_error),
                    float(finding.delta_bic), bool(finding.significant), finding.explanation,

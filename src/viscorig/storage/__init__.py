@@ -18,7 +18,6 @@ from viscorig.storage.flags import (
     count_flags,
 )
 from viscorig.storage.records import (
-    FitParameter,
     FitRecord,
     RunMetadata,
     RunRecord,
@@ -33,7 +32,6 @@ __all__ = [
     "LEVEL_NOT_REACHED",
     "SOURCE_AT_LIMIT",
     "CampaignFile",
-    "FitParameter",
     "FitRecord",
     "PointFlag",
     "RunMetadata",

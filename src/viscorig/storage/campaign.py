@@ -548,7 +548,8 @@ class CampaignFile:
         rms_error, noise_floor
             Error measures of design.md (dimensionless).
         parameters
-            name -> (value, stderr, unit); stderr NaN when unknown.
+            name -> (value, stderr, unit), an :class:`~viscorig.numbers.Estimate` or any such
+            triple; stderr NaN when unknown.
         correlation
             (names, matrix): the correlation matrix of the named parameters, stored as the
             2-D dataset ``correlation`` with attribute ``parameters`` (the names, in order,

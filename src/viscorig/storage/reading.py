@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
+from viscorig.numbers import Estimate
 from viscorig.storage import layout, untrusted
-from viscorig.storage.records import FitParameter, FitRecord, RunMetadata, RunRecord
+from viscorig.storage.records import FitRecord, RunMetadata, RunRecord
 from viscorig.storage.text import printable
 
 #: What h5py raises on damaged objects, missing members, or values of an unexpected type.
@@ -409,7 +410,7 @@ def _read_correlation(
     return names, matrix
 
 
-def _read_parameter(item: h5py.HLObject, path: Path) -> FitParameter | None:
+def _read_parameter(item: h5py.HLObject, path: Path) -> Estimate | None:
     """A parameter stored as a scalar dataset (attrs stderr, units) or a group (attrs value,
     stderr, units); other objects in a fit group are not parameters."""
     if isinstance(item, h5py.Dataset):
@@ -421,4 +422,4 @@ def _read_parameter(item: h5py.HLObject, path: Path) -> FitParameter | None:
         value = read_number(item, "value", path)
     stderr = read_number(item, "stderr", path) if "stderr" in item.attrs else math.nan
     unit = read_text(item, "units", path) if "units" in item.attrs else ""
-    return FitParameter(value=value, stderr=stderr, unit=unit)
+    return Estimate(value=value, stderr=stderr, unit=unit)

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig import frf
+from viscorig.numbers import Estimate
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -140,16 +141,6 @@ class Segment:
 
 
 @dataclass(frozen=True)
-class FitParameter:
-    """One identified parameter."""
-
-    value: float
-    stderr: float
-    """Standard error, NaN when unknown."""
-    unit: str
-
-
-@dataclass(frozen=True)
 class FitRecord:
     """A fit as the campaign file stores it under ``/runs/<run>/fits/<id>``: what the file
     says, unchecked against the model library (:func:`viscorig.identify.read_fit` makes it the
@@ -163,7 +154,8 @@ class FitRecord:
     rms_error: float
     noise_floor: float
     created: str
-    parameters: dict[str, FitParameter]
+    parameters: dict[str, Estimate]
+    """name -> value, standard error (NaN when the file stores none) and unit."""
     correlation: tuple[tuple[str, ...], NDArray[np.float64]] | None = None
     """Names and correlation matrix of the parameters with a standard error, if stored."""
     weighting: str = ""
