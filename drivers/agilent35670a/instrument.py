@@ -308,8 +308,7 @@ class Agilent35670A(Subsystem):
         swept-sine mode, the data format, the inputs (:meth:`configure_inputs`), the linear
         grid and timing (:meth:`SweptSine.set_linear_sweep`) and the auto-level controller
         (:meth:`_set_auto_level`), the error queue checked after each setting. Which transducer
-        is on which input, and so which input is the reference, is the caller's: the driver
-        knows no rig.
+        is on which input (so the reference) is the caller's: the driver knows no rig.
 
         Parameters
         ----------
@@ -327,10 +326,9 @@ class Agilent35670A(Subsystem):
         resolution_hz, start_hz, stop_hz, direction
             Linear grid (Hz; at most 801 points over the band), the first band (:meth:`measure`
             sets each segment's) and ``"UP"``/``"DOWN"``.
-        settle_cycles, integrate_cycles
-            Settle (0..1e6) and integration (1..234) cycles per point.
-        data_format
-            ``"REAL,64"`` (falls back to ASCII if refused, :meth:`set_data_format`).
+        settle_cycles, integrate_cycles, data_format
+            Settle (0..1e6) and integration (1..234) cycles per point; ``"REAL,64"`` (falls
+            back to ASCII if refused, :meth:`set_data_format`).
         source_slew_v_per_s
             Source ramp rate (``SOUR:VOLT:SLEW``, 0 to 10000 V/s, 0 for none): the source
             ramps up as a sweep starts and down to 0 when it ends or is aborted, so the shaker
