@@ -1,4 +1,4 @@
-"""``viscorig diagnose FILE --run RUN [--model SPEC] [--auto] [--band LO:HI] [--json]``.
+"""``viscorig diagnose FILE --run RUN [--model SPEC] [--auto] [--band LO:HI] [--json] [--jobs N]``.
 
 Fits the model (default ``voigt`` on both FRFs, the table held at the file's bare-table run or
 ``/rig`` values), shows where it departs from the measurements, which effect is most likely
@@ -6,7 +6,9 @@ missing and why, and the exact ``identify`` command with that effect added. ``--
 best significant effect (and the local modes significant next to it) and refits until nothing
 significant is left, and prints the ladder. Runs of the same specimen at other levels or in the
 other sweep direction are diagnosed jointly (``--alone`` to diagnose the run by itself).
-The file is only read.
+The file is only read, before anything is fitted; each step's candidate fits run on ``--jobs``
+worker processes, one per core by default (:mod:`viscorig.diagnosis.workers`): the same numbers
+as in one process, sooner.
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ import json
 import shlex
 
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import parse_band
+from viscorig.cli.arguments import parse_band, positive_int
 from viscorig.cli.identify import FRF_CHOICES
-from viscorig.diagnosis import DEFAULT_MODEL, DiagnosisResult, diagnose_run
+from viscorig.diagnosis import DEFAULT_MODEL, DiagnosisResult, diagnose, from_campaign
+from viscorig.diagnosis.workers import fitting_on
+from viscorig.executor import executor
 from viscorig.storage import CampaignFile
 
 
@@ -44,6 +48,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="leave out the specimen's runs at other levels or directions",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--jobs", type=positive_int, default=None,
+                        help="worker processes for each step's candidate fits (default: one "
+                             "per core; 1: all in this process)")
     parser.set_defaults(handler=handler)
 
 
@@ -52,11 +59,11 @@ def handler(args: argparse.Namespace) -> int:
     band = parse_band(args.band)
     frfs = FRF_CHOICES[args.frf] if args.frf else None
     with CampaignFile.open(args.file, "r") as campaign:
-        diagnosis = diagnose_run(
-            campaign, args.run, args.model, band_hz=band, frfs=frfs,
-            with_companions=not args.alone,
-        )
-    ladder = diagnosis.auto() if args.auto else None
+        data = from_campaign(campaign, args.run, band_hz=band, frfs=frfs,
+                             with_companions=not args.alone)
+    with executor(jobs=args.jobs) as workers, fitting_on(workers):
+        diagnosis = diagnose(data, args.model)
+        ladder = diagnosis.auto() if args.auto else None
     if args.json:
         document = diagnosis.to_json(ladder)
         if ladder is not None:

@@ -19,7 +19,7 @@ import argparse
 from pathlib import Path
 
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import parse_band
+from viscorig.cli.arguments import parse_band, positive_int
 from viscorig.executor import check_scheduler
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
@@ -48,17 +48,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="climb the ladders on the workers of this Dask cluster (optional "
                         "extra viscorig[dask]; the workers must see FILE at the same path)")
     parser.set_defaults(handler=handler)
-
-
-def positive_int(text: str) -> int:
-    """An ``argparse`` type: a whole number of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
-    return value
 
 
 def handler(args: argparse.Namespace) -> int:

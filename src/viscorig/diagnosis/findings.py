@@ -33,6 +33,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
 from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
+from viscorig.diagnosis.workers import fit_all
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.models import TERMS, Fixture, Model, parse_spec
@@ -258,6 +259,15 @@ def fit_term(
     return ml_fit(model, data, values, only=only, exact=False)
 
 
+def _fit_term_or_none(current: Likelihood, data: DiagnosisData, term_text: str,
+                      start: dict[str, float]) -> Likelihood | None:
+    """:func:`fit_term`, or ``None`` where the term cannot be fitted to these data."""
+    try:
+        return fit_term(current, data, term_text, start)
+    except (InputError, ValueError, np.linalg.LinAlgError):
+        return None
+
+
 def _renamed(result: Likelihood, term_text: str, data: DiagnosisData) -> tuple[Likelihood, str]:
     """Name a fixture by its fitted frequency, and a channel delay by the channel that lags."""
     model = result.model
@@ -312,12 +322,14 @@ def confirm(
     return them significant first, with the fit of the model holding every significant one."""
     n = data.effective_points
     findings: list[Finding] = []
+    fits = iter(fit_all(_fit_term_or_none, [
+        (current, data, term, candidate.start)
+        for candidate in candidates for term in (candidate.term, *candidate.alternatives)]))
     for candidate in candidates:
         best: tuple[float, Likelihood, str] | None = None
         for term in (candidate.term, *candidate.alternatives):
-            try:
-                result = fit_term(current, data, term, candidate.start)
-            except (InputError, ValueError, np.linalg.LinAlgError):
+            result = next(fits)
+            if result is None:
                 continue
             bic = result.chi2 + len(result.free) * np.log(n)
             # an alternative replaces the first term only when the data clearly prefer it
@@ -462,14 +474,18 @@ def unpaid_term(
     phi = dispersion(current.chi2, data.residual_count, len(current.free))
     alpha = alpha_of(current.model, data)
     worst: tuple[float, str, Likelihood] | None = None
+    reductions = []
     for term in current.model.effects:
         specs = [t.spec for t in current.model.terms if t is not term]
         try:
             reduced = parse_spec("+".join(specs))
         except InputError:
             continue
-        start = {**reduced.defaults(), **carried_values(current, reduced)}
-        result = ml_fit(reduced, data, start)
+        reductions.append((term, reduced))
+    fits = fit_all(ml_fit, [(reduced, data, {**reduced.defaults(),
+                                             **carried_values(current, reduced)})
+                            for _, reduced in reductions])
+    for (term, _), result in zip(reductions, fits, strict=True):
         ratio = (result.chi2 - current.chi2) / phi / term_threshold(term, scan_threshold, alpha)
         if ratio < 1.0 and (worst is None or ratio < worst[0]):
             worst = (ratio, term.spec, result)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
@@ -193,7 +193,7 @@ def stands_out(residual: FrfResidual, part: slice, candidates: int = 1) -> bool:
     rho, pairs = coherence(residual, part)
     if pairs == 0:
         return False
-    z = float(norm.isf(FAMILY_ALPHA / max(candidates, 1)))
+    z = float(-ndtri(FAMILY_ALPHA / max(candidates, 1)))
     return rho * np.sqrt(2.0 * pairs) > z
 
 

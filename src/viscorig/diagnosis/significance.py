@@ -33,7 +33,7 @@ of the misfit).
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtrc, chdtri
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.weighted import Likelihood
@@ -58,7 +58,7 @@ DRIFT_LIKE = ("gain", "delay", "lowpass", "highpass", "drift", "amplitude", "fra
 
 def threshold(dof: int, alpha: float) -> float:
     """``Δχ²`` an effect with ``dof`` parameters must exceed (chi-square ``1 − α`` quantile)."""
-    return float(chi2.isf(alpha, max(int(dof), 1)))
+    return float(chdtri(max(int(dof), 1), alpha))
 
 
 def scan_threshold(length: float, alpha: float) -> float:
@@ -72,7 +72,7 @@ def scan_threshold(length: float, alpha: float) -> float:
         return base
     u = 2.0 * np.log(length / (2.0 * np.pi * alpha))
     for _ in range(20):  # fixed point of u = 2 ln(L / (2π (α − P(χ²₁ > u)/2)))
-        rest = alpha - 0.5 * float(chi2.sf(u, 1))
+        rest = alpha - 0.5 * float(chdtrc(1, u))
         if rest <= 0:
             return max(base, u)
         u = 2.0 * np.log(length / (2.0 * np.pi * rest))

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
+from scipy.special import chdtrc
 
 from viscorig.errors import InputError
 from viscorig.materials.table import ModulusTable
@@ -158,8 +159,6 @@ def _differ(squares: NDArray[np.float64], dof: NDArray[np.float64],
             significance: float = 0.01) -> bool:
     """Bartlett's test: do the sets' variances (sums of squares over degrees of freedom)
     differ beyond chance?"""
-    from scipy.stats import chi2
-
     own = np.maximum(squares / dof, 1e-300)
     pooled = squares.sum() / dof.sum()
     k = squares.size
@@ -167,7 +166,7 @@ def _differ(squares: NDArray[np.float64], dof: NDArray[np.float64],
         return False
     statistic = (dof.sum() * np.log(pooled) - (dof * np.log(own)).sum()) / (
         1.0 + ((1.0 / dof).sum() - 1.0 / dof.sum()) / (3.0 * (k - 1)))
-    return bool(chi2.sf(statistic, k - 1) < significance)
+    return bool(chdtrc(k - 1, statistic) < significance)
 
 
 class _Problem:

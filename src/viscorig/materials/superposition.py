@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import BSpline
-from scipy.stats import f as f_distribution
+from scipy.special import fdtrc
 
 from viscorig.materials.table import ModulusTable
 
@@ -85,5 +85,5 @@ def check_superposition(table: ModulusTable) -> SuperpositionCheck:
     within = float(np.sqrt(within_sum / within_dof)) if within_dof else common_scatter
     worst = tuple(t for _, t in sorted(per_set, reverse=True)[:3])
     ratio = common_scatter**2 / max(within**2, 1e-18)
-    chance = float(f_distribution.sf(ratio, dof_common, max(within_dof, 1)))
+    chance = float(fdtrc(dof_common, max(within_dof, 1), ratio))
     return SuperpositionCheck(common_scatter, within, bool(chance >= SIGNIFICANCE), worst)

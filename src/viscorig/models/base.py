@@ -375,6 +375,10 @@ class Model:
             for stage in ("modify_modulus", "disc_stiffness", "measure")
         }
 
+    def __reduce__(self) -> tuple[type[Model], tuple[tuple[Term, ...]]]:
+        # rebuilt from its terms: the names are keyed by the terms' identities
+        return type(self), (self.terms,)
+
     def _claim(self, term: Term, suffix: str) -> list[Parameter]:
         local = term.parameters()
         self._names[id(term)] = {p.name: p.name + suffix for p in local}
