@@ -36,6 +36,7 @@ def climb(data) -> list:
     return summary([first, lighter])
 
 
+@pytest.mark.slow
 def test_the_fits_on_two_workers_are_the_fits_in_one_process() -> None:
     run = simulate_run(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE]), seed=3, step_hz=0.5)
     data = run.frf_data("run")

@@ -102,6 +102,7 @@ def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv
     assert "DMA run exists" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_modulus_below_zero_is_stored_named_and_left_out_of_the_master_curve(
         tmp_path, capsys, caplog, sweep_csv):
     lines = sweep_csv.read_text().splitlines()

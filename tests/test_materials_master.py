@@ -278,6 +278,7 @@ def test_rig_modulus_from_a_stored_fit_is_its_kstar_over_theta(tmp_path):
         rig_modulus_table(campaign, runs[1], kstar_source="fit")
 
 
+@pytest.mark.slow
 def test_a_noisier_sweep_gets_a_larger_shift_standard_error_that_covers_the_truth():
     """Sweeps differ in noise (a hot rubber's small loss modulus is measured far less well):
     the shift of a sweep ten times noisier than the others must carry its own, larger error.

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from agilent35670a import Agilent35670A
 from benchrig import configure_soft_sweep, soft_sweep_sequence, wait_until
 from rigsim.rigfile import load_preset
@@ -61,6 +62,7 @@ def _measure(folder: Path, out: str, pause_after: int | None) -> dict:
     return seen
 
 
+@pytest.mark.slow
 def test_a_pause_ends_the_sweep_at_a_point_and_the_file_equals_an_uninterrupted_one(
         tmp_path) -> None:
     (tmp_path / "pause.toml").write_text(SEQUENCE)

@@ -156,6 +156,7 @@ importlib.import_module(user_text)
     assert unsafe_constructs(good) == []
 
 
+@pytest.mark.slow
 def test_no_source_file_executes_or_unpickles_what_it_reads() -> None:
     files = [path for folder in SOURCE_FOLDERS for path in (REPO / folder).rglob("*.py")]
     assert len(files) > 30
@@ -215,6 +216,7 @@ def test_labels_and_keywords_with_separators_are_refused_before_sending(recorder
     tally.add("injections refused", len(attempts))
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(label=st.text(alphabet=st.sampled_from(list("NMGS/2;:*RST\n\r'\" \x1b,")), max_size=12))
 def test_any_label_is_sent_clean_or_not_at_all(recorder, label: str) -> None:

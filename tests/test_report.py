@@ -142,6 +142,7 @@ def _rgb(colour: str) -> tuple[float, float, float]:
     return to_rgb(colour)
 
 
+@pytest.mark.slow
 def test_the_page_leads_with_the_answer_in_words(quick_report: Path):
     page = (quick_report / "index.html").read_text(encoding="utf-8")
     glance = page.index('<table class="glance">')
@@ -157,6 +158,7 @@ def test_the_page_leads_with_the_answer_in_words(quick_report: Path):
     assert "strong evidence" in outside and "ΔBIC" in page
 
 
+@pytest.mark.slow
 def test_preload_pairs_are_compared_with_their_uncertainty(quick_report: Path,
                                                            campaign_file: Path):
     from viscorig.compare import compare_fits
@@ -312,6 +314,7 @@ document.body.setAttribute("data-layout", JSON.stringify({
 </script></body>"""
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
 def test_every_runs_headline_is_on_the_first_screen(quick_report: Path, tmp_path: Path):
     import json

@@ -72,6 +72,7 @@ def outcome_of(parse, source: str) -> object:
 FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+@pytest.mark.slow
 @FUZZ
 @given(mutated(sequence_document()))
 def test_mutated_sequences_give_a_sequence_or_an_input_error(source: str) -> None:

@@ -41,6 +41,7 @@ def closed_by_peer(sock: socket.socket, within_s: float) -> bool:
         return True
 
 
+@pytest.mark.slow
 def test_a_40_mb_line_is_refused_and_memory_stays_bounded() -> None:
     """A peer that sends 40 MB without a line feed: the server answers with -100 after 64 KiB,
     closes that connection, and its resident memory barely moves."""
@@ -149,6 +150,7 @@ def test_a_client_that_never_reads_is_dropped() -> None:
         other.close()
 
 
+@pytest.mark.slow
 def test_a_flood_behind_the_prologix_adapter_waits_like_gpib() -> None:
     """While the analyser works through a long wait, messages queue up to a bound; the adapter
     then stops reading the socket (as GPIB's handshake holds a talker)."""
@@ -218,6 +220,7 @@ def _crowd_of_non_readers(host: str, port: int, count: int) -> list[socket.socke
     return crowd
 
 
+@pytest.mark.slow
 def test_200_connections_half_not_reading_do_not_lock_out_a_new_client() -> None:
     """200 clients held open at once, 100 of them flooding queries without reading a reply: a
     new connection's ``*IDN?`` is answered at once; connections, threads and memory stay
