@@ -13,7 +13,7 @@ import sys
 from typing import Any
 
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import port_number, positive_number
+from viscorig.cli.arguments import port_number, positive_int, positive_number
 from viscorig.errors import InputError
 
 
@@ -53,7 +53,7 @@ def register(subparsers: Any) -> None:
                        "garble, error=CODE[,TEXT], overload=CH[:POINTS], autocal (once); "
                        "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS (wiring "
                        "faults, they last); repeatable")
-    serve.add_argument("--max-connections", type=_count, default=8, metavar="N",
+    serve.add_argument("--max-connections", type=positive_int, default=8, metavar="N",
                        help="clients served at once (default 8); when all are held, a new "
                        "client takes the slot of the one longest without a message")
     serve.add_argument("--idle-timeout", type=positive_number, default=3600.0, metavar="S",
@@ -61,7 +61,7 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--message-timeout", type=positive_number, default=10.0, metavar="S",
                        help="close a connection whose message, begun, has not ended within S "
                        "seconds (default 10)")
-    serve.add_argument("--max-message", type=_count, default=65536, metavar="BYTES",
+    serve.add_argument("--max-message", type=positive_int, default=65536, metavar="BYTES",
                        help="longest program message; longer ones get error -100 and the "
                        "connection is closed (default 65536)")
     serve.add_argument("--read-timeout-floor", type=_seconds, default=None, metavar="S",
@@ -86,16 +86,6 @@ def _pace(text: str) -> float:
     if text.strip().lower() == "real":
         return 1.0
     return positive_number(text)
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
 
 
 def _seconds(text: str) -> float:
