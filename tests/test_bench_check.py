@@ -17,7 +17,7 @@ from reliability_campaign import cli, one_clear_line, station_text
 from simserve import sim_serve
 
 from viscorig.acquisition.sweep import Wiring
-from viscorig.benchcheck.checks import Readings, RigFacts, judge
+from viscorig.benchcheck.checks import Readings, RigFacts, assess
 
 #: The judging needs only which input carries which transducer, not their sensitivities.
 ROLES = Wiring(1, 2, 3, 4, sensitivities_v_per_eu={})
@@ -143,7 +143,7 @@ def physical_readings(gains: dict[int, complex] | None = None,
     ({}, (3, 4), ["transducer roles: inputs 3 and 4 read each other's transducer"]),
 ])
 def test_the_judgement_names_the_fault(gains, swap, expected) -> None:
-    verdicts = judge(physical_readings(gains, swap), ROLES, RigFacts(TABLE, GAIN))
+    verdicts = assess(physical_readings(gains, swap), ROLES, RigFacts(TABLE, GAIN))
     failed = [f"{v.name}: {v.found}" for v in verdicts if not v.passed]
     assert len(failed) == len(expected), failed
     for found, wanted in zip(failed, expected, strict=True):
@@ -155,7 +155,7 @@ def test_a_noisy_input_and_a_loop_that_does_not_close_are_named() -> None:
     readings.noise_density = {**readings.noise_density, 2: 0.5}
     readings.noise_range_dbvrms = {**readings.noise_range_dbvrms, 3: 7.0}
     readings.level_reached_m_per_s2 = 0.2
-    failed = {v.name: v for v in judge(readings, ROLES, RigFacts(TABLE, GAIN)) if not v.passed}
+    failed = {v.name: v for v in assess(readings, ROLES, RigFacts(TABLE, GAIN)) if not v.passed}
     assert set(failed) == {"input 2 noise", "input 3 noise", "level loop"}
     assert "above 0.01 m/s²/√Hz" in failed["input 2 noise"].found
     assert "hum" in failed["input 3 noise"].advice

@@ -11,7 +11,7 @@ stiffness and damping; the disc accelerometer reads the table's motion through t
 cell; the excitation force follows the source through the shaker's gain.
 """
 
-from viscorig.benchcheck.checks import Readings, Verdict, judge
-from viscorig.benchcheck.procedure import BenchSettings, measure
+from viscorig.benchcheck.checks import Readings, Verdict, assess
+from viscorig.benchcheck.procedure import CheckSettings, measure
 
-__all__ = ["BenchSettings", "Readings", "Verdict", "judge", "measure"]
+__all__ = ["CheckSettings", "Readings", "Verdict", "assess", "measure"]

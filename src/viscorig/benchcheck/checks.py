@@ -28,7 +28,7 @@ import numpy as np
 
 from viscorig.acquisition.sweep import Wiring
 
-__all__ = ["Limits", "Readings", "RigFacts", "Verdict", "judge", "transducer_names"]
+__all__ = ["Limits", "Readings", "RigFacts", "Verdict", "assess", "transducer_names"]
 
 #: A healthy input reads its transducer within these bounds (magnitude ratio, phase).
 GAIN_TOLERANCE = (0.7, 1.4)
@@ -123,7 +123,7 @@ class Readings:
     overloads: Mapping[int, list[str]] = field(default_factory=dict)
 
 
-def judge(readings: Readings, wiring: Wiring, rig: RigFacts,
+def assess(readings: Readings, wiring: Wiring, rig: RigFacts,
           limits: Limits = Limits()) -> list[Verdict]:
     """Every check of the station, in the order a technician fixes things."""
     verdicts = [_identity(readings)]

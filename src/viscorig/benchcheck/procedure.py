@@ -22,11 +22,11 @@ import numpy as np
 from viscorig.acquisition.sweep import Wiring
 from viscorig.benchcheck.checks import FIXED_DRIVE, Readings
 
-__all__ = ["BenchSettings", "measure"]
+__all__ = ["CheckSettings", "measure"]
 
 
 @dataclass(frozen=True)
-class BenchSettings:
+class CheckSettings:
     """How the bench check measures.
 
     Attributes
@@ -60,7 +60,7 @@ def _record_overloads(overloads: dict[int, list[str]], channels: tuple[int, ...]
 
 
 def measure(analyser: Any, wiring: Wiring, source_limit_v: float, force_limit_n: float | None,
-            settings: BenchSettings = BenchSettings()) -> Readings:
+            settings: CheckSettings = CheckSettings()) -> Readings:
     """Run the bench check's measurements on a connected analyser (the 35670A driver).
 
     Parameters

@@ -96,9 +96,9 @@ def _opened(args: argparse.Namespace) -> Iterator[Any]:
 
 
 def check_command(args: argparse.Namespace) -> int:
-    """Measure, judge, print one line per check."""
+    """Measure, assess, print one line per check."""
     from viscorig.acquisition import Wiring
-    from viscorig.benchcheck import judge, measure
+    from viscorig.benchcheck import assess, measure
     from viscorig.benchcheck.checks import RigFacts
 
     with _opened(args) as opened:
@@ -118,7 +118,7 @@ def check_command(args: argparse.Namespace) -> int:
     table = station.table
     rig = RigFacts(None if table is None else (table.mass_kg, table.stiffness_n_per_m,
                                           table.damping_ns_per_m), gain)
-    verdicts = judge(readings, wiring, rig)
+    verdicts = assess(readings, wiring, rig)
     for verdict in verdicts:
         print(verdict.line())
     failed = [v for v in verdicts if not v.passed]

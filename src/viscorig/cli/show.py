@@ -90,7 +90,7 @@ def table(rows: list[list[str]]) -> list[str]:
     ]
 
 
-def describe(path: Path) -> tuple[list[str], list[str]]:
+def listing(path: Path) -> tuple[list[str], list[str]]:
     """The listing of a campaign file, and the problems met on the way (one line each)."""
     campaign = CampaignFile.open(path)
     attributes = campaign.attributes
@@ -276,7 +276,7 @@ def handler(args: argparse.Namespace) -> int:
         document, problems = describe_json(Path(args.file))
         print(json.dumps(document, allow_nan=False))
     else:
-        lines, problems = describe(Path(args.file))
+        lines, problems = listing(Path(args.file))
         print("\n".join(lines))
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""

@@ -65,7 +65,7 @@ class FrfSet:
             self.time_s = np.full(n, np.nan)
 
 
-def combine(
+def combine_frfs(
     frequency_hz: list[NDArray[np.float64]],
     frfs: list[NDArray[np.complex128]],
     names: list[str],

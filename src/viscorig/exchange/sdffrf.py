@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.exchange import units
-from viscorig.exchange.frfset import FrfSet, combine
+from viscorig.exchange.frfset import FrfSet, combine_frfs
 from viscorig.exchange.sdf import (
     DOMAINS,
     FREQUENCY_DOMAIN,
@@ -130,7 +130,7 @@ def _article(text: str) -> str:
     return ("an " if text[:1].lower() in "aeiou" else "a ") + text
 
 
-def describe(file: SdfFile) -> str:
+def describe_sdf(file: SdfFile) -> str:
     """What the file holds, in words, for a refusal."""
     kinds: list[str] = []
     for trace in file.traces:
@@ -190,7 +190,7 @@ def read_sdf(path: str | Path) -> list[SdfFrf]:
             found.append(_frf(trace, f"{file.path} (frequency response {number})",
                               f"{file.instrument} {file.measurement_name}"))
     if not found:
-        raise InputError(f"{describe(file)}; a run takes frequency responses only",
+        raise InputError(f"{describe_sdf(file)}; a run takes frequency responses only",
                          file.path)
     return found
 
@@ -215,7 +215,7 @@ def read_sdf_frfs(paths: list[Path], station: Station | None = None) -> FrfSet:
         frfs = _by_role(frfs, station, source)
     axes = [frf.frequency_hz for frf in frfs]
     values = [frf.accelerance(frf.where, station) for frf in frfs]
-    return combine(axes, values, [frf.where for frf in frfs], source)
+    return combine_frfs(axes, values, [frf.where for frf in frfs], source)
 
 
 def _by_role(frfs: list[SdfFrf], station: Station, source: str) -> list[SdfFrf]:

@@ -42,7 +42,7 @@ import pyuff
 from viscorig.errors import InputError
 from viscorig.exchange import units
 from viscorig.exchange.atomicfile import write_via_path
-from viscorig.exchange.frfset import FrfSet, combine
+from viscorig.exchange.frfset import FrfSet, combine_frfs
 from viscorig.storage import RunRecord
 from viscorig.storage.layout import MAX_RUN_POINTS
 from viscorig.version import __version__
@@ -325,5 +325,5 @@ def read_uff(path: Path) -> FrfSet:
         if "accelerance_table" not in frfs:
             raise InputError("holds ẍ_v/F_v but not ẍ_s/F_e; a run needs the table FRF", where)
         ordered = [frfs[name] for name in _NODES if name in frfs]
-    return combine([e[0] for e in ordered], [e[1] for e in ordered], [e[2] for e in ordered],
+    return combine_frfs([e[0] for e in ordered], [e[1] for e in ordered], [e[2] for e in ordered],
                    f"UFF {path.name}")

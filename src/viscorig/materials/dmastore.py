@@ -80,7 +80,7 @@ def dma_run_names(campaign: CampaignFile) -> list[str]:
             raise InputError("not a group", f"{campaign.path}: /{DMA_GROUP}")
         names = untrusted.members(group, campaign.path, layout.MAX_RUNS)
         for name in names:
-            untrusted.check_name(name, campaign.path, f"/{DMA_GROUP}", "DMA run")
+            untrusted.check_stored_name(name, campaign.path, f"/{DMA_GROUP}", "DMA run")
         return names
 
 
@@ -96,7 +96,7 @@ def read_dma(campaign: CampaignFile, name: str) -> ModulusTable:
         run = group[name]
         if not isinstance(run, h5py.Group):
             raise InputError("not a group", where)
-        modulus = reading.read_text(run, "modulus", path)
+        modulus = reading.text_attribute(run, "modulus", path)
         values = {}
         lengths = set()
         for dataset, (attribute, units, _) in COLUMNS.items():

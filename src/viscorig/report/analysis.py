@@ -61,7 +61,7 @@ _log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class Candidate:
+class FindingSummary:
     """A candidate effect the diagnosis fitted and tested (a finding, as plain data)."""
 
     effect: str
@@ -74,7 +74,7 @@ class Candidate:
     parameters: dict[str, Estimate] = field(default_factory=dict)
 
     @classmethod
-    def of(cls, finding) -> Candidate:
+    def of(cls, finding) -> FindingSummary:
         """From a :class:`viscorig.diagnosis.Finding`."""
         parameters = {name: Estimate(float(p["value"]), float(p["stderr"]), str(p["unit"]))
                       for name, p in finding.parameters().items()}
@@ -92,7 +92,7 @@ class Rung:
     model: str
     rms_error: float
     noise_floor: float
-    added: tuple[Candidate, ...] = ()
+    added: tuple[FindingSummary, ...] = ()
     removed: tuple[str, ...] = ()
 
 
@@ -110,9 +110,9 @@ class Climb:
     final: FitResult
     """The fit of the last rung (its ``noise_floor`` the diagnosis's)."""
     failures: list
-    candidates: list[Candidate]
+    candidates: list[FindingSummary]
     """The first rung's candidate effects, best first."""
-    missing: list[Candidate]
+    missing: list[FindingSummary]
     """The last rung's significant candidates (what is still missing), best first."""
     advice: list[str]
     seconds: float
@@ -179,7 +179,7 @@ class RunAnalysis:
         return self.climb.rungs if self.climb is not None else []
 
     @property
-    def candidates(self) -> list[Candidate]:
+    def candidates(self) -> list[FindingSummary]:
         """The first rung's candidate effects."""
         return self.climb.candidates if self.climb is not None else []
 
@@ -328,14 +328,14 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
         new_terms, removed = term_change(before.model, after.model)
         added = [f for f in before.findings if f.term in new_terms or f.model == after.model]
         rungs.append(Rung(after.model, float(after.rms_error), float(after.noise_floor),
-                          tuple(Candidate.of(f) for f in added),
+                          tuple(FindingSummary.of(f) for f in added),
                           () if added else tuple(removed)))
     first, last = steps[0], steps[-1]
     source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
     final = replace(last.fit, source=f"{source}, both FRFs",
                     noise_floor=float(last.noise_floor))
-    return Climb(rungs, final, list(last.failures), [Candidate.of(f) for f in first.findings],
-                 [Candidate.of(f) for f in last.significant], list(last.advice), seconds,
+    return Climb(rungs, final, list(last.failures), [FindingSummary.of(f) for f in first.findings],
+                 [FindingSummary.of(f) for f in last.significant], list(last.advice), seconds,
                  climbed)
 
 

@@ -115,7 +115,7 @@ def master_figure(master: MasterCurve) -> Figure:
     return figure
 
 
-def residual_figure(master: MasterCurve) -> Figure:
+def master_residual_figure(master: MasterCurve) -> Figure:
     """``ln(model/measured)`` of both moduli against reduced frequency, with the scatter."""
     table = master.table
     fr = master.reduced_frequency_hz
@@ -148,7 +148,7 @@ def material_figures(materials: list[Material], folder: Path | None
         stem = "material-" + "-".join(material.runs)[:60]
         figures[f"{stem}-master"] = save(master_figure(material.master), folder,
                                          f"{stem}-master", "Master curve and shift factors.")
-        figures[f"{stem}-residuals"] = save(residual_figure(material.master), folder,
+        figures[f"{stem}-residuals"] = save(master_residual_figure(material.master), folder,
                                             f"{stem}-residuals",
                                             "Residuals of the Prony series.")
     return figures

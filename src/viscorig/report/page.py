@@ -27,7 +27,7 @@ from viscorig.paper import (
 )
 from viscorig.report.analysis import (
     CampaignAnalysis,
-    Candidate,
+    FindingSummary,
     RunAnalysis,
     preload_pairs,
     rubbers,
@@ -361,7 +361,7 @@ def parameter_table(run: RunAnalysis) -> str:
                   text_last=True)
 
 
-def _candidate_rows(candidates: list[Candidate]) -> tuple[list[list[str]], list[list[str]]]:
+def _candidate_rows(candidates: list[FindingSummary]) -> tuple[list[list[str]], list[list[str]]]:
     words, numbers = [], []
     for c in candidates:
         evidence = evidence_words(c.delta_bic, c.significant)

@@ -264,7 +264,7 @@ class CampaignFile:
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}"):
             names = untrusted.members(h5[layout.RUNS_GROUP], self.path, layout.MAX_RUNS)
             for name in names:
-                untrusted.check_name(name, self.path, f"/{layout.RUNS_GROUP}", "run")
+                untrusted.check_stored_name(name, self.path, f"/{layout.RUNS_GROUP}", "run")
             return names
 
     def run(self, name: str) -> RunRecord:

@@ -126,7 +126,7 @@ def read_setup_text(item: h5py.HLObject, path: Path) -> str:
     return str(value)
 
 
-def read_text(obj: h5py.HLObject, name: str, path: Path) -> str:
+def text_attribute(obj: h5py.HLObject, name: str, path: Path) -> str:
     """A string attribute."""
     value = attribute(obj, name, path)
     if not isinstance(value, str):
@@ -175,7 +175,7 @@ def read_bool(obj: h5py.HLObject, name: str, path: Path) -> bool:
 
 def read_choice(obj: h5py.HLObject, name: str, path: Path, choices: tuple[str, ...]) -> str:
     """A text attribute that must be one of ``choices``."""
-    value = read_text(obj, name, path)
+    value = text_attribute(obj, name, path)
     if value not in choices:
         where = f"{path}: {obj.name}.{name}"
         raise InputError(f"{value!r} is not one of {', '.join(choices)}", where)
@@ -187,7 +187,7 @@ def check_root(h5: h5py.File, path: Path) -> None:
     with guarded(path, "/"):
         if "format" not in h5.attrs:
             raise InputError("not a viscorig campaign file (no format attribute)", f"{path}: /")
-        name = read_text(h5, "format", path)
+        name = text_attribute(h5, "format", path)
         if name != layout.FORMAT_NAME:
             raise InputError(f"format is {name!r}, not {layout.FORMAT_NAME!r}", f"{path}: /")
         version = read_number(h5, "format_version", path, integer=True)
@@ -248,9 +248,9 @@ def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
     """Every attribute of a run, checked."""
     return RunMetadata(
         status=read_choice(group, "status", path, layout.RUN_STATUSES),
-        started=read_text(group, "started", path),
-        finished=read_text(group, "finished", path),
-        specimen=read_text(group, "specimen", path),
+        started=text_attribute(group, "started", path),
+        finished=text_attribute(group, "finished", path),
+        specimen=text_attribute(group, "specimen", path),
         hardness_shore_a=read_number(group, "hardness_shore_a", path),
         preload_strain=read_number(group, "preload_strain", path),
         temperature_c=read_number(group, "temperature_c", path),
@@ -259,8 +259,8 @@ def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
         settle_cycles=read_number(group, "settle_cycles", path, integer=True),
         integrate_cycles=read_number(group, "integrate_cycles", path, integer=True),
         resolution_hz=read_number(group, "resolution_hz", path),
-        instrument=read_text(group, "instrument", path),
-        resource=read_text(group, "resource", path),
+        instrument=text_attribute(group, "instrument", path),
+        resource=text_attribute(group, "resource", path),
         simulated=read_bool(group, "simulated", path),
     )
 
@@ -357,7 +357,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
         if not isinstance(fits_group, h5py.Group):
             raise InputError("not a group", f"{path}: {fits_group.name}")
         for fit_id in sorted(untrusted.members(fits_group, path, layout.MAX_FITS)):
-            untrusted.check_name(fit_id, path, fits_group.name, "fit")
+            untrusted.check_stored_name(fit_id, path, fits_group.name, "fit")
             fit = fits_group[fit_id]
             if not isinstance(fit, h5py.Group):
                 raise InputError("not a group", f"{path}: {fit.name}")
@@ -370,7 +370,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
                 raise InputError("band_hz is not [lo, hi]", f"{path}: {fit.name}.band_hz")
             parameters = {}
             for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
-                untrusted.check_name(key, path, fit.name, "parameter")
+                untrusted.check_stored_name(key, path, fit.name, "parameter")
                 parameter = _read_parameter(fit[key], path)
                 if parameter is not None:
                     parameters[key] = parameter
@@ -380,11 +380,11 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
                 FitRecord(
                     id=fit_id,
                     run=run_name,
-                    model=read_text(fit, "model", path),
+                    model=text_attribute(fit, "model", path),
                     band_hz=(float(band[0]), float(band[1])),
                     rms_error=read_number(fit, "rms_error", path),
                     noise_floor=read_number(fit, "noise_floor", path),
-                    created=read_text(fit, "created", path),
+                    created=text_attribute(fit, "created", path),
                     parameters=parameters,
                     correlation=correlation,
                     weighting=weighting if isinstance(weighting, str) else "",
@@ -421,5 +421,5 @@ def _read_parameter(item: h5py.HLObject, path: Path) -> Estimate | None:
     else:
         value = read_number(item, "value", path)
     stderr = read_number(item, "stderr", path) if "stderr" in item.attrs else math.nan
-    unit = read_text(item, "units", path) if "units" in item.attrs else ""
+    unit = text_attribute(item, "units", path) if "units" in item.attrs else ""
     return Estimate(value=value, stderr=stderr, unit=unit)

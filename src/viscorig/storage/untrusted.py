@@ -68,7 +68,7 @@ def check_link(group: h5py.Group, name: str, path: Path) -> None:
     raise InputError("a user-defined link; links are not followed", where)
 
 
-def check_name(name: str, path: Path, parent: str, what: str) -> None:
+def check_stored_name(name: str, path: Path, parent: str, what: str) -> None:
     """Refuse a run, dataset or parameter name outside the naming rule."""
     if not layout.NAME.match(name):
         raise InputError(f"{what} name {_shown(name)!r} is not valid ({layout.NAME_RULE})",
@@ -175,7 +175,7 @@ def check_structure(h5: h5py.File, path: Path) -> None:
     runs = h5[layout.RUNS_GROUP]
     total = 0
     for run_name in members(runs, path, layout.MAX_RUNS):
-        check_name(run_name, path, runs.name, "run")
+        check_stored_name(run_name, path, runs.name, "run")
         run = runs[run_name]
         if not isinstance(run, h5py.Group):
             raise InputError("not a group", f"{path}: {run.name}")
@@ -195,7 +195,7 @@ def check_run(group: h5py.Group, path: Path) -> int:
     check_attributes(group, path)
     points = 0
     for name in members(group, path, layout.MAX_MEMBERS):
-        check_name(name, path, group.name, "dataset")
+        check_stored_name(name, path, group.name, "dataset")
         item = group[name]
         if isinstance(item, h5py.Dataset):
             check_attributes(item, path)
@@ -204,10 +204,10 @@ def check_run(group: h5py.Group, path: Path) -> int:
                 points = length if name == "frequency_hz" else points
         elif name == layout.FITS_GROUP and isinstance(item, h5py.Group):
             for fit_id in members(item, path, layout.MAX_FITS):
-                check_name(fit_id, path, item.name, "fit")
+                check_stored_name(fit_id, path, item.name, "fit")
                 fit = item[fit_id]
                 if isinstance(fit, h5py.Group):
                     check_attributes(fit, path)
                     for parameter in members(fit, path, layout.MAX_MEMBERS):
-                        check_name(parameter, path, fit.name, "parameter")
+                        check_stored_name(parameter, path, fit.name, "parameter")
     return points
