@@ -4,6 +4,8 @@ order, as one that makes them all in this process (``diagnose --jobs``)."""
 from __future__ import annotations
 
 import json
+import logging
+import os
 import pickle
 
 import numpy as np
@@ -12,7 +14,7 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.cli import main
 from viscorig.diagnosis import diagnose
-from viscorig.diagnosis.workers import fitting_on
+from viscorig.diagnosis.workers import fit_all, fitting_on
 from viscorig.executor import LocalExecutor
 from viscorig.models import parse_spec
 
@@ -75,3 +77,20 @@ def test_diagnose_json_is_the_same_with_one_job_and_two(tmp_path, capsys) -> Non
         documents.append(json.loads(capsys.readouterr().out))
     assert documents[0] == documents[1]
     assert documents[0]["findings"][0]["effect"] == "fixture_resonance"
+
+
+PARENT = os.getpid()
+
+
+def square_here_only(x: int) -> int:
+    """x², in the test's own process; a worker process that runs it dies at once."""
+    if os.getpid() != PARENT:
+        os._exit(1)
+    return x * x
+
+
+def test_a_worker_that_dies_costs_no_result(caplog) -> None:
+    with caplog.at_level(logging.WARNING), LocalExecutor(2) as workers, fitting_on(workers):
+        assert fit_all(square_here_only, [(3,), (4,), (5,)]) == [9, 16, 25]
+        assert fit_all(square_here_only, [(6,), (7,)]) == [36, 49]  # the rest made here
+    assert "worker process stopped" in caplog.text

@@ -14,7 +14,9 @@ the same inputs and does the same arithmetic::
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import BrokenExecutor
 from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import Any, Protocol, TypeVar
@@ -30,6 +32,7 @@ class Mapper(Protocol):
 
 
 _EXECUTOR: ContextVar[Mapper | None] = ContextVar("viscorig_diagnosis_executor", default=None)
+_log = logging.getLogger(__name__)
 
 
 @contextmanager
@@ -48,9 +51,15 @@ def fit_all(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]
     """``[function(*a) for a in arguments]``, on the executor of :func:`fitting_on` if any.
 
     ``function`` is a module-level function (a worker process imports it by name) that returns
-    its failures rather than raising them: one failed fit must not stop the others.
+    its failures rather than raising them: one failed fit must not stop the others. A worker
+    process that dies (killed for memory, say) costs no result: the fits are made here, and so
+    are the rest of the context's.
     """
     executor = _EXECUTOR.get()
-    if executor is None or len(arguments) < 2:
-        return [function(*a) for a in arguments]
-    return list(executor.map(function, arguments))
+    if executor is not None and len(arguments) >= 2:
+        try:
+            return list(executor.map(function, arguments))
+        except BrokenExecutor as error:
+            _log.warning("a worker process stopped (%s); the fits go on in this process", error)
+            _EXECUTOR.set(None)
+    return [function(*a) for a in arguments]
