@@ -22,6 +22,7 @@ _API = {"open_campaign", "Campaign", "Run", "Fit", "Diagnosis", "Comparison"}
 
 def __getattr__(name: str):
     if name in _API:
+        # keeps `import viscorig` light: numpy and h5py load with the API
         from viscorig import api
 
         return getattr(api, name)

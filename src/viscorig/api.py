@@ -29,6 +29,8 @@ from viscorig.compare import compare_fits, kstar_changes
 from viscorig.diagnosis import diagnose_run
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult
+from viscorig.frames import pandas as load_pandas
+from viscorig.frames import run_columns, to_pandas, to_xarray
 from viscorig.identify import (
     identify_run,
     is_bare_table,
@@ -36,6 +38,8 @@ from viscorig.identify import (
     stored_fits,
     table_parameters,
 )
+from viscorig.materials.master import build_master
+from viscorig.materials.sources import modulus_table
 from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.report import build_report, words
 from viscorig.report.analysis import RunAnalysis, climb_from
@@ -129,9 +133,6 @@ class Campaign:
         Returns a :class:`viscorig.materials.master.MasterCurve`; ``.to_json()`` is the object
         ``master --json`` prints, ``.text()`` what it prints without ``--json``.
         """
-        from viscorig.materials.master import build_master
-        from viscorig.materials.sources import modulus_table
-
         names = [name for group in runs for name in ([group] if isinstance(group, str)
                                                       else group)]
         table = modulus_table(self.stored, names, disc_mass_kg, kstar)
@@ -255,16 +256,12 @@ class Run:
     def to_pandas(self):
         """Every per-point dataset as a DataFrame indexed by ``frequency_hz`` (Hz); units in
         ``frame.attrs["units"]``, the run's metadata in ``frame.attrs``."""
-        from viscorig.frames import run_columns, to_pandas
-
         columns, units = run_columns(self.stored)
         return to_pandas(self.stored.frequency_hz, columns, units, self._attributes())
 
     def to_xarray(self):
         """Every per-point dataset as an xarray Dataset on the coordinate ``frequency_hz``;
         each variable's unit in its ``attrs["units"]``, the metadata in the Dataset's attrs."""
-        from viscorig.frames import run_columns, to_xarray
-
         columns, units = run_columns(self.stored)
         return to_xarray(self.stored.frequency_hz, columns, units, self._attributes())
 
@@ -376,8 +373,6 @@ class Fit:
         """Measured, model and relative residual of each FRF, indexed by ``frequency_hz``
         over the band fitted; units and the fit's figures in ``frame.attrs`` (the parameters
         under ``attrs["parameters"]``, and as a table from :meth:`parameter_table`)."""
-        from viscorig.frames import to_pandas
-
         f, columns, units = self._columns()
         frame = to_pandas(f, columns, units, self._attributes())
         frame.attrs["parameters"] = {name: {"value": v, "stderr": e, "unit": u}
@@ -386,8 +381,6 @@ class Fit:
 
     def parameter_table(self):
         """The parameters as a DataFrame: ``value``, ``stderr``, ``unit`` by name."""
-        from viscorig.frames import pandas as load_pandas
-
         pandas = load_pandas()
         rows = {name: {"value": v, "stderr": e, "unit": u}
                 for name, (v, e, u) in self.parameters.items()}
@@ -396,8 +389,6 @@ class Fit:
     def to_xarray(self):
         """Measured, model and residual on the coordinate ``frequency_hz``; each parameter a
         scalar variable with its ``units`` and ``stderr`` in attrs."""
-        from viscorig.frames import to_xarray
-
         f, columns, units = self._columns()
         scalars = {name: (v, {"units": u, "stderr": e})
                    for name, (v, e, u) in self.parameters.items()}
@@ -495,8 +486,6 @@ class Diagnosis:
 
     def to_pandas(self):
         """The candidate effects as a DataFrame, best first, with the evidence in words."""
-        from viscorig.frames import pandas as load_pandas
-
         w = words
         pandas = load_pandas()
         return pandas.DataFrame([
@@ -545,8 +534,6 @@ class Comparison:
 
     def to_pandas(self):
         """One row per quantity: before, after (with stderr), relative change and its stderr."""
-        from viscorig.frames import pandas as load_pandas
-
         pandas = load_pandas()
         return pandas.DataFrame([
             {"quantity": c.quantity, "unit": c.unit, "before": c.before,

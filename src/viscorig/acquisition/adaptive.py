@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from viscorig.acquisition import stubs
+from viscorig.acquisition.console import format_duration
 from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, RunRefused
 from viscorig.acquisition.gain import (
     DISAGREE_STDERRS,
@@ -59,6 +60,7 @@ from viscorig.planning import (
     PlannedPoint,
     PointTiming,
     SweepSegment,
+    model_amplitudes,
     sweep_segments,
 )
 from viscorig.sequences import SweepStep, point_durations_s
@@ -328,8 +330,6 @@ class _Course:
 
 
 def _clock(seconds: float) -> str:
-    from viscorig.acquisition.console import format_duration
-
     return format_duration(seconds)
 
 
@@ -461,8 +461,6 @@ def start_levels(frequency_hz: np.ndarray, plan: AdaptivePlan, measured: Measure
     or, before the first fit, the nearest point measured, scaled to the level. ``None``: nothing
     known yet (the analyser's own start).
     """
-    from viscorig.planning import model_amplitudes
-
     gain = session.shaker_gain_n_per_v or session.station.shaker_gain_n_per_v
     if gain is None:
         return None

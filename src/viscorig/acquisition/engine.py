@@ -607,7 +607,8 @@ class RunEngine:
         self.current_run = ""
 
     def _do_store_fit(self, run: str, result) -> str:
-        from viscorig.identify import store_fit  # scipy: only when needed
+        # keeps the command's start fast: scipy loads only when a fit is stored
+        from viscorig.identify import store_fit
 
         return store_fit(self.campaign, run, result)
 

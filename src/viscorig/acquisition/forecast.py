@@ -18,6 +18,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
+from viscorig.acquisition.console import format_duration
 from viscorig.acquisition.probe import probe_test_time_s
 from viscorig.sequences import (
     IdentifyTableStep,
@@ -172,7 +173,8 @@ def forecast_sequence(
             out.append(StepForecast(index, "sweep", step.run, seconds, seconds, probe,
                                     note=f"{step.points} points"))
             continue
-        from viscorig.acquisition.adaptive import adaptive_settings  # scipy: only when needed
+        # keeps the command's start fast: scipy loads only when needed
+        from viscorig.acquisition.adaptive import adaptive_settings
         from viscorig.planning import expected_time_s
 
         probe += probe_test_time_s(step)  # the shaker's gain, measured at the probe's points
@@ -196,8 +198,6 @@ def forecast_sequence(
 
 def format_forecast(forecasts: list[StepForecast], heading: str = "") -> str:
     """The forecast as text: one line per sweep or wait, the total, what it rests on."""
-    from viscorig.acquisition.console import format_duration
-
     def span(low: float, high: float) -> str:
         if math.isinf(high):
             return f"{format_duration(low)} or more"

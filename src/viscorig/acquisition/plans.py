@@ -28,6 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from viscorig.acquisition import stubs
+from viscorig.acquisition.chamber import temperature_step
 from viscorig.acquisition.console import Console
 from viscorig.acquisition.engine import MeasureRequest, Msg, Plan, Rig, RunEngine, RunRefused
 from viscorig.acquisition.limits import ForceEstimate
@@ -107,8 +108,6 @@ def sequence_plan(session: Session, forecast: Callable[[int], float] | None = No
         elif isinstance(step, IdentifyTableStep):
             yield from identify_table_step(session, step, record)
         elif isinstance(step, TemperatureStep):
-            from viscorig.acquisition.chamber import temperature_step
-
             yield from temperature_step(session, step, record)
         else:
             yield from sweep_step(session, step, record)
@@ -196,7 +195,8 @@ def identify_table_step(session: Session, step: IdentifyTableStep, record: StepR
 
 
 def _table_fit(campaign: CampaignFile, run: str, band_hz: tuple[float, float] | None):
-    from viscorig.identify import identify_run  # scipy: only when needed
+    # keeps the command's start fast: scipy loads only when needed
+    from viscorig.identify import identify_run
 
     result, _ = identify_run(campaign, run, "table", band_hz=band_hz)
     return result
@@ -221,6 +221,7 @@ def sweep_step(session: Session, step: SweepStep, record: StepRecord) -> Plan:
         try:
             level, estimate = yield from level_for(session, step)
             if step.adaptive:
+                # keeps the command's start fast: scipy loads only when needed
                 from viscorig.acquisition.adaptive import check_adaptive
 
                 yield from check_adaptive(session, step)
@@ -240,6 +241,7 @@ def sweep_step(session: Session, step: SweepStep, record: StepRecord) -> Plan:
                 + (f" ({grid[done]:g} Hz)" if done < step.points else ""), "sweep")
     try:
         if step.adaptive:
+            # keeps the command's start fast: scipy loads only when needed
             from viscorig.acquisition.adaptive import adaptive_sweep
 
             yield from adaptive_sweep(session, step, record, level)
@@ -269,6 +271,7 @@ def _open(session: Session, step: SweepStep, level: float,
     """Create the run with its settings and the conditions it runs under."""
     settings = session.run_settings(step, level)
     if step.adaptive:
+        # keeps the command's start fast: scipy loads only when needed
         from viscorig.acquisition.adaptive import adaptive_run_settings
 
         settings = adaptive_run_settings(settings, step)

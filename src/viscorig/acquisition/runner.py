@@ -18,6 +18,7 @@ import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from viscorig.acquisition.chamber import ChamberedAnalyser, ChamberEngine
 from viscorig.acquisition.console import Console, single_line
 from viscorig.acquisition.engine import Rig, RunEngine, RunRefused
 from viscorig.acquisition.forecast import Floor, forecast_sequence
@@ -107,8 +108,6 @@ class Runner:
             self.engine = RunEngine(campaign, rig, console, holds=holds,
                                     hold_resume=hold_resume, file_lock=file_lock)
         else:
-            from viscorig.acquisition.chamber import ChamberedAnalyser, ChamberEngine
-
             rig = Rig(ChamberedAnalyser(analyser, self.options.chamber), wiring,
                       self.options.mount, self.options.real_time_waits,
                       self.options.poll_interval_s)

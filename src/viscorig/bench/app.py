@@ -36,6 +36,9 @@ from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.routing import Route
 
 from viscorig.bench.service import BenchError, BenchService
+from viscorig.storage import CampaignFile
+from viscorig.watch.server import page_html as live_html
+from viscorig.watch.snapshot import Snapshots
 
 #: A request handler of the application.
 Endpoint = Callable[[Request], Awaitable[Response]]
@@ -296,8 +299,6 @@ def _journal_endpoint(service: BenchService) -> Endpoint:
     """``GET /api/journal``: the last 200 entries of the current campaign's journal."""
 
     async def journal(request: Request) -> Response:
-        from viscorig.storage import CampaignFile
-
         path = service.campaign_path
         entries = []
         if path is not None and Path(path).exists():
@@ -314,9 +315,6 @@ def _journal_endpoint(service: BenchService) -> Endpoint:
 def _live_endpoints(service: BenchService) -> tuple[Endpoint, Endpoint]:
     """``GET /live/`` and ``/live/state.json``: the watch page of the campaign being measured,
     its snapshots answered as ``unchanged`` while their version is the one the page has."""
-    from viscorig.watch.server import page_html as live_html
-    from viscorig.watch.snapshot import Snapshots
-
     live: dict[str, Snapshots] = {}
 
     async def live_page(request: Request) -> Response:

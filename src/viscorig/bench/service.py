@@ -18,10 +18,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from viscorig.acquisition import Outcome, Runner, format_forecast
 from viscorig.acquisition.console import ConsoleView, PageConsole, single_line
 from viscorig.acquisition.engine import EngineState
+from viscorig.acquisition.notebox import NoteCarrier
+from viscorig.cli.check import check_files
+from viscorig.cli.plan import sequence_forecast, simulated_floors
+from viscorig.cli.run import open_station, runner_options
+from viscorig.cli.stations import station_holds
 from viscorig.errors import InputError, ViscorigError
+from viscorig.sequences.sequence import read_text
 from viscorig.sequences.station import BenchSettings
+from viscorig.storage import CampaignFile
+from viscorig.storage.journal import MAX_TEXT
 
 __all__ = ["API_STATES", "BenchError", "BenchService", "QueueItem"]
 
@@ -147,9 +156,6 @@ class BenchService:
         BenchError
             It cannot be read, holds another sequence, or was measured elsewhere.
         """
-        from viscorig.sequences.sequence import read_text
-        from viscorig.storage import CampaignFile
-
         try:
             with CampaignFile.open(out_path) as campaign:
                 stored, station = campaign.sequence_text, campaign.station_text
@@ -166,10 +172,6 @@ class BenchService:
 
     def _check(self, sequence_path: Path) -> tuple[list[str], float | None, str]:
         """``check``'s problems and ``plan``'s time of a sequence (nothing touches the rig)."""
-        from viscorig.acquisition import format_forecast
-        from viscorig.cli.check import check_files
-        from viscorig.cli.plan import sequence_forecast
-
         try:
             checked = check_files(str(sequence_path), self.station_path)
         except InputError as error:
@@ -271,13 +273,6 @@ class BenchService:
                     return
 
     def _run(self, item: QueueItem) -> str:
-        from viscorig.acquisition import Outcome, Runner
-        from viscorig.acquisition.notebox import NoteCarrier
-        from viscorig.cli.check import check_files
-        from viscorig.cli.run import open_station, runner_options
-        from viscorig.cli.stations import station_holds
-        from viscorig.storage import CampaignFile
-
         checked = check_files(item.sequence, self.station_path)
         if not checked.ok:
             self.problems = [single_line(str(problem)) for problem in checked.problems]
@@ -301,8 +296,6 @@ class BenchService:
             holds = station_holds(opened, bench)
             floors = {}
             if opened.simulated:
-                from viscorig.cli.plan import simulated_floors
-
                 floors = simulated_floors(sequence)
             runner = Runner(campaign, sequence, station, opened.analyser, console,
                             runner_options(opened, None), floors=floors, holds=holds,
@@ -384,9 +377,6 @@ class BenchService:
     def note(self, text: object) -> dict[str, str]:
         """Store a note with its time in the campaign file of the run in progress (or of the
         last one run)."""
-        from viscorig.storage import CampaignFile
-        from viscorig.storage.journal import MAX_TEXT
-
         if not isinstance(text, str) or not text.strip():
             raise BenchError("text: the note, not empty", 400)
         if len(text) > MAX_TEXT:

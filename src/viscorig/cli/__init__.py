@@ -4,9 +4,12 @@ Each command lives in a module of this package that exposes ``register(subparser
 its sub-parser(s) and sets ``handler`` to a function ``handler(args) -> int``. A command is listed
 in :data:`COMMANDS` only once it works. Only the module of the command being run is imported, so
 that the program starts quickly whatever the other commands need (scipy, matplotlib, pyvisa).
-For the same reason the command modules import their work (and the driver and the simulated
-rig, which only the command line wires in) inside their handlers: ``viscorig --help`` and
-``viscorig check`` load none of it.
+A command module imports the ``viscorig`` modules it uses at its top; it imports a heavy
+subsystem that only some of its paths need (scipy for an adaptive step, matplotlib for
+``--plot``, the bench's web server) inside the function that needs it, with a comment saying it
+keeps the command's start fast (``tests/test_import_cycles.py`` holds every other
+function-level import of ``viscorig`` for an error). The driver and the simulated rig, which
+only the command line wires in, are imported where they are used.
 
 Every command takes ``-v``/``-q`` (before or after its name): they set the level of the standard
 ``logging`` module for the ``viscorig`` logger, whose records go to stderr as ``viscorig: ...``

@@ -17,9 +17,17 @@ import dataclasses
 from collections.abc import Iterator
 from typing import Any
 
+from viscorig.acquisition import Wiring
+from viscorig.bench import BenchService
+from viscorig.benchcheck import assess, measure
+from viscorig.benchcheck.checks import RigFacts
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import port_number, positive_number
+from viscorig.cli.stations import check_presets, lab_station, simulated_station
+from viscorig.cli.watch import open_in_browser
 from viscorig.errors import InputError, InstrumentError
+from viscorig.sequences import PromptStep, Sequence, load_station
+from viscorig.sequences.station import TableParameters
 
 #: The bench page's port a technician can bookmark.
 DEFAULT_SERVE_PORT = 8766
@@ -69,9 +77,6 @@ def register(subparsers: Any) -> None:
 def _opened(args: argparse.Namespace) -> Iterator[Any]:
     """The station to check: the lab's, or the embedded simulated rig with its table filled in
     from the preset (a station file gives its own [table])."""
-    from viscorig.cli.stations import check_presets, lab_station, simulated_station
-    from viscorig.sequences import PromptStep, Sequence, load_station
-
     if args.station is not None:
         if args.preset is not None:
             raise InputError("only for the embedded simulated rig (no --station)", "--preset")
@@ -84,8 +89,6 @@ def _opened(args: argparse.Namespace) -> Iterator[Any]:
     check_presets(sequence)
     from rigsim.rigfile import load_preset
 
-    from viscorig.sequences.station import TableParameters
-
     rig = load_preset(preset)
     table = rig.table
     with simulated_station(sequence) as opened:
@@ -97,10 +100,6 @@ def _opened(args: argparse.Namespace) -> Iterator[Any]:
 
 def check_command(args: argparse.Namespace) -> int:
     """Measure, assess, print one line per check."""
-    from viscorig.acquisition import Wiring
-    from viscorig.benchcheck import assess, measure
-    from viscorig.benchcheck.checks import RigFacts
-
     with _opened(args) as opened:
         station = opened.station
         print(f"bench check of {station.source or station.resource} "
@@ -129,10 +128,8 @@ def check_command(args: argparse.Namespace) -> int:
 
 def serve_command(args: argparse.Namespace) -> int:
     """``viscorig bench serve``: print the address with its token first, serve until Ctrl-C."""
-    from viscorig.bench import BenchService
+    # keeps the command's start fast: the web server loads only for serve
     from viscorig.bench.app import BenchServer
-    from viscorig.cli.watch import open_in_browser
-    from viscorig.sequences import load_station
 
     address = "127.0.0.1"
     if args.station is not None:

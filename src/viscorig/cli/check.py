@@ -21,7 +21,9 @@ import sys
 from dataclasses import dataclass, field
 from typing import NoReturn
 
+from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
+from viscorig.cli.stations import embedded_chamber_station, simulated_rig_problems
 from viscorig.errors import InputError
 from viscorig.sequences import (
     ChamberStation,
@@ -32,7 +34,9 @@ from viscorig.sequences import (
     parse_sequence,
     parse_station,
 )
+from viscorig.sequences.reference import reference_markdown
 from viscorig.sequences.sequence import read_text
+from viscorig.sequences.setpoints import set_point_problems
 
 _TOML_LINE = re.compile(r"\(at line (\d+), column \d+\)")
 
@@ -101,17 +105,11 @@ def check_texts(sequence_text: str, sequence_source: str, station_text: str | No
         except InputError as error:
             checked.problems += _problems_of(error, station_source)
     elif checked.sequence is not None:
-        from viscorig.cli.stations import simulated_rig_problems
-
         checked.problems += simulated_rig_problems(checked.sequence, sequence_text)
     if checked.sequence is not None and checked.sequence.soaks and (
             station_text is None or checked.station is not None):
-        from viscorig.sequences.setpoints import set_point_problems
-
         chamber: ChamberStation | None
         if checked.station is None:
-            from viscorig.cli.stations import embedded_chamber_station
-
             chamber, name = embedded_chamber_station(checked.sequence), "the embedded rig"
         else:
             chamber, name = checked.station.chamber, station_source
@@ -147,8 +145,6 @@ def refuse(checked: Checked, check_command: str | None) -> NoReturn:
 def check_command(args: argparse.Namespace) -> int:
     """``viscorig check``."""
     if args.fields:
-        from viscorig.sequences.reference import reference_markdown
-
         sys.stdout.write(reference_markdown())
         return 0
     if args.sequence is None:
@@ -171,7 +167,6 @@ def check_command(args: argparse.Namespace) -> int:
         count = len(checked.problems)
         print(f"{count} problem{'s' if count != 1 else ''}", file=sys.stderr)
         return 2
-    from viscorig.acquisition import format_duration
 
     where = (f"station {args.station}" if args.station
              else "the embedded simulated rig: every run matches the rig its prompt mounts")

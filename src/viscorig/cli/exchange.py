@@ -44,6 +44,8 @@ from viscorig.exchange import (
     write_csv,
     write_uff,
 )
+from viscorig.materials.dmafile import read_dma_file
+from viscorig.materials.dmastore import import_dma
 from viscorig.sequences import load_station
 from viscorig.storage import CampaignFile
 
@@ -142,6 +144,7 @@ def export_handler(args: argparse.Namespace) -> int:
 
 def _export_material(args: argparse.Namespace, out: Path) -> int:
     """``export --material``: build the master curve, write its card."""
+    # keeps the command's start fast: scipy loads only for a material card
     from viscorig.cli.master import master_of
     from viscorig.materials.fecards import write_card
 
@@ -165,9 +168,6 @@ def import_handler(args: argparse.Namespace) -> int:
         raise InputError("a station converts SDF files only; the other formats carry "
                          "their units", "--station")
     if args.dma:
-        from viscorig.materials.dmafile import read_dma_file
-        from viscorig.materials.dmastore import import_dma
-
         table = read_dma_file(Path(args.dma), args.modulus)
         points = import_dma(Path(args.file), args.run, table)
         print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "

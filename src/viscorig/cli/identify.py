@@ -26,6 +26,7 @@ from viscorig.identify import (
 )
 from viscorig.numbers import with_uncertainty
 from viscorig.storage import CampaignFile
+from viscorig.strain import identify_payne
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
 
@@ -143,8 +144,6 @@ def format_result(
 
 def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
     """``identify --run A --run B ... --model kraus``: :func:`viscorig.strain.identify_payne`."""
-    from viscorig.strain import identify_payne
-
     if args.model != "kraus":
         raise InputError("several runs are fitted together only for the strain-amplitude "
                          "dependence: add --model kraus (or give one --run)", "--run")

@@ -12,8 +12,11 @@ import argparse
 import time
 from pathlib import Path
 
+from viscorig.acquisition import notebox
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
+from viscorig.storage import CampaignFile
+from viscorig.storage.writelock import CampaignInUseError
 
 #: How long a posted note may wait for the running process to store it (s).
 WAIT_S = 10.0
@@ -32,10 +35,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def note_command(args: argparse.Namespace) -> int:
     """Store the note, or hand it to the process writing the file."""
-    from viscorig.acquisition import notebox
-    from viscorig.storage import CampaignFile
-    from viscorig.storage.writelock import CampaignInUseError
-
     path = Path(args.file)
     text = " ".join(args.text)
     try:

@@ -17,6 +17,8 @@ import math
 
 from viscorig.acquisition.forecast import Floor, forecast_sequence, format_forecast
 from viscorig.cli import summary_of
+from viscorig.cli.check import check_files, refuse
+from viscorig.cli.stations import embedded_chamber_station
 from viscorig.sequences import PromptStep, Sequence, SweepStep
 
 #: Rig preset mounted before any prompt names one (as the embedded rig starts).
@@ -42,8 +44,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def plan_command(args: argparse.Namespace) -> int:
     """``viscorig plan``."""
-    from viscorig.cli.check import check_files, refuse
-
     checked = check_files(args.sequence, args.station)
     if not checked.ok:
         option = f" --station {args.station}" if args.station else ""
@@ -78,8 +78,6 @@ def sequence_forecast(sequence: Sequence, station, status=lambda run: None):
         force_limit = load_preset(FIRST_PRESET).shaker.force_limit_n
     chamber = station.chamber if station is not None else None
     if station is None and sequence.soaks:
-        from viscorig.cli.stations import embedded_chamber_station
-
         chamber = embedded_chamber_station(sequence)
     thermal = {} if chamber is None else chamber.soak_forecast()
     return forecast_sequence(sequence, table_known=table_known, floors=floors,
@@ -118,6 +116,7 @@ def preset_floor(preset: str, step: SweepStep, seed: int = 1) -> Floor:
     import numpy as np
     from rigsim.rigfile import load_preset
 
+    # keeps the command's start fast: scipy loads only for an adaptive step
     from viscorig.acquisition.adaptive import adaptive_settings
     from viscorig.cli.simpoints import SimulatedRig
     from viscorig.fitting import fit

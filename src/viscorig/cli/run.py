@@ -37,13 +37,20 @@ from viscorig.acquisition import (
     Outcome,
     Runner,
     RunnerOptions,
+    forecast_sequence,
+    format_forecast,
 )
 from viscorig.acquisition.notebox import NoteCarrier
 from viscorig.acquisition.terminal import PauseSignals, signal_help
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
+from viscorig.cli.check import Checked, check_files, check_texts, refuse
+from viscorig.cli.plan import simulated_floors
+from viscorig.cli.stations import lab_station, simulated_station, station_holds
+from viscorig.cli.watch import live_view
 from viscorig.errors import InputError, InstrumentError
-from viscorig.sequences import Sequence
+from viscorig.sequences import IdentifyTableStep, Sequence
+from viscorig.sequences.schema import STEP_TYPES
 from viscorig.storage import CampaignFile
 
 
@@ -74,8 +81,6 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 def _fields_epilog() -> str:
     import textwrap
-
-    from viscorig.sequences.schema import STEP_TYPES
 
     lines = ["sequence steps and their fields (reference: sequences/README.md, or",
              "'viscorig check --fields'):"]
@@ -117,8 +122,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_command(args: argparse.Namespace) -> int:
     """``viscorig run``: check everything, create the file, run the sequence (or each sequence
     of a queue, in order, while each ends complete)."""
-    from viscorig.cli.check import Checked, check_files, refuse
-
     if args.station is not None and args.sim_pace is not None:
         raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
     sequences = list(args.sequence)
@@ -176,8 +179,6 @@ def _run_new(text: str, checked, out: Path, args: argparse.Namespace) -> int:
 
 def resume_command(args: argparse.Namespace) -> int:
     """``viscorig resume``: the file holds the sequence and station texts."""
-    from viscorig.cli.check import check_texts, refuse
-
     campaign = CampaignFile.open(args.file, "a")
     sequence_text = campaign.sequence_text
     if sequence_text is None:
@@ -207,9 +208,6 @@ def resume_command(args: argparse.Namespace) -> int:
 def _forecast(campaign: CampaignFile, sequence: Sequence, opened) -> dict:
     """Print the predicted test time of the steps left (as ``viscorig plan`` does); return the
     floors of the adaptive steps, for the time left."""
-    from viscorig.acquisition import forecast_sequence, format_forecast
-    from viscorig.cli.plan import simulated_floors
-
     statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
     floors = simulated_floors(sequence) if opened.simulated else {}
     station = opened.station
@@ -226,8 +224,6 @@ def _forecast(campaign: CampaignFile, sequence: Sequence, opened) -> dict:
 
 
 def _identified(campaign: CampaignFile, sequence: Sequence) -> bool:
-    from viscorig.sequences import IdentifyTableStep
-
     return all(
         any(fit.model == "table" for fit in campaign.fits(step.run))
         for step in sequence.steps if isinstance(step, IdentifyTableStep)
@@ -243,8 +239,6 @@ def _where(opened) -> str:
 def open_station(sequence: Sequence, station, pace: float | None):
     """The station a sequence runs on: the lab's (a station file), else the embedded
     simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can)."""
-    from viscorig.cli.stations import lab_station, simulated_station
-
     if station is None:
         with simulated_station(sequence, pace) as opened:
             yield opened
@@ -275,16 +269,12 @@ def _run(campaign: CampaignFile, sequence: Sequence, opened, args: argparse.Name
     floors = _forecast(campaign, sequence, opened)
     holds, hold_resume = [], "technician"
     if args.holds:
-        from viscorig.cli.stations import station_holds
-
         holds, hold_resume = station_holds(opened), opened.station.bench.hold_resume
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
                     floors=floors, holds=holds, hold_resume=hold_resume)
     engine = runner.engine
     live: contextlib.AbstractContextManager[str | None] = contextlib.nullcontext()
     if args.live:
-        from viscorig.cli.watch import live_view
-
         live = live_view(campaign.path, open_browser=not args.no_browser, say=console.say)
     console.say(signal_help() + f"; notes: viscorig note {campaign.path} TEXT")
 

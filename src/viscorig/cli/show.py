@@ -16,8 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
+from viscorig.materials.dmastore import dma_run_names, read_dma
 from viscorig.numbers import with_uncertainty
 from viscorig.storage import FLAG_NAMES, CampaignFile, FitRecord, RunRecord, count_flags
 
@@ -147,7 +149,6 @@ def plan_line(run: RunRecord, attributes: dict[str, Any]) -> str:
     """One line on a run an adaptive plan measured (``""`` for a full sweep)."""
     if attributes.get("plan") != "adaptive":
         return ""
-    from viscorig.acquisition import format_duration
 
     reason = attributes.get("plan_reason") or f"stopped while {attributes.get('plan_state')}"
     frequencies = np.unique(run.frequency_hz).size
@@ -211,8 +212,6 @@ def run_json(run: RunRecord, fits: list[FitRecord]) -> dict[str, Any]:
 
 def dma_runs(campaign: CampaignFile, problems: list[str]) -> list[dict[str, Any]]:
     """The DMA runs of the file (``/dma``), each summarised; unreadable ones go to problems."""
-    from viscorig.materials.dmastore import dma_run_names, read_dma
-
     out: list[dict[str, Any]] = []
     try:
         names = dma_run_names(campaign)
@@ -267,6 +266,7 @@ def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
 def handler(args: argparse.Namespace) -> int:
     """Print the listing; exit status 2 if a run could not be read."""
     if args.plot is not None:
+        # keeps the command's start fast: matplotlib loads only for --plot
         from viscorig.report.quicklook import default_png, plot_run
 
         path = Path(args.file)

@@ -15,7 +15,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Any
 
+from viscorig.acquisition.chamber import ChamberMonitor
 from viscorig.acquisition.console import single_line
+from viscorig.acquisition.holds import standard_conditions
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     ChamberStation,
@@ -76,8 +78,6 @@ def station_holds(opened: OpenStation, bench: Any = None) -> list[Any]:
     """The automatic holds of an open station: its ``[bench]`` settings (or ``bench``), the
     analyser's identity query to see it answer again, and the chamber's thermometer if any. The
     bench page and ``viscorig run --holds`` use these same conditions."""
-    from viscorig.acquisition.holds import standard_conditions
-
     station = opened.station
     return standard_conditions(bench or station.bench, station.shaker_force_limit_n,
                                opened.analyser.identify, not_answering_errors(),
@@ -136,8 +136,6 @@ def open_chamber(chamber: ChamberStation, address: str | None = None,
         The controller cannot be reached.
     """
     from eurotherm3200 import ChamberError, Eurotherm3200
-
-    from viscorig.acquisition.chamber import ChamberMonitor
 
     try:
         controller = Eurotherm3200.open(

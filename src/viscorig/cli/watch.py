@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import port_number
 from viscorig.errors import InputError
+from viscorig.watch import WatchServer
 
 if TYPE_CHECKING:
     from viscorig.watch import WatchServer
@@ -75,8 +76,6 @@ def serve(path: Path, port: int) -> tuple[WatchServer, str]:
     InputError
         The port is taken or cannot be used.
     """
-    from viscorig.watch import WatchServer
-
     try:
         server = WatchServer(path, port)
     except OSError as error:

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.fitting.noise import MarkovWhitening
+from viscorig.identify import is_bare_table, run_data, table_parameters
 from viscorig.storage import CampaignFile, RunRecord
 
 
@@ -394,8 +395,6 @@ def recorded_temperature_range(run: RunRecord) -> tuple[float, float] | None:
 
 def companions(campaign: CampaignFile, main: RunRecord) -> list[RunRecord]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
-    from viscorig.identify import is_bare_table
-
     found = []
     for name in campaign.run_names:
         if name == main.name:
@@ -420,8 +419,6 @@ def from_campaign(
     with_companions: bool = True,
 ) -> DiagnosisData:
     """Diagnosis data of a stored run (and its companions), table parameters from the file."""
-    from viscorig.identify import is_bare_table, run_data, table_parameters
-
     run = campaign.run(run_name)
     if not run.points:
         raise InputError("has no measured point", f"run '{run_name}'")

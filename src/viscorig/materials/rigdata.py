@@ -20,6 +20,7 @@ import numpy as np
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support
 from viscorig.materials.table import ModulusTable
+from viscorig.models import Context, parse_spec
 from viscorig.rig import RigDescription
 from viscorig.storage import CampaignFile
 
@@ -36,8 +37,6 @@ def disc_mass_of(campaign: CampaignFile, run_name: str) -> float | None:
 def _kstar_of_fit(campaign: CampaignFile, run_name: str, frequency_hz: np.ndarray,
                   where: str) -> np.ndarray:
     """K* of the newest stored fit of the run whose model has a specimen."""
-    from viscorig.models import Context, parse_spec
-
     for fit in reversed(campaign.fits(run_name)):
         model = parse_spec(fit.model)
         term = model.modulus_term

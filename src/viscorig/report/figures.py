@@ -16,9 +16,11 @@ from viscorig.report.analysis import (
     CampaignAnalysis,
     ModulusCurves,
     RunAnalysis,
+    rubbers,
     storage_and_loss,
     term_change,
 )
+from viscorig.report.parallel import parallel_map
 from viscorig.storage import INPUT_OVERLOAD, RunRecord
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
@@ -311,9 +313,6 @@ def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
 
     The runs' figures are drawn in ``jobs`` processes at once.
     """
-    from viscorig.report.analysis import rubbers
-    from viscorig.report.parallel import parallel_map
-
     saved: dict[str, SavedFigure] = {}
     for figures in parallel_map(run_figures, [(run, folder) for run in analysis.runs], jobs):
         saved.update(figures)

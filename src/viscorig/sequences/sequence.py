@@ -270,7 +270,7 @@ def _full(problems: Problems, path: tuple, fields: ReadTable) -> None:
 
 def _adaptive(problems: Problems, path: tuple, fields: ReadTable) -> None:
     """An adaptive plan: a model that parses, targets that are parameters it fits."""
-    from viscorig.errors import InputError
+    # keeps the command's start fast: the models load scipy
     from viscorig.models import parse_spec
 
     values = fields.values
