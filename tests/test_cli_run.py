@@ -230,12 +230,12 @@ def test_a_bad_sequence_is_one_line_exit_2_and_nothing_written(tmp_path) -> None
     assert list(tmp_path.iterdir()) == [bad]
 
 
-def test_sim_pace_belongs_to_the_embedded_rig_only(tmp_path) -> None:
+@pytest.mark.parametrize("option", [("--sim-pace", "10"), ("--sim-seed", "3")])
+def test_the_sim_options_belong_to_the_embedded_rig_only(tmp_path, option) -> None:
     station = tmp_path / "station.toml"
     station.write_text("")
-    result = viscorig("run", str(PAPER), "--station", str(station), "--sim-pace", "10",
-                      cwd=tmp_path)
-    assert result.returncode == 2 and "--sim-pace" in result.stderr
+    result = viscorig("run", str(PAPER), "--station", str(station), *option, cwd=tmp_path)
+    assert result.returncode == 2 and option[0] in result.stderr
     assert not (tmp_path / "paper.h5").exists()
 
 

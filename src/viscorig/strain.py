@@ -7,9 +7,12 @@ frequencies are the same and only the amplitude differs: the difference of their
 ``K* = F_v/X_v + ω² M_v``; ``M_v`` cancels, and so does the matrix rubber, whatever its model)
 is the difference of the filler network's stiffness at the two amplitudes,
 ``K_f(x_a) − K_f(x_b)`` of :func:`viscorig.models.effects.kraus_stiffness`. Those differences,
-at every frequency common to the runs and against the run at the lowest level, are fitted by
-weighted least squares (weights from the analyser's normalized variance of the support FRF);
-standard errors from the Jacobian, scaled by the reduced chi-square.
+at every frequency of the run at the lowest level that another run shares, are fitted by
+generalized least squares: the noise of each run's K* from the analyser's normalized variance
+of the support FRF, and the differences against one base run correlated through its noise
+(covariance ``diag(σ_j²) + σ_0² 11ᵀ`` at each frequency; taken as independent, three levels'
+errors came out 15 % too small). Standard errors from the whitened Jacobian, scaled by the
+reduced chi-square.
 """
 
 from __future__ import annotations
@@ -116,23 +119,10 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
         raise InputError("needs two or more runs at different levels", "runs")
     levels = [_level(campaign, name, band_hz) for name in dict.fromkeys(runs)]
     levels.sort(key=lambda level: float(np.median(level.displacement_m)))
-    base = levels[0]
-    pairs = []
-    for other in levels[1:]:
-        common, i, j = np.intersect1d(np.round(base.frequency_hz, 6),
-                                      np.round(other.frequency_hz, 6), return_indices=True)
-        if common.size == 0:
-            raise InputError(f"no frequency in common with run {base.name!r}",
-                             f"{campaign.path}: run {other.name}")
-        pairs.append((base.displacement_m[i], other.displacement_m[j],
-                      other.kstar_difference_base[j] - base.kstar_difference_base[i],
-                      np.hypot(base.sigma[i], other.sigma[j])))
-    x_low = np.concatenate([pair[0] for pair in pairs])
-    x_high = np.concatenate([pair[1] for pair in pairs])
-    measured = np.concatenate([pair[2] for pair in pairs])
-    sigma = np.concatenate([pair[3] for pair in pairs]) / math.sqrt(2.0)  # per component
-    if not np.all(np.isfinite(sigma) & (sigma > 0)):
-        sigma = np.full(measured.size, float(np.std(measured)) or 1.0)
+    x, differences, whitening = _aligned(levels, str(campaign.path))
+    x_low, x_high = x[:, :1], x[:, 1:]
+    valid = np.isfinite(differences)
+    measured = np.where(valid, differences, 0.0)
     names = [p.name for p in KRAUS_PARAMETERS]
 
     def unpack(theta: NDArray[np.float64]) -> dict[str, float]:
@@ -141,13 +131,13 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
 
     def residual(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         p = unpack(theta)
-        model = kraus_stiffness(x_high, p) - kraus_stiffness(x_low, p)
-        error = (model - measured) / sigma
+        model = kraus_stiffness(np.where(valid, x_high, 1.0), p) - kraus_stiffness(x_low, p)
+        error = np.einsum("nij,nj->ni", whitening, np.where(valid, model - measured, 0.0))[valid]
         return np.concatenate([error.real, error.imag])
 
     span = float(np.max(np.abs(measured.real))) or 1.0
     best = None
-    for x_c in np.geomspace(max(x_low.min(), 1e-8), x_high.max(), 5):
+    for x_c in np.geomspace(max(x_low.min(), 1e-8), x_high[valid].max(), 5):
         for m in (0.5, 1.0, 1.5):
             start = np.array([math.log(2 * span), math.log(0.2 * span), math.log(x_c), m])
             fit = least_squares(residual, start, method="trf", x_scale="jac",
@@ -166,10 +156,48 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
     errors = {"K_f": values["K_f"] * theta_err[0], "L_f": values["L_f"] * theta_err[1],
               "x_c": values["x_c"] * theta_err[2], "m_k": float(theta_err[3])}
     units = {p.name: p.unit for p in KRAUS_PARAMETERS}
-    displacement = np.concatenate([x_low, x_high])
+    displacement = np.concatenate([x_low.ravel(), x_high[valid]])
     return PayneFit(
         runs=tuple(level.name for level in levels),
         parameters={name: Estimate(values[name], errors[name], units[name]) for name in names},
-        points=int(measured.size), reduced_chi_square=chi2,
+        points=int(valid.sum()), reduced_chi_square=chi2,
         displacement_range_m=(float(displacement.min()), float(displacement.max())),
     )
+
+
+def _aligned(levels: list[_Level], path: str) -> tuple[
+        NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64]]:
+    """At each frequency of the base run (the lowest level) that another run shares: the
+    displacements ``(n, L)``, the differences of K* against the base ``(n, L − 1)`` (NaN where a
+    run lacks the frequency) and the whitening ``W`` (``W C Wᵀ = I``) of their covariance per
+    component, ``C = diag(s_j²) + s_0² 11ᵀ`` (``s`` a run's K* noise per component)."""
+    base = levels[0]
+    keys = np.round(base.frequency_hz, 6)
+    n, k = keys.size, len(levels) - 1
+    x = np.full((n, k + 1), np.nan)
+    x[:, 0] = base.displacement_m
+    differences = np.full((n, k), np.nan + 0j)
+    spread = np.full((n, k + 1), np.nan)
+    spread[:, 0] = base.sigma / math.sqrt(2.0)
+    for column, other in enumerate(levels[1:]):
+        common, i, j = np.intersect1d(keys, np.round(other.frequency_hz, 6),
+                                      return_indices=True)
+        if common.size == 0:
+            raise InputError(f"no frequency in common with run {base.name!r}",
+                             f"{path}: run {other.name}")
+        x[i, column + 1] = other.displacement_m[j]
+        differences[i, column] = other.kstar_difference_base[j] - base.kstar_difference_base[i]
+        spread[i, column + 1] = other.sigma[j] / math.sqrt(2.0)
+    shared = np.any(np.isfinite(differences), axis=1)
+    x, differences, spread = x[shared], differences[shared], spread[shared]
+    valid = np.isfinite(differences)
+    if not np.all(np.isfinite(spread[:, 0]) & (spread[:, 0] > 0)) or not np.all(
+            np.isfinite(spread[:, 1:][valid]) & (spread[:, 1:][valid] > 0)):
+        # no usable variance: every run's noise alike, from the scatter of the differences
+        spread = np.full(spread.shape, float(np.std(differences[valid])) / math.sqrt(2) or 1.0)
+    own = np.where(valid, spread[:, 1:] ** 2, 1.0)
+    common_part = np.where(valid[:, :, None] & valid[:, None, :],
+                           spread[:, :1, None] ** 2, 0.0)
+    covariance = common_part + own[:, :, None] * np.eye(k)[None]
+    whitening = np.linalg.inv(np.linalg.cholesky(covariance))
+    return x, differences, whitening

@@ -71,6 +71,9 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
+    parser.add_argument("--sim-seed", type=int, default=None, metavar="N",
+                        help="embedded simulated rig only: seed of its noise, for a campaign "
+                        "that repeats exactly (default: fresh noise every run)")
     parser.add_argument("--holds", action="store_true",
                         help="automatic holds, as on the bench page: the run pauses by itself "
                         "when the level is not held, an input keeps overloading, the force nears "
@@ -122,8 +125,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_command(args: argparse.Namespace) -> int:
     """``viscorig run``: check everything, create the file, run the sequence (or each sequence
     of a queue, in order, while each ends complete)."""
-    if args.station is not None and args.sim_pace is not None:
-        raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
+    for given, option in ((args.sim_pace, "--sim-pace"), (args.sim_seed, "--sim-seed")):
+        if args.station is not None and given is not None:
+            raise InputError("only for the embedded simulated rig (no --station)", option)
     sequences = list(args.sequence)
     if args.out and len(sequences) > 1:
         raise InputError("one campaign file for one sequence; a queue writes each to "
@@ -161,7 +165,7 @@ def run_command(args: argparse.Namespace) -> int:
 def _run_new(text: str, checked, out: Path, args: argparse.Namespace) -> int:
     """Create ``out`` and run one checked sequence into it."""
     sequence, station = checked.passed(), checked.station
-    with open_station(sequence, station, args.sim_pace) as opened:
+    with open_station(sequence, station, args.sim_pace, args.sim_seed) as opened:
         campaign = CampaignFile.create(
             out, sequence_text=checked.sequence_text, sequence_file=str(text),
             station_text=checked.station_text, station_file=args.station or "",
@@ -185,9 +189,10 @@ def resume_command(args: argparse.Namespace) -> int:
         raise InputError("holds no sequence (/setup/sequence_toml); it was not written by "
                          "'viscorig run'", args.file)
     station_text = campaign.station_text
-    if station_text is not None and args.sim_pace is not None:
-        raise InputError("only for the embedded simulated rig; this campaign used a station "
-                         "file", "--sim-pace")
+    for given, option in ((args.sim_pace, "--sim-pace"), (args.sim_seed, "--sim-seed")):
+        if station_text is not None and given is not None:
+            raise InputError("only for the embedded simulated rig; this campaign used a "
+                             "station file", option)
     checked = check_texts(sequence_text, f"{args.file}: /setup/sequence_toml", station_text,
                           f"{args.file}: /setup/station_toml")
     if not checked.ok:
@@ -200,7 +205,7 @@ def resume_command(args: argparse.Namespace) -> int:
         print(f"{args.file}: every run of sequence '{sequence.name}' is complete; "
               "nothing to do")
         return 0
-    with open_station(sequence, station, args.sim_pace) as opened:
+    with open_station(sequence, station, args.sim_pace, args.sim_seed) as opened:
         print(f"continuing {args.file}  ({_where(opened)})", flush=True)
         return _run(campaign, sequence, opened, args)
 
@@ -236,11 +241,12 @@ def _where(opened) -> str:
 
 
 @contextlib.contextmanager
-def open_station(sequence: Sequence, station, pace: float | None):
+def open_station(sequence: Sequence, station, pace: float | None, seed: int | None = None):
     """The station a sequence runs on: the lab's (a station file), else the embedded
-    simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can)."""
+    simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can; its noise
+    from ``seed``, None: fresh)."""
     if station is None:
-        with simulated_station(sequence, pace) as opened:
+        with simulated_station(sequence, pace, seed) as opened:
             yield opened
     else:
         with lab_station(station) as opened:

@@ -305,8 +305,10 @@ def check_presets(sequence: Sequence, text: str = "") -> None:
 
 
 @contextlib.contextmanager
-def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator[OpenStation]:
-    """The embedded simulated rig: a virtual 35670A on loopback, through the real driver.
+def simulated_station(sequence: Sequence, pace: float | None = None,
+                      seed: int | None = None) -> Iterator[OpenStation]:
+    """The embedded simulated rig: a virtual 35670A on loopback, through the real driver; its
+    noise from ``seed`` (None: fresh noise).
 
     Check the sequence with :func:`check_presets` first. The station's transducers, shaker
     gain and force limit are those of the first preset the sequence mounts (every shipped
@@ -318,7 +320,7 @@ def simulated_station(sequence: Sequence, pace: float | None = None) -> Iterator
 
     rig = load_preset(_first_preset(sequence))
     # the rig starts bare: prompts mount the presets they name (simulated_rig_problems)
-    server = SimulatedAnalyserServer(load_preset(DEFAULT_PRESET), pace=pace)
+    server = SimulatedAnalyserServer(load_preset(DEFAULT_PRESET), pace=pace, seed=seed)
     server.start()
     try:
         errors = instrument_errors()
