@@ -1,7 +1,7 @@
 """The time-domain rig simulator as a *measure* callable for the planning core, and the rigs the
 planning tests race on.
 
-The measure callable (:mod:`viscorig.cli.simpoints`, where ``viscorig plan`` finds floors with
+The measure callable (:mod:`viscorig.stations.simpoints`, where ``viscorig plan`` finds floors with
 it) measures on :class:`rigsim.engine.RigSimulator` as the analyser's manual sweep would; it
 converts the simulator's channel amplitudes into the stored quantities and shares no model code
 with the identification core.
@@ -9,7 +9,7 @@ with the identification core.
 
 from __future__ import annotations
 
-from viscorig.cli.simpoints import SimulatedRig, load, paper_sweep
+from viscorig.stations.simpoints import SimulatedRig, load, paper_sweep
 
 __all__ = ["ADAPTIVE_SEQUENCE", "TABLE", "VOIGT_RIG", "VOIGT_TRUTH", "SimulatedRig", "load",
            "paper_sweep"]

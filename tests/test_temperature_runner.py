@@ -15,8 +15,8 @@ import pytest
 
 from viscorig.acquisition import Console, Outcome, Runner, RunnerOptions
 from viscorig.acquisition.chamber import ChamberMonitor
-from viscorig.cli.stations import simulated_station
 from viscorig.sequences import parse_sequence
+from viscorig.stations.opening import simulated_station
 from viscorig.storage import CampaignFile
 
 HEAD = """\

@@ -22,13 +22,12 @@ from viscorig.acquisition import Outcome, Runner, format_forecast
 from viscorig.acquisition.console import ConsoleView, PageConsole, single_line
 from viscorig.acquisition.engine import EngineState
 from viscorig.acquisition.notebox import NoteCarrier
-from viscorig.cli.check import check_files
-from viscorig.cli.plan import sequence_forecast, simulated_floors
-from viscorig.cli.run import open_station, runner_options
-from viscorig.cli.stations import station_holds
 from viscorig.errors import InputError, ViscorigError
 from viscorig.sequences.sequence import read_text
 from viscorig.sequences.station import BenchSettings
+from viscorig.stations.checking import check_files
+from viscorig.stations.forecasting import sequence_forecast, simulated_floors
+from viscorig.stations.opening import open_station, runner_options, station_holds
 from viscorig.storage import CampaignFile
 from viscorig.storage.journal import MAX_TEXT
 

@@ -23,11 +23,11 @@ from viscorig.benchcheck import assess, measure
 from viscorig.benchcheck.checks import RigFacts
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import port_number, positive_number
-from viscorig.cli.stations import check_presets, lab_station, simulated_station
 from viscorig.cli.watch import open_in_browser
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import PromptStep, Sequence, load_station
 from viscorig.sequences.station import TableParameters
+from viscorig.stations.opening import check_presets, lab_station, simulated_station
 
 #: The bench page's port a technician can bookmark.
 DEFAULT_SERVE_PORT = 8766

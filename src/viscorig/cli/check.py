@@ -16,29 +16,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
-from dataclasses import dataclass, field
 from typing import NoReturn
 
 from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
-from viscorig.cli.stations import embedded_chamber_station, simulated_rig_problems
 from viscorig.errors import InputError
 from viscorig.sequences import (
-    ChamberStation,
     FileCheckError,
-    Problem,
-    Sequence,
-    Station,
-    parse_sequence,
-    parse_station,
 )
 from viscorig.sequences.reference import reference_markdown
-from viscorig.sequences.sequence import read_text
-from viscorig.sequences.setpoints import set_point_problems
-
-_TOML_LINE = re.compile(r"\(at line (\d+), column \d+\)")
+from viscorig.stations.checking import Checked, check_files
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -57,77 +45,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--fields", action="store_true",
                         help="print the reference of every step type and field (Markdown)")
     parser.set_defaults(handler=check_command)
-
-
-@dataclass
-class Checked:
-    """What checking a sequence (and station) found."""
-
-    sequence: Sequence | None = None
-    sequence_text: str = ""
-    station: Station | None = None
-    station_text: str | None = None
-    problems: list[Problem] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return not self.problems and self.sequence is not None
-
-    def passed(self) -> Sequence:
-        """The sequence of a check that found no problem (:attr:`ok`); ``ValueError`` else."""
-        if not self.ok or self.sequence is None:
-            raise ValueError("the sequence did not pass its check")
-        return self.sequence
-
-
-def _problems_of(error: InputError, source: str) -> list[Problem]:
-    if isinstance(error, FileCheckError):
-        return error.problems
-    found = _TOML_LINE.search(error.detail)
-    line = int(found.group(1)) if found else None
-    return [Problem(source, line, "", error.detail)]
-
-
-def check_texts(sequence_text: str, sequence_source: str, station_text: str | None = None,
-                station_source: str = "") -> Checked:
-    """Check a sequence and optional station given as texts; nothing raises for bad content.
-
-    Without a station, each sweep is matched with the simulated rig its prompts mount.
-    """
-    checked = Checked(sequence_text=sequence_text, station_text=station_text)
-    try:
-        checked.sequence = parse_sequence(sequence_text, source=sequence_source)
-    except InputError as error:
-        checked.problems += _problems_of(error, sequence_source)
-    if station_text is not None:
-        try:
-            checked.station = parse_station(station_text, source=station_source)
-        except InputError as error:
-            checked.problems += _problems_of(error, station_source)
-    elif checked.sequence is not None:
-        checked.problems += simulated_rig_problems(checked.sequence, sequence_text)
-    if checked.sequence is not None and checked.sequence.soaks and (
-            station_text is None or checked.station is not None):
-        chamber: ChamberStation | None
-        if checked.station is None:
-            chamber, name = embedded_chamber_station(checked.sequence), "the embedded rig"
-        else:
-            chamber, name = checked.station.chamber, station_source
-        checked.problems += set_point_problems(checked.sequence, chamber, sequence_text, name)
-    return checked
-
-
-def check_files(sequence_path: str, station_path: str | None) -> Checked:
-    """Read and check the files ``run`` and ``check`` are given.
-
-    Raises
-    ------
-    InputError
-        A file cannot be read.
-    """
-    sequence_text = read_text(sequence_path)
-    station_text = None if station_path is None else read_text(station_path)
-    return check_texts(sequence_text, sequence_path, station_text, station_path or "")
 
 
 def refuse(checked: Checked, check_command: str | None) -> NoReturn:

@@ -36,7 +36,6 @@ from viscorig.acquisition import (
     NoAnswer,
     Outcome,
     Runner,
-    RunnerOptions,
     forecast_sequence,
     format_forecast,
 )
@@ -44,13 +43,14 @@ from viscorig.acquisition.notebox import NoteCarrier
 from viscorig.acquisition.terminal import PauseSignals, signal_help
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
-from viscorig.cli.check import Checked, check_files, check_texts, refuse
-from viscorig.cli.plan import simulated_floors
-from viscorig.cli.stations import lab_station, simulated_station, station_holds
+from viscorig.cli.check import refuse
 from viscorig.cli.watch import live_view
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import IdentifyTableStep, Sequence
 from viscorig.sequences.schema import STEP_TYPES
+from viscorig.stations.checking import Checked, check_files, check_texts
+from viscorig.stations.forecasting import simulated_floors
+from viscorig.stations.opening import open_station, runner_options, station_holds
 from viscorig.storage import CampaignFile
 
 
@@ -238,34 +238,6 @@ def _identified(campaign: CampaignFile, sequence: Sequence) -> bool:
 def _where(opened) -> str:
     what = "embedded simulated rig" if opened.simulated else "station"
     return f"{what}, analyser {opened.analyser.resource}"
-
-
-@contextlib.contextmanager
-def open_station(sequence: Sequence, station, pace: float | None, seed: int | None = None):
-    """The station a sequence runs on: the lab's (a station file), else the embedded
-    simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can; its noise
-    from ``seed``, None: fresh)."""
-    if station is None:
-        with simulated_station(sequence, pace, seed) as opened:
-            yield opened
-    else:
-        with lab_station(station) as opened:
-            yield opened
-
-
-def runner_options(opened, over_limit: str | None) -> RunnerOptions:
-    """How a sequence runs on an open station (the simulated rig's clock is test time)."""
-    simulated = opened.simulated
-    return RunnerOptions(
-        simulated=simulated,
-        time_base="test" if simulated else "wall",
-        real_time_waits=not simulated,
-        over_limit=over_limit,
-        poll_interval_s=0.2,
-        mount=opened.mount,
-        instrument_errors=opened.instrument_errors,
-        chamber=opened.chamber,
-    )
 
 
 def _run(campaign: CampaignFile, sequence: Sequence, opened, args: argparse.Namespace) -> int:

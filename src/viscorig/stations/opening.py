@@ -1,4 +1,4 @@
-"""Wiring of a station for ``viscorig run``: a real analyser, or the embedded simulated rig.
+"""Opening a station for ``viscorig run`` and the bench: the lab's analyser or the simulated rig.
 
 This is the one place where the driver (``agilent35670a``) and the simulator (``rigsim``) meet
 the core. The embedded rig is a virtual 35670A served on 127.0.0.1 (a free port) and reached
@@ -18,6 +18,7 @@ from typing import Any
 from viscorig.acquisition.chamber import ChamberMonitor
 from viscorig.acquisition.console import single_line
 from viscorig.acquisition.holds import standard_conditions
+from viscorig.acquisition.session import RunnerOptions
 from viscorig.errors import InstrumentError
 from viscorig.sequences import (
     ChamberStation,
@@ -420,3 +421,30 @@ def lab_station(station: Station) -> Iterator[OpenStation]:
         with contextlib.suppress(Exception):
             analyser.close()
 
+
+@contextlib.contextmanager
+def open_station(sequence: Sequence, station, pace: float | None, seed: int | None = None):
+    """The station a sequence runs on: the lab's (a station file), else the embedded
+    simulated rig (at ``pace`` simulated seconds per second, None: as fast as it can; its noise
+    from ``seed``, None: fresh)."""
+    if station is None:
+        with simulated_station(sequence, pace, seed) as opened:
+            yield opened
+    else:
+        with lab_station(station) as opened:
+            yield opened
+
+
+def runner_options(opened, over_limit: str | None) -> RunnerOptions:
+    """How a sequence runs on an open station (the simulated rig's clock is test time)."""
+    simulated = opened.simulated
+    return RunnerOptions(
+        simulated=simulated,
+        time_base="test" if simulated else "wall",
+        real_time_waits=not simulated,
+        over_limit=over_limit,
+        poll_interval_s=0.2,
+        mount=opened.mount,
+        instrument_errors=opened.instrument_errors,
+        chamber=opened.chamber,
+    )
