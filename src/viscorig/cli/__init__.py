@@ -9,7 +9,7 @@ subsystem that only some of its paths need (scipy for an adaptive step, matplotl
 ``--plot``, the bench's web server) inside the function that needs it, with a comment saying it
 keeps the command's start fast (``tests/test_import_cycles.py`` holds every other
 function-level import of ``viscorig`` for an error). The driver and the simulated rig, which
-only the command line wires in, are imported where they are used.
+the command line wires in through :mod:`viscorig.stations`, are imported where they are used.
 
 Every command takes ``-v``/``-q`` (before or after its name): they set the level of the standard
 ``logging`` module for the ``viscorig`` logger, whose records go to stderr as ``viscorig: ...``
