@@ -9,9 +9,11 @@ segment writes one plain line.
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from typing import TextIO, TypedDict
@@ -291,8 +293,6 @@ class PageConsole(Console):
 
     def __init__(self, *, out: TextIO | None = None, keep: int = 200) -> None:
         super().__init__(out=out, interactive=False)
-        import collections
-        import threading
 
         self._lock = threading.Condition()
         self.messages: collections.deque[tuple[float, str]] = collections.deque(maxlen=keep)

@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+import numpy as np
+
 from viscorig.acquisition import stubs
 from viscorig.acquisition.engine import Plan, RunRefused
 from viscorig.acquisition.limits import (
@@ -121,8 +123,6 @@ def _probe(session: Session, step: SweepStep, level: float) -> Plan:
 
 def _grid(step: SweepStep):
     """The frequencies the run may measure (a full plan's grid; an adaptive plan's band)."""
-    import numpy as np
-
     if step.adaptive:
         return np.array(probe_frequencies_hz(step))
     return step.frequencies_hz()

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hmac
 import json
 import secrets
+import socket
 import threading
 import time
 from collections.abc import Awaitable, Callable
@@ -376,8 +377,6 @@ class BenchServer:
 
     def __init__(self, service: BenchService, port: int = 0,
                  address: str = "127.0.0.1") -> None:
-        import socket
-
         import uvicorn
 
         self.service = service

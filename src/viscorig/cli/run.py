@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import textwrap
 from pathlib import Path
 
 from viscorig.acquisition import (
@@ -83,8 +84,6 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 
 def _fields_epilog() -> str:
-    import textwrap
-
     lines = ["sequence steps and their fields (reference: sequences/README.md, or",
              "'viscorig check --fields'):"]
     for name, schema in STEP_TYPES.items():

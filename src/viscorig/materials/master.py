@@ -7,6 +7,7 @@ and the checks of superposition and Kramers-Kronig consistency, as one result.
 
 from __future__ import annotations
 
+import html
 import math
 from dataclasses import dataclass
 
@@ -174,8 +175,6 @@ class MasterCurve:
                 f"{self.reference_temperature_c:.2f} °C, {self.prony.terms}-term Prony series>")
 
     def _repr_html_(self) -> str:
-        import html
-
         return f"<pre>{html.escape(self.text())}</pre>"
 
     def to_json(self) -> dict:

@@ -25,6 +25,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from types import ModuleType
 from typing import cast
 
@@ -280,8 +281,6 @@ def read_once(path: str, campaign: CampaignFile | None = None) -> CampaignFile:
     """The :class:`ReadOnce` of the campaign file at ``path`` in its present state (opened
     unless ``campaign`` is given), typed as the campaign it stands in for: it answers every
     attribute but :meth:`ReadOnce.run` with the campaign's own."""
-    from pathlib import Path
-
     try:
         stat = Path(path).stat()
     except OSError:

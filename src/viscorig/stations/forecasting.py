@@ -3,6 +3,8 @@ steps on the embedded simulated rig (``viscorig plan``, ``run`` and the bench's 
 
 from __future__ import annotations
 
+import numpy as np
+
 from viscorig.acquisition.forecast import Floor, forecast_sequence
 from viscorig.sequences import PromptStep, Sequence, SweepStep
 from viscorig.stations.opening import embedded_chamber_station
@@ -63,7 +65,6 @@ def preset_floor(preset: str, step: SweepStep, seed: int = 1) -> Floor:
     than the plan's own limit) marks the floor a misfit: the plan will stop once it has covered
     the band.
     """
-    import numpy as np
     from rigsim.rigfile import load_preset
 
     # keeps the command's start fast: scipy loads only for an adaptive step

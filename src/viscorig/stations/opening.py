@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Any
@@ -367,8 +368,6 @@ def _embedded_chamber(sequence: Sequence, server: Any, pace: float | None) -> It
     """The simulated chamber around the embedded rig's specimens: its controller served on
     loopback (Modbus TCP) and reached through the real driver; time passes on the rig's clock
     (really only at ``pace``)."""
-    import time
-
     from rigsim.chamber import Chamber
     from rigsim.chamber_server import ChamberServer
 
