@@ -181,6 +181,88 @@ def _coordinates(
     return log, lower, np.maximum(upper, lower + 1e-12)
 
 
+class _Objective:
+    """The robust whitened residual of a model's fit and its Jacobian, as the solver asks for
+    them, over the fitted coordinates ``x`` (logarithms of positive parameters)."""
+
+    def __init__(self, model: Model, data: DiagnosisData, values: dict[str, float],
+                 free: tuple[str, ...], log: NDArray[np.bool_], upper: NDArray[np.float64],
+                 exact: bool) -> None:
+        self.model, self.data, self.values, self.free = model, data, values, free
+        self.log, self.upper, self.exact = log, upper, exact
+        self.ctx = data.data.context()
+        self.measured = {name: data.data.frf(name) for name in data.frfs}
+        self.nuisance = data.nuisance
+        self.prior_at = [free.index(name) for name in self.nuisance]
+        # With a prior, the Huber loss is applied here to the data's rows only (r = sign(e)·√ρ(e),
+        # a plain least-squares fit of r minimises Σρ(e) + |prior|²): the prior is a Gaussian,
+        # never down-weighted as an outlier would be. Without one, the solver's own Huber loss.
+        self.robust_here = bool(self.nuisance)
+        # The last point evaluated: its x, residual ratio and whitened residual (the solver asks
+        # for the Jacobian where it just evaluated the residual).
+        self.last: dict[str, Any] = {}
+
+    def to_values(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.where(self.log, np.exp(np.clip(x, -700, 700)), x)
+
+    def current(self, x: NDArray[np.float64]) -> dict[str, float]:
+        current = dict(self.values)
+        current.update(zip(self.free, self.to_values(x), strict=True))
+        return current
+
+    def ratio(self, x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        """``H_model/H_measured − 1`` per FRF at ``x``."""
+        with np.errstate(all="ignore"):
+            predicted = self.model.predict(self.ctx, self.current(x))
+            return {name: predicted[name] / self.measured[name] - 1.0
+                    for name in self.data.frfs}
+
+    def _cached_ratio(self, x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
+        last = self.last
+        if "x" not in last or not np.array_equal(last["x"], x):
+            last.clear()
+            last.update(x=x.copy(), ratio=self.ratio(x))
+        return last["ratio"]
+
+    def _cached_whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        base = self._cached_ratio(x)
+        if "whitened" not in self.last:
+            self.last["whitened"] = self.data.whiten(base, self.exact)
+        return self.last["whitened"]
+
+    def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        e = self._cached_whitened(x)
+        if self.robust_here:
+            e = np.sign(e) * np.sqrt(huber(e))
+        e = np.concatenate([e, self.data.prior_residual(self.current(x))])
+        return np.where(np.isfinite(e), e, 1e6)
+
+    def jacobian(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Forward differences of the raw residual, every column in one evaluation of the model
+        # (predict_many), whitened once for all columns.
+        base = self._cached_ratio(x)
+        steps = _STEP * np.maximum(1.0, np.abs(x))
+        steps = np.where(x + steps > self.upper, -steps, steps)
+        moved = x[None, :] + np.diag(steps)
+        shifted = predict_many(self.model, self.ctx, self.values, self.free,
+                               self.to_values(moved))
+        with np.errstate(all="ignore"):
+            columns = {frf: ((shifted[frf] / self.measured[frf] - 1.0) - base[frf]).T / steps
+                       for frf in base}
+        matrix = self.data.whiten(columns, self.exact)
+        if self.robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
+            e = np.abs(self._cached_whitened(x))
+            slope = np.where(e <= HUBER_SCALE, 1.0,
+                             HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
+            matrix = matrix * slope[:, None]
+        rows = np.zeros((len(self.nuisance), x.size))
+        if self.nuisance:
+            rows[:, self.prior_at] = self.data.prior_jacobian(self.current(x),
+                                                              self.log[self.prior_at])
+        matrix = np.vstack([matrix, rows])
+        return np.where(np.isfinite(matrix), matrix, 0.0)
+
+
 def ml_fit(
     model: Model,
     data: DiagnosisData,
@@ -200,88 +282,12 @@ def ml_fit(
     still the exact ones, at the values found, so a drop of ``χ²`` read from them is a lower
     bound of the exact fit's."""
     fixed = data.exact_table
-    nuisance = data.nuisance
     every = tuple(name for name in model.names if name not in fixed)
     free = every if only is None else tuple(
-        name for name in every if name in only or name in nuisance)
+        name for name in every if name in only or name in data.nuisance)
     values = {**model.defaults(), **(data.table or {}), **dict(start), **fixed}
-    ctx = data.data.context()
-    measured = {name: data.data.frf(name) for name in data.frfs}
     log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
-
-    def to_values(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.where(log, np.exp(np.clip(x, -700, 700)), x)
-
-    def ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
-        current = dict(values)
-        current.update(zip(free, to_values(x), strict=True))
-        with np.errstate(all="ignore"):
-            predicted = model.predict(ctx, current)
-            return {name: predicted[name] / measured[name] - 1.0 for name in data.frfs}
-
-    # The last point evaluated: its x, residual ratio and whitened residual (the solver asks
-    # for the Jacobian where it just evaluated the residual).
-    last: dict[str, Any] = {}
-
-    def cached_ratio(x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
-        if "x" not in last or not np.array_equal(last["x"], x):
-            last.clear()
-            last.update(x=x.copy(), ratio=ratio(x))
-        return last["ratio"]
-
-    def cached_whitened(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        base = cached_ratio(x)
-        if "whitened" not in last:
-            last["whitened"] = data.whiten(base, exact)
-        return last["whitened"]
-
-    prior_at = [free.index(name) for name in nuisance]
-
-    def prior_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        current = dict(values)
-        current.update(zip(free, to_values(x), strict=True))
-        return data.prior_residual(current)
-
-    # With a prior, the Huber loss is applied here to the data's rows only (r = sign(e)·√ρ(e),
-    # a plain least-squares fit of r minimises Σρ(e) + |prior|²): the prior is a Gaussian,
-    # never down-weighted as an outlier would be. Without one, the solver's own Huber loss.
-    robust_here = bool(nuisance)
-
-    def residual(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        e = cached_whitened(x)
-        if robust_here:
-            e = np.sign(e) * np.sqrt(huber(e))
-        e = np.concatenate([e, prior_of(x)])
-        return np.where(np.isfinite(e), e, 1e6)
-
-    def jacobian_of(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        # Forward differences of the raw residual, every column in one evaluation of the model
-        # (predict_many), whitened once for all columns.
-        base = cached_ratio(x)
-        steps = _STEP * np.maximum(1.0, np.abs(x))
-        steps = np.where(x + steps > upper, -steps, steps)
-        moved = x[None, :] + np.diag(steps)
-        shifted = predict_many(model, ctx, values, free, to_values(moved))
-        with np.errstate(all="ignore"):
-            columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - base[frf]).T / steps
-                       for frf in base}
-        matrix = data.whiten(columns, exact)
-        if robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
-            e = np.abs(cached_whitened(x))
-            slope = np.where(e <= HUBER_SCALE, 1.0,
-                             HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
-            matrix = matrix * slope[:, None]
-        matrix = np.vstack([matrix, prior_rows(x)])
-        return np.where(np.isfinite(matrix), matrix, 0.0)
-
-    def prior_rows(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        rows = np.zeros((len(nuisance), x.size))
-        if nuisance:
-            current = dict(values)
-            current.update(zip(free, to_values(x), strict=True))
-            rows[:, prior_at] = data.prior_jacobian(current, log[prior_at])
-        return rows
-
+    objective = _Objective(model, data, values, free, log, upper, exact)
     start_values = np.array([values[name] for name in free], dtype=float)
     x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
     span = upper - lower
@@ -289,19 +295,19 @@ def ml_fit(
     if free:
         with np.errstate(all="ignore"):
             solution = least_squares(
-                residual, x0, jac=jacobian_of, bounds=(lower, upper), x_scale="jac", method="trf",
-                loss="linear" if robust_here else "huber", f_scale=HUBER_SCALE,
-                ftol=1e-6, xtol=1e-8, gtol=1e-8,
-                max_nfev=max_steps,
+                objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
+                x_scale="jac", method="trf",
+                loss="linear" if objective.robust_here else "huber", f_scale=HUBER_SCALE,
+                ftol=1e-6, xtol=1e-8, gtol=1e-8, max_nfev=max_steps,
             )
         x = solution.x
         jacobian = np.asarray(solution.jac, dtype=float)
     else:
         x = x0
-        jacobian = np.zeros((residual(x0).size, 0))
+        jacobian = np.zeros((objective.residual(x0).size, 0))
     fitted = dict(values)
-    fitted.update(zip(free, (float(v) for v in to_values(x)), strict=True))
-    residuals = ratio(x)
+    fitted.update(zip(free, (float(v) for v in objective.to_values(x)), strict=True))
+    residuals = objective.ratio(x)
     whitened = data.whiten(residuals)
     prior = data.prior_residual(fitted)
     return Likelihood(
