@@ -10,8 +10,9 @@ is the difference of the filler network's stiffness at the two amplitudes,
 at every frequency of the run at the lowest level that another run shares, are fitted by
 generalized least squares: the noise of each run's K* from the analyser's normalized variance
 of the support FRF, and the differences against one base run correlated through its noise
-(covariance ``diag(σ_j²) + σ_0² 11ᵀ`` at each frequency; taken as independent, three levels'
-errors came out 15 % too small). Standard errors from the whitened Jacobian, scaled by the
+(covariance ``diag(σ_j²) + σ_0² 11ᵀ`` at each frequency; taken as independent, the errors of
+``L_f`` and ``m_k`` from three levels came out 16 to 18 % too small over 50 simulated
+campaigns). Standard errors from the whitened Jacobian, scaled by the
 reduced chi-square.
 """
 
@@ -194,7 +195,8 @@ def _aligned(levels: list[_Level], path: str) -> tuple[
     if not np.all(np.isfinite(spread[:, 0]) & (spread[:, 0] > 0)) or not np.all(
             np.isfinite(spread[:, 1:][valid]) & (spread[:, 1:][valid] > 0)):
         # no usable variance: every run's noise alike, from the scatter of the differences
-        spread = np.full(spread.shape, float(np.std(differences[valid])) / math.sqrt(2) or 1.0)
+        # (a difference's variance per component, |d|²/2, is twice a run's s²)
+        spread = np.full(spread.shape, float(np.std(differences[valid])) / 2.0 or 1.0)
     own = np.where(valid, spread[:, 1:] ** 2, 1.0)
     common_part = np.where(valid[:, :, None] & valid[:, None, :],
                            spread[:, :1, None] ** 2, 0.0)
