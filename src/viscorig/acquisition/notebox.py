@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from viscorig import jsontext
 from viscorig.storage.journal import JOURNAL_GROUP, check_entry
 
 __all__ = ["CARRY_EVERY_S", "NoteCarrier", "inbox", "post", "take", "withdraw"]
@@ -51,7 +52,7 @@ def post(path: Path, text: str) -> Path:
         raise OSError(f"{folder}: {MAX_WAITING} notes are waiting already")
     name = f"{time.time_ns():020d}-{os.getpid()}"
     temporary = folder / f"{name}.tmp"
-    temporary.write_text(json.dumps({"text": text}), encoding="utf-8")
+    temporary.write_text(jsontext.dumps({"text": text}), encoding="utf-8")
     final = folder / f"{name}.note"
     os.replace(temporary, final)
     return final

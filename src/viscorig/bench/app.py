@@ -36,6 +36,7 @@ from starlette.requests import Request
 from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.routing import Route
 
+from viscorig import jsontext
 from viscorig.bench.service import BenchError, BenchService
 from viscorig.storage import CampaignFile
 from viscorig.watch.server import page_html as live_html
@@ -338,7 +339,7 @@ def _live_endpoints(service: BenchService) -> tuple[Endpoint, Endpoint]:
             answer["unchanged"] = True
         else:
             answer["snapshot"] = snapshot
-        return Response(json.dumps(answer, allow_nan=False, separators=(",", ":")),
+        return Response(jsontext.dumps(answer, compact=True),
                         media_type="application/json", headers={"Cache-Control": "no-store"})
 
     return live_page, live_state

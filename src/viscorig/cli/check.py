@@ -15,10 +15,10 @@ with the simulated rig its prompts mount. Exit status 0 when nothing is wrong, 2
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import NoReturn
 
+from viscorig import jsontext
 from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
@@ -72,7 +72,7 @@ def check_command(args: argparse.Namespace) -> int:
     runs = [] if sequence is None else list(sequence.run_names)
     test_time_s = None if sequence is None else sequence.duration_s()
     if args.json:
-        print(json.dumps({
+        print(jsontext.dumps({
             "sequence": args.sequence, "station": args.station, "ok": checked.ok,
             "problems": [problem.as_dict() for problem in checked.problems],
             "runs": runs, "test_time_s": test_time_s,

@@ -14,9 +14,9 @@ as in one process, sooner.
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 
+from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band, positive_int
 from viscorig.cli.identify import FRF_CHOICES
@@ -68,7 +68,7 @@ def handler(args: argparse.Namespace) -> int:
         document = diagnosis.to_json(ladder)
         if ladder is not None:
             document["final"] = ladder[-1].to_json()
-        print(json.dumps(document))
+        print(jsontext.dumps(document))
     else:
         print(format_diagnosis(diagnosis, args.file, ladder, band))
     return 0

@@ -10,9 +10,9 @@ same, as the paper does.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
+from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.errors import InputError
@@ -87,7 +87,7 @@ def handler(args: argparse.Namespace) -> int:
                                      table=table, weighting=args.weights)
         fit_id = None if args.no_store else store_fit(campaign, args.run, result)
     if args.json:
-        print(json.dumps(result.to_json(args.run)))
+        print(jsontext.dumps(result.to_json(args.run)))
     else:
         print(format_result(args.run, result, table, fit_id))
     return 0
@@ -150,7 +150,7 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
     with CampaignFile.open(args.file, "r") as campaign:
         fit = identify_payne(campaign, args.run, band_hz=band)
     if args.json:
-        print(json.dumps(fit.to_json()))
+        print(jsontext.dumps(fit.to_json()))
         return 0
     low, high = fit.displacement_range_m
     lines = [f"runs {', '.join(fit.runs)}: Kraus model of the Payne effect from the differences "

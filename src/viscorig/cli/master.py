@@ -14,9 +14,8 @@ campaign file is only read.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 
+from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
 from viscorig.materials.master import MasterCurve, build_master
@@ -57,18 +56,8 @@ def handler(args: argparse.Namespace) -> int:
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
                        args.kstar)
     if args.json:
-        print(json.dumps(_finite_only(master.to_json()), allow_nan=False))
+        print(jsontext.dumps(master.to_json()))
         return 0
     print(master.text())
     return 0
 
-
-def _finite_only(value: object) -> object:
-    """The object with every non-finite number as ``null`` (JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {key: _finite_only(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite_only(item) for item in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value

@@ -12,9 +12,9 @@ known before it is measured, so an adaptive step's range has no upper end but it
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
+from viscorig import jsontext
 from viscorig.acquisition.forecast import format_forecast
 from viscorig.cli import summary_of
 from viscorig.cli.check import refuse
@@ -47,7 +47,7 @@ def plan_command(args: argparse.Namespace) -> int:
     if args.json:
         low = sum(item.low_s for item in forecasts)
         high = sum(item.high_s for item in forecasts)
-        print(json.dumps({
+        print(jsontext.dumps({
             "sequence": args.sequence, "station": args.station,
             "steps": [item.to_json() for item in forecasts if item.kind not in (
                 "prompt", "identify_table")],

@@ -9,13 +9,13 @@ object (units in the key names, ``null`` for unknown numbers), for scripts.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from viscorig import jsontext
 from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
@@ -161,26 +161,17 @@ def plan_line(run: RunRecord, attributes: dict[str, Any]) -> str:
     return text
 
 
-def _finite(value: float) -> float | None:
-    """A number for JSON: ``None`` for NaN and infinities (JSON has neither)."""
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
 def fit_json(fit: FitRecord) -> dict[str, Any]:
     """One stored fit as JSON (the ``identify --json`` parameter layout)."""
     return {
         "id": fit.id,
         "model": fit.model,
-        "band_hz": [_finite(fit.band_hz[0]), _finite(fit.band_hz[1])],
-        "rms_error": _finite(fit.rms_error),
-        "noise_floor": _finite(fit.noise_floor),
+        "band_hz": [float(fit.band_hz[0]), float(fit.band_hz[1])],
+        "rms_error": float(fit.rms_error),
+        "noise_floor": float(fit.noise_floor),
         "weighting": fit.weighting or None,
         "created": fit.created,
-        "parameters": {
-            name: {"value": _finite(p.value), "stderr": _finite(p.stderr), "unit": p.unit}
-            for name, p in fit.parameters.items()
-        },
+        "parameters": {name: p.to_json() for name, p in fit.parameters.items()},
     }
 
 
@@ -194,12 +185,12 @@ def run_json(run: RunRecord, fits: list[FitRecord]) -> dict[str, Any]:
         "points": run.points,
         "band_hz": ([float(run.frequency_hz.min()), float(run.frequency_hz.max())]
                     if run.points else None),
-        "level_m_per_s2": _finite(m.level_m_per_s2),
+        "level_m_per_s2": float(m.level_m_per_s2),
         "direction": m.direction,
         "specimen": m.specimen,
-        "hardness_shore_a": _finite(m.hardness_shore_a),
-        "preload_strain": _finite(m.preload_strain),
-        "temperature_c": _finite(m.temperature_c),
+        "hardness_shore_a": float(m.hardness_shore_a),
+        "preload_strain": float(m.preload_strain),
+        "temperature_c": float(m.temperature_c),
         "simulated": bool(m.simulated),
         "started": m.started,
         "finished": m.finished,
@@ -248,7 +239,7 @@ def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
         "sequence_file": files.get("sequence_file") or None,
         "station_file": files.get("station_file") or None,
         "simulated_rig": campaign.station_text is None,
-        "rig": {key: value if isinstance(value, int) else _finite(value)
+        "rig": {key: value if isinstance(value, int) else float(value)
                 for key, value in campaign.rig.items()},
         "runs": [],
     }
@@ -274,7 +265,7 @@ def handler(args: argparse.Namespace) -> int:
         return 0
     if args.json:
         document, problems = describe_json(Path(args.file))
-        print(json.dumps(document, allow_nan=False))
+        print(jsontext.dumps(document))
     else:
         lines, problems = listing(Path(args.file))
         print("\n".join(lines))

@@ -12,10 +12,10 @@ present).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
+from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.compare import Change
@@ -63,7 +63,7 @@ def handler(args: argparse.Namespace) -> int:
         table, runs = summarize(campaign, band, args.table_model)
     variations = preload_variations(runs)
     if args.json:
-        print(json.dumps(summary_json(table, runs, variations, band)))
+        print(jsontext.dumps(summary_json(table, runs, variations, band)))
     else:
         print(format_summary(table, runs, variations))
     return 0
@@ -236,7 +236,7 @@ def summary_json(
         known = table.known
         document["table"] = {
             "source": table.source,
-            "parameters": {
+            "parameters": {  # stderr null: a value held exact
                 name: {"value": float(table.values[name]), "stderr": known.stderr(name),
                        "unit": unit}
                 for name, unit in TABLE_UNITS.items()

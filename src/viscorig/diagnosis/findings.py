@@ -38,6 +38,7 @@ from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.models import TERMS, Fixture, Model, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
+from viscorig.numbers import Estimate
 
 #: Two confounded candidates within this ΔBIC of each other are not told apart by the data.
 AMBIGUOUS_DELTA_BIC = 10.0
@@ -126,11 +127,9 @@ class Finding:
         scale = np.sqrt(self.dispersion)
         model = self.likelihood.model
         return {
-            name: {
-                "value": float(self.likelihood.values[name]),
-                "stderr": float(stderr.get(name, np.nan) * scale),
-                "unit": model.by_name[name].unit,
-            }
+            name: Estimate(float(self.likelihood.values[name]),
+                           float(stderr.get(name, np.nan) * scale),
+                           model.by_name[name].unit).to_json()
             for name in model.names
             if name in new
         }

@@ -25,7 +25,6 @@ may come in any frequency order: the run stores them by rising frequency.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -33,6 +32,7 @@ from typing import IO
 
 import numpy as np
 
+from viscorig import jsontext
 from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.exchange.frfset import FrfSet
@@ -126,7 +126,8 @@ def write_csv(run: RunRecord, path: Path, campaign_name: str = "") -> Path:
         writer.writerows(rows)
 
     def write_sidecar(handle: IO[str]) -> None:
-        json.dump(metadata(run, path.name, campaign_name), handle, indent=1, ensure_ascii=False)
+        handle.write(jsontext.dumps(metadata(run, path.name, campaign_name), indent=1,
+                                    ensure_ascii=False))
         handle.write("\n")
 
     replace_atomically(path, write, text=True)

@@ -51,6 +51,7 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+from viscorig import jsontext
 from viscorig.errors import InputError
 from viscorig.storage.text import printable
 
@@ -162,7 +163,7 @@ def _read_from_start(descriptor: int) -> bytes:  # pragma: no cover - Windows
 
 
 def _write_record(descriptor: int, holder: Holder) -> None:
-    data = json.dumps(asdict(holder)).encode("utf-8")
+    data = jsontext.dumps(asdict(holder)).encode("utf-8")
     os.ftruncate(descriptor, 0)
     os.lseek(descriptor, 0, os.SEEK_SET)
     os.write(descriptor, data)

@@ -9,7 +9,6 @@ host than the server's (a DNS-rebinding page in the same browser) are refused.
 
 from __future__ import annotations
 
-import json
 import threading
 from functools import cache
 from http import HTTPStatus
@@ -19,6 +18,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from viscorig import jsontext
 from viscorig.watch.snapshot import Snapshots
 
 #: Only this interface is ever served.
@@ -81,7 +81,7 @@ class _Handler(BaseHTTPRequestHandler):
             answer["unchanged"] = True
         else:
             answer["snapshot"] = snapshot
-        return json.dumps(answer, allow_nan=False, separators=(",", ":")).encode("utf-8")
+        return jsontext.dumps(answer, compact=True).encode("utf-8")
 
 
 class _Server(ThreadingHTTPServer):
