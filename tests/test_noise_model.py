@@ -231,3 +231,13 @@ def test_effective_points() -> None:
     joined = NoiseModel.join([NoiseModel.of(white), NoiseModel.of(white)])
     assert joined.points("table") == 200
     assert joined.effective_points() == pytest.approx(400.0)
+
+
+def test_a_jacobian_with_non_finite_entries_gives_no_errors_rather_than_a_crash() -> None:
+    from viscorig.fitting.uncertainty import _inverse
+
+    jac = np.ones((20, 3))
+    jac[4, 1] = np.inf
+    inverse, full_rank = _inverse(jac)
+    assert not full_rank
+    assert inverse.shape == (3, 3) and np.all(np.isnan(inverse))

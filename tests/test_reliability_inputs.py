@@ -201,6 +201,25 @@ def test_each_damage_to_the_first_run_is_reported(good_campaign: bytes, tmp_path
     tally.add("inputs fuzzed")
 
 
+@pytest.mark.parametrize("value", [1e300, 1e-300, 3e9])
+@pytest.mark.parametrize("command", [["identify", "--model", "maxwell(2)+load_cell"],
+                                     ["diagnose"]])
+def test_a_value_no_analyser_can_measure_is_named_not_fitted(
+        good_campaign: bytes, tmp_path: Path, value: float, command: list[str]) -> None:
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    with h5py.File(path, "r+") as h5:
+        frf = h5["runs/soft-0/accelerance_support"]
+        values = frf[()]
+        values[10] = value
+        frf[...] = values
+        frequency = float(h5["runs/soft-0/frequency_hz"][10])
+    status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
+    assert_clean_outcome(status, err)
+    assert status == 2
+    assert "ẍ_v/F_v" in err and "1 value(s)" in err and f"at {frequency:g} Hz" in err
+
+
 # -- command-line values ------------------------------------------------------------------------
 
 BAD_VALUES = [

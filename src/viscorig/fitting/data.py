@@ -13,6 +13,9 @@ from viscorig.models import FRF_NAMES, Context
 
 #: Fewest frequency points a fit accepts in its band.
 MIN_POINTS = 8
+#: An FRF value this many times above or below the band's median magnitude is no measurement:
+#: the analyser's dynamic range is about 90 dB (3e4), a rig's FRF over a band a few decades.
+ABSURD_RATIO = 1e8
 #: Optional real per-point fields.
 _REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support")
 
@@ -130,4 +133,14 @@ class FrfData:
             bad = int(np.count_nonzero(~np.isfinite(values) | (values == 0)))
             if bad:
                 raise InputError(f"{FRF_NAMES[name]} has {bad} NaN or zero values", where)
+            magnitude = np.abs(values)
+            median = float(np.median(magnitude))
+            absurd = np.flatnonzero((magnitude > median * ABSURD_RATIO)
+                                    | (magnitude < median / ABSURD_RATIO))
+            if absurd.size:
+                first = int(absurd[0])
+                raise InputError(
+                    f"{FRF_NAMES[name]} has {absurd.size} value(s) {ABSURD_RATIO:.0e} times or "
+                    f"more off the median |H| = {median:.3g} (first: {magnitude[first]:.3g} at "
+                    f"{data.frequency_hz[first]:g} Hz), not a measurement", where)
         return data

@@ -205,6 +205,8 @@ def _inverse(jac: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     """``(JᵀJ)⁻¹`` from the Gram matrix of unit-norm columns (a small eigen decomposition; an
     SVD of the tall ``J`` would call threaded LAPACK, slow on a busy machine). Directions below
     1e-7 of the largest singular value count as not identified (second value False)."""
+    if not np.all(np.isfinite(jac)):
+        return np.full((jac.shape[1], jac.shape[1]), np.nan), False
     norms = np.sqrt(np.einsum("ij,ij->j", jac, jac))
     norms[norms == 0] = 1.0
     scaled = jac / norms
