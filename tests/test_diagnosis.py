@@ -289,11 +289,12 @@ def test_diagnose_json_follows_the_design(
     assert best["delta_chi2"] > best["threshold"] >= document["scan"]["threshold_delta_chi2"]
     assert document["ladder"][0]["model"] == "voigt"
     assert document["ladder"][-1]["rms_error"] < document["ladder"][0]["rms_error"] / 3
-    # the finding's model is accepted by identify as is
+    # the finding's model is accepted by identify as is, and weighted as the diagnosis weighs
+    # its fits, gives the rms error the diagnosis reported
     assert main(["identify", str(fixture_campaign), "--run", "soft-0", "--model", best["model"],
-                 "--no-store", "--json"]) == 0  # fmt: skip
+                 "--weights", "uniform", "--no-store", "--json"]) == 0  # fmt: skip
     fitted = json.loads(capsys.readouterr().out)
-    assert fitted["rms_error"] == pytest.approx(best["rms_error"], rel=0.05)
+    assert fitted["rms_error"] == pytest.approx(best["rms_error"], rel=1e-3)
 
 
 def test_diagnose_text_names_the_effect_and_the_next_command(
@@ -304,6 +305,7 @@ def test_diagnose_text_names_the_effect_and_the_next_command(
     assert "most likely missing: fixture_resonance" in text
     command = f"next: viscorig identify {fixture_campaign} --run soft-0 --model 'voigt+fixture(5"
     assert command in text
+    assert text.split(command)[1].split("\n")[0].endswith(" --weights uniform")
 
 
 def test_diagnose_bad_input_is_one_line(

@@ -75,8 +75,10 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def next_command(file: str, run: str, spec: str, band: tuple[float, float] | None) -> str:
-    """The ``identify`` command line that fits ``spec``."""
-    words = ["viscorig", "identify", file, "--run", run, "--model", spec]
+    """The ``identify`` command line that fits ``spec`` as the diagnosis reported it: weighting
+    every point alike, the fit whose ``rms_error`` the ladder shows (``identify``'s default
+    weighs by the noise and ends a few percent higher on that measure)."""
+    words = ["viscorig", "identify", file, "--run", run, "--model", spec, "--weights", "uniform"]
     if band is not None:
         words += ["--band", f"{band[0]:g}:{band[1]:g}"]
     return shlex.join(words)
