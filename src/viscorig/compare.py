@@ -59,7 +59,7 @@ from viscorig.estimates import TABLE_2_QUANTITIES, derived, gradient
 from viscorig.fitting.result import FitResult
 from viscorig.fitting.uncertainty import bartlett_meat
 from viscorig.models import Context, Model
-from viscorig.numbers import with_uncertainty
+from viscorig.numbers import Estimate, with_uncertainty
 
 #: A change is called a change when it exceeds this many standard uncertainties.
 CHANGE_SIGMAS = 2.0
@@ -175,8 +175,8 @@ class Change:
 
     def to_json(self) -> dict[str, float | str]:
         """``{"value", "stderr", "unit"}`` of the change in percent."""
-        return {"value": 100 * float(self.relative), "stderr": 100 * float(self.relative_stderr),
-                "unit": "%"}
+        return Estimate(100 * float(self.relative), 100 * float(self.relative_stderr),
+                        "%").to_json()
 
 
 class Pair:
