@@ -358,3 +358,24 @@ def test_a_rung_that_takes_a_term_out_is_shown_as_such():
                                          removed=("fixture(38)",)), 3)
     assert change == "took out <code>fixture(38)</code>" and "no longer worth" in evidence
     assert _rung_change(Rung("voigt", 1e-2, 1e-3), 0) == ("start", "")
+
+
+def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text() -> None:
+    from matplotlib.figure import Figure
+
+    from viscorig.report.figures import save
+
+    figure = Figure(figsize=(4, 3))
+    axes = figure.subplots()
+    axes.semilogy([1.0, 2.0], [0.2, 0.9])  # within a decade: minor ticks labelled too
+    reference = Figure(figsize=(4, 3))
+    reference.subplots().semilogy([1.0, 2.0], [0.2, 0.9])
+    reference.canvas.draw()
+    save(figure, None, "log", "a log axis")
+    expected = [text.get_text() for text in reference.axes[0].get_yticklabels(minor=True)
+                if text.get_text()]
+    shown = [text.get_text() for text in axes.get_yticklabels(minor=True) if text.get_text()]
+    majors = [text.get_text() for text in axes.get_yticklabels() if text.get_text()]
+    assert len(shown) == len(expected) == 4
+    assert shown == ["2×10⁻¹", "3×10⁻¹", "4×10⁻¹", "6×10⁻¹"] and "10⁻¹" in majors
+    assert not any("$" in label for label in shown + majors)

@@ -5,10 +5,12 @@ display, no global state), each saved as PNG and SVG.
 from __future__ import annotations
 
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib import ticker
 from matplotlib.figure import Figure
 
 from viscorig.compare import Pair, loss_factor_of, storage_stiffness_of
@@ -42,8 +44,39 @@ class SavedFigure:
     png: bytes
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+_MATHTEXT = re.compile(r"^\$\\mathdefault\{(.*)\}\$$")
+_POWER = re.compile(r"\^\{(-?\d+)\}")
+
+
+class _PlainLogFormatter(ticker.LogFormatterSciNotation):
+    """Matplotlib's labels of a log axis (the same ticks labelled, ``10⁻²``, ``2×10⁻¹``)
+    written in plain text: its mathtext labels cost a third of a report's drawing time."""
+
+    def __call__(self, x: float, pos: int | None = None) -> str:
+        label = super().__call__(x, pos)
+        match = _MATHTEXT.match(label)
+        if match is None:
+            return label
+        text = _POWER.sub(lambda m: m.group(1).translate(_SUPERSCRIPT),
+                          match.group(1).replace("\\times", "×"))
+        return label if "\\" in text or "{" in text else text
+
+
+def _plain_log_labels(figure: Figure) -> None:
+    for axes in figure.axes:
+        for axis in (axes.xaxis, axes.yaxis):
+            base = getattr(axis.get_transform(), "base", None)
+            for formatter, setter in ((axis.get_major_formatter(), axis.set_major_formatter),
+                                      (axis.get_minor_formatter(), axis.set_minor_formatter)):
+                if type(formatter) is ticker.LogFormatterSciNotation and base is not None:
+                    setter(_PlainLogFormatter(base, labelOnlyBase=formatter.labelOnlyBase,
+                                              minor_thresholds=formatter.minor_thresholds))
+
+
 def save(figure: Figure, folder: Path | None, stem: str, caption: str) -> SavedFigure:
     """Write ``stem.png`` and ``stem.svg`` in ``folder`` (when given); return the PNG bytes."""
+    _plain_log_labels(figure)
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=DPI)
     png = buffer.getvalue()
