@@ -220,6 +220,23 @@ def test_a_value_no_analyser_can_measure_is_named_not_fitted(
     assert "ẍ_v/F_v" in err and "1 value(s)" in err and f"at {frequency:g} Hz" in err
 
 
+def test_a_report_names_a_value_no_analyser_can_measure_and_draws_the_rest(
+        good_campaign: bytes, tmp_path: Path) -> None:
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    with h5py.File(path, "r+") as h5:
+        frf = h5["runs/soft-0/accelerance_support"]
+        values = frf[()]
+        values[int(np.argmin(np.abs(h5["runs/soft-0/frequency_hz"][()] - 60.0)))] = 1e300
+        frf[...] = values
+    status, _, err = run_cli(["report", str(path), "--out", str(tmp_path / "report"),
+                              "--no-ladder", "--jobs", "1"])
+    assert status == 0 and err == ""
+    page = (tmp_path / "report" / "index.html").read_text(encoding="utf-8")
+    assert "not a measurement" in page
+    assert (tmp_path / "report" / "frf-soft-0.png").stat().st_size > 0
+
+
 # -- command-line values ------------------------------------------------------------------------
 
 BAD_VALUES = [

@@ -317,7 +317,17 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
 
 
 def run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
-    """The figures of one run (FRFs, residual, ladder), by stem."""
+    """The figures of one run (FRFs, residual, ladder), by stem.
+
+    A point no analyser measures (the fits refuse it, the page names it) stretches a log axis
+    past what matplotlib's tick arithmetic holds: it is drawn all the same, without numpy's
+    overflow warnings.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _run_figures(run, folder)
+
+
+def _run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
     saved: dict[str, SavedFigure] = {}
     if not run.run.points:
         return saved
