@@ -190,6 +190,19 @@ def test_an_sdf_response_with_a_nan_point_is_refused_naming_the_point(tmp_path: 
     assert not (tmp_path / "c.h5").exists()
 
 
+def test_an_sdf_word_that_is_a_signalling_nan_is_refused_without_a_warning(
+        tmp_path: Path) -> None:
+    table = _table(F)
+    table[12] = complex(np.nan, 0.0)
+    path = _sdf(tmp_path, F, table)
+    quiet = np.array([np.nan], dtype=">f8").tobytes()
+    assert quiet in path.read_bytes()  # the point's words (its scaling makes both NaN)
+    path.write_bytes(path.read_bytes().replace(quiet, bytes.fromhex("7ff0000000000001")))
+    status, _, err = _import(tmp_path, "--sdf", path)
+    assert status == 2
+    assert "point 13 of 401" in one_clear_line(err) and "warning" not in err
+
+
 def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> None:
     falling = F[::-1].copy()
     status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))

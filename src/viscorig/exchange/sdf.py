@@ -359,7 +359,7 @@ class _XAxes:
                 per = max(h.x_per_point, 1)
                 raw = self.b.numbers(self.cursor, h.x_type, h.points * per, self.end,
                                      f"{what}: X data")
-                axis = raw[::per].astype(float)
+                axis = _quiet(raw[::per])
                 self.cursor += raw.nbytes
                 self.file_axis = axis if h.x_resolution == 2 else self.file_axis
         else:
@@ -371,11 +371,20 @@ class _XAxes:
         return axis
 
 
+def _quiet(raw: NDArray) -> NDArray[np.float64]:
+    """``raw`` as floats, a damaged word that reads as a signalling NaN made a quiet NaN (any
+    arithmetic on a signalling one warns)."""
+    with np.errstate(invalid="ignore"):
+        values = raw.astype(float)
+    values[np.isnan(values)] = np.nan
+    return values
+
+
 def _trace(h: _DataHeader, raw: NDArray, axis: NDArray[np.float64], valid: NDArray[np.bool_],
            vector: tuple[int, int, int, int], channels: list[SdfChannel], what: str,
            where: str) -> SdfTrace:
     """One trace of data header ``h`` from its raw Y numbers and its vector header."""
-    values = raw.astype(float)
+    values = _quiet(raw)
     if h.complex:
         values = values[0::2] + 1j * values[1::2]
     values = values[:: max(h.y_per_point, 1)]
