@@ -228,8 +228,17 @@ def identify_fit(likelihood: Likelihood, data: DiagnosisData) -> FitResult:
 
 
 def _broad(model: Model) -> set[str]:
-    """Parameters that shape the whole band: K*'s, the disc mass, the load cell's."""
-    names = set(model.local_names(model.require_modulus()).values()) | {"M_v"}
+    """Parameters that shape the whole band: K*'s, the disc mass, the load cell's.
+
+    A fractional K*'s relaxation time is not among them. Where ``ωτ`` stays far from 1 over the
+    band, ``tau`` trades off with ``K_inf`` along a curved valley (only ``(K_inf − K_0) τ^α`` is
+    determined there); following it took most of a ladder's solver steps, while ``K_0``,
+    ``K_inf`` and ``alpha`` still reshape the whole K*. A new fractional K* has its ``tau``
+    fitted (:func:`fit_term` adds the new term's parameters).
+    """
+    modulus = model.require_modulus()
+    held = {"tau"} if modulus.keyword == "fractional" else set()
+    names = {v for k, v in model.local_names(modulus).items() if k not in held} | {"M_v"}
     return names | {n for t in model.effects if t.keyword == "load_cell"
                     for n in model.local_names(t).values()}
 
