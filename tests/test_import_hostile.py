@@ -92,6 +92,19 @@ def test_rows_in_no_order_are_stored_rising(tmp_path: Path) -> None:
     np.testing.assert_array_equal(run.frequency_hz, F)
 
 
+@pytest.mark.parametrize("column", [4, 5])
+def test_a_subnormal_part_a_damaged_double_reads_as_is_refused(tmp_path: Path,
+                                                               column: int) -> None:
+    rows = _voigt_rows(F)
+    rows[56][column] = "6.77126833e-311"  # a UFF word of -4.76 with three bytes zeroed
+    status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "sub.csv", rows))
+    line = one_clear_line(err)
+    assert status == 2
+    assert "1 of 401 values of ẍ_v/F_v have a part below 2.2e-308" in line, line
+    assert f"point 57 of 401 ({F[56]:g} Hz)" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_a_frequency_given_twice_is_refused_naming_both_rows(tmp_path: Path) -> None:
     rows = _voigt_rows(F)
     rows.insert(300, list(rows[10]))

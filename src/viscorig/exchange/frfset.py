@@ -115,8 +115,8 @@ def check_whole(frfs: FrfSet) -> None:
     ------
     InputError
         Lengths differ, more points than a run holds, a frequency that is not finite and
-        positive, a frequency given twice, a non-finite value of ẍ_s/F_e, or a ẍ_v/F_v that
-        is only partly present.
+        positive, a frequency given twice, a non-finite value of ẍ_s/F_e, a ẍ_v/F_v that
+        is only partly present, or a value with a subnormal part.
     """
     where = frfs.source or "import"
     n = frfs.frequency_hz.size
@@ -150,6 +150,23 @@ def check_whole(frfs: FrfSet) -> None:
         raise InputError(f"{int(missing.sum())} of {n} values of ẍ_v/F_v are not finite, the "
                          f"first at {_first_bad(missing, frequency)} (a truncated or damaged "
                          "file?)", where)
+    for label, values in (("ẍ_s/F_e", frfs.accelerance_table),
+                          ("ẍ_v/F_v", frfs.accelerance_support)):
+        bad = _subnormal(np.asarray(values, dtype=complex))
+        if bad.any():
+            raise InputError(
+                f"{int(bad.sum())} of {n} values of {label} have a part below "
+                f"{np.finfo(float).tiny:.1e} in magnitude, the first at "
+                f"{_first_bad(bad, frequency)}: a subnormal number, which no analyser writes "
+                "(a damaged file?)", where)
+
+
+def _subnormal(values: NDArray[np.complex128]) -> NDArray[np.bool_]:
+    """Points with a real or imaginary part that is a subnormal double (non-zero, below the
+    smallest normal number): what damaged exponent bits of a stored double read as."""
+    tiny = np.finfo(float).tiny
+    parts = np.stack([values.real, values.imag])
+    return np.any((parts != 0) & (np.abs(parts) < tiny), axis=0)
 
 
 @dataclass(frozen=True)
