@@ -96,7 +96,7 @@ def test_rows_in_no_order_are_stored_rising(tmp_path: Path) -> None:
 def test_a_subnormal_part_a_damaged_double_reads_as_is_refused(tmp_path: Path,
                                                                column: int) -> None:
     rows = _voigt_rows(F)
-    rows[56][column] = "6.77126833e-311"  # a UFF word of -4.76 with three bytes zeroed
+    rows[56][column] = "6.77126833e-311"  # a UFF double of -4.76 with its top two bytes zeroed
     status, _, err = _import(tmp_path, "--csv", _write(tmp_path / "sub.csv", rows))
     line = one_clear_line(err)
     assert status == 2
