@@ -12,7 +12,6 @@ known before it is measured, so an adaptive step's range has no upper end but it
 from __future__ import annotations
 
 import argparse
-import math
 
 from viscorig import jsontext
 from viscorig.acquisition.forecast import format_forecast
@@ -51,7 +50,7 @@ def plan_command(args: argparse.Namespace) -> int:
             "sequence": args.sequence, "station": args.station,
             "steps": [item.to_json() for item in forecasts if item.kind not in (
                 "prompt", "identify_table")],
-            "total_low_s": low, "total_high_s": None if math.isinf(high) else high,
+            "total_low_s": low, "total_high_s": high,  # unbounded: null
             "soaks": sum(item.kind == "soak" for item in forecasts),
             "soak_s": sum(item.low_s for item in forecasts if item.kind == "soak"),
         }, indent=2))

@@ -83,8 +83,7 @@ def metadata(run: RunRecord, csv_name: str, campaign_name: str) -> dict:
          "dc:description": DESCRIPTIONS[name]}
         for name in COLUMNS
     ]
-    run_metadata = {key: (None if isinstance(value, float) and math.isnan(value) else value)
-                    for key, value in asdict(run.metadata).items()}
+    run_metadata = asdict(run.metadata)  # NaN (unknown) is written null, as everywhere
     return {
         "@context": "http://www.w3.org/ns/csvw",
         "url": csv_name,
