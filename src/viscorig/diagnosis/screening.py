@@ -254,8 +254,11 @@ def screen_frame(
     with np.errstate(all="ignore"):
         change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
     size, stderr, gain = residual.estimate(change)
-    need = max(threshold(3, alpha), scan_threshold(_frame_length(model, framed, current,
-                                                                 data, residual), alpha))
+    need = threshold(3, alpha)
+    if gain < SENSOR_TRY_SHARE * need:
+        return None  # short of the lower threshold: no need for the look-elsewhere length
+    need = max(need, scan_threshold(_frame_length(model, framed, current, data, residual),
+                                    alpha))
     if gain < SENSOR_TRY_SHARE * need:
         return None
     evidence = (
