@@ -36,6 +36,7 @@ from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
 from viscorig.diagnosis.workers import fit_all
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
+from viscorig.fitting.arms import extended_start, maxwell_order
 from viscorig.models import TERMS, Fixture, Model, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
 from viscorig.numbers import Estimate
@@ -256,6 +257,14 @@ def fit_term(
     """
     model = parse_spec(candidate_spec(current.model, term_text))
     only = _broad(model) | added_parameters(model, term_text)
+    order = maxwell_order(current.model)
+    if order and maxwell_order(model) == order + 1:
+        # One arm more: the current arms and a small new one in their widest gap start it at
+        # the current model's optimum, where a linear start of the whole K* lands elsewhere.
+        values = {**model.defaults(), **carried_values(current, model),
+                  **extended_start(current.model, current.values, data.data.frequency_hz,
+                                   model)}
+        return ml_fit(model, data, values, only=only, exact=False)
     if (model.require_modulus().spec != current.model.require_modulus().spec
             or term_text == "load_cell"):
         # A new K*, or a new coupling of table and disc, reshapes the whole band: the current

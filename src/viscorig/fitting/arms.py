@@ -120,12 +120,16 @@ def reduced_start(result: FitResult, dead: Sequence[int], lower: Model) -> dict[
     return {name: lower.by_name[name].clip(value) for name, value in start.items()}
 
 
-def extended_start(result: FitResult, higher: Model) -> dict[str, float]:
-    """Start of ``higher`` (one arm more than ``result``'s model, same effect terms):
-    ``result``'s values plus a new arm of :data:`NEW_ARM_FRACTION` of ``|K*|``, relaxing where
-    the existing arms leave the widest gap in ``log τ`` within the band."""
-    term, k, c, local = _arm_values(result.model, result.values)
-    f = result.frequency_hz
+def extended_start(
+    model: Model, values: Mapping[str, float], frequency_hz: NDArray[np.float64], higher: Model
+) -> dict[str, float]:
+    """Start of ``higher`` (one arm more than the Maxwell ``model``, same effect terms), from
+    ``model``'s fitted ``values`` over the band ``frequency_hz``: those values plus a new arm
+    of :data:`NEW_ARM_FRACTION` of ``|K*|``, relaxing where the existing arms leave the widest
+    gap in ``log τ`` within the band. The arms are numbered by increasing relaxation time, as
+    the linear start numbers them."""
+    term, k, c, local = _arm_values(model, values)
+    f = np.asarray(frequency_hz, dtype=float)
     omega_lo, omega_hi = 2 * np.pi * f.min(), 2 * np.pi * f.max()
     edges = np.log([1.0 / omega_hi, 1.0 / omega_lo])
     log_tau = np.sort(np.clip(np.log(c / k), *edges))
@@ -134,7 +138,8 @@ def extended_start(result: FitResult, higher: Model) -> dict[str, float]:
     tau = float(np.exp(0.5 * (points[gap] + points[gap + 1])))
     centre = Context(np.array([np.sqrt(f.min() * f.max())]))
     gain = NEW_ARM_FRACTION * float(np.abs(term.modulus(centre, local))[0])
-    start = {name: value for name, value in result.values.items() if name in higher.by_name}
-    new = k.size + 1
-    start[f"K_{new}"], start[f"C_{new}"] = gain, gain * tau
+    start = {name: value for name, value in values.items() if name in higher.by_name}
+    stiffness, damping = np.append(k, gain), np.append(c, gain * tau)
+    for i, arm in enumerate(np.argsort(damping / stiffness, kind="stable"), start=1):
+        start[f"K_{i}"], start[f"C_{i}"] = float(stiffness[arm]), float(damping[arm])
     return {name: higher.by_name[name].clip(value) for name, value in start.items()}

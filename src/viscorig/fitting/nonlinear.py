@@ -241,7 +241,8 @@ def _select_order(
         ):
             # Order N can represent order N-1 exactly: a worse or degenerate fit is stuck.
             degenerate.pop(result.spec, None)
-            warm = search_fit(candidate, extended_start(below, candidate))
+            warm = search_fit(candidate, extended_start(below.model, below.values,
+                                                        below.frequency_hz, candidate))
             if (not dead_arms(warm), -warm.bic) > (not dead_arms(result), -result.bic):
                 result = warm
             reduce(result)
