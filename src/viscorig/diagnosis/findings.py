@@ -37,7 +37,7 @@ from viscorig.diagnosis.workers import fit_all
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.fitting.arms import extended_start, maxwell_order
-from viscorig.models import TERMS, Fixture, Model, parse_spec
+from viscorig.models import TERMS, Fixture, Model, Term, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
 from viscorig.numbers import Estimate
 
@@ -517,18 +517,18 @@ def unpaid_term(
             continue
         reductions.append((term, reduced))
 
-    def ratio(term, result: Likelihood) -> float:
+    def ratio(term: Term, result: Likelihood) -> float:
         return ((result.chi2 - current.chi2) / phi
                 / term_threshold(term, scan_threshold, alpha))
 
     quick = fit_all(_first_pass, [(reduced, data, {**reduced.defaults(),
                                                    **carried_values(current, reduced)})
                                   for _, reduced in reductions])
-    open_ = [i for i, ((term, _), result) in enumerate(zip(reductions, quick, strict=True))
+    unsettled = [i for i, ((term, _), result) in enumerate(zip(reductions, quick, strict=True))
              if ratio(term, result) < CLEARLY_PAID]
-    finished = fit_all(ml_fit, [(quick[i].model, data, quick[i].values) for i in open_])
+    finished = fit_all(ml_fit, [(quick[i].model, data, quick[i].values) for i in unsettled])
     worst: tuple[float, str, Likelihood] | None = None
-    for i, result in zip(open_, finished, strict=True):
+    for i, result in zip(unsettled, finished, strict=True):
         term = reductions[i][0]
         value = ratio(term, result)
         if value < 1.0 and (worst is None or value < worst[0]):

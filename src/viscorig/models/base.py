@@ -531,8 +531,8 @@ class Model:
         # The symmetric 3x3 system of table, disc and frame, solved by its cofactors for the
         # force (1, 0, −1) in one vectorised expression: a batched LAPACK solve of 3x3 systems
         # took most of a frame model's evaluation. The load cell's stretch x_s − x_v is
-        # written without k_c, which would cancel there (10⁻¹⁰ relative error at most against
-        # extended precision, where the solve left 2·10⁻¹⁰).
+        # written without k_c, which would cancel there (1.8·10⁻¹⁰ relative error at most
+        # against extended precision, where the solve left 2.2·10⁻¹⁰).
         a00, a01, a02 = a_table + s + k_c, -k_c, -s
         a11, a12, a22 = a_disc + kstar + k_c, -kstar, g + s + kstar
         c00 = a11 * a22 - a12 * a12
