@@ -34,6 +34,21 @@ def test_one_job_runs_in_this_process():
         assert list(pool.unordered(pid_of, [1, 2])) == [os.getpid()] * 2
 
 
+def test_work_started_now_is_collected_later_in_order():
+    """``start`` hands the work out at once on workers; with one job it is done only when the
+    results are asked for (a diagnosis scans for modes meanwhile)."""
+    with LocalExecutor(2) as pool:
+        pending = pool.start(pid_of, [(i,) for i in range(6)])
+        later = pool.start(operator.mul, [(i, 2) for i in range(6)])
+        assert os.getpid() not in set(pending())
+        assert later() == [2 * i for i in range(6)]
+    calls: list[int] = []
+    with LocalExecutor(1) as pool:
+        pending = pool.start(calls.append, [(1,), (2,), (3,)])
+        assert calls == []
+        assert pending() == [None] * 3 and calls == [1, 2, 3]
+
+
 @pytest.mark.parametrize("address", ["localhost:8786", "tcp://:8786", "tcp://host:0",
                                      "tcp://host:70000", "http://host:8786", "tcp://a b:1"])
 def test_bad_scheduler_address_is_refused(address):
@@ -57,6 +72,8 @@ def test_dask_cluster_runs_the_same_work():
         assert isinstance(pool, DaskExecutor)
         assert pool.workers == 2
         assert pool.map(operator.mul, [(i, 3) for i in range(10)]) == [3 * i for i in range(10)]
+        pending = pool.start(operator.add, [(i, 1) for i in range(5)])
+        assert pending() == [1, 2, 3, 4, 5]
         assert sorted(pool.unordered(abs, range(-3, 3))) == [0, 1, 1, 2, 2, 3]
 
 

@@ -72,14 +72,21 @@ class LocalExecutor:
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=get_context(method))
         return self._pool
 
+    def start(self, function: Callable[..., Result],
+              arguments: Sequence[tuple[Any, ...]]) -> Callable[[], list[Result]]:
+        """Hand ``[function(*a) for a in arguments]`` to the workers now, and return what waits
+        for the results, in order (with one job, it computes them when called)."""
+        arguments = list(arguments)
+        pool = self._started(len(arguments))
+        if pool is None:
+            return lambda: [function(*a) for a in arguments]
+        futures = [pool.submit(function, *a) for a in arguments]
+        return lambda: [future.result() for future in futures]
+
     def map(self, function: Callable[..., Result],
             arguments: Sequence[tuple[Any, ...]]) -> list[Result]:
         """``[function(*a) for a in arguments]``, in order."""
-        pool = self._started(len(arguments))
-        if pool is None:
-            return [function(*a) for a in arguments]
-        futures = [pool.submit(function, *a) for a in arguments]
-        return [future.result() for future in futures]
+        return self.start(function, arguments)()
 
     def unordered(self, function: Callable[[Any], Result], items: Iterable[Any]
                   ) -> Iterator[Result]:
@@ -131,13 +138,19 @@ class DaskExecutor:
         """Make a Python file importable on every worker (a study's helper module)."""
         self.client.upload_file(os.fspath(path))
 
+    def start(self, function: Callable[..., Result],
+              arguments: Sequence[tuple[Any, ...]]) -> Callable[[], list[Result]]:
+        """Hand ``[function(*a) for a in arguments]`` to the cluster now, and return what
+        waits for the results, in order."""
+        if not arguments:
+            return lambda: []
+        futures = [self.client.submit(function, *a, pure=False) for a in arguments]
+        return lambda: self.client.gather(futures)
+
     def map(self, function: Callable[..., Result],
             arguments: Sequence[tuple[Any, ...]]) -> list[Result]:
         """``[function(*a) for a in arguments]`` on the cluster, in order."""
-        if not arguments:
-            return []
-        futures = [self.client.submit(function, *a, pure=False) for a in arguments]
-        return self.client.gather(futures)
+        return self.start(function, arguments)()
 
     def unordered(self, function: Callable[[Any], Result], items: Iterable[Any]
                   ) -> Iterator[Result]:

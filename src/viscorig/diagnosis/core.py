@@ -17,6 +17,7 @@ from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
 from viscorig.diagnosis.findings import (
     Finding,
+    candidate_fits,
     candidate_spec,
     carried_values,
     confirm,
@@ -27,7 +28,7 @@ from viscorig.diagnosis.findings import (
 )
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
-from viscorig.diagnosis.screening import screen
+from viscorig.diagnosis.screening import screen, screen_fixtures
 from viscorig.diagnosis.significance import dispersion
 from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
@@ -302,9 +303,13 @@ def analyse(
             data, likelihood = scaled, None
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
+    candidates = screen(current, data, residual)
+    early = candidate_fits(current, data, candidates)  # on the workers during the scan
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
     peaks = scan(current, data, existing)
-    findings, together = confirm(current, data, screen(current, data, residual, peaks))
+    modes = screen_fixtures(peaks)
+    late = candidate_fits(current, data, modes)
+    findings, together = confirm(current, data, candidates + modes, early() + late())
     best = next((finding for finding in findings if finding.significant), None)
     if best is not None and best.fit is None:
         best.fit = identify_fit(best.likelihood, data)

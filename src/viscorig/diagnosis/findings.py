@@ -25,6 +25,7 @@ would.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,7 +34,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
 from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
 from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
-from viscorig.diagnosis.workers import fit_all
+from viscorig.diagnosis.workers import fit_all, fit_all_later
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.fitting.arms import extended_start, maxwell_order
@@ -330,18 +331,29 @@ def _inside(result: Likelihood, term_text: str, data: DiagnosisData) -> bool:
     return bool(f.min() + margin < f_n < f.max() - margin)
 
 
-def confirm(
+def candidate_fits(
     current: Likelihood, data: DiagnosisData, candidates: list[Candidate]
+) -> Callable[[], list[Likelihood | None]]:
+    """Start the fits of every candidate's term and alternatives (:func:`fit_term`, ``None``
+    where one cannot be fitted), in that order; what is returned gives their results."""
+    return fit_all_later(_fit_term_or_none, [
+        (current, data, term, candidate.start)
+        for candidate in candidates for term in (candidate.term, *candidate.alternatives)])
+
+
+def confirm(
+    current: Likelihood, data: DiagnosisData, candidates: list[Candidate],
+    fitted: list[Likelihood | None] | None = None,
 ) -> tuple[list[Finding], Likelihood]:
     """Fit every candidate, rank them (lowest ΔBIC first, ``n`` the effective number of
     independent observations of the noise model; among those the data cannot tell
     apart, by :data:`PRIORITY`), test each next to the ones found significant before it, and
-    return them significant first, with the fit of the model holding every significant one."""
+    return them significant first, with the fit of the model holding every significant one.
+
+    ``fitted``: the candidates' fits when already made (:func:`candidate_fits`)."""
     n = data.effective_points
     findings: list[Finding] = []
-    fits = iter(fit_all(_fit_term_or_none, [
-        (current, data, term, candidate.start)
-        for candidate in candidates for term in (candidate.term, *candidate.alternatives)]))
+    fits = iter(candidate_fits(current, data, candidates)() if fitted is None else fitted)
     for candidate in candidates:
         best: tuple[float, Likelihood, str] | None = None
         for term in (candidate.term, *candidate.alternatives):

@@ -375,11 +375,10 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
     return Candidate("thermal_drift", "drift", evidence, threshold(1, alpha))
 
 
-def screen(
-    current: Likelihood, data: DiagnosisData, residual: Residual, scan: ScanResult
-) -> list[Candidate]:
-    """Every candidate that applies to this model and these data, each with the threshold of
-    one test of the step's family (:func:`alpha_of`)."""
+def screen(current: Likelihood, data: DiagnosisData, residual: Residual) -> list[Candidate]:
+    """Every candidate that applies to this model and these data but the local modes (those
+    come from the scan, :func:`screen_fixtures`), each with the threshold of one test of the
+    step's family (:func:`alpha_of`)."""
     alpha = alpha_of(current.model, data)
     candidates: list[Candidate] = []
     for method in (screen_modulus, screen_load_cell, screen_levels, screen_drift):
@@ -390,5 +389,4 @@ def screen(
     frame = screen_frame(current, data, residual, alpha)
     if frame is not None:
         candidates.append(frame)
-    candidates += screen_fixtures(scan)
     return candidates

@@ -6,7 +6,9 @@ the last rung of a ladder refits its model once without each effect term
 ``with fitting_on(executor):`` they are handed to ``executor`` (:mod:`viscorig.executor`,
 local processes or a Dask cluster); outside, or with fewer than two fits, they run here, one
 after the other. Either way the results are the same numbers, in the same order: each fit gets
-the same inputs and does the same arithmetic::
+the same inputs and does the same arithmetic. :func:`fit_all_later` hands fits out before this
+process does other work (a step's scan for local modes, while the candidates that do not need
+it are fitted)::
 
     with executor(jobs=2) as run, fitting_on(run):
         ladder = diagnose(data, "voigt").auto()
@@ -19,16 +21,18 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import BrokenExecutor
 from contextlib import contextmanager
 from contextvars import ContextVar
+from functools import partial
 from typing import Any, Protocol, TypeVar
 
 Result = TypeVar("Result")
 
 
 class Mapper(Protocol):
-    """What a diagnosis needs of an executor: ``map`` in order."""
+    """What a diagnosis needs of an executor: ``start``, which hands work out now and returns
+    what waits for its results, in order."""
 
-    def map(self, function: Callable[..., Any], arguments: Sequence[tuple[Any, ...]]
-            ) -> list[Any]: ...
+    def start(self, function: Callable[..., Any], arguments: Sequence[tuple[Any, ...]]
+              ) -> Callable[[], list[Any]]: ...
 
 
 _EXECUTOR: ContextVar[Mapper | None] = ContextVar("viscorig_diagnosis_executor", default=None)
@@ -55,11 +59,34 @@ def fit_all(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]
     process that dies (killed for memory, say) costs no result: the fits are made here, and so
     are the rest of the context's.
     """
+    return fit_all_later(function, arguments)()
+
+
+def fit_all_later(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]]
+                  ) -> Callable[[], list[Result]]:
+    """:func:`fit_all`, with the fits handed to the executor now and what returns their results
+    (waiting for them) given back, so that this process can do other work meanwhile. Without an
+    executor the fits are made when the results are asked for: the same numbers either way."""
     executor = _EXECUTOR.get()
-    if executor is not None and len(arguments) >= 2:
+    arguments = list(arguments)
+    if executor is None or len(arguments) < 2:
+        return lambda: [function(*a) for a in arguments]
+    try:
+        pending = executor.start(function, arguments)
+    except BrokenExecutor as error:
+        return partial(_here_after, error, function, arguments)
+
+    def results() -> list[Result]:
         try:
-            return list(executor.map(function, arguments))
+            return list(pending())
         except BrokenExecutor as error:
-            _log.warning("a worker process stopped (%s); the fits go on in this process", error)
-            _EXECUTOR.set(None)
+            return _here_after(error, function, arguments)
+
+    return results
+
+
+def _here_after(error: BaseException, function: Callable[..., Result],
+                arguments: Sequence[tuple[Any, ...]]) -> list[Result]:
+    _log.warning("a worker process stopped (%s); the fits go on in this process", error)
+    _EXECUTOR.set(None)
     return [function(*a) for a in arguments]
