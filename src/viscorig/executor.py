@@ -1,10 +1,13 @@
 """Where independent pieces of work run: local processes, or a Dask cluster.
 
-One interface for the report's ladders (``viscorig report --jobs N``) and the heavy studies
-(``studies/diagnosis/detection_table.py``, ``studies/coverage.py``)::
+One interface for the report's ladders (``viscorig report --jobs N``), a diagnosis step's fits
+(``viscorig diagnose --jobs N``) and the heavy studies (``studies/diagnosis/detection_table.py``,
+``studies/coverage.py``)::
 
     with executor(jobs=2) as run:                       # local processes (the default)
         results = run.map(function, [(a, b), (c, d)])   # in order
+        pending = run.start(function, [(a, b), (c, d)]) # handed out now, while this process
+        results = pending()                             # works on; collected in order
     with executor(scheduler="tcp://10.0.0.5:8786") as run:   # a Dask cluster
         for result in run.unordered(function, items):  # as they finish
             ...
