@@ -28,7 +28,7 @@ from viscorig.diagnosis.findings import (
 )
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
-from viscorig.diagnosis.screening import screen, screen_fixtures
+from viscorig.diagnosis.screening import screen, screen_by_scan
 from viscorig.diagnosis.significance import dispersion
 from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
 from viscorig.errors import InputError
@@ -304,12 +304,12 @@ def analyse(
     current = ml_refit(result, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     candidates = screen(current, data, residual)
-    early = candidate_fits(current, data, candidates)  # on the workers during the scan
+    early = candidate_fits(current, data, candidates)  # on the workers during the scans
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
     peaks = scan(current, data, existing)
-    modes = screen_fixtures(peaks)
-    late = candidate_fits(current, data, modes)
-    findings, together = confirm(current, data, candidates + modes, early() + late())
+    scanned = screen_by_scan(current, data, residual, peaks)
+    late = candidate_fits(current, data, scanned)
+    findings, together = confirm(current, data, candidates + scanned, early() + late())
     best = next((finding for finding in findings if finding.significant), None)
     if best is not None and best.fit is None:
         best.fit = identify_fit(best.likelihood, data)

@@ -376,17 +376,23 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
 
 
 def screen(current: Likelihood, data: DiagnosisData, residual: Residual) -> list[Candidate]:
-    """Every candidate that applies to this model and these data but the local modes (those
-    come from the scan, :func:`screen_fixtures`), each with the threshold of one test of the
-    step's family (:func:`alpha_of`)."""
+    """Every candidate that applies to this model and these data but those found by scanning
+    (:func:`screen_by_scan`), each with the threshold of one test of the step's family
+    (:func:`alpha_of`)."""
     alpha = alpha_of(current.model, data)
     candidates: list[Candidate] = []
     for method in (screen_modulus, screen_load_cell, screen_levels, screen_drift):
         candidate = method(current, data, alpha)
         if candidate is not None:
             candidates.append(candidate)
-    candidates += screen_sensors(current, data, residual, alpha)
-    frame = screen_frame(current, data, residual, alpha)
-    if frame is not None:
-        candidates.append(frame)
-    return candidates
+    return candidates + screen_sensors(current, data, residual, alpha)
+
+
+def screen_by_scan(
+    current: Likelihood, data: DiagnosisData, residual: Residual, scan: ScanResult
+) -> list[Candidate]:
+    """The candidates found by scanning a family of shapes: the frame's mode (its
+    look-elsewhere length) and the local modes of the scan (:func:`screen_fixtures`). A step
+    screens them while the others' fits run."""
+    frame = screen_frame(current, data, residual, alpha_of(current.model, data))
+    return ([] if frame is None else [frame]) + screen_fixtures(scan)
