@@ -7,8 +7,8 @@ the last rung of a ladder refits its model once without each effect term
 local processes or a Dask cluster); outside, or with fewer than two fits, they run here, one
 after the other. Either way the results are the same numbers, in the same order: each fit gets
 the same inputs and does the same arithmetic. :func:`fit_all_later` hands fits out before this
-process does other work (a step's scan for local modes, while the candidates that do not need
-it are fitted)::
+process does other work (a step's scans, the frame's look-elsewhere length and the local modes,
+while the other candidates are fitted)::
 
     with executor(jobs=2) as run, fitting_on(run):
         ladder = diagnose(data, "voigt").auto()
