@@ -16,28 +16,33 @@ Each command is also printed as a ratio to the campaign's simulation, measured i
 just before (wall to wall, CPU to CPU: CPU is steadier on a shared machine).
 
 Wall and CPU time are both printed: the machine may be shared, and CPU time is what the code
-costs. Run: ``python benchmarks/bench_report.py``. CPU time counts the worker processes
-too (``os.times``, children included).
+costs. BLAS runs single-threaded, as in the ``viscorig`` command (set before numpy loads).
+Run: ``python benchmarks/bench_report.py``. CPU time counts the worker processes too
+(``os.times``, children included).
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
-import os
-import sys
-import tempfile
-import time
-from pathlib import Path
+from viscorig.runtime import limit_blas_threads
 
-import numpy as np
+limit_blas_threads()  # before numpy loads, as the command line does
 
-from viscorig.cli import main
-from viscorig.identify import PAPER_BAND_HZ, summarize
-from viscorig.report.analysis import analyse_campaign
-from viscorig.report.figures import campaign_figures
-from viscorig.report.page import build_page
-from viscorig.storage import CampaignFile
+import contextlib  # noqa: E402
+import io  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from viscorig.cli import main  # noqa: E402
+from viscorig.identify import PAPER_BAND_HZ, summarize  # noqa: E402
+from viscorig.report.analysis import analyse_campaign  # noqa: E402
+from viscorig.report.figures import campaign_figures  # noqa: E402
+from viscorig.report.page import build_page  # noqa: E402
+from viscorig.storage import CampaignFile  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The rig noise of the simulated campaign, fixed so that runs of the benchmark compare.
