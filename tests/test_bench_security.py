@@ -45,8 +45,9 @@ def refuse_everything(server, owner: Client) -> None:
         # no token, a wrong token (header and cookie), the token of another port
         assert "token" in one_line_error(anyone.get("/api/state"), 401)
         one_line_error(anyone.post("/api/abort"), 401)
-        one_line_error(anyone.get("/api/state", headers={
-            "Authorization": "Bearer " + server.token[:-1] + "x"}), 401)
+        wrong = server.token[:-1] + ("y" if server.token.endswith("x") else "x")
+        one_line_error(anyone.get("/api/state", headers={"Authorization": f"Bearer {wrong}"}),
+                       401)
         one_line_error(anyone.get("/api/state", headers={
             "Cookie": f"viscorig_bench_{server.port + 1}={server.token}"}), 401)
         one_line_error(anyone.get("/?token=wrong"), 401)
