@@ -32,8 +32,9 @@ def finite_or_none(value: Any) -> Any:
 
 def dumps(document: Any, *, indent: int | None = None, compact: bool = False,
           ensure_ascii: bool = True) -> str:
-    """``document`` as strict JSON text (:func:`finite_or_none` first), indented by ``indent``
-    or, ``compact``, without spaces; ``ensure_ascii=False`` keeps non-ASCII characters."""
+    """``document`` as strict JSON text (through :func:`finite_or_none` when ``json`` refuses
+    it as it is), indented by ``indent`` or, ``compact``, without spaces; ``ensure_ascii=False``
+    keeps non-ASCII characters."""
     options: dict[str, Any] = {"allow_nan": False, "indent": indent, "ensure_ascii": ensure_ascii,
                                "separators": (",", ":") if compact else None}
     try:  # most documents are clean: written as they are, they cost half (the live view's)

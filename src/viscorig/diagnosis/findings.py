@@ -343,17 +343,16 @@ def candidate_fits(
 
 def confirm(
     current: Likelihood, data: DiagnosisData, candidates: list[Candidate],
-    fitted: list[Likelihood | None] | None = None,
+    fitted: list[Likelihood | None],
 ) -> tuple[list[Finding], Likelihood]:
-    """Fit every candidate, rank them (lowest ΔBIC first, ``n`` the effective number of
-    independent observations of the noise model; among those the data cannot tell
-    apart, by :data:`PRIORITY`), test each next to the ones found significant before it, and
-    return them significant first, with the fit of the model holding every significant one.
-
-    ``fitted``: the candidates' fits when already made (:func:`candidate_fits`)."""
+    """Rank the candidates by their fits ``fitted`` (:func:`candidate_fits`; lowest ΔBIC
+    first, ``n`` the effective number of independent observations of the noise model; among
+    those the data cannot tell apart, by :data:`PRIORITY`), test each next to the ones found
+    significant before it, and return them significant first, with the fit of the model holding
+    every significant one."""
     n = data.effective_points
     findings: list[Finding] = []
-    fits = iter(candidate_fits(current, data, candidates)() if fitted is None else fitted)
+    fits = iter(fitted)
     for candidate in candidates:
         best: tuple[float, Likelihood, str] | None = None
         for term in (candidate.term, *candidate.alternatives):
@@ -537,7 +536,7 @@ def unpaid_term(
                                                    **carried_values(current, reduced)})
                                   for _, reduced in reductions])
     unsettled = [i for i, ((term, _), result) in enumerate(zip(reductions, quick, strict=True))
-             if ratio(term, result) < CLEARLY_PAID]
+                 if ratio(term, result) < CLEARLY_PAID]
     finished = fit_all(ml_fit, [(quick[i].model, data, quick[i].values) for i in unsettled])
     worst: tuple[float, str, Likelihood] | None = None
     for i, result in zip(unsettled, finished, strict=True):
