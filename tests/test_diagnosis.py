@@ -20,6 +20,10 @@ from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 
 from viscorig.cli import main
 from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
+from viscorig.diagnosis.findings import fit_term
+from viscorig.diagnosis.scan import Residual
+from viscorig.diagnosis.screening import screen
+from viscorig.diagnosis.significance import alpha_of, judge, threshold
 from viscorig.models import EFFECTS
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
@@ -123,6 +127,38 @@ def test_a_sensor_effect_is_named_with_its_channel_and_its_value(
     assert words in best.explanation and " ± " in best.explanation
     assert len(diagnosis.significant) == 1
     assert_at_floor_after(diagnosis)
+
+
+#: What screening proposes at most one term of: both FRFs' delay, each FRF's delay, high-pass
+#: and gain (the channel named by the sign of its linear estimate), amplitude and drift.
+SCREENED_FAMILIES = (
+    ("delay",), ("delay(x_s)", "delay(F_e)"), ("highpass(x_s)", "highpass(F_e)"),
+    ("gain(x_s)",), ("delay(x_v)", "delay(F_v)"), ("highpass(x_v)", "highpass(F_v)"),
+    ("gain(x_v)",), ("amplitude",), ("drift",),
+)
+
+
+@pytest.mark.parametrize("extra", ["", "[delays]\ndisc_acceleration_s = 3.5e-5\n"])
+def test_a_term_screening_leaves_out_far_from_the_noise_could_not_have_passed(
+    extra: str,
+) -> None:
+    """Voigt on a fractional rubber misfits the data thousands of times the noise, and every
+    term soaks up some of that: screening counts a term's linear Δχ² in units of that misfit,
+    as the test after a fit does. Each term of a family it leaves out is fitted here anyway,
+    and fails its test."""
+    diagnosis = single(rig_text(FRACTIONAL, noise=QUIET, extra=extra))
+    current, data = diagnosis.likelihood, diagnosis.data
+    assert current.chi2 > 100 * data.residual_count
+    proposed = {term for candidate in screen(current, data, Residual(current, data))
+                for term in (candidate.term, *candidate.alternatives)}
+    left_out = [term for family in SCREENED_FAMILIES if not proposed & set(family)
+                for term in family]
+    assert left_out and "delay(x_v)" in proposed
+    alpha = alpha_of(current.model, data)
+    for term in left_out:
+        needed = threshold(1, alpha / 2 if term.startswith("delay(") else alpha)
+        _, _, passes = judge(current, fit_term(current, data, term, {}), needed, data, term)
+        assert not passes, term
 
 
 def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:

@@ -37,12 +37,12 @@ import numpy as np
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.scan import Residual, ScanResult
-from viscorig.diagnosis.significance import alpha_of, scan_threshold, threshold
+from viscorig.diagnosis.significance import alpha_of, dispersion, scan_threshold, threshold
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support, kstar_from_table
 from viscorig.fitting.jacobian import predict_many
-from viscorig.models import Fixture, Frame, Model
+from viscorig.models import TERMS, Fixture, Frame, Model
 from viscorig.models.effects import compliance_estimate
 from viscorig.models.sensors import force_channel, response_channel
 from viscorig.numbers import with_uncertainty
@@ -51,7 +51,8 @@ from viscorig.numbers import with_uncertainty
 MAX_FIXTURES = 3
 #: A scan peak is tried as a mode when its Δχ² reaches this share of the scan's threshold.
 SCAN_TRY_SHARE = 0.5
-#: A sensor candidate is fitted when its linear Δχ² reaches this share of its threshold.
+#: A sensor candidate (and a frame, an amplitude dependence, a drift) is fitted when its linear
+#: Δχ², in units of the misfit φ (:func:`per_misfit`), reaches this share of its threshold.
 SENSOR_TRY_SHARE = 0.25
 
 
@@ -88,6 +89,13 @@ class Candidate:
     alternatives: tuple[str, ...] = ()
     dof: int = 1
     identifiable: bool = True
+
+
+def per_misfit(current: Likelihood, data: DiagnosisData, gain: float) -> float:
+    """A linear ``Δχ²`` of one parameter in units of the misfit ``φ`` the model with it would
+    leave, as the test that follows a fit counts it (:func:`~.significance.judge`): far from
+    the noise, any term soaks up some misfit, and only its share of ``φ`` says it may pay."""
+    return gain / dispersion(current.chi2 - gain, data.residual_count, len(current.free) + 1)
 
 
 def _has(model: Model, keyword: str, argument: str | None = None) -> bool:
@@ -184,9 +192,13 @@ def screen_sensors(
     model = current.model
     out: list[Candidate] = []
     need = threshold(1, alpha)
+
+    def tried(gain: float) -> bool:
+        return per_misfit(current, data, gain) >= SENSOR_TRY_SHARE * need
+
     if set(data.frfs) == {"table", "support"} and not _has(model, "delay"):
         tau, stderr, gain = residual.estimate({frf: -1j * omega for frf in data.frfs})
-        if gain >= SENSOR_TRY_SHARE * need:
+        if tried(gain):
             out.append(Candidate(
                 "sensor_delay", "delay",
                 f"both FRFs' phase errors grow linearly with frequency alike "
@@ -196,7 +208,7 @@ def screen_sensors(
         response, force = response_channel(frf), force_channel(frf)
         tau, stderr, gain = residual.estimate({frf: -1j * omega})
         lagging = response if tau > 0 else force
-        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "delay", lagging.name):
+        if tried(gain) and not _has(model, "delay", lagging.name):
             out.append(Candidate(
                 "sensor_delay", f"delay({lagging.name})",
                 f"the {_frf_words(frf)} phase error grows linearly with frequency "
@@ -205,7 +217,7 @@ def screen_sensors(
                 alternatives=(f"lowpass({lagging.name})",)))
         corner, stderr, gain = residual.estimate({frf: 2j * np.pi / omega})
         filtered = response if corner > 0 else force
-        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "highpass", filtered.name):
+        if tried(gain) and not _has(model, "highpass", filtered.name):
             out.append(Candidate(
                 "sensor_highpass", f"highpass({filtered.name})",
                 f"the {_frf_words(frf)} phase error falls as 1/f, a "
@@ -214,7 +226,7 @@ def screen_sensors(
         if len(data.frfs) < 2:
             continue  # one FRF alone cannot tell a gain from K* and M_v
         ratio, stderr, gain = residual.estimate({frf: np.ones_like(omega)})
-        if gain >= SENSOR_TRY_SHARE * need and not _has(model, "gain", response.name):
+        if tried(gain) and not _has(model, "gain", response.name):
             out.append(Candidate(
                 "sensor_gain", f"gain({response.name})",
                 f"the {_frf_words(frf)} magnitude is off by a constant "
@@ -255,11 +267,11 @@ def screen_frame(
         change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
     size, stderr, gain = residual.estimate(change)
     need = threshold(3, alpha)
-    if gain < SENSOR_TRY_SHARE * need:
+    if per_misfit(current, data, gain) < SENSOR_TRY_SHARE * need:
         return None  # short of the lower threshold: no need for the look-elsewhere length
     need = max(need, scan_threshold(_frame_length(model, framed, current, data, residual),
                                     alpha))
-    if gain < SENSOR_TRY_SHARE * need:
+    if per_misfit(current, data, gain) < SENSOR_TRY_SHARE * need:
         return None
     evidence = (
         "the error changes at the low end of the band as when the inertial frame under the "
@@ -375,6 +387,32 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
     return Candidate("thermal_drift", "drift", evidence, threshold(1, alpha))
 
 
+#: The terms that scale K* by one parameter (zero: no change), with the step of their linear
+#: estimate: screened as the sensor terms are (:data:`SENSOR_TRY_SHARE`).
+SCALING_STEPS = {"amplitude": ("beta", 1e-3), "drift": ("kappa", 1e-7)}
+
+
+def _weak(current: Likelihood, data: DiagnosisData, residual: Residual,
+          candidate: Candidate) -> bool:
+    """The candidate scales K* by one parameter and its linear ``Δχ²`` is short of
+    :data:`SENSOR_TRY_SHARE` of its threshold (:func:`per_misfit`)."""
+    if candidate.term not in SCALING_STEPS:
+        return False
+    name, step = SCALING_STEPS[candidate.term]
+    try:
+        model = Model((*current.model.terms, TERMS[candidate.term]()))
+    except InputError:
+        return False
+    term = next(t for t in model.effects if t.keyword == candidate.term)
+    ctx = data.data.context()
+    base = current.model.predict(ctx, current.values)
+    moved = model.predict(ctx, {**current.values, model.local_names(term)[name]: step})
+    with np.errstate(all="ignore"):
+        change = {frf: np.log(moved[frf] / base[frf]) / step for frf in data.frfs}
+    _, _, gain = residual.estimate(change)
+    return per_misfit(current, data, gain) < SENSOR_TRY_SHARE * candidate.threshold
+
+
 def screen(current: Likelihood, data: DiagnosisData, residual: Residual) -> list[Candidate]:
     """Every candidate that applies to this model and these data but those found by scanning
     (:func:`screen_by_scan`), each with the threshold of one test of the step's family
@@ -383,7 +421,7 @@ def screen(current: Likelihood, data: DiagnosisData, residual: Residual) -> list
     candidates: list[Candidate] = []
     for method in (screen_modulus, screen_load_cell, screen_levels, screen_drift):
         candidate = method(current, data, alpha)
-        if candidate is not None:
+        if candidate is not None and not _weak(current, data, residual, candidate):
             candidates.append(candidate)
     return candidates + screen_sensors(current, data, residual, alpha)
 
