@@ -26,7 +26,10 @@ frequency_dependent_modulus     the stiffness/damping error is a smooth trend in
 
 The sensor signatures are linear estimates on the whitened residual with the current model's
 own directions projected out (:class:`~viscorig.diagnosis.scan.Residual`), so a sign and a size
-come with a standard error before any fit.
+come with a standard error before any fit. A sensor term, the frame, an amplitude dependence or
+a drift is fitted only when its linear ``Δχ²``, in units of the misfit the model with it would
+leave (:func:`per_misfit`, as the test after the fit counts it), reaches
+:data:`SENSOR_TRY_SHARE` of its threshold.
 """
 
 from __future__ import annotations
