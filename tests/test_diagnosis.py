@@ -8,6 +8,10 @@ names the planted effect has found it in data it did not make.
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -19,6 +23,7 @@ from rigsim.rigfile import parse_rig
 from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 
 from viscorig.cli import main
+from viscorig.cli.diagnose import LADDER_HEADING, format_diagnosis
 from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
 from viscorig.diagnosis.findings import fit_term
 from viscorig.diagnosis.scan import Residual
@@ -342,6 +347,43 @@ def test_diagnose_text_names_the_effect_and_the_next_command(
     command = f"next: viscorig identify {fixture_campaign} --run soft-0 --model 'voigt+fixture(5"
     assert command in text
     assert text.split(command)[1].split("\n")[0].endswith(" --weights uniform")
+
+
+def test_diagnose_auto_text_is_the_diagnosis_then_each_rung_of_its_ladder(
+    fixture_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The streamed text is the whole diagnosis, then the ladder, as one piece of text would
+    have it."""
+    assert main(["diagnose", str(fixture_campaign), "--run", "soft-0", "--auto",
+                 "--jobs", "1"]) == 0
+    streamed = capsys.readouterr().out
+    with CampaignFile.open(fixture_campaign) as campaign:
+        first = diagnose_run(campaign, "soft-0")
+    ladder = first.auto()
+    assert len(ladder) >= 2
+    assert streamed == format_diagnosis(first, str(fixture_campaign), ladder) + "\n"
+
+
+def test_diagnose_auto_prints_the_first_answer_while_it_climbs(fixture_campaign: Path) -> None:
+    """``diagnose --auto`` shows what is most likely missing, and the command that adds it,
+    before the ladder is climbed: the last rung arrives well after them (a rung is a refit and
+    a diagnosis step, half a second here), not microseconds after them as from one write."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "viscorig", "diagnose", str(fixture_campaign), "--run", "soft-0",
+         "--auto", "--jobs", "1"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    assert process.stdout is not None
+    received: list[tuple[float, str]] = []
+    while chunk := os.read(process.stdout.fileno(), 65536):
+        received.append((time.monotonic(), chunk.decode()))
+    assert process.wait(timeout=120) == 0
+    text = "".join(part for _, part in received)
+    first, ladder = text.split(LADDER_HEADING)
+    assert "most likely missing: fixture_resonance" in first
+    assert "\nnext: viscorig identify" in first
+    rungs = [line for line in ladder.splitlines() if line.startswith("  ")]
+    assert rungs[0].split()[0] == "voigt" and len(rungs) >= 2
+    heading_at = next(at for at, part in received if LADDER_HEADING in part)
+    assert received[-1][0] - heading_at > 0.1
 
 
 def test_diagnose_bad_input_is_one_line(

@@ -4,8 +4,10 @@ Fits the model (default ``voigt`` on both FRFs, the table held at the file's bar
 ``/rig`` values), shows where it departs from the measurements, which effect is most likely
 missing and why, and the exact ``identify`` command with that effect added. ``--auto`` adds the
 best significant effect (and the local modes significant next to it) and refits until nothing
-significant is left, and prints the ladder. Runs of the same specimen at other levels or in the
-other sweep direction are diagnosed jointly (``--alone`` to diagnose the run by itself).
+significant is left, and prints the ladder, each rung as it is reached: the diagnosis of the
+model given is printed first, while the ladder is climbed. Runs of the same specimen at other
+levels or in the other sweep direction are diagnosed jointly (``--alone`` to diagnose the run
+by itself).
 The file is only read, before anything is fitted; each step's candidate fits run on ``--jobs``
 worker processes, one per core by default (:mod:`viscorig.diagnosis.workers`): the same numbers
 as in one process, sooner.
@@ -63,14 +65,21 @@ def handler(args: argparse.Namespace) -> int:
                              with_companions=not args.alone)
     with executor(jobs=args.jobs) as workers, fitting_on(workers):
         diagnosis = diagnose(data, args.model)
-        ladder = diagnosis.auto() if args.auto else None
-    if args.json:
-        document = diagnosis.to_json(ladder)
-        if ladder is not None:
-            document["final"] = ladder[-1].to_json()
-        print(jsontext.dumps(document))
-    else:
-        print(format_diagnosis(diagnosis, args.file, ladder, band))
+        if args.json:
+            ladder = diagnosis.auto() if args.auto else None
+            document = diagnosis.to_json(ladder)
+            if ladder is not None:
+                document["final"] = ladder[-1].to_json()
+            print(jsontext.dumps(document))
+            return 0
+        # the first diagnosis is the first answer: shown while the ladder is climbed
+        print("\n".join(diagnosis_lines(diagnosis, args.file, band)), flush=True)
+        if args.auto:
+            print(LADDER_HEADING, flush=True)
+            for step in diagnosis.climb():
+                print(rung_line(step), flush=True)
+            if step is not diagnosis:
+                print("next: " + next_command(args.file, diagnosis.data.run, step.model, band))
     return 0
 
 
@@ -84,14 +93,37 @@ def next_command(file: str, run: str, spec: str, band: tuple[float, float] | Non
     return shlex.join(words)
 
 
+#: The line above the ladder's rungs.
+LADDER_HEADING = "ladder (model -> rms_error):"
+
+
 def format_diagnosis(
     d: DiagnosisResult,
     file: str,
     ladder: list[DiagnosisResult] | None = None,
     band_hz: tuple[float, float] | None = None,
 ) -> str:
-    """Human-readable diagnosis: where it fails, what is missing, what to run next."""
-    last = ladder[-1] if ladder else d
+    """Human-readable diagnosis: where it fails, what is missing, what to run next, and the
+    ladder climbed from it when given."""
+    lines = diagnosis_lines(d, file, band_hz)
+    if ladder:
+        lines += [LADDER_HEADING, *(rung_line(step) for step in ladder)]
+        if ladder[-1] is not d:
+            lines.append("next: " + next_command(file, d.data.run, ladder[-1].model, band_hz))
+    return "\n".join(lines)
+
+
+def rung_line(step: DiagnosisResult) -> str:
+    """One rung of the ladder: model, rms error, its ratio to the noise floor."""
+    mark = "  at the noise floor" if step.at_noise_floor else ""
+    return (f"  {step.model:<44} {step.rms_error:.3e}  "
+            f"({step.rms_error / step.noise_floor:.2f} x floor){mark}")
+
+
+def diagnosis_lines(
+    d: DiagnosisResult, file: str, band_hz: tuple[float, float] | None = None
+) -> list[str]:
+    """The diagnosis of one model: where it fails, what is missing, what to run next."""
     lines = [
         f"run {d.data.run}: model {d.model}, FRFs {', '.join(d.data.frfs)}"
         + (f", with runs {', '.join(d.data.runs[1:])}" if len(d.data.runs) > 1 else ""),
@@ -147,14 +179,4 @@ def format_diagnosis(
         lines.append("next: " + next_command(file, d.data.run, best.model, band_hz))
     for text in d.advice:
         lines.append(f"to tell them apart: {text}")
-    if ladder:
-        lines.append("ladder (model -> rms_error):")
-        for step in ladder:
-            mark = "  at the noise floor" if step.at_noise_floor else ""
-            lines.append(
-                f"  {step.model:<44} {step.rms_error:.3e}  "
-                f"({step.rms_error / step.noise_floor:.2f} x floor){mark}"
-            )
-        if last is not d:
-            lines.append("next: " + next_command(file, d.data.run, last.model, band_hz))
-    return "\n".join(lines)
+    return lines

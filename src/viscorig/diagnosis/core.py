@@ -8,7 +8,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -186,20 +186,24 @@ class DiagnosisResult:
         Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
         the local modes found significant next to it (:meth:`with_significant`). Last, any
         effect that no longer pays for itself in the final model is taken out again, one step
-        each (:meth:`without_unpaid`).
+        each (:meth:`without_unpaid`). :meth:`climb` gives the same rungs as each is reached.
         """
-        ladder = [self]
-        while len(ladder) <= max_steps:
-            current = ladder[-1]
-            if not current.significant:
-                break
-            ladder.append(current.with_significant())
-        while len(ladder) > 1:
-            lighter = ladder[-1].without_unpaid()
+        return list(self.climb(max_steps))
+
+    def climb(self, max_steps: int = MAX_AUTO_STEPS) -> Iterator[DiagnosisResult]:
+        """The rungs of :meth:`auto`, each as soon as it is reached (this diagnosis first), so
+        that what the first steps found can be shown while the next ones are fitted."""
+        yield self
+        current, steps = self, 1
+        while steps <= max_steps and current.significant:
+            current, steps = current.with_significant(), steps + 1
+            yield current
+        while steps > 1:
+            lighter = current.without_unpaid()
             if lighter is None:
-                break
-            ladder.append(lighter)
-        return ladder
+                return
+            current, steps = lighter, steps + 1
+            yield current
 
     def without_unpaid(self) -> DiagnosisResult | None:
         """The diagnosis of this model less the effect term that no longer pays for itself in
