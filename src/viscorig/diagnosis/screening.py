@@ -37,6 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.scan import Residual, ScanResult
@@ -99,6 +100,19 @@ def per_misfit(current: Likelihood, data: DiagnosisData, gain: float) -> float:
     leave, as the test that follows a fit counts it (:func:`~.significance.judge`): far from
     the noise, any term soaks up some misfit, and only its share of ``φ`` says it may pay."""
     return gain / dispersion(current.chi2 - gain, data.residual_count, len(current.free) + 1)
+
+
+def _change(current: Likelihood, data: DiagnosisData, extended: Model,
+            added: dict[str, float]) -> dict[str, NDArray[np.complex128]]:
+    """``log(H_extended/H_current)`` per FRF: what the term ``extended`` adds to the current
+    model changes, with its parameters at ``added`` (local names)."""
+    ctx = data.data.context()
+    known = {term.spec for term in current.model.effects}
+    names = extended.local_names(next(t for t in extended.effects if t.spec not in known))
+    base = current.model.predict(ctx, current.values)
+    moved = extended.predict(ctx, {**current.values, **{names[k]: v for k, v in added.items()}})
+    with np.errstate(all="ignore"):
+        return {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
 
 
 def _has(model: Model, keyword: str, argument: str | None = None) -> bool:
@@ -260,15 +274,7 @@ def screen_frame(
         framed = Model((*model.terms, Frame()))
     except InputError:
         return None  # a coupling term that cannot sit on a frame
-    ctx = data.data.context()
-    frame = next(term for term in framed.effects if term.keyword == "frame")
-    names = framed.local_names(frame)
-    base = model.predict(ctx, current.values)
-    moved = framed.predict(ctx, {**current.values,
-                                 **{names[k]: v for k, v in FRAME_START.items()}})
-    with np.errstate(all="ignore"):
-        change = {frf: np.log(moved[frf] / base[frf]) for frf in data.frfs}
-    size, stderr, gain = residual.estimate(change)
+    size, stderr, gain = residual.estimate(_change(current, data, framed, FRAME_START))
     need = threshold(3, alpha)
     if per_misfit(current, data, gain) < SENSOR_TRY_SHARE * need:
         return None  # short of the lower threshold: no need for the look-elsewhere length
@@ -406,13 +412,8 @@ def _weak(current: Likelihood, data: DiagnosisData, residual: Residual,
         model = Model((*current.model.terms, TERMS[candidate.term]()))
     except InputError:
         return False
-    term = next(t for t in model.effects if t.keyword == candidate.term)
-    ctx = data.data.context()
-    base = current.model.predict(ctx, current.values)
-    moved = model.predict(ctx, {**current.values, model.local_names(term)[name]: step})
-    with np.errstate(all="ignore"):
-        change = {frf: np.log(moved[frf] / base[frf]) / step for frf in data.frfs}
-    _, _, gain = residual.estimate(change)
+    change = _change(current, data, model, {name: step})
+    _, _, gain = residual.estimate({frf: c / step for frf, c in change.items()})
     return per_misfit(current, data, gain) < SENSOR_TRY_SHARE * candidate.threshold
 
 
