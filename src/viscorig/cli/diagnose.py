@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+from collections.abc import Iterable, Iterator
 
 from viscorig import jsontext
 from viscorig.cli import summary_of
@@ -73,13 +74,9 @@ def handler(args: argparse.Namespace) -> int:
             print(jsontext.dumps(document))
             return 0
         # the first diagnosis is the first answer: shown while the ladder is climbed
-        print("\n".join(diagnosis_lines(diagnosis, args.file, band)), flush=True)
-        if args.auto:
-            print(LADDER_HEADING, flush=True)
-            for step in diagnosis.climb():
-                print(rung_line(step), flush=True)
-            if step is not diagnosis:
-                print("next: " + next_command(args.file, diagnosis.data.run, step.model, band))
+        rungs = diagnosis.climb() if args.auto else None
+        for line in diagnosis_text(diagnosis, args.file, rungs, band):
+            print(line, flush=True)
     return 0
 
 
@@ -105,12 +102,26 @@ def format_diagnosis(
 ) -> str:
     """Human-readable diagnosis: where it fails, what is missing, what to run next, and the
     ladder climbed from it when given."""
-    lines = diagnosis_lines(d, file, band_hz)
-    if ladder:
-        lines += [LADDER_HEADING, *(rung_line(step) for step in ladder)]
-        if ladder[-1] is not d:
-            lines.append("next: " + next_command(file, d.data.run, ladder[-1].model, band_hz))
-    return "\n".join(lines)
+    return "\n".join(diagnosis_text(d, file, ladder, band_hz))
+
+
+def diagnosis_text(
+    d: DiagnosisResult,
+    file: str,
+    ladder: Iterable[DiagnosisResult] | None = None,
+    band_hz: tuple[float, float] | None = None,
+) -> Iterator[str]:
+    """The lines of :func:`format_diagnosis`, the ladder's as its rungs come (``ladder`` may be
+    :meth:`~viscorig.diagnosis.DiagnosisResult.climb`, climbed as the lines are read)."""
+    yield from diagnosis_lines(d, file, band_hz)
+    last = None
+    for step in ladder or ():
+        if last is None:
+            yield LADDER_HEADING
+        yield rung_line(step)
+        last = step
+    if last is not None and last is not d:
+        yield "next: " + next_command(file, d.data.run, last.model, band_hz)
 
 
 def rung_line(step: DiagnosisResult) -> str:
