@@ -372,17 +372,17 @@ def test_diagnose_auto_prints_the_first_answer_while_it_climbs(fixture_campaign:
         [sys.executable, "-m", "viscorig", "diagnose", str(fixture_campaign), "--run", "soft-0",
          "--auto", "--jobs", "1"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     assert process.stdout is not None
-    received: list[tuple[float, str]] = []
+    received: list[tuple[float, bytes]] = []
     while chunk := os.read(process.stdout.fileno(), 65536):
-        received.append((time.monotonic(), chunk.decode()))
+        received.append((time.monotonic(), chunk))
     assert process.wait(timeout=120) == 0
-    text = "".join(part for _, part in received)
+    text = b"".join(part for _, part in received).decode()
     first, ladder = text.split(LADDER_HEADING)
     assert "most likely missing: fixture_resonance" in first
     assert "\nnext: viscorig identify" in first
     rungs = [line for line in ladder.splitlines() if line.startswith("  ")]
     assert rungs[0].split()[0] == "voigt" and len(rungs) >= 2
-    heading_at = next(at for at, part in received if LADDER_HEADING in part)
+    heading_at = next(at for at, part in received if LADDER_HEADING.encode() in part)
     assert received[-1][0] - heading_at > 0.1
 
 
