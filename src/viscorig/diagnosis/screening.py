@@ -275,12 +275,13 @@ def screen_frame(
     except InputError:
         return None  # a coupling term that cannot sit on a frame
     size, stderr, gain = residual.estimate(_change(current, data, framed, FRAME_START))
+    scaled = per_misfit(current, data, gain)
     need = threshold(3, alpha)
-    if per_misfit(current, data, gain) < SENSOR_TRY_SHARE * need:
+    if scaled < SENSOR_TRY_SHARE * need:
         return None  # short of the lower threshold: no need for the look-elsewhere length
     need = max(need, scan_threshold(_frame_length(model, framed, current, data, residual),
                                     alpha))
-    if per_misfit(current, data, gain) < SENSOR_TRY_SHARE * need:
+    if scaled < SENSOR_TRY_SHARE * need:
         return None
     evidence = (
         "the error changes at the low end of the band as when the inertial frame under the "
