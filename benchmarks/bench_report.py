@@ -7,7 +7,8 @@ The campaign is made first with ``viscorig run sequences/paper.toml --yes`` on t
 
 - baseline: ``viscorig summary`` (the table fit and the six Voigt fits of Tables 1 and 2), the
   least any report of the campaign must do;
-- the report's phases with each run diagnosed once: analysis, figures (PNG and SVG), page;
+- the report's phases with each run diagnosed once: analysis, figures (PNG, the default; and
+  PNG and SVG, as ``--svg`` draws them), page;
 - the whole ``viscorig report`` command: without diagnosis, with each run diagnosed once
   (``--no-ladder``), and as by default, climbing the diagnosis ladder of every run in parallel
   processes, and in one process (``--jobs 1``, the target's case).
@@ -85,10 +86,13 @@ def run(ladder: bool) -> None:
                                                                  jobs=1))
     (folder / "phases").mkdir()
     figures, f_wall, f_cpu = timed(lambda: campaign_figures(analysis, folder / "phases"))
+    _, v_wall, v_cpu = timed(lambda: campaign_figures(analysis, folder / "phases", svg=True))
     _, p_wall, p_cpu = timed(lambda: build_page(analysis, figures, "bench"))
     print(f"phase     analysis + diagnosis      wall {a_wall:6.2f} s   cpu {a_cpu:6.2f} s")
-    print(f"phase     {len(figures)} figures, PNG + SVG     wall {f_wall:6.2f} s   "
-          f"cpu {f_cpu:6.2f} s")
+    print(f"phase     {len(figures)} figures, PNG           wall {f_wall:6.2f} s   "
+          f"cpu {f_cpu:6.2f} s   {f_wall / sim_wall:4.2f}x the simulation")
+    print(f"phase     {len(figures)} figures, PNG + SVG     wall {v_wall:6.2f} s   "
+          f"cpu {v_cpu:6.2f} s   (--svg)")
     print(f"phase     page                      wall {p_wall:6.2f} s   cpu {p_cpu:6.2f} s")
     cases = [("report --no-diagnosis", ["--no-diagnosis"]), ("report --no-ladder", ["--no-ladder"]),
              ("report (ladder)", [])]

@@ -256,7 +256,8 @@ def test_report_of_a_dma_campaign_shows_the_master_curve(tmp_path, capsys):
     assert "Kramers-Kronig: 1 point(s) named: loss at 10.0 °C, 100 Hz" in page
     assert "superposition holds" in page.lower()
     assert (out / "material-sweep-master.png").stat().st_size > 10_000
-    assert (out / "material-sweep-residuals.svg").exists()
+    assert (out / "material-sweep-residuals.png").exists()
+    assert not list(out.glob("*.svg"))  # vector copies only with --svg
 
 
 def test_rig_modulus_from_a_stored_fit_is_its_kstar_over_theta(tmp_path):

@@ -28,7 +28,8 @@ def campaign_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def report_dir(campaign_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("out") / "report"
-    assert main(["report", str(campaign_file), "--out", str(out), "--no-diagnosis"]) == 0
+    assert main(["report", str(campaign_file), "--out", str(out), "--no-diagnosis",
+                 "--svg"]) == 0
     return out
 
 

@@ -56,7 +56,7 @@ COMMANDS: dict[str, Command] = {
     "summary": Command(
         "summary", "Table 1 and Table 2 of the paper for every run of a campaign"
     ),
-    "report": Command("report", "HTML report with figures (PNG, SVG) of a campaign file"),
+    "report": Command("report", "HTML report with figures (PNG, SVG on request) of a campaign"),
     "export": Command(
         "exchange",
         "write a run's FRFs to UFF 58 or CSV, or a material card (Abaqus, ANSYS, LS-DYNA)",

@@ -1,9 +1,10 @@
 """``viscorig report FILE [--out DIR]``: the campaign as one self-contained HTML page.
 
 Writes ``DIR/index.html`` (figures embedded, no script, nothing fetched: it opens offline) and
-every figure as PNG and SVG beside it. The page leads with the answer: per run the best model
-the diagnosis ladder reaches, its error against the noise floor, the main parameters with their
-±, where it still fails and the finding in one sentence, then what preload changed (with ±).
+every figure as PNG beside it (and as SVG with --svg). The page leads with the answer: per run
+the best model the diagnosis ladder reaches, its error against the noise floor, the main
+parameters with their ±, where it still fails and the finding in one sentence, then what
+preload changed (with ±).
 Then Tables 1 and 2 beside the paper's values, E' and η against frequency, and per run the
 FRFs with the bands where the model shown still fails, the residual and the ladder.
 
@@ -44,6 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--ladder", action="store_true", help=argparse.SUPPRESS)  # the default
     parser.add_argument("--jobs", type=positive_int, default=None,
                         help="processes climbing ladders at once (default: one per core)")
+    parser.add_argument("--svg", action="store_true",
+                        help="also write every figure as SVG, for print (draws each figure a "
+                        "second time)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="climb the ladders on the workers of this Dask cluster (optional "
                         "extra viscorig[dask]; the workers must see FILE at the same path)")
@@ -58,7 +62,9 @@ def handler(args: argparse.Namespace) -> int:
     path = Path(args.file)
     out = Path(args.out) if args.out else path.with_name(path.stem + "-report")
     page = build_report(path, out, band_hz=band, diagnosis=not args.no_diagnosis,
-                        ladder=not args.no_ladder, jobs=args.jobs, scheduler=args.scheduler)
+                        ladder=not args.no_ladder, jobs=args.jobs, scheduler=args.scheduler,
+                        svg=args.svg)
     figures = len(list(out.glob("*.png")))
-    print(f"{page}  ({figures} figures as PNG and SVG in {out})")
+    formats = "PNG and SVG" if args.svg else "PNG"
+    print(f"{page}  ({figures} figures as {formats} in {out})")
     return 0

@@ -31,8 +31,10 @@ def build_report(
     ladder: bool = True,
     jobs: int | None = None,
     scheduler: str | None = None,
+    svg: bool = False,
 ) -> Path:
-    """Write ``out_dir/index.html`` and every figure as ``.png`` and ``.svg``; return the page.
+    """Write ``out_dir/index.html`` and every figure as ``.png`` (and ``.svg`` with ``svg``);
+    return the page.
 
     ``diagnosis``, ``ladder``, ``jobs`` and ``scheduler`` as in
     :func:`~viscorig.report.analysis.analyse_campaign`.
@@ -51,7 +53,7 @@ def build_report(
     except OSError as error:
         raise InputError(f"cannot create the report folder ({error.strerror})",
                          str(out_dir)) from None
-    section = material_section(materials, material_figures(materials, out_dir), figure_html)
+    section = material_section(materials, material_figures(materials, out_dir, svg), figure_html)
     title = f"viscorig report: {Path(campaign_path).name}"
     if not campaign.run_names:
         page = out_dir / PAGE_NAME
@@ -64,8 +66,9 @@ def build_report(
     _log.info("analysis: %.1f s (diagnosis %.1f s over %d process(es))", analysis.seconds,
               analysis.diagnosis_seconds, analysis.jobs)
     started = time.perf_counter()
-    figures = campaign_figures(analysis, out_dir, jobs)
-    _log.info("%d figures (PNG and SVG): %.1f s", len(figures), time.perf_counter() - started)
+    figures = campaign_figures(analysis, out_dir, jobs, svg)
+    _log.info("%d figures (%s): %.1f s", len(figures), "PNG and SVG" if svg else "PNG",
+              time.perf_counter() - started)
     page = out_dir / PAGE_NAME
     page.write_text(build_page(analysis, figures, title, section), encoding="utf-8")
     return page

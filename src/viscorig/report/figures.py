@@ -1,5 +1,6 @@
 """The report's figures, drawn with matplotlib's object API on the Agg canvas (no pyplot, no
-display, no global state), each saved as PNG and SVG.
+display, no global state), each saved as PNG, and as SVG too when asked (a second drawing of
+the figure by another renderer: it costs about two thirds of the PNG's time again).
 """
 
 from __future__ import annotations
@@ -75,15 +76,18 @@ def _plain_log_labels(figure: Figure) -> None:
                                               minor_thresholds=formatter.minor_thresholds))
 
 
-def save(figure: Figure, folder: Path | None, stem: str, caption: str) -> SavedFigure:
-    """Write ``stem.png`` and ``stem.svg`` in ``folder`` (when given); return the PNG bytes."""
+def save(figure: Figure, folder: Path | None, stem: str, caption: str, *,
+         svg: bool = False) -> SavedFigure:
+    """Write ``stem.png`` (and ``stem.svg`` with ``svg``) in ``folder`` when given; return the
+    PNG bytes."""
     _plain_log_labels(figure)
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=DPI)
     png = buffer.getvalue()
     if folder is not None:
         (folder / f"{stem}.png").write_bytes(png)
-        figure.savefig(folder / f"{stem}.svg", format="svg")
+        if svg:
+            figure.savefig(folder / f"{stem}.svg", format="svg")
     return SavedFigure(stem, caption, png)
 
 
@@ -317,48 +321,52 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     return figure
 
 
-def run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
-    """The figures of one run (FRFs, residual, ladder), by stem.
+def run_figures(run: RunAnalysis, folder: Path | None, svg: bool = False
+                ) -> dict[str, SavedFigure]:
+    """The figures of one run (FRFs, residual, ladder), by stem (``svg`` as in :func:`save`).
 
     A point no analyser measures (the fits refuse it, the page names it) stretches a log axis
     past what matplotlib's tick arithmetic holds: it is drawn all the same, without numpy's
     overflow warnings.
     """
     with np.errstate(over="ignore", invalid="ignore"):
-        return _run_figures(run, folder)
+        return _run_figures(run, folder, svg)
 
 
-def _run_figures(run: RunAnalysis, folder: Path | None) -> dict[str, SavedFigure]:
+def _run_figures(run: RunAnalysis, folder: Path | None, svg: bool) -> dict[str, SavedFigure]:
     saved: dict[str, SavedFigure] = {}
     if not run.run.points:
         return saved
     saved[f"frf-{run.name}"] = save(
         frf_figure(run), folder, f"frf-{run.name}",
         f"Run {run.name}: measured FRFs and the model shown; shaded: bands where that "
-        "model still fails (diagnosis); crosses: flagged points.")
+        "model still fails (diagnosis); crosses: flagged points.", svg=svg)
     residual = residual_figure(run)
     if residual is not None:
         saved[f"residual-{run.name}"] = save(
             residual, folder, f"residual-{run.name}",
             f"Run {run.name}: relative residual of the model shown, with the local noise "
-            "estimated from the data and the noise floor.")
+            "estimated from the data and the noise floor.", svg=svg)
     ladder = ladder_figure(run)
     if ladder is not None:
         saved[f"ladder-{run.name}"] = save(
             ladder, folder, f"ladder-{run.name}",
             f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
-            "effect is added, step by step (or, without the ladder, each candidate alone).")
+            "effect is added, step by step (or, without the ladder, each candidate alone).",
+            svg=svg)
     return saved
 
 
 def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
-                     jobs: int = 1) -> dict[str, SavedFigure]:
-    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``).
+                     jobs: int = 1, svg: bool = False) -> dict[str, SavedFigure]:
+    """Every figure of the report, by stem (``frf-soft-0``, ``moduli-soft``, ``preload``);
+    ``svg`` as in :func:`save`.
 
     The runs' figures are drawn in ``jobs`` processes at once.
     """
     saved: dict[str, SavedFigure] = {}
-    for figures in parallel_map(run_figures, [(run, folder) for run in analysis.runs], jobs):
+    for figures in parallel_map(run_figures, [(run, folder, svg) for run in analysis.runs],
+                                jobs):
         saved.update(figures)
     groups = rubbers(analysis)
     for name, members in groups.items():
@@ -366,9 +374,10 @@ def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
             moduli_figure(name, members, analysis.theta_m), folder, f"moduli-{name}",
             f"{name}: storage {'modulus' if analysis.theta_m else 'stiffness'} and loss factor "
             "against frequency, Eq. (5) estimates (points) and the K* of the models shown "
-            "(lines).")
+            "(lines).", svg=svg)
     preload = preload_figure(groups)
     if preload is not None:
         saved["preload"] = save(preload, folder, "preload",
-                                "Preload effect per rubber, from the K* of the models shown.")
+                                "Preload effect per rubber, from the K* of the models shown.",
+                                svg=svg)
     return saved

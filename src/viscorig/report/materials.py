@@ -138,19 +138,20 @@ def master_residual_figure(master: MasterCurve) -> Figure:
     return figure
 
 
-def material_figures(materials: list[Material], folder: Path | None
+def material_figures(materials: list[Material], folder: Path | None, svg: bool = False
                      ) -> dict[str, SavedFigure]:
-    """Every material's two figures, saved as PNG and SVG."""
+    """Every material's two figures, saved as PNG (and SVG with ``svg``)."""
     figures = {}
     for material in materials:
         if material.master is None:
             continue
         stem = "material-" + "-".join(material.runs)[:60]
         figures[f"{stem}-master"] = save(master_figure(material.master), folder,
-                                         f"{stem}-master", "Master curve and shift factors.")
+                                         f"{stem}-master", "Master curve and shift factors.",
+                                         svg=svg)
         figures[f"{stem}-residuals"] = save(master_residual_figure(material.master), folder,
                                             f"{stem}-residuals",
-                                            "Residuals of the Prony series.")
+                                            "Residuals of the Prony series.", svg=svg)
     return figures
 
 
