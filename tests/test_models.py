@@ -189,3 +189,20 @@ def test_registering_a_clashing_keyword_is_refused() -> None:
 
     with pytest.raises(ValueError, match="already registered"):
         register_term(Other)
+
+
+def test_a_channel_term_sent_to_a_worker_process_keeps_its_channel():
+    """Diagnosis renames a channel delay fitted negative to the other channel of its FRF, by
+    the channel's identity; a term that came back from a worker process must still be on one
+    of the four channels, not on a copy that matches none."""
+    import pickle
+
+    from viscorig.models.sensors import CHANNELS, Delay
+
+    for name, channel in CHANNELS.items():
+        assert pickle.loads(pickle.dumps(channel)) is channel
+        term = pickle.loads(pickle.dumps(Delay(name)))
+        assert term.channel is channel
+        others = [c for c in CHANNELS.values() if c.frf == term.channel.frf
+                  and c is not term.channel]
+        assert len(others) == 1 and others[0].name != name

@@ -52,6 +52,14 @@ class Channel:
     def __repr__(self) -> str:
         return f"<Channel {self.name}>"
 
+    def __reduce__(self) -> tuple[object, tuple[str]]:
+        # one object per channel, in a worker process too: terms compare channels by identity
+        return _channel, (self.name,)
+
+
+def _channel(name: str) -> Channel:
+    return CHANNELS[name]
+
 
 #: The channels, in channel order 1..4 of the analyser (physics.md).
 CHANNELS: dict[str, Channel] = {
