@@ -1,6 +1,10 @@
-"""The diagnosis ladder gives the same answers as recorded before its computation was made
-faster (vectorised Jacobians, warm starts, caching): the same rungs and findings, every final
-parameter within its standard error (``tests/ladder_reference.py`` made the record)."""
+"""The diagnosis ladder gives the same answers as recorded (``tests/ladder_reference.py`` made
+the record): the same rungs and findings, every final parameter within its standard error, so
+that a change of the computation (vectorised Jacobians, warm starts, caching) cannot move them
+unnoticed. And the record is right: every preset's ladder ends at the simulator's own rig, its
+fractional rubber, load cell and three local modes, with the rubber's parameters and the disc's
+mass within three standard errors of the values in the simulator's rig file (the static
+stiffness within 0.25 %)."""
 
 from __future__ import annotations
 
@@ -10,6 +14,7 @@ import re
 import numpy as np
 import pytest
 from ladder_reference import FIXTURE, PRESETS, TABLE, climb, frequencies, measured_run, shape
+from rigsim.rigfile import load_preset
 
 RECORD = json.loads(FIXTURE.read_text())
 BY_RUN = {run["run"]: run for run in RECORD["runs"]}
@@ -70,10 +75,41 @@ def test_first_diagnosis_of_hard_10_as_recorded():
         (f["effect"], shape(f["term"])) for f in before["first_findings"]]
 
 
+#: The simulator's rig file (``sim/rigs/PRESET.toml``, ``[device]``) -> the identified name.
+TRUTH_NAMES = {"high_stiffness_n_per_m": "K_inf", "tau_s": "tau", "alpha": "alpha",
+               "mass_kg": "M_v"}
+#: The static stiffness comes out 0.10 to 0.17 % high on every preset (1.8 standard errors on
+#: the soft rubber, 7 on the hard one, whose ± is the smallest): a bias the model found does
+#: not explain, pinned here so that it cannot grow unnoticed.
+STATIC_STIFFNESS_BIAS = 0.0025
+#: The simulator's local modes (``[[fixture]]``), Hz.
+MODES_HZ = (38.0, 58.0, 92.0)
+
+
+def assert_the_simulators_rig(preset: str, final: dict, spec: str) -> None:
+    device = load_preset(preset).device
+    assert shape(spec) == "fractional+load_cell+fixture()+fixture()+fixture()", spec
+    for field, name in TRUTH_NAMES.items():
+        truth = getattr(device if field == "mass_kg" else device.material, field)
+        assert abs(final[name]["value"] - truth) <= 3 * final[name]["stderr"], (name, truth)
+    static = device.material.static_stiffness_n_per_m
+    assert final["K_0"]["value"] == pytest.approx(static, rel=STATIC_STIFFNESS_BIAS)
+    modes = sorted(final[n]["value"] for n in final if n.startswith("f_n"))
+    np.testing.assert_allclose(modes, MODES_HZ, rtol=1e-3)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("preset", PRESETS)
 def test_ladder_as_recorded(preset):
-    assert_same_ladder(BY_RUN[preset], climb(preset))
+    climbed = climb(preset)
+    assert_same_ladder(BY_RUN[preset], climbed)
+    assert_the_simulators_rig(preset, climbed["final"], climbed["rungs"][-1]["model"])
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_the_record_is_the_simulators_rig(preset):
+    run = BY_RUN[preset]
+    assert_the_simulators_rig(preset, run["final"], run["rungs"][-1]["model"])
 
 
 @pytest.mark.slow

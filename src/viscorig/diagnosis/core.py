@@ -23,6 +23,7 @@ from viscorig.diagnosis.findings import (
     confirm,
     fit_with,
     identify_fit,
+    other_family,
     refit,
     unpaid_term,
 )
@@ -194,9 +195,18 @@ class DiagnosisResult:
         """The rungs of :meth:`auto`, each as soon as it is reached (this diagnosis first), so
         that what the first steps found can be shown while the next ones are fitted."""
         yield self
-        current, steps = self, 1
-        while steps <= max_steps and current.significant:
-            current, steps = current.with_significant(), steps + 1
+        current, steps, family_checked = self, 1, False
+        while True:
+            while steps <= max_steps and current.significant:
+                current, steps = current.with_significant(), steps + 1
+                yield current
+            if family_checked or steps == 1:
+                break
+            family_checked = True
+            swapped = current.in_other_family()
+            if swapped is None:
+                break
+            current, steps = swapped, steps + 1
             yield current
         while steps > 1:
             lighter = current.without_unpaid()
@@ -204,6 +214,14 @@ class DiagnosisResult:
                 return
             current, steps = lighter, steps + 1
             yield current
+
+    def in_other_family(self) -> DiagnosisResult | None:
+        """The diagnosis of this model with its Maxwell K* replaced by the fractional one when
+        the data prefer it (:func:`~viscorig.diagnosis.findings.other_family`), or ``None``."""
+        swapped = other_family(self.likelihood, self.data)
+        if swapped is None:
+            return None
+        return analyse(self.data, identify_fit(swapped, self.data), swapped)
 
     def without_unpaid(self) -> DiagnosisResult | None:
         """The diagnosis of this model less the effect term that no longer pays for itself in

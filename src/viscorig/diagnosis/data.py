@@ -83,7 +83,7 @@ class DiagnosisData:
         if not self.nuisance or phi == self.prior_scale:
             return self
         other = replace(self, prior_scale=float(phi))
-        for key in ("_whitening", "_diagonal", "_kept", "_prior_w"):
+        for key in ("_whitening", "_kept", "_prior_w"):
             if key in self.__dict__:
                 object.__setattr__(other, key, self.__dict__[key])
         return other
@@ -188,9 +188,7 @@ class DiagnosisData:
         """Independent real observations the data are worth (fewer than 2N with a drift)."""
         return max(self.noise.effective_points(self.frfs), 2.0)
 
-    def whiten(
-        self, residuals: dict[str, NDArray[np.complex128]], exact: bool = True
-    ) -> NDArray[np.float64]:
+    def whiten(self, residuals: dict[str, NDArray[np.complex128]]) -> NDArray[np.float64]:
         """The residuals (``H_model/H_measured − 1`` per FRF, a point per row, one column per
         vector) whitened by the noise model: real numbers of unit variance, independent, when
         they are noise, in the noise model's layout (real parts of every FRF, then imaginary
@@ -200,11 +198,9 @@ class DiagnosisData:
         once (a diagonal for white noise, the O(n) Kalman whitening of a drift,
         :class:`~viscorig.fitting.noise.MarkovWhitening`, or ``L⁻¹`` of its Cholesky factor
         ``L`` where the points are not in time order) so that the many evaluations of a fit
-        cost little each. ``exact=False`` divides each point by its total ``σ`` instead (the
-        drift's correlation left out): a cheap stand-in for fits whose result is then judged
-        with the exact whitening."""
+        cost little each."""
         masks = self._masks()
-        operators = self._operators() if exact else self._diagonal_operators()
+        operators = self._operators()
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
@@ -222,16 +218,9 @@ class DiagnosisData:
                         parts[part].append(operator @ values)
         return np.concatenate(parts["re"] + parts["im"])
 
-    def _diagonal_operators(self):
-        """Per FRF: ``(rows, {part: 1/σ of each point's part})`` of each noise block."""
-        return self._built("_diagonal", False)
-
     def _operators(self):
         """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""
-        return self._built("_whitening", True)
-
-    def _built(self, key: str, exact: bool):
-        cached = self.__dict__.get(key)
+        cached = self.__dict__.get("_whitening")
         if cached is None:
             cached = {}
             for frf in self.frfs:
@@ -241,16 +230,16 @@ class DiagnosisData:
                     by_part = {}
                     for part in ("re", "im"):
                         white, correlated = block.part_variance(part)
-                        if exact and correlated > 0:
+                        if correlated > 0:
                             operator = block.whitening(part)
                             by_part[part] = (operator if operator is not None
                                              else block.whiten_part(part, np.eye(block.size)))
                         else:
-                            by_part[part] = 1.0 / np.sqrt(white + (0.0 if exact else correlated))
+                            by_part[part] = 1.0 / np.sqrt(white)
                     blocks.append((rows, by_part))
                     start += block.size
                 cached[frf] = blocks
-            object.__setattr__(self, key, cached)
+            object.__setattr__(self, "_whitening", cached)
         return cached
 
     def whitened_power(self, residuals: dict[str, NDArray[np.complex128]]) -> dict[str, NDArray]:

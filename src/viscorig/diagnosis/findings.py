@@ -5,7 +5,15 @@ Fits. Every candidate is fitted by maximum likelihood on the whitened residual
 screening found (a K* that replaces the current one is first fitted by ``identify``'s fitter,
 from its linear start). Its ``χ²`` drop ``Δχ²`` against the current model, and ``delta_bic =
 −Δχ² + k ln n`` (``k`` added parameters, ``n`` the independent observations the noise model
-says the data are worth), rank the candidates, best first.
+says the data are worth), rank the candidates, best first. The fits stop first at a looser
+tolerance (:data:`FIRST_TOLERANCE`), where each ``Δχ²`` is a lower bound of the finished fit's,
+by a fraction of the misfit ``φ`` as a rule; the candidates whose test, rank or name could still
+change are finished (:func:`_near_decision`).
+
+K* family. A Maxwell K* that would take one more arm is also compared with the fractional K*
+in its place (the candidate's alternative), and the ladder's last model with a Maxwell K* once
+more (:func:`other_family`): the family is picked at the first rungs, far from the noise, and
+is judged again once the other effects are in.
 
 Significance. Candidates are taken best first, and each is tested against the best model so
 far, that is the current model with every effect already found significant: it is fitted with
@@ -246,15 +254,19 @@ def _broad(model: Model) -> set[str]:
 
 
 def fit_term(
-    current: Likelihood, data: DiagnosisData, term_text: str, start: dict[str, float]
+    current: Likelihood, data: DiagnosisData, term_text: str, start: dict[str, float],
+    tolerance: float = 1e-6,
 ) -> Likelihood:
     """Maximum-likelihood fit of the current model with ``term_text`` added (or as its K*).
 
     The new term's parameters are fitted with those that shape the whole band (:func:`_broad`);
     the other terms' (a local mode elsewhere, a sensor's) stay at their current values, which a
     new term barely moves: the drop of ``χ²`` is then a lower bound, and the fit several times
-    faster. The fit weighs each point by its own noise (the drift's correlation left out) and
-    its ``χ²`` is the exact one at the values found: again a lower bound of the drop.
+    faster. The fit is on the statistic the tests compare (the drift's correlation in the
+    whitening), so that where it stops moves its ``χ²`` one way only: a fit weighing each point
+    by its own noise alone, judged on the whole noise model, moved the candidates' ``Δχ²`` by
+    tens of ``φ`` either way with its stopping point, and the ladders with them.
+    ``tolerance``: :func:`~viscorig.diagnosis.weighted.ml_fit`'s.
     """
     model = parse_spec(candidate_spec(current.model, term_text))
     only = _broad(model) | added_parameters(model, term_text)
@@ -265,25 +277,47 @@ def fit_term(
         values = {**model.defaults(), **carried_values(current, model),
                   **extended_start(current.model, current.values, data.data.frequency_hz,
                                    model)}
-        return ml_fit(model, data, values, only=only, exact=False)
+        return ml_fit(model, data, values, only=only, tolerance=tolerance)
     if (model.require_modulus().spec != current.model.require_modulus().spec
             or term_text == "load_cell"):
         # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
-        return ml_fit(first.model, data, first.values, only=only, exact=False)
+        return ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
     values = {**model.defaults(), **carried_values(current, model)}
     values.update(_start_of(model, term_text, start))
-    return ml_fit(model, data, values, only=only, exact=False)
+    return ml_fit(model, data, values, only=only, tolerance=tolerance)
+
+
+#: Candidates are first fitted to this tolerance (a step lowering the cost by less than this
+#: share of it ends the fit; 1e-6 otherwise), and those that may decide something finished
+#: (:func:`_near_decision`).
+FIRST_TOLERANCE = 1e-4
+#: A candidate is near a decision when its first fit's ``Δχ²/φ`` is within this share of its
+#: threshold below it or above, ...
+NEAR_SHARE = 0.5
+#: ... or its ``ΔBIC`` is within this many ``φ`` of the best candidate's, ...
+NEAR_BEST = 5.0
+#: ... or within this share of it: far from the noise a first fit can stop short by several
+#: percent of its ``Δχ²`` (a load cell's, 9 % short of a sensor gain it then beat by 0.2 ``φ``).
+NEAR_SHARE_OF_BEST = 0.2
 
 
 def _fit_term_or_none(current: Likelihood, data: DiagnosisData, term_text: str,
-                      start: dict[str, float]) -> Likelihood | None:
+                      start: dict[str, float], tolerance: float = 1e-6) -> Likelihood | None:
     """:func:`fit_term`, or ``None`` where the term cannot be fitted to these data."""
     try:
-        return fit_term(current, data, term_text, start)
+        return fit_term(current, data, term_text, start, tolerance)
     except (InputError, ValueError, np.linalg.LinAlgError):
         return None
+
+
+def _finish(first: Likelihood, data: DiagnosisData) -> Likelihood:
+    """A candidate's first fit carried on to the usual tolerance, the same parameters free."""
+    try:
+        return ml_fit(first.model, data, first.values, only=first.fitted)
+    except (InputError, ValueError, np.linalg.LinAlgError):
+        return first
 
 
 def _renamed(result: Likelihood, term_text: str, data: DiagnosisData) -> tuple[Likelihood, str]:
@@ -337,8 +371,54 @@ def candidate_fits(
     """Start the fits of every candidate's term and alternatives (:func:`fit_term`, ``None``
     where one cannot be fitted), in that order; what is returned gives their results."""
     return fit_all_later(_fit_term_or_none, [
-        (current, data, term, candidate.start)
+        (current, data, term, candidate.start, FIRST_TOLERANCE)
         for candidate in candidates for term in (candidate.term, *candidate.alternatives)])
+
+
+def _near_decision(current: Likelihood, data: DiagnosisData, candidates: list[Candidate],
+                   fitted: list[Likelihood | None]) -> list[bool]:
+    """Which first fits (:func:`candidate_fits`, in its order) may decide something once
+    finished: every term of a candidate one of whose terms is within :data:`NEAR_SHARE` of its
+    threshold (:func:`judge`); passes it and names a local mode (by its fitted frequency) or
+    has alternatives; or whose ``ΔBIC`` is within :data:`NEAR_BEST` ``φ`` (or
+    :data:`NEAR_SHARE_OF_BEST` of it) of the best one's or
+    of another passing candidate's (the order of the forward tests)."""
+    n_eff = data.effective_points
+    terms = [(index, term) for index, candidate in enumerate(candidates)
+             for term in (candidate.term, *candidate.alternatives)]
+    near: set[int] = set()
+    rows = []
+    for (index, term), result in zip(terms, fitted, strict=True):
+        if result is None:
+            continue
+        candidate = candidates[index]
+        delta, phi, _ = judge(current, result, candidate.threshold, data, term)
+        ratio = delta / phi / candidate.threshold
+        passes = ratio >= 1 - NEAR_SHARE
+        if abs(ratio - 1) < NEAR_SHARE or (passes and (
+                candidate.effect == "fixture_resonance" or candidate.alternatives)):
+            near.add(index)
+        rows.append((index, passes, -delta + (len(result.free) - len(current.free))
+                     * np.log(n_eff), phi))
+    best = min((row[2] for row in rows), default=np.inf)
+    for index, passes, bic, phi in rows:
+        if bic <= best + max(NEAR_BEST * phi, -NEAR_SHARE_OF_BEST * best) or (passes and any(
+                other[1] and other[0] != index and abs(other[2] - bic) < NEAR_BEST * max(
+                    phi, other[3]) for other in rows)):
+            near.add(index)
+    return [index in near for index, _ in terms]
+
+
+def _finished(current: Likelihood, data: DiagnosisData, candidates: list[Candidate],
+              fitted: list[Likelihood | None]) -> list[Likelihood | None]:
+    """The first fits, those near a decision (:func:`_near_decision`) finished."""
+    near = _near_decision(current, data, candidates, fitted)
+    at = [i for i, close in enumerate(near) if close and fitted[i] is not None]
+    done = fit_all(_finish, [(fitted[i], data) for i in at])
+    out = list(fitted)
+    for i, result in zip(at, done, strict=True):
+        out[i] = result
+    return out
 
 
 def confirm(
@@ -352,7 +432,7 @@ def confirm(
     every significant one."""
     n = data.effective_points
     findings: list[Finding] = []
-    fits = iter(fitted)
+    fits = iter(_finished(current, data, candidates, fitted))
     for candidate in candidates:
         best: tuple[float, Likelihood, str] | None = None
         for term in (candidate.term, *candidate.alternatives):
@@ -384,7 +464,7 @@ def confirm(
     _after_modulus(findings)
     forward = _forward(current, data, findings)
     for finding in findings:
-        if finding.significant:  # its ± from the exact whitening, not the fit's stand-in
+        if finding.significant:  # its ± with every parameter free, not only those it moved
             finding.likelihood = evaluate(finding.likelihood.model, data,
                                           finding.likelihood.values)
     _mark_ambiguities(findings, ties)
@@ -434,6 +514,31 @@ def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
     return ml_fit(result.model, data, result.values)
 
 
+def other_family(current: Likelihood, data: DiagnosisData) -> Likelihood | None:
+    """The fit of ``current`` with its Maxwell K* replaced by the fractional one, every other
+    term kept, when the data prefer it by the Bayesian criterion (``χ²/φ + k ln n``, ``φ`` the
+    Maxwell model's misfit); else ``None``.
+
+    The ladder picks a K* family at its first rungs, far from the noise, where a local mode or
+    the load cell not yet added weighs as much as the family's shape, and only adds arms to a
+    Maxwell K* after that. With every effect in place, the four parameters of a fractional K*
+    may describe the same data as many arms do.
+    """
+    if maxwell_order(current.model) is None:
+        return None
+    try:
+        other = _exact(fit_term(current, data, "fractional", {}), data)
+    except (InputError, ValueError, np.linalg.LinAlgError):
+        return None
+    n = data.effective_points
+    phi = dispersion(current.chi2, data.residual_count, len(current.free))
+
+    def bic(result: Likelihood) -> float:
+        return result.chi2 / phi + len(result.free) * np.log(n)
+
+    return other if bic(other) < bic(current) else None
+
+
 def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
     """Mark significant the findings that pay for themselves next to those before them; the fit
     of the model with all of them."""
@@ -464,7 +569,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             continue
         start = {**model.defaults(), **carried_values(finding.likelihood, model),
                  **carried_values(base, model)}
-        result = ml_fit(model, data, start, exact=False,
+        result = ml_fit(model, data, start,
                         only=_broad(model) | added_parameters(model, finding.term))
         delta, phi, passes = judge(base, result, finding.threshold, data, finding.term)
         if passes:

@@ -139,7 +139,7 @@ def screen_modulus(current: Likelihood, data: DiagnosisData, alpha: float) -> Ca
                          threshold(2, alpha / 2), alternatives=("maxwell(2)",), dof=2)
     order = getattr(term, "order", None) or 1
     return Candidate("frequency_dependent_modulus", f"maxwell({order + 1})", evidence,
-                     threshold(2, alpha), dof=2)
+                     threshold(2, alpha), alternatives=("fractional",), dof=2)
 
 
 def screen_load_cell(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:

@@ -186,10 +186,10 @@ class _Objective:
     them, over the fitted coordinates ``x`` (logarithms of positive parameters)."""
 
     def __init__(self, model: Model, data: DiagnosisData, values: dict[str, float],
-                 free: tuple[str, ...], log: NDArray[np.bool_], upper: NDArray[np.float64],
-                 exact: bool) -> None:
+                 free: tuple[str, ...], log: NDArray[np.bool_], upper: NDArray[np.float64]
+                 ) -> None:
         self.model, self.data, self.values, self.free = model, data, values, free
-        self.log, self.upper, self.exact = log, upper, exact
+        self.log, self.upper = log, upper
         self.ctx = data.data.context()
         self.measured = {name: data.data.frf(name) for name in data.frfs}
         self.nuisance = data.nuisance
@@ -227,7 +227,7 @@ class _Objective:
     def _cached_whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         base = self._cached_ratio(x)
         if "whitened" not in self.last:
-            self.last["whitened"] = self.data.whiten(base, self.exact)
+            self.last["whitened"] = self.data.whiten(base)
         return self.last["whitened"]
 
     def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -249,7 +249,7 @@ class _Objective:
         with np.errstate(all="ignore"):
             columns = {frf: ((shifted[frf] / self.measured[frf] - 1.0) - base[frf]).T / steps
                        for frf in base}
-        matrix = self.data.whiten(columns, self.exact)
+        matrix = self.data.whiten(columns)
         if self.robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
             e = np.abs(self._cached_whitened(x))
             slope = np.where(e <= HUBER_SCALE, 1.0,
@@ -270,24 +270,21 @@ def ml_fit(
     *,
     only: Collection[str] | None = None,
     max_steps: int = 200,
-    exact: bool = True,
+    tolerance: float = 1e-6,
 ) -> Likelihood:
     """Fit ``model``'s free parameters (every one but the table's, or those of them in
     ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
     whitened residual; ``start`` holds a value for every parameter. Local modes keep a damping
     ratio the data resolve (:func:`resolvable_bounds`).
 
-    ``exact=False`` fits on the residual divided by each point's ``σ`` (the drift's correlation
-    left out, a product fewer per evaluation); ``χ²`` and the whitened residual returned are
-    still the exact ones, at the values found, so a drop of ``χ²`` read from them is a lower
-    bound of the exact fit's."""
+    ``tolerance``: the fit stops when a step lowers the cost by less than this share of it."""
     fixed = data.exact_table
     every = tuple(name for name in model.names if name not in fixed)
     free = every if only is None else tuple(
         name for name in every if name in only or name in data.nuisance)
     values = {**model.defaults(), **(data.table or {}), **dict(start), **fixed}
     log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
-    objective = _Objective(model, data, values, free, log, upper, exact)
+    objective = _Objective(model, data, values, free, log, upper)
     start_values = np.array([values[name] for name in free], dtype=float)
     x0 = np.where(log, np.log(np.abs(start_values) + 1e-300), start_values)
     span = upper - lower
@@ -298,7 +295,7 @@ def ml_fit(
                 objective.residual, x0, jac=objective.jacobian, bounds=(lower, upper),
                 x_scale="jac", method="trf",
                 loss="linear" if objective.robust_here else "huber", f_scale=HUBER_SCALE,
-                ftol=1e-6, xtol=1e-8, gtol=1e-8, max_nfev=max_steps,
+                ftol=tolerance, xtol=1e-8, gtol=1e-8, max_nfev=max_steps,
             )
         x = solution.x
         jacobian = np.asarray(solution.jac, dtype=float)
