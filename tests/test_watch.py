@@ -8,6 +8,7 @@ from anywhere but the server.
 
 from __future__ import annotations
 
+import http.client
 import json
 import math
 import os
@@ -183,8 +184,8 @@ def test_run_live_serves_the_campaign_while_it_runs(tmp_path) -> None:
     while process.poll() is None:
         try:
             snapshot = json.loads(get(url + "state.json")[2])["snapshot"]
-        except OSError:  # the run ended and stopped its live view, perhaps mid-request
-            break
+        except (OSError, http.client.HTTPException):  # the run ended and stopped its live
+            break  # view, perhaps mid-request (a body cut short: IncompleteRead)
         if snapshot is not None:
             last = snapshot
             seen.append(sum(run["points"] for run in snapshot["runs"]))
