@@ -185,9 +185,11 @@ class DiagnosisResult:
         wide hardly moves the rms error): the ladder goes on while the tests find one.
 
         Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
-        the local modes found significant next to it (:meth:`with_significant`). Last, any
-        effect that no longer pays for itself in the final model is taken out again, one step
-        each (:meth:`without_unpaid`). :meth:`climb` gives the same rungs as each is reached.
+        the local modes found significant next to it (:meth:`with_significant`). A climb that
+        ends at a Maxwell K* tries the fractional one in its place once (:meth:`in_other_family`)
+        and goes on from it when the data prefer it. Last, any effect that no longer pays for
+        itself in the final model is taken out again, one step each (:meth:`without_unpaid`).
+        :meth:`climb` gives the same rungs as each is reached.
         """
         return list(self.climb(max_steps))
 

@@ -380,9 +380,9 @@ def _near_decision(current: Likelihood, data: DiagnosisData, candidates: list[Ca
     """Which first fits (:func:`candidate_fits`, in its order) may decide something once
     finished: every term of a candidate one of whose terms is within :data:`NEAR_SHARE` of its
     threshold (:func:`judge`); passes it and names a local mode (by its fitted frequency) or
-    has alternatives; or whose ``ΔBIC`` is within :data:`NEAR_BEST` ``φ`` (or
-    :data:`NEAR_SHARE_OF_BEST` of it) of the best one's or
-    of another passing candidate's (the order of the forward tests)."""
+    has alternatives; or whose ``ΔBIC`` is within :data:`NEAR_BEST` ``φ`` of the best one's
+    (or within :data:`NEAR_SHARE_OF_BEST` of it) or of another passing candidate's (the order
+    of the forward tests)."""
     n_eff = data.effective_points
     terms = [(index, term) for index, candidate in enumerate(candidates)
              for term in (candidate.term, *candidate.alternatives)]
