@@ -2,7 +2,7 @@
 at one run's FRFs for the technician.
 
 ``build_report(path, out_dir)`` analyses a campaign file once (:mod:`.analysis`), draws the
-figures (:mod:`.figures`, PNG and SVG), and writes ``index.html`` (:mod:`.page`).
+figures (:mod:`.figures`, PNG, and SVG on request), and writes ``index.html`` (:mod:`.page`).
 """
 
 from viscorig.report.analysis import CampaignAnalysis, RunAnalysis, analyse_campaign
