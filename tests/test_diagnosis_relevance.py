@@ -96,6 +96,13 @@ def test_diagnosis_whitens_as_the_shared_noise_model_does() -> None:
     expected = data.noise.whiten_jacobian(
         {f: np.where(kept[f][:, None], matrix[f], 0) for f in data.frfs})
     np.testing.assert_allclose(data.whiten(matrix), expected, rtol=1e-9, atol=1e-6)
+    # a residual that cannot be computed at one point spoils that point's block alone
+    spoiled = {f: v.copy() for f, v in vector.items()}
+    spoiled["table"][5] = np.nan
+    whitened, clean = data.whiten(spoiled), data.whiten(vector)
+    half = whitened.size // 2
+    assert np.isnan(whitened[5]) and np.isfinite(whitened[half:]).all()
+    np.testing.assert_array_equal(whitened[n:half], clean[n:half])
     # the per-point stand-in keeps each point's power and drops the correlation
     power = data.whitened_power(vector)
     assert set(power) == set(data.frfs) and all(p.shape == (n,) for p in power.values())

@@ -15,7 +15,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from viscorig.fitting import FrfData, FrfNoise, NoiseModel, estimate_frf_noise, estimate_noise
-from viscorig.fitting.noise import exponential_kernel_apply
+from viscorig.fitting.noise import MarkovWhitening, exponential_kernel_apply
 
 FREQUENCY = np.arange(20.0, 120.0 + 1e-9, 0.25)
 OMEGA = 2 * np.pi * FREQUENCY
@@ -203,6 +203,24 @@ def test_whitening_of_a_drift_is_the_inverse_cholesky_factor(order: str) -> None
         assert np.allclose(noise.whiten_part(part, y[:, 0]), expected[:, 0], rtol=1e-9,
                            atol=1e-12)
     assert (noise.whitening("re") is None) == (order == "shuffled")
+
+
+def test_joined_whitening_whitens_each_piece_as_its_own() -> None:
+    """Drift pieces and white pieces stacked into one whitening: each piece's rows come out as
+    that piece's own whitening makes them (no piece's process reaches into the next)."""
+    rng = np.random.default_rng(3)
+    pieces, rows = [], []
+    for n, drift in ((40, True), (25, False), (1, True), (60, True), (7, False)):
+        if drift:
+            axis = np.cumsum(rng.uniform(0.2, 3.0, n))
+            pieces.append(MarkovWhitening.of(rng.uniform(1e-3, 1.0, n), 0.5, axis, 6.0))
+        else:
+            pieces.append(1.0 / np.sqrt(rng.uniform(1e-3, 1.0, n)))
+        rows.append(rng.normal(size=(n, 3)))
+    joined = MarkovWhitening.joined(pieces).apply(np.concatenate(rows))
+    alone = [piece.apply(y) if isinstance(piece, MarkovWhitening) else y * piece[:, None]
+             for piece, y in zip(pieces, rows, strict=True)]
+    np.testing.assert_allclose(joined, np.concatenate(alone), rtol=1e-12, atol=1e-12)
 
 
 def test_sandwich_matches_the_scatter_of_least_squares_estimates() -> None:

@@ -83,7 +83,7 @@ class DiagnosisData:
         if not self.nuisance or phi == self.prior_scale:
             return self
         other = replace(self, prior_scale=float(phi))
-        for key in ("_whitening", "_kept", "_prior_w"):
+        for key in ("_whitening", "_joined_whitening", "_kept", "_prior_w"):
             if key in self.__dict__:
                 object.__setattr__(other, key, self.__dict__[key])
         return other
@@ -200,12 +200,20 @@ class DiagnosisData:
         ``L`` where the points are not in time order) so that the many evaluations of a fit
         cost little each."""
         masks = self._masks()
-        operators = self._operators()
-        parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
+        stacked = []
         for frf in self.frfs:
             r = np.asarray(residuals[frf], dtype=complex)
             if not masks[frf].all():
                 r = np.where(masks[frf] if r.ndim == 1 else masks[frf][:, None], r, 0.0)
+            stacked.append(r)
+        joined = self._joined()
+        if joined is not None:
+            values = np.concatenate([r.real for r in stacked] + [r.imag for r in stacked])
+            if np.isfinite(values).all():  # a NaN would leak past its block in the joined solve
+                return joined.apply(values)
+        operators = self._operators()
+        parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
+        for frf, r in zip(self.frfs, stacked, strict=True):
             for rows, by_part in operators[frf]:
                 for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
                     operator = by_part[part]
@@ -217,6 +225,19 @@ class DiagnosisData:
                     else:
                         parts[part].append(operator @ values)
         return np.concatenate(parts["re"] + parts["im"])
+
+    def _joined(self) -> MarkovWhitening | None:
+        """Every block's whitening as one (:meth:`MarkovWhitening.joined`), in :meth:`whiten`'s
+        layout; ``None`` where a block needs a dense ``L⁻¹`` (points not in time order)."""
+        if "_joined_whitening" not in self.__dict__:
+            operators = self._operators()
+            pieces = [blocks[1][part] for part in ("re", "im") for frf in self.frfs
+                      for blocks in operators[frf]]
+            dense = any(not isinstance(piece, MarkovWhitening) and np.ndim(piece) != 1
+                        for piece in pieces)
+            object.__setattr__(self, "_joined_whitening",
+                               None if dense else MarkovWhitening.joined(pieces))
+        return self.__dict__["_joined_whitening"]
 
     def _operators(self):
         """Per FRF: ``(rows, {part: whitening matrix or diagonal})`` of each noise block."""

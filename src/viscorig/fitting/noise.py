@@ -150,6 +150,30 @@ class MarkovWhitening:
         band[1, :-1] = -decay[1:]
         return cls(step, decay, gain, 1.0 / np.sqrt(variance), band)
 
+    @classmethod
+    def joined(cls, pieces: Sequence[MarkovWhitening | NDArray[np.float64]]) -> MarkovWhitening:
+        """One whitening of independent pieces stacked end to end: each a
+        :class:`MarkovWhitening` or the ``1/σ_i`` of white noise. No piece's process reaches
+        into the next (its first ``a_i`` is 0), so one banded solve whitens them all."""
+        arrays: dict[str, list[NDArray[np.float64]]] = {
+            "step": [], "decay": [], "gain": [], "scale": []}
+        for piece in pieces:
+            if isinstance(piece, MarkovWhitening):
+                own = {"step": piece.step, "decay": piece.decay, "gain": piece.gain,
+                       "scale": piece.scale}
+            else:
+                scale = np.asarray(piece, dtype=float)
+                zero = np.zeros_like(scale)
+                own = {"step": zero, "decay": zero, "gain": zero, "scale": scale}
+            for key, value in own.items():
+                arrays[key].append(value)
+        step, decay, gain, scale = (np.concatenate(arrays[key])
+                                    for key in ("step", "decay", "gain", "scale"))
+        band = np.zeros((2, step.size))
+        band[0] = 1.0
+        band[1, :-1] = -decay[1:]
+        return cls(step, decay, gain, scale, band)
+
     def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``L⁻¹ values`` (rows: points; a vector or a matrix)."""
         y = np.asarray(values, dtype=float)
