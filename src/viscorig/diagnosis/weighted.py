@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from viscorig.diagnosis.data import DiagnosisData
-from viscorig.fitting import FitResult
+from viscorig.errors import InputError
+from viscorig.fitting import FitResult, disc_stiffness_samples
 from viscorig.fitting.jacobian import predict_many
 from viscorig.models import Model
 
@@ -282,7 +283,9 @@ def ml_fit(
     every = tuple(name for name in model.names if name not in fixed)
     free = every if only is None else tuple(
         name for name in every if name in only or name in data.nuisance)
-    values = {**model.defaults(), **(data.table or {}), **dict(start), **fixed}
+    values = _resolved_start(model, data,
+                             {**model.defaults(), **(data.table or {}), **dict(start), **fixed},
+                             free)
     log, lower, upper = _coordinates(model, free, resolvable_bounds(model, data, values))
     objective = _Objective(model, data, values, free, log, upper)
     start_values = np.array([values[name] for name in free], dtype=float)
@@ -311,6 +314,35 @@ def ml_fit(
         model, fitted, every, float(np.sum(huber(whitened)) + prior @ prior), whitened,
         jacobian, residuals, free, prior,
     )
+
+
+def _resolved_start(model: Model, data: DiagnosisData, values: dict[str, float],
+                    free: tuple[str, ...]) -> dict[str, float]:
+    """``values`` with the K* and disc mass started from the data (the modulus term's linear
+    start on the disc's dynamic stiffness) where the fit frees all of them and the band does
+    not resolve the K* given (:meth:`~viscorig.models.ModulusTerm.resolved`). Carried from a
+    model that lacked a term, a fractional K* can sit decades past the band, where following
+    its valley back took a hundred solver steps; from the data's start, a quarter of that, to
+    the same optimum."""
+    term = model.modulus_term
+    if term is None or not term.has_disc:
+        return values
+    names = {**model.local_names(term), "M_v": "M_v"}
+    if not set(names.values()) <= set(free):
+        return values
+    omega = 2 * np.pi * data.data.frequency_hz
+    if term.resolved(omega, model.local_values(term, values)):
+        return values
+    try:
+        samples = disc_stiffness_samples(data.data, data.frfs, values)
+        own = term.start(*samples)
+    except (KeyError, InputError, ValueError, np.linalg.LinAlgError):
+        return values
+    out = dict(values)
+    for local, value in own.items():
+        if np.isfinite(value):
+            out[names[local]] = model.by_name[names[local]].clip(float(value))
+    return out
 
 
 def ml_refit(result: FitResult | Likelihood, data: DiagnosisData) -> Likelihood:

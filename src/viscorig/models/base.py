@@ -286,6 +286,12 @@ class ModulusTerm(Term):
         """Start values (local names, plus ``M_v``) from ``D_v`` samples and their weights."""
         raise NotImplementedError
 
+    def resolved(self, omega: NDArray[np.float64], p: Mapping[str, float]) -> bool:
+        """Whether data over ``omega`` (rad/s) pin each of these values (local names): False
+        where only a combination of them shapes ``K*`` there, so that a fit started at them
+        follows a long valley; a fitter then starts from :meth:`start` instead."""
+        return True
+
     def modulus_derivatives(
         self, ctx: Context, p: Mapping[str, float]
     ) -> dict[str, NDArray[np.complex128]] | None:

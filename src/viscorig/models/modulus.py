@@ -312,6 +312,11 @@ def prony_nnls(
     return np.array(taus), np.array(merged), float(k_0), float(m_v)
 
 
+#: A fractional K* whose transition lies this many decades outside the band is not resolved
+#: (:meth:`Fractional.resolved`).
+RESOLVED_DECADES = 4.0
+
+
 @register_term
 class Fractional(ModulusTerm):
     """Fractional Zener: ``K* = (K_0 + K_inf (iωτ)^α) / (1 + (iωτ)^α)``, four parameters."""
@@ -334,6 +339,13 @@ class Fractional(ModulusTerm):
         alpha = p["alpha"]
         s = (ctx.omega * p["tau"]) ** alpha * np.exp(0.5j * np.pi * alpha)
         return (p["K_0"] + p["K_inf"] * s) / (1.0 + s)
+
+    def resolved(self, omega: NDArray[np.float64], p: Mapping[str, float]) -> bool:
+        """False where the transition ``ωτ = 1`` lies more than :data:`RESOLVED_DECADES`
+        decades outside the band: there ``K* ≈ K_0 + (K_inf − K_0)(iωτ)^α`` (or its mirror
+        above the transition), and only ``(K_inf − K_0) τ^α`` is determined."""
+        reach = 10.0**RESOLVED_DECADES
+        return bool(omega.max() * p["tau"] > 1.0 / reach and omega.min() * p["tau"] < reach)
 
     def modulus_derivatives(self, ctx: Context, p: Mapping[str, float]) -> dict[str, NDArray]:
         # s = (iωτ)^α: ∂s/∂τ = α s/τ, ∂s/∂α = s log(iωτ); ∂K*/∂s = (K_inf − K_0)/(1 + s)².
