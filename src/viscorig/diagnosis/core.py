@@ -176,7 +176,8 @@ class DiagnosisResult:
         for finding in (found[0], *modes):
             start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
                           if k not in start})
-        return analyse(self.data, refit(spec, self.data, start))
+        held = self.together if self.together.model.spec == spec.spec else None
+        return analyse(self.data, refit(spec, self.data, start), held)
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[DiagnosisResult]:
         """Add the significant effects and refit, until nothing significant is left.
@@ -320,12 +321,14 @@ def analyse(
     recentred = recentred_modes(result, data)
     if recentred is not result:
         result, likelihood = recentred, None
+    start: FitResult | Likelihood = result
     if data.nuisance:
         chi2 = float(np.sum(huber(data.whiten(result.residuals))))
         scaled = data.with_prior_scale(dispersion(chi2, data.residual_count, len(result.free)))
         if scaled is not data:
-            data, likelihood = scaled, None
-    current = ml_refit(result, data) if likelihood is None else likelihood
+            # the likelihood fit under the table's prior weighed as before is the nearer start
+            data, start, likelihood = scaled, likelihood or result, None
+    current = ml_refit(start, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     candidates = screen(current, data, residual)
     early = candidate_fits(current, data, candidates)  # on the workers during the scans
