@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from rigsim.engine import RigSimulator
 from rigsim.measurement import SourceControl, SweepRequest
-from rigsim.rigfile import load_preset
+from rigsim.rigfile import Rig, load_preset
 
 from viscorig.fitting import FrfData
 
@@ -31,9 +31,10 @@ PRESETS = ("soft-0", "soft-10", "medium-0", "medium-10", "hard-0", "hard-10")
 FIXTURE = Path(__file__).resolve().parent / "data" / "ladder_reference.json"
 
 
-def measured_run(preset: str, seed: int = 1) -> FrfData:
-    """The paper's sweep of a preset, as the analyser would give it (variance included)."""
-    rig = load_preset(preset)
+def measured_run(preset: str, seed: int = 1, rig: Rig | None = None) -> FrfData:
+    """The paper's sweep of a preset (or of ``rig``, named ``preset``), as the analyser would
+    give it (variance included)."""
+    rig = load_preset(preset) if rig is None else rig
     frequency = np.arange(20.0, 120.125, 0.25)
     sensors = rig.sensors
     control = SourceControl(
