@@ -231,8 +231,8 @@ class DiagnosisData:
         layout; ``None`` where a block needs a dense ``L⁻¹`` (points not in time order)."""
         if "_joined_whitening" not in self.__dict__:
             operators = self._operators()
-            pieces = [blocks[1][part] for part in ("re", "im") for frf in self.frfs
-                      for blocks in operators[frf]]
+            pieces = [by_part[part] for part in ("re", "im") for frf in self.frfs
+                      for _, by_part in operators[frf]]
             dense = any(not isinstance(piece, MarkovWhitening) and np.ndim(piece) != 1
                         for piece in pieces)
             object.__setattr__(self, "_joined_whitening",

@@ -322,8 +322,8 @@ def _resolved_start(model: Model, data: DiagnosisData, values: dict[str, float],
     start on the disc's dynamic stiffness) where the fit frees all of them and the band does
     not resolve the K* given (:meth:`~viscorig.models.ModulusTerm.resolved`). Carried from a
     model that lacked a term, a fractional K* can sit decades past the band, where following
-    its valley back took a hundred solver steps; from the data's start, a quarter of that, to
-    the same optimum."""
+    its valley back took a hundred solver steps; from the data's start, a third to a quarter
+    of that, to the same optimum."""
     term = model.modulus_term
     if term is None or not term.has_disc:
         return values
