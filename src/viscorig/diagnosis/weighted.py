@@ -46,7 +46,7 @@ from scipy.optimize import least_squares
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.errors import InputError
-from viscorig.fitting import FitResult, disc_stiffness_samples
+from viscorig.fitting import FitResult, linear_start
 from viscorig.fitting.jacobian import predict_many
 from viscorig.models import Model
 
@@ -318,31 +318,26 @@ def ml_fit(
 
 def _resolved_start(model: Model, data: DiagnosisData, values: dict[str, float],
                     free: tuple[str, ...]) -> dict[str, float]:
-    """``values`` with the K* and disc mass started from the data (the modulus term's linear
-    start on the disc's dynamic stiffness) where the fit frees all of them and the band does
-    not resolve the K* given (:meth:`~viscorig.models.ModulusTerm.resolved`). Carried from a
-    model that lacked a term, a fractional K* can sit decades past the band, where following
-    its valley back took a hundred solver steps; from the data's start, a third to a quarter
-    of that, to the same optimum."""
+    """``values`` with the K* and disc mass started from the data (``identify``'s linear start,
+    :func:`~viscorig.fitting.linear_start`, every other value held) where the fit frees all of
+    them and the band does not resolve the K* given
+    (:meth:`~viscorig.models.ModulusTerm.resolved`). Carried from a model that lacked a term, a
+    fractional K* can sit decades past the band, where following its valley back took a hundred
+    solver steps; from the data's start, a third to a quarter of that, to the same optimum."""
     term = model.modulus_term
     if term is None or not term.has_disc:
         return values
-    names = {**model.local_names(term), "M_v": "M_v"}
-    if not set(names.values()) <= set(free):
+    restarted = {*model.local_names(term).values(), "M_v"}
+    if not restarted <= set(free):
         return values
     omega = 2 * np.pi * data.data.frequency_hz
     if term.resolved(omega, model.local_values(term, values)):
         return values
+    held = {name: value for name, value in values.items() if name not in restarted}
     try:
-        samples = disc_stiffness_samples(data.data, data.frfs, values)
-        own = term.start(*samples)
-    except (KeyError, InputError, ValueError, np.linalg.LinAlgError):
+        return linear_start(model, data.data, data.frfs, held)
+    except (InputError, ValueError, np.linalg.LinAlgError):
         return values
-    out = dict(values)
-    for local, value in own.items():
-        if np.isfinite(value):
-            out[names[local]] = model.by_name[names[local]].clip(float(value))
-    return out
 
 
 def ml_refit(result: FitResult | Likelihood, data: DiagnosisData) -> Likelihood:
