@@ -41,7 +41,7 @@ import numpy as np
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
 from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
-from viscorig.diagnosis.weighted import Likelihood, evaluate, ml_fit
+from viscorig.diagnosis.weighted import TOLERANCE, Likelihood, evaluate, ml_fit
 from viscorig.diagnosis.workers import fit_all, fit_all_later
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
@@ -255,7 +255,7 @@ def _broad(model: Model) -> set[str]:
 
 def fit_term(
     current: Likelihood, data: DiagnosisData, term_text: str, start: dict[str, float],
-    tolerance: float = 1e-6,
+    tolerance: float = TOLERANCE,
 ) -> Likelihood:
     """Maximum-likelihood fit of the current model with ``term_text`` added (or as its K*).
 
@@ -290,8 +290,8 @@ def fit_term(
 
 
 #: Candidates are first fitted to this tolerance (a step lowering the cost by less than this
-#: share of it ends the fit; 1e-6 otherwise), and those that may decide something finished
-#: (:func:`_near_decision`).
+#: share of it ends the fit; :data:`~.weighted.TOLERANCE` otherwise), and those that may
+#: decide something finished (:func:`_near_decision`).
 FIRST_TOLERANCE = 1e-4
 #: ... and finished to this one: a step then lowers ``χ²`` by less than about 0.01 ``φ`` (the
 #: cost is about ``φ`` times half the residuals). On the six ladders of the benchmark campaign
@@ -309,7 +309,7 @@ NEAR_SHARE_OF_BEST = 0.2
 
 
 def _fit_term_or_none(current: Likelihood, data: DiagnosisData, term_text: str,
-                      start: dict[str, float], tolerance: float = 1e-6) -> Likelihood | None:
+                      start: dict[str, float], tolerance: float = TOLERANCE) -> Likelihood | None:
     """:func:`fit_term`, or ``None`` where the term cannot be fitted to these data."""
     try:
         return fit_term(current, data, term_text, start, tolerance)

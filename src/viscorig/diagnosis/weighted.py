@@ -52,6 +52,9 @@ from viscorig.models import Model
 
 #: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
 HUBER_SCALE = 3.0
+#: A likelihood fit stops when a step lowers its cost by less than this share of it (unless
+#: told otherwise: :func:`ml_fit`'s ``tolerance``).
+TOLERANCE = 1e-6
 #: Relative step of the forward differences of the Jacobian (√ of the double precision).
 _STEP = 1.49e-8
 
@@ -271,7 +274,7 @@ def ml_fit(
     *,
     only: Collection[str] | None = None,
     max_steps: int = 200,
-    tolerance: float = 1e-6,
+    tolerance: float = TOLERANCE,
 ) -> Likelihood:
     """Fit ``model``'s free parameters (every one but the table's, or those of them in
     ``only``, the others held at their start) from ``start`` to minimise ``Σ ρ(e_i)``, ``e`` the
