@@ -5,11 +5,15 @@ the figure by another renderer: it costs about two thirds of the PNG's time agai
 
 from __future__ import annotations
 
+import functools
 import io
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ParamSpec, TypeVar
 
+import matplotlib
 import numpy as np
 from matplotlib import ticker
 from matplotlib.figure import Figure
@@ -34,6 +38,25 @@ BAND = "#f5b7b1"
 PRELOAD_STYLES = ("o", "s", "^", "D")
 RUBBER_COLOURS = ("#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 DPI = 100
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def styled(builder: Callable[_P, _R]) -> Callable[_P, _R]:
+    """``builder`` (a function making a figure) run with the report's matplotlib settings.
+
+    Titles sit at the top of their axes (``axes.titley`` set, not left to matplotlib's
+    automatic placement): no figure of the report puts ticks or labels above an axes, and the
+    automatic placement measured every y tick label again for each title, about a tenth of
+    drawing the report's figures (the pixels are the same).
+    """
+
+    @functools.wraps(builder)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with matplotlib.rc_context({"axes.titley": 1.0}):
+            return builder(*args, **kwargs)
+
+    return wrapper
 
 
 @dataclass(frozen=True)
@@ -117,6 +140,7 @@ def _shade(axes, failures, frf: str, label: bool) -> None:
                      label="model fails here" if label and index == 0 else None)
 
 
+@styled
 def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure:
     """Measured and model FRFs (magnitude, phase) with failure bands and flagged points."""
     run = analysis.run
@@ -175,6 +199,7 @@ def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure
     return figure
 
 
+@styled
 def residual_figure(analysis: RunAnalysis) -> Figure | None:
     """``|H_model/H_measured − 1|`` against frequency, with the local noise and the floor."""
     curve = analysis.shown
@@ -201,6 +226,7 @@ def residual_figure(analysis: RunAnalysis) -> Figure | None:
     return figure
 
 
+@styled
 def ladder_figure(analysis: RunAnalysis) -> Figure | None:
     """Error against model as effects are added: the ladder climbed, or the first rung's
     candidates (each effect added alone) when the ladder was not climbed."""
@@ -246,6 +272,7 @@ def _added(before: str, after: str) -> str:
     return " ".join([*(f"+ {t}" for t in new), *(f"− {t}" for t in removed)]) or after
 
 
+@styled
 def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None) -> Figure:
     """E' (or K') and η against frequency, each preload, like the paper's Figures 10-12; the
     model's curves with their ± one standard uncertainty band."""
@@ -293,6 +320,7 @@ def _moduli(member: RunAnalysis) -> ModulusCurves:
     return member.modulus
 
 
+@styled
 def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
     """The preload effect per rubber: relative change of K' (= of E') and of η against
     frequency, with the ± one standard uncertainty band of the change

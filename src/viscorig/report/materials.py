@@ -23,7 +23,7 @@ from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve, build_master
 from viscorig.materials.sources import modulus_table
 from viscorig.numbers import with_uncertainty
-from viscorig.report.figures import SavedFigure, save
+from viscorig.report.figures import SavedFigure, save, styled
 from viscorig.storage import CampaignFile
 
 
@@ -75,6 +75,7 @@ def analyse_materials(campaign: CampaignFile) -> list[Material]:
     return out
 
 
+@styled
 def master_figure(master: MasterCurve) -> Figure:
     """Master curve with the ± of each point's shift; shift factors with WLF and Arrhenius."""
     table = master.table
@@ -115,6 +116,7 @@ def master_figure(master: MasterCurve) -> Figure:
     return figure
 
 
+@styled
 def master_residual_figure(master: MasterCurve) -> Figure:
     """``ln(model/measured)`` of both moduli against reduced frequency, with the scatter."""
     table = master.table
