@@ -441,18 +441,17 @@ def confirm(
     findings: list[Finding] = []
     fits = iter(_finished(current, data, candidates, fitted))
     for candidate in candidates:
-        best: tuple[float, Likelihood, str] | None = None
+        best: tuple[Likelihood, str] | None = None
         for term in (candidate.term, *candidate.alternatives):
             result = next(fits)
             if result is None:
                 continue
-            bic = result.chi2 + len(result.free) * np.log(n)
             # an alternative replaces the first term only when the data clearly prefer it
-            if best is None or bic < best[0] - candidate.threshold:
-                best = (bic, result, term)
+            if best is None or clearly_better(result, best[0], candidate.threshold, data):
+                best = (result, term)
         if best is None:
             continue
-        _, result, term = best
+        result, term = best
         if term == "maxwell":
             term = result.model.require_modulus().spec
         result, term = _renamed(result, term, data)
@@ -537,13 +536,23 @@ def other_family(current: Likelihood, data: DiagnosisData) -> Likelihood | None:
         other = _exact(fit_term(current, data, "fractional", {}), data)
     except (InputError, ValueError, np.linalg.LinAlgError):
         return None
+    return other if clearly_better(other, current, 0.0, data) else None
+
+
+def clearly_better(other: Likelihood, first: Likelihood, margin: float,
+                   data: DiagnosisData) -> bool:
+    """``other`` is better than ``first`` by more than ``margin`` by the Bayesian criterion
+    ``χ²/φ + k ln n`` (``n`` the effective number of independent observations, ``φ`` the misfit
+    of the better-fitting of the two): far from the noise, a difference of ``χ²`` counts in
+    units of the misfit, as every test of the diagnosis counts it."""
     n = data.effective_points
-    phi = dispersion(current.chi2, data.residual_count, len(current.free))
+    phi = min(dispersion(result.chi2, data.residual_count, len(result.free))
+              for result in (other, first))
 
     def bic(result: Likelihood) -> float:
         return result.chi2 / phi + len(result.free) * np.log(n)
 
-    return other if bic(other) < bic(current) else None
+    return bic(other) < bic(first) - margin
 
 
 def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
