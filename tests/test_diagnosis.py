@@ -29,6 +29,7 @@ from viscorig.diagnosis.findings import fit_term
 from viscorig.diagnosis.scan import Residual
 from viscorig.diagnosis.screening import screen
 from viscorig.diagnosis.significance import alpha_of, judge, threshold
+from viscorig.errors import InputError
 from viscorig.models import EFFECTS
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
@@ -278,6 +279,23 @@ def test_thermal_drift_is_found_with_an_up_and_a_down_sweep(tmp_path: Path) -> N
     kappa = diagnosis.significant[0].parameters()["kappa"]["value"]
     assert kappa * 3600 == pytest.approx(-0.05, rel=0.1)
     assert_at_floor_after(diagnosis)
+
+
+def test_a_damaged_run_of_another_specimen_does_not_stop_the_diagnosis(tmp_path: Path) -> None:
+    """Companions are picked by their attributes first: another specimen's run is not read."""
+    run = simulate_run(rig_text(VOIGT, noise=QUIET), seed=6, step_hz=0.5)
+    path = write_campaign(tmp_path / "c.h5", [
+        ("soft-0", run, 1.0, "up", 0.0), ("hard-0", run, 1.0, "up", 3600.0),
+    ])  # fmt: skip
+    with h5py.File(path, "a") as h5:
+        h5["runs/hard-0"].attrs["specimen"] = "hard"
+        del h5["runs/hard-0/accelerance_support"]
+    with CampaignFile.open(path) as campaign:
+        with pytest.raises(InputError):
+            campaign.run("hard-0")
+        assert campaign.run_metadata("hard-0").specimen == "hard"
+        diagnosis = diagnose_run(campaign, "soft-0")
+    assert diagnosis.data.runs == ("soft-0",)
 
 
 @pytest.mark.slow

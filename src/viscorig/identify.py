@@ -32,15 +32,16 @@ from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
 from viscorig.numbers import Estimate
 from viscorig.rig import RigDescription
-from viscorig.storage import INPUT_OVERLOAD, CampaignFile, FitRecord, RunRecord
+from viscorig.storage import INPUT_OVERLOAD, CampaignFile, FitRecord, RunMetadata, RunRecord
 
 #: The paper's analysis band (physics.md), used by the campaign summary.
 PAPER_BAND_HZ = (20.0, 120.0)
 
 
-def is_bare_table(run: RunRecord) -> bool:
-    """The run has no specimen (``specimen == "none"``)."""
-    return str(run.metadata.specimen).strip().lower() in {"none", ""}
+def is_bare_table(run: RunRecord | RunMetadata) -> bool:
+    """The run (or its metadata alone) has no specimen (``specimen == "none"``)."""
+    metadata = run.metadata if isinstance(run, RunRecord) else run
+    return str(metadata.specimen).strip().lower() in {"none", ""}
 
 
 def run_data(run: RunRecord) -> FrfData:
@@ -101,8 +102,10 @@ def table_parameters(campaign: CampaignFile, spec: str = "table") -> TableSource
         raise InputError(f"'{model.spec}' is not a model of the bare table (use 'table+...')",
                          "table model")
     for name in campaign.run_names:
+        if not is_bare_table(campaign.run_metadata(name)):
+            continue
         run = campaign.run(name)
-        if is_bare_table(run) and run.points:
+        if run.points:
             result = fit(model, run_data(run), weighting="noise")
             values = {n: result.values[n] for n in TABLE_NAMES}
             return TableSource(values, f"run '{name}'", result)

@@ -197,7 +197,7 @@ def resume_command(args: argparse.Namespace) -> int:
     if not checked.ok:
         refuse(checked, "")
     sequence, station = checked.passed(), checked.station
-    statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
+    statuses = {name: campaign.run_metadata(name).status for name in campaign.run_names}
     if all(statuses.get(name) == "complete" for name in sequence.run_names) and _identified(
         campaign, sequence
     ):
@@ -212,7 +212,7 @@ def resume_command(args: argparse.Namespace) -> int:
 def _forecast(campaign: CampaignFile, sequence: Sequence, opened) -> dict:
     """Print the predicted test time of the steps left (as ``viscorig plan`` does); return the
     floors of the adaptive steps, for the time left."""
-    statuses = {name: campaign.run(name).metadata.status for name in campaign.run_names}
+    statuses = {name: campaign.run_metadata(name).status for name in campaign.run_names}
     floors = simulated_floors(sequence) if opened.simulated else {}
     station = opened.station
     chamber = station.chamber

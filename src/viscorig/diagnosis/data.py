@@ -22,7 +22,7 @@ from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.fitting.noise import MarkovWhitening
 from viscorig.identify import is_bare_table, run_data, table_parameters
-from viscorig.storage import CampaignFile, RunRecord
+from viscorig.storage import CampaignFile, RunMetadata, RunRecord
 
 
 @dataclass(frozen=True)
@@ -371,9 +371,9 @@ def _started(run: RunRecord) -> datetime | None:
         return None
 
 
-def same_specimen(a: RunRecord, b: RunRecord) -> bool:
-    """The two runs measure the same specimen in the same state (text, hardness, preload)."""
-    ma, mb = a.metadata, b.metadata
+def same_specimen(ma: RunMetadata, mb: RunMetadata) -> bool:
+    """Two runs (their metadata) measure the same specimen in the same state (text, hardness,
+    preload)."""
     hard_a, hard_b = float(ma.hardness_shore_a), float(mb.hardness_shore_a)
     same_hardness = (math.isnan(hard_a) and math.isnan(hard_b)) or hard_a == hard_b
     return (
@@ -407,10 +407,10 @@ def companions(campaign: CampaignFile, main: RunRecord) -> list[RunRecord]:
     """Other runs of the same specimen in the campaign that differ in level or direction."""
     found = []
     for name in campaign.run_names:
-        if name == main.name:
+        if name == main.name or not same_specimen(main.metadata, campaign.run_metadata(name)):
             continue
         other = campaign.run(name)
-        if not other.points or is_bare_table(other) or not same_specimen(main, other):
+        if not other.points or is_bare_table(other):
             continue
         level_differs = abs(other.metadata.level_m_per_s2 / main.metadata.level_m_per_s2 - 1) > 0.05
         if not _same_temperature(main, other):

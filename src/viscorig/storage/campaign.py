@@ -62,7 +62,7 @@ from numpy.typing import ArrayLike
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
-from viscorig.storage.records import FitRecord, RunRecord, RunSettings, Segment
+from viscorig.storage.records import FitRecord, RunMetadata, RunRecord, RunSettings, Segment
 from viscorig.version import __version__
 
 
@@ -277,6 +277,19 @@ class CampaignFile:
         """
         with self._reading() as h5, reading.guarded(self.path, f"/{layout.RUNS_GROUP}/{name}"):
             return reading.read_run(h5, name, self.path)
+
+    def run_metadata(self, name: str) -> RunMetadata:
+        """The attributes of run ``name``, checked, without reading its datasets (which runs to
+        read whole).
+
+        Raises
+        ------
+        InputError
+            No such run, or its attributes are damaged or not in the layout.
+        """
+        where = f"/{layout.RUNS_GROUP}/{name}"
+        with self._reading() as h5, reading.guarded(self.path, where):
+            return reading.read_metadata(reading.run_group(h5, name, self.path), self.path)
 
     def run_attributes(self, name: str) -> dict[str, object]:
         """Every attribute of run ``name``: its settings and lifecycle, and the annotations a
