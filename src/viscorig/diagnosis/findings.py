@@ -13,7 +13,8 @@ change are finished (:func:`_near_decision`).
 K* family. A Maxwell K* that would take one more arm is also compared with the fractional K*
 in its place (the candidate's alternative), and the ladder's last model with a Maxwell K* once
 more (:func:`other_family`): the family is picked at the first rungs, far from the noise, and
-is judged again once the other effects are in.
+is judged again once the other effects are in. An alternative takes a candidate's place only
+when it is better by the candidate's threshold in units of the misfit (:func:`clearly_better`).
 
 Significance. Candidates are taken best first, and each is tested against the best model so
 far, that is the current model with every effect already found significant: it is fitted with
@@ -522,8 +523,8 @@ def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
 
 def other_family(current: Likelihood, data: DiagnosisData) -> Likelihood | None:
     """The fit of ``current`` with its Maxwell K* replaced by the fractional one, every other
-    term kept, when the data prefer it by the Bayesian criterion (``χ²/φ + k ln n``, ``φ`` the
-    Maxwell model's misfit); else ``None``.
+    term kept, when the data prefer it by the Bayesian criterion (:func:`clearly_better`, with
+    no margin); else ``None``.
 
     The ladder picks a K* family at its first rungs, far from the noise, where a local mode or
     the load cell not yet added weighs as much as the family's shape, and only adds arms to a
