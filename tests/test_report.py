@@ -137,6 +137,21 @@ def test_shading_is_only_where_the_model_shown_fails(quick_report: Path, campaig
     assert not any(axes_.patches for axes_ in frf_figure(analysis.run("table")).get_axes())
 
 
+@pytest.mark.slow
+def test_titles_sit_where_matplotlib_would_place_them(campaign_file: Path):
+    """The figures' titles are placed once (``styled``), not measured again at every draw: the
+    same pixels as matplotlib's own placement, which would differ if a figure put ticks or
+    labels above an axes."""
+    from viscorig.report.figures import frf_figure, ladder_figure, residual_figure, save
+
+    analysis = analyse_campaign(CampaignFile.open(campaign_file), ladder=False, jobs=1)
+    soft = analysis.run("soft-0")
+    for builder in (frf_figure, residual_figure, ladder_figure):
+        placed = save(builder(soft), None, "placed", "").png
+        automatic = save(builder.__wrapped__(soft), None, "automatic", "").png
+        assert placed == automatic, builder.__name__
+
+
 def _rgb(colour: str) -> tuple[float, float, float]:
     from matplotlib.colors import to_rgb
 

@@ -637,10 +637,9 @@ def unpaid_term(
     benchmark campaign by 0.1 % of what the removal costs at most, every one thousands of times
     its threshold, with 37 % fewer steps than to the fits' default tolerance). A term whose
     removal then still costs :data:`CLEARLY_PAID` times its threshold is kept; the others'
-    fits are finished. Without a term the model really needs,
-    the rest of it (a Maxwell K*'s arms, say) wanders for up to 200 steps trying to stand in
-    for it: most of a ladder's last step, for a term that costs thousands of times its
-    threshold.
+    fits are finished. Without a term the model really needs, the rest of it (a Maxwell K*'s
+    arms, say) wanders for up to 200 steps trying to stand in for it: most of a ladder's last
+    step, for a term that costs thousands of times its threshold.
     """
     phi = dispersion(current.chi2, data.residual_count, len(current.free))
     alpha = alpha_of(current.model, data)
