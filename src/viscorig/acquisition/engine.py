@@ -569,7 +569,7 @@ class RunEngine:
     def _do_status(self, run: str) -> str | None:
         if run not in self.campaign.run_names:
             return None
-        return self.campaign.run(run).metadata.status
+        return self.campaign.run_metadata(run).status
 
     def _do_read_run(self, run: str):
         return self.campaign.run(run)

@@ -147,7 +147,7 @@ class Runner:
     def _status(self, run: str) -> str | None:
         if run not in self.campaign.run_names:
             return None
-        return self.campaign.run(run).metadata.status
+        return self.campaign.run_metadata(run).status
 
     def _time_after(self, index: int) -> float:
         """Test time of the later sweeps, their probes and waits."""

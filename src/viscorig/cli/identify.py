@@ -81,7 +81,7 @@ def handler(args: argparse.Namespace) -> int:
     mode = "r" if args.no_store else "a"
     with CampaignFile.open(args.file, mode) as campaign:
         table = None
-        if not is_bare_table(campaign.run(args.run)):
+        if not is_bare_table(campaign.run_metadata(args.run)):
             table = table_parameters(campaign, args.table_model)
         result, table = identify_run(campaign, args.run, args.model, band_hz=band, frfs=frfs,
                                      table=table, weighting=args.weights)
