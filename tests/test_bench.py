@@ -8,12 +8,14 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from benchrig import SMALL_SEQUENCE, Client, bench_server, small_sequence, wait_until
 from rigsim.faults import parse_fault_spec
 
 from viscorig.bench import API_STATES, BenchError, BenchService
+from viscorig.bench.app import create_app
 from viscorig.sequences.station import BenchSettings
 from viscorig.storage import CampaignFile
 
@@ -157,3 +159,19 @@ def test_aborting_at_a_prompt_stops_before_anything_is_measured(tmp_path) -> Non
     assert service.state()["state"] == "complete", service.state()["message"]
     with CampaignFile.open(tmp_path / "first.h5") as campaign:
         assert campaign.run("soft-0").points == 81
+
+
+
+def test_the_readme_api_table_names_the_apps_routes(tmp_path) -> None:
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    named = set()
+    for cell in re.findall(r"(?m)^\| (`(?:GET|POST|DELETE) [^|]+)\|", readme):
+        verb = ""
+        for given, path in re.findall(r"`(?:(GET|POST|DELETE) )?(/api/[^`]+)`", cell):
+            verb = given or verb
+            named.add((verb, path.replace("/ID", "/{item}")))
+    guard = create_app(BenchService(root=tmp_path), "t" * 32, 8123)
+    routes = {(method, route.path) for route in guard.app.routes
+              for method in (route.methods or ()) if route.path.startswith("/api/")}
+    assert len(named) == 10 and named <= routes, named - routes
+    assert {path for _, path in routes} - {path for _, path in named} == {"/api/journal"}
