@@ -65,6 +65,12 @@ def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
         wait_until(lambda: client.state()["state"] == "stopped", what="stopped")
         assert "viscorig resume" in client.state()["message"]
         journal = client.http.get("/api/journal").json()["entries"]
+        # the next item starts without the last one's words
+        client.post("/api/queue", {"sequence": "small.toml", "out": "d.h5"})
+        assert client.post("/api/start").status_code == 200
+        prompt = wait_until(lambda: client.state()["prompt"], what="the next item's prompt")
+        assert client.state()["message"] == ""
+        client.post("/api/answer", {"prompt_id": prompt["id"], "answer": "abort"})
         client.close()
     with CampaignFile.open(path) as campaign:
         run = campaign.run("soft-0")

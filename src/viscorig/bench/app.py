@@ -7,9 +7,10 @@ Built on Starlette and served by uvicorn on 127.0.0.1 (another address only when
   rebinding), and a request that carries an ``Origin`` must come from this server's own;
 - it must carry the token: ``Authorization: Bearer TOKEN``, or the cookie the page sets when it
   is opened with ``/?token=TOKEN``;
-- at most :data:`RATE_PER_S` requests a second are served (429 beyond; requests without the
-  token are counted apart, so that a flood of them never slows the page), and no body may
-  exceed :data:`MAX_BODY_BYTES` (413).
+- at most :data:`RATE_PER_S` requests a second are served (429 beyond), counted apart for the
+  client in control, for the other clients with the token and for requests without it, so
+  that a flood from a read-only page or a stranger never slows the one that can pause or abort;
+  no body may exceed :data:`MAX_BODY_BYTES` (413).
 
 One client controls the bench at a time (the first to send a command; a client is its browser's
 cookie, or a script's ``X-Bench-Client`` header): a second one is read-only (409, and its page
@@ -45,7 +46,8 @@ from viscorig.watch.snapshot import Snapshots
 #: A request handler of the application.
 Endpoint = Callable[[Request], Awaitable[Response]]
 
-#: Requests served per second, all clients together; a burst of that many is allowed.
+#: Requests served per second to each of: the controlling client, the other clients with the
+#: token, requests without it; a burst of that many is allowed.
 RATE_PER_S = 50
 #: Largest request body, bytes.
 MAX_BODY_BYTES = 64 * 1024
@@ -104,6 +106,11 @@ class Control:
     def _free(self, now: float) -> bool:
         return self.holder is None or now - self.seen > self.lease_s
 
+    def controls(self, client: str) -> bool:
+        """Does ``client`` control the bench now (without touching its lease)?"""
+        with self._lock:
+            return self.holder == client and not self._free(time.monotonic())
+
     def touch(self, client: str) -> str:
         """A request of ``client``: "you", "another client" or "free" (who controls)."""
         with self._lock:
@@ -123,17 +130,30 @@ class Control:
             return False
 
 
+def client_key(cookie: str | None, headers: Any) -> str:
+    """Who sends a request: its page's client cookie, or a script's ``X-Bench-Client``."""
+    return cookie or "script:" + headers.get("x-bench-client", "")[:64]
+
+
+def _cookies(headers: dict[str, str]) -> dict[str, str]:
+    pairs = (part.strip().partition("=") for part in headers.get("cookie", "").split(";"))
+    return {name: value for name, _, value in pairs if name}
+
+
 class Guard:
     """The checks every request passes before the application (module text); pure ASGI."""
 
-    def __init__(self, app: Any, token: str, hosts: set[str], cookie: str) -> None:
+    def __init__(self, app: Any, token: str, hosts: set[str], cookie: str,
+                 control: Control, client_cookie: str) -> None:
         self.app = app
         self.token = token
         self.hosts = hosts
         self.cookie = cookie
+        self.control = control
+        self.client_cookie = client_cookie
+        self.controller = RateLimit(RATE_PER_S)
         self.rate = RateLimit(RATE_PER_S)
         self.strangers = RateLimit(RATE_PER_S)
-        """Requests without the token count apart: a flood of them never slows the page."""
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
         if scope["type"] == "websocket":  # none is served: refused before anything
@@ -151,8 +171,15 @@ class Guard:
     def _refusal(self, scope: dict) -> Response | None:
         headers = {k.decode("latin-1").lower(): v.decode("latin-1")
                    for k, v in scope.get("headers", [])}
-        authorised = self._authorised(scope, headers)
-        if not (self.rate if authorised else self.strangers).take():
+        cookies = _cookies(headers)
+        authorised = self._authorised(scope, headers, cookies)
+        if not authorised:
+            bucket = self.strangers
+        elif self.control.controls(client_key(cookies.get(self.client_cookie), headers)):
+            bucket = self.controller
+        else:
+            bucket = self.rate
+        if not bucket.take():
             return error(429, f"too many requests: at most {RATE_PER_S} a second")
         host = headers.get("host", "").strip().lower()
         if host not in self.hosts:
@@ -171,15 +198,14 @@ class Guard:
                          "printed, or send 'Authorization: Bearer TOKEN'")
         return None
 
-    def _authorised(self, scope: dict, headers: dict[str, str]) -> bool:
+    def _authorised(self, scope: dict, headers: dict[str, str],
+                    cookies: dict[str, str]) -> bool:
         offered = []
         authorization = headers.get("authorization", "")
         if authorization.lower().startswith("bearer "):
             offered.append(authorization[7:].strip())
-        for part in headers.get("cookie", "").split(";"):
-            name, _, value = part.strip().partition("=")
-            if name == self.cookie:
-                offered.append(value)
+        if self.cookie in cookies:
+            offered.append(cookies[self.cookie])
         if scope.get("path") == "/" and scope.get("method") == "GET":
             query = scope.get("query_string", b"").decode("latin-1")
             for part in query.split("&"):
@@ -214,8 +240,7 @@ def create_app(service: BenchService, token: str, port: int,
     live_page, live_state = _live_endpoints(service)
 
     def client_of(request: Request) -> str:
-        return (request.cookies.get(client_cookie)
-                or "script:" + request.headers.get("x-bench-client", "")[:64])
+        return client_key(request.cookies.get(client_cookie), request.headers)
 
     async def body(request: Request) -> dict[str, Any]:
         try:
@@ -294,7 +319,7 @@ def create_app(service: BenchService, token: str, port: int,
     if address == "127.0.0.1":
         hosts.add(f"localhost:{port}")
     app = Starlette(routes=routes, exception_handlers=_exception_handlers())
-    return Guard(app, token, hosts, cookie)
+    return Guard(app, token, hosts, cookie, control, client_cookie)
 
 
 def _journal_endpoint(service: BenchService) -> Endpoint:

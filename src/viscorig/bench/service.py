@@ -255,6 +255,7 @@ class BenchService:
                 self.current = item
                 self._checking = True
                 self.problems = []
+                self.message = ""
             try:
                 ended = self._run(item)
             except BenchError as error:
