@@ -200,8 +200,11 @@ def test_ctrl_c_aborts_the_run_keeps_its_data_and_says_how_to_resume(tmp_path) -
     assert process.returncode == 130, err
     assert f"viscorig resume {path}" in err and "interrupted in run 'table'" in err
     assert "Traceback" not in err
-    run = CampaignFile.open(path).run("table")
+    campaign = CampaignFile.open(path)
+    run = campaign.run("table")
     assert run.metadata.status == "aborted" and 0 < run.points < 129
+    assert [(entry.kind, entry.run, entry.text) for entry in campaign.journal] == [
+        ("abort", "table", "stopped at the terminal (Ctrl-C)")]
     # the segment in flight was dropped whole: only planned points, in order
     np.testing.assert_allclose(run.frequency_hz, 12.0 + 0.125 * np.arange(run.points))
 

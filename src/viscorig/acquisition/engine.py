@@ -146,12 +146,15 @@ class StopRequest:
         self.console = console
         self.requested = threading.Event()
         self.measuring = [False]
+        self.signalled = ""
+        """The name of the signal that asked for the stop ("" when none did)."""
 
     def asked(self) -> bool:
         """Has a stop been asked for?"""
         return self.requested.is_set()
 
     def __call__(self, signum: int, frame: object) -> None:
+        self.signalled = self.signalled or signal.Signals(signum).name
         if self.requested.is_set() or not self.measuring[0]:
             self.requested.set()
             raise KeyboardInterrupt
@@ -402,6 +405,10 @@ class RunEngine:
                 result = self._drive(plan)
             except (KeyboardInterrupt, SweepInterrupted):
                 self._move(EngineState.STOPPED)
+                if self.stop.signalled:  # request_stop journals its own reason
+                    how = {"SIGINT": "Ctrl-C"}.get(self.stop.signalled, self.stop.signalled)
+                    self._log("abort", f"stopped at the terminal ({how})",
+                              self.current_run or self.committed[0])
                 raise
             except RunRefused:
                 self._move(EngineState.REFUSED)
