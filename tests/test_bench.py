@@ -121,6 +121,9 @@ def test_a_sequence_with_problems_is_shown_and_not_started(tmp_path) -> None:
     with pytest.raises(Exception, match="problem"):
         service.start()
     assert not (tmp_path / "bad.h5").exists()
+    (tmp_path / "folder.toml").mkdir()
+    with pytest.raises(BenchError, match="a folder, not a sequence file"):
+        service.add("folder.toml", "x.h5")
 
 
 def test_bench_serve_prints_its_address_with_the_token_first(tmp_path) -> None:

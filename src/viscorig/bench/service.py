@@ -124,6 +124,8 @@ class BenchService:
         """
         sequence_path = self._path(sequence, "sequence")
         out_path = self._path(out, "out")
+        if sequence_path.is_dir():
+            raise BenchError(f"sequence {sequence_path}: a folder, not a sequence file", 400)
         if not sequence_path.is_file():
             raise BenchError(f"sequence {sequence_path}: no such file", 400)
         if out_path.suffix != ".h5":
@@ -339,7 +341,10 @@ class BenchService:
     # -- requests while running -----------------------------------------------------------
     def _engine(self):
         runner = self.runner
-        if not self.busy or runner is None or self._checking:
+        if self.busy and self._checking:
+            raise BenchError("the sequence is being checked and the rig opened: nothing runs "
+                             "yet, ask again in a moment")
+        if not self.busy or runner is None:
             raise BenchError("no sequence is running")
         return runner.engine
 
