@@ -164,6 +164,8 @@ run = "broken"
     assert "\n" not in result.message
     assert "sensor break on the specimen thermocouple" in result.message
     assert "TCPIP::" not in result.message  # the chamber's fault, not the analyser's
+    assert "Check the chamber controller at tcp://127.0.0.1:" in result.message
+    assert "Check the analyser" not in result.message
     assert "in run 'broken' after" in result.message and "(kept)" in result.message
     run = CampaignFile.open(out).run("broken")
     assert run.metadata.status == "aborted" and run.points == 4  # two segments before it
@@ -218,6 +220,10 @@ time_limit_minutes = {limit}
     assert result.outcome is Outcome.FAULT
     assert "not soaked within ±0.2 K of -30 °C" in result.message
     assert f"time limit {limit} min" in result.message and target == 25.0
+    # where it stopped, and whose fault it is: the chamber's controller, not the analyser
+    assert "Stopped during the soak at -30 °C (step 2)" in result.message
+    assert "Check the chamber controller at tcp://127.0.0.1:" in result.message
+    assert "Check the analyser" not in result.message
 
 
 def test_a_lab_station_with_a_chamber(tmp_path: Path) -> None:

@@ -14,6 +14,11 @@ the chamber left at the station's safe set point however the sequence ends.
   outside the soak band (flag 16 in the file).
 - :class:`ChamberEngine` is the run engine with the chamber's messages (``chamber``,
   ``pass_time``) and, at any ending, the chamber set to the safe set point.
+
+Leaving the chamber safe (:meth:`ChamberMonitor.to_safe`) writes the safe set point first (the
+write that matters), then the ramp-rate limit off; each write is tried again on a bad or missing
+reply (a corrupted frame, a lost one) within :data:`SAFE_BUDGET_S` in all. A controller that
+still does not take the set point is :class:`ChamberNotSafeError`: the operator must set it by hand.
 """
 
 from __future__ import annotations
@@ -25,17 +30,53 @@ from typing import Any
 
 import numpy as np
 
+from viscorig.acquisition.console import single_line
 from viscorig.acquisition.engine import Msg, Plan, RunEngine
 from viscorig.acquisition.session import Session, StepRecord
 from viscorig.errors import InstrumentError
 from viscorig.sequences import ChamberStation, TemperatureStep
 
-__all__ = ["POLL_S", "ChamberEngine", "ChamberMonitor", "ChamberedAnalyser", "temperature_step"]
+__all__ = ["POLL_S", "SAFE_BUDGET_S", "ChamberEngine", "ChamberFaultError", "ChamberMonitor",
+           "ChamberNotSafeError", "ChamberedAnalyser", "temperature_step"]
 
 #: Seconds between two readings of the specimen thermocouple during a soak.
 POLL_S = 10.0
 #: Seconds of soak between two progress lines.
 SAY_EVERY_S = 300.0
+#: Wall-clock seconds that leaving the chamber safe may take with a controller that does not
+#: answer: no write is tried again once the next attempt would end past this.
+SAFE_BUDGET_S = 5.0
+#: Attempts of each write when leaving the chamber safe, at most.
+SAFE_ATTEMPTS = 3
+#: Seconds between two attempts of a write (a noisy line settles, stray bytes are dropped).
+SAFE_RETRY_PAUSE_S = 0.2
+
+
+class ChamberFaultError(InstrumentError):
+    """A fault of the chamber (its controller, its link, its thermocouples, a soak not done):
+    not the analyser's."""
+
+
+class ChamberNotSafeError(ChamberFaultError):
+    """The controller did not take the safe set point: the chamber must be set by hand.
+
+    Attributes
+    ----------
+    safe_c
+        The station's safe set point, °C.
+    controller
+        Where the controller is (``tcp://HOST:PORT`` or the serial port).
+    detail
+        The last write's fault, one line.
+    """
+
+    def __init__(self, safe_c: float, controller: str, detail: str) -> None:
+        self.safe_c = safe_c
+        self.controller = controller
+        self.detail = detail
+        super().__init__(
+            f"the chamber could NOT be set to its safe set point {safe_c:g} °C ({detail}): "
+            f"set it to {safe_c:g} °C by hand at the controller")
 
 
 @dataclass(frozen=True)
@@ -74,16 +115,22 @@ class ChamberMonitor:
         self.errors = errors
         self.soak: Soak | None = None
 
+    @property
+    def address(self) -> str:
+        """Where the controller is: its link as connected, else the station's address."""
+        link = getattr(self.controller, "link", None)
+        return str(link) if link is not None else self.station.address
+
     def _call(self, method: str, *args: Any) -> Any:
         try:
             return getattr(self.controller, method)(*args)
         except self.errors as error:
-            raise InstrumentError(" ".join(str(error).split())) from None
+            raise ChamberFaultError(" ".join(str(error).split())) from None
 
     def go_to(self, step: TemperatureStep) -> None:
         """Write the ramp and the set point of a temperature step (within the limits)."""
         if not self.station.allows(step.set_point_c):
-            raise InstrumentError(
+            raise ChamberFaultError(
                 f"chamber: set point {step.set_point_c:g} °C is outside the station's limits "
                 f"[{self.station.low_limit_c:g}, {self.station.high_limit_c:g}] °C; nothing "
                 "written")
@@ -97,13 +144,50 @@ class ChamberMonitor:
     def air_c(self) -> float:
         return float(self._call("air_c"))
 
-    def to_safe(self) -> float:
-        """Set the station's safe set point (rate limit off); returns it."""
+    def to_safe(self) -> tuple[float, str]:
+        """Set the station's safe set point, then the rate limit off (module text).
+
+        Returns
+        -------
+        safe, note
+            The safe set point, °C, and "" or why the ramp-rate limit could not be cleared
+            (the set point is written: the chamber goes there, at the last step's ramp rate).
+
+        Raises
+        ------
+        ChamberNotSafeError
+            The controller did not take the safe set point within the attempts and time.
+        """
         safe = self.station.safe_set_point_c
-        self._call("set_rate_limit", 0.0)
-        self._call("set_target", safe)
+        started = time.monotonic()
+        error = self._persist("set_target", safe, started)
+        if error is not None:
+            raise ChamberNotSafeError(safe, self.address, error)
         self.soak = None
-        return safe
+        rate_error = self._persist("set_rate_limit", 0.0, started)
+        note = "" if rate_error is None else f"its ramp-rate limit is not cleared ({rate_error})"
+        return safe, note
+
+    def _persist(self, method: str, value: float, started: float) -> str | None:
+        """Write ``value`` with ``method``, again on a fault while attempts and time remain;
+        None once written, else the last fault (one line, with the attempts made)."""
+        longest = 0.0
+        attempt = 0
+        while True:
+            attempt += 1
+            begun = time.monotonic()
+            try:
+                getattr(self.controller, method)(value)
+                return None
+            except self.errors as error:
+                text = " ".join(str(error).split())
+            now = time.monotonic()
+            longest = max(longest, now - begun)
+            if (attempt >= SAFE_ATTEMPTS
+                    or now + SAFE_RETRY_PAUSE_S + longest - started > SAFE_BUDGET_S):
+                tries = "1 attempt" if attempt == 1 else f"{attempt} attempts"
+                return f"{text}; {tries} in {now - started:.1f} s"
+            time.sleep(SAFE_RETRY_PAUSE_S)
 
     def wait(self, seconds: float) -> None:
         """Let ``seconds`` pass: on the simulated rig's clock, else really."""
@@ -139,7 +223,7 @@ def temperature_step(session: Session, step: TemperatureStep, record: StepRecord
         else:
             entered = None
         if elapsed >= step.time_limit_s:
-            raise InstrumentError(
+            raise ChamberFaultError(
                 f"chamber: the specimen is at {specimen:.1f} °C after {elapsed / 60:.0f} min, "
                 f"not soaked within ±{step.soak_band_k:g} K of {step.set_point_c:g} °C for "
                 f"{step.soak_minutes:g} min (time limit {step.time_limit_minutes:g} min)")
@@ -163,21 +247,42 @@ class ChamberEngine(RunEngine):
         self.chamber = chamber
         super().__init__(campaign, rig, console, **engine)
 
+    #: Set by :meth:`run` when the chamber could not be left at its safe set point.
+    not_safe: ChamberNotSafeError | None = None
+
     def run(self, plan: Plan, *, signals: bool = True) -> Any:
-        """Run ``plan``; whatever the ending, leave the chamber at the safe set point."""
+        """Run ``plan``; whatever the ending, leave the chamber at the safe set point.
+
+        Raises
+        ------
+        ChamberNotSafeError
+            The plan ended well but the controller did not take the safe set point. When the
+            plan itself raised, its exception goes on and :attr:`not_safe` holds this one (the
+            runner says both in one line).
+        """
+        self.not_safe = None
         try:
-            return super().run(plan, signals=signals)
-        finally:
+            result = super().run(plan, signals=signals)
+        except BaseException:
             self._leave_safe()
+            raise
+        self._leave_safe()
+        if self.not_safe is not None:
+            raise self.not_safe
+        return result
 
     def _leave_safe(self) -> None:
         try:
-            safe = self.chamber.to_safe()
-        except Exception as error:  # the chamber's own fault: say so, keep the first error
-            self.console.warn(f"chamber: could not set the safe set point "
-                              f"({' '.join(str(error).split())}); check the chamber")
+            safe, note = self.chamber.to_safe()
+        except ChamberNotSafeError as error:  # said by the runner, in its one line
+            self.not_safe = error
             return
-        self.console.say(f"chamber left at the safe set point {safe:g} °C")
+        except Exception as error:  # not the controller's reply: the set point is not known
+            self.not_safe = ChamberNotSafeError(self.chamber.station.safe_set_point_c,
+                                           self.chamber.address, single_line(str(error)))
+            return
+        self.console.say(f"chamber left at the safe set point {safe:g} °C"
+                         + (f"; {note}" if note else ""))
 
     def _do_chamber(self, method: str, *args: Any) -> Any:
         return getattr(self.chamber, method)(*args)

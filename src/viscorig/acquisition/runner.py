@@ -18,7 +18,12 @@ import enum
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from viscorig.acquisition.chamber import ChamberedAnalyser, ChamberEngine
+from viscorig.acquisition.chamber import (
+    ChamberedAnalyser,
+    ChamberEngine,
+    ChamberFaultError,
+    ChamberNotSafeError,
+)
 from viscorig.acquisition.console import Console, single_line
 from viscorig.acquisition.engine import Rig, RunEngine, RunRefused
 from viscorig.acquisition.forecast import Floor, forecast_sequence
@@ -127,11 +132,15 @@ class Runner:
         try:
             self.engine.run(sequence_plan(self.session, self._time_after))
         except RunRefused as refused:
-            return RunResult(Outcome.REFUSED, str(refused), self.records)
+            return RunResult(Outcome.REFUSED, str(refused) + self._not_safe(), self.records)
         except (KeyboardInterrupt, SweepInterrupted):
             return RunResult(Outcome.INTERRUPTED, self._interrupted(), self.records)
+        except ChamberNotSafeError as error:  # every step done, but the chamber is not safe
+            return RunResult(Outcome.FAULT, self._done_not_safe(error), self.records)
         except InstrumentError as error:
-            return RunResult(Outcome.FAULT, self._fault(single_line(str(error))), self.records)
+            chamber = isinstance(error, ChamberFaultError)
+            return RunResult(Outcome.FAULT, self._fault(single_line(str(error)), chamber),
+                             self.records)
         except Exception as error:
             kinds = self.options.instrument_errors
             if not (kinds and isinstance(error, kinds)):
@@ -165,8 +174,13 @@ class Runner:
 
     def _where_stopped(self) -> str:
         record = self._current()
-        if record is None or record.kind != "sweep":
+        if record is None:
             return ""
+        if record.kind == "temperature":
+            at = "after" if record.state == "done" else "during"
+            return f" {at} the soak at {record.name} (step {record.index + 1})"
+        if record.kind != "sweep":
+            return f" at step {record.index + 1} ({record.kind.replace('_', ' ')})"
         if self._status(record.name) is None:
             return f" before run '{record.name}' started"
         points = self.campaign.run(record.name).points
@@ -175,11 +189,29 @@ class Runner:
     def _resume_hint(self) -> str:
         return f"viscorig resume {self.campaign.path}"
 
-    def _interrupted(self) -> str:
-        return (f"interrupted{self._where_stopped()}; data measured so far is kept in "
-                f"{self.campaign.path}. Continue with: {self._resume_hint()}")
+    def _not_safe(self) -> str:
+        """The chamber not left at its safe set point, as the end of the line ("" if it was)."""
+        error = getattr(self.engine, "not_safe", None)
+        return "" if error is None else f"; {single_line(str(error))}"
 
-    def _fault(self, message: str) -> str:
-        return (f"instrument fault: {message}. Stopped{self._where_stopped()}; data "
-                f"measured so far is kept in {self.campaign.path}. Check the analyser and its "
-                f"connection, then continue with: {self._resume_hint()}")
+    def _check(self, chamber: bool) -> str:
+        if chamber and self.options.chamber is not None:
+            return f"Check the chamber controller at {self.options.chamber.address}"
+        return "Check the analyser"
+
+    def _interrupted(self) -> str:
+        return (f"interrupted{self._where_stopped()}{self._not_safe()}; data measured so far "
+                f"is kept in {self.campaign.path}. Continue with: {self._resume_hint()}")
+
+    def _fault(self, message: str, chamber: bool = False) -> str:
+        not_safe = self._not_safe()
+        return (f"instrument fault: {message}. Stopped{self._where_stopped()}{not_safe}; "
+                f"data measured so far is kept in {self.campaign.path}. "
+                f"{self._check(chamber)} and its connection, then continue "
+                f"with: {self._resume_hint()}")
+
+    def _done_not_safe(self, error: ChamberNotSafeError) -> str:
+        names = ", ".join(self.session.sequence.run_names)
+        return (f"instrument fault: {single_line(str(error))}. Every step is done ({names}, "
+                f"kept in {self.campaign.path}); check the chamber controller at "
+                f"{error.controller} and its connection")
