@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from viscorig.compare import Change, compare_fits, system_changes
 from viscorig.errors import InputError
@@ -60,7 +61,20 @@ def run_data(run: RunRecord) -> FrfData:
         name=f"run '{run.name}'",
         variance_table=run.variance_table,
         variance_support=None if bare else run.variance_support,
+        temperature_c=recorded_temperature_c(run),
     )
+
+
+def recorded_temperature_c(run: RunRecord) -> NDArray[np.float64] | None:
+    """The specimen's temperature recorded at each point of ``run`` (°C; a chamber run's
+    ``temperature_c`` dataset), or ``None`` when the run has none or not at every point."""
+    if "temperature_c" not in run.extra:
+        return None
+    values, units = run.extra["temperature_c"]
+    values = np.asarray(values, dtype=float)
+    if units.strip().lower() in {"k", "kelvin"}:
+        values = values - 273.15
+    return values if values.size and bool(np.all(np.isfinite(values))) else None
 
 
 #: The table's parameters, as a specimen fit inherits them.

@@ -353,6 +353,7 @@ def combine(
         joined("time_s"),
         joined("reference_amplitude"),
         name=main.name,
+        temperature_c=joined("temperature_c"),
     )
     return DiagnosisData(
         combined,
@@ -447,8 +448,7 @@ def from_campaign(
         other = _started(piece)
         if piece is not run and data.time_s is not None and started and other:
             offset = (other - started).total_seconds()
-            data = FrfData(data.frequency_hz, data.table, data.support, data.time_s + offset,
-                           data.reference_amplitude, name=data.name)
+            data = replace(data, time_s=data.time_s + offset)
         pieces.append((name, data))
     combined = combine(pieces, table=None if table is None else table.known, band_hz=band_hz,
                        frfs=frfs)

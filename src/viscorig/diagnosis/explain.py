@@ -7,11 +7,9 @@ import math
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.findings import Finding, inherited_confusion
+from viscorig.diagnosis.screening import RECORDED_DRIFT_K
 from viscorig.models.sensors import CHANNELS
 from viscorig.numbers import with_uncertainty
-
-#: A recorded temperature that moves this much during a run explains a drift of its modulus, K.
-RECORDED_DRIFT_K = 0.2
 
 
 def _estimate(finding: Finding, local: str) -> tuple[float, float]:
@@ -160,9 +158,17 @@ def _explain(finding: Finding, data: DiagnosisData) -> str:
             "at, or test at the amplitude of use."
         )
     if effect == "thermal_drift":
+        gamma, gamma_se = _estimate(finding, "gamma")
+        recorded = data.temperature_range_c.get(data.run)
+        if math.isfinite(gamma) and recorded is not None:
+            return (
+                f"The modulus changes by {_pm(gamma, gamma_se, 100)} % per kelvin of the "
+                f"specimen's recorded temperature, which moved from {recorded[0]:.1f} to "
+                f"{recorded[1]:.1f} °C during the run (its temperature_c dataset): {why}. The "
+                "sweep started before the specimens had soaked: soak longer (a narrower soak "
+                f"band, more soak minutes) before sweeping, or keep {finding.term} in the model.")
         kappa, se = _estimate(finding, "kappa")
         drift = f"The modulus drifts by {_pm(kappa, se, 3600 * 100)} % per hour of test: {why}."
-        recorded = data.temperature_range_c.get(data.run)
         if recorded is not None and recorded[1] - recorded[0] >= RECORDED_DRIFT_K:
             return (
                 f"{drift} The specimen's recorded temperature moved from {recorded[0]:.1f} to "

@@ -20,7 +20,9 @@ sensor_highpass                 one FRF's phase error falls as 1/ω (a lead: the
                                 channel's high-pass; a lag: the force channel's)
 sensor_gain                     one FRF's magnitude is off by a constant factor against the other
 amplitude_dependence            runs at two levels disagree in stiffness
-thermal_drift                   up and down sweeps disagree, or the residual follows ``time_s``
+thermal_drift                   the specimen's recorded temperature moved during the run
+                                (``temperature``, tried first, with ``drift`` beside it); else
+                                up and down sweeps disagree, or the residual follows ``time_s``
 frequency_dependent_modulus     the stiffness/damping error is a smooth trend in log frequency
 =============================== ==================================================================
 
@@ -369,11 +371,47 @@ def screen_levels(current: Likelihood, data: DiagnosisData, alpha: float) -> Can
     return Candidate("amplitude_dependence", "amplitude", evidence, threshold(1, alpha))
 
 
-def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
-    """Residual against time, beyond what frequency explains."""
+#: A recorded temperature that moves this much during a run may explain a drift of its
+#: modulus, K: the ``temperature`` term is tried before a drift in time.
+RECORDED_DRIFT_K = 0.2
+#: The recorded temperature tells its effect apart from a frequency-dependent modulus when this
+#: much of it (rms, K) does not follow a smooth trend in log frequency (a thermocouple's
+#: resolution).
+TEMPERATURE_APART_K = 0.1
+
+
+def screen_recorded_temperature(current: Likelihood, data: DiagnosisData,
+                                alpha: float) -> Candidate | None:
+    """The specimen's recorded temperature moved during the run: ``temperature(T_ref)``, the
+    modulus scaled by it, with a drift in time as its alternative."""
     d = data.data
-    if _has(current.model, "drift") or d.time_s is None:
+    if d.temperature_c is None or float(np.ptp(d.temperature_c)) < RECORDED_DRIFT_K:
         return None
+    temperature = d.temperature_c
+    reference = round(float(np.median(temperature)), 1)
+    u = np.log(d.frequency_hz / np.sqrt(d.frequency_hz.min() * d.frequency_hz.max()))
+    columns = np.stack([np.ones_like(u), u, u**2], axis=1)
+    smooth, *_ = np.linalg.lstsq(columns, temperature, rcond=None)
+    apart = float(np.sqrt(np.mean((temperature - columns @ smooth) ** 2)))
+    evidence = (f"the specimen's recorded temperature moved from {temperature.min():.1f} to "
+                f"{temperature.max():.1f} °C during the run")
+    if apart < TEMPERATURE_APART_K:
+        evidence += (" in step with the frequency, so its effect looks like frequency "
+                     "dependence")
+    return Candidate("thermal_drift", f"temperature({reference:g})", evidence,
+                     threshold(1, alpha), alternatives=() if d.time_s is None else ("drift",),
+                     identifiable=apart >= TEMPERATURE_APART_K)
+
+
+def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
+    """The recorded temperature's effect (:func:`screen_recorded_temperature`) where it
+    moved; else the residual against time, beyond what frequency explains."""
+    d = data.data
+    if _has(current.model, "drift") or _has(current.model, "temperature"):
+        return None
+    recorded = screen_recorded_temperature(current, data, alpha)
+    if recorded is not None or d.time_s is None:
+        return recorded
     if len(data.segments) == 1 or (len(data.directions) == 1 and len(data.levels) == 1):
         evidence = (
             f"one {data.directions[0]} sweep: time and frequency advance together, so a drift "
@@ -399,18 +437,20 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
 
 #: The terms that scale K* by one parameter (zero: no change), with the step of their linear
 #: estimate: screened as the sensor terms are (:data:`SENSOR_TRY_SHARE`).
-SCALING_STEPS = {"amplitude": ("beta", 1e-3), "drift": ("kappa", 1e-7)}
+SCALING_STEPS = {"amplitude": ("beta", 1e-3), "drift": ("kappa", 1e-7),
+                 "temperature": ("gamma", 1e-4)}
 
 
 def _weak(current: Likelihood, data: DiagnosisData, residual: Residual,
           candidate: Candidate) -> bool:
     """The candidate scales K* by one parameter and its linear ``Δχ²`` is short of
     :data:`SENSOR_TRY_SHARE` of its threshold (:func:`per_misfit`)."""
-    if candidate.term not in SCALING_STEPS:
+    keyword, _, argument = candidate.term.rstrip(")").partition("(")
+    if keyword not in SCALING_STEPS:
         return False
-    name, step = SCALING_STEPS[candidate.term]
+    name, step = SCALING_STEPS[keyword]
     try:
-        model = Model((*current.model.terms, TERMS[candidate.term]()))
+        model = Model((*current.model.terms, TERMS[keyword].from_argument(argument or None)))
     except InputError:
         return False
     change = _change(current, data, model, {name: step})

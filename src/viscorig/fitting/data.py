@@ -17,7 +17,8 @@ MIN_POINTS = 8
 #: the analyser's dynamic range is about 90 dB (3e4), a rig's FRF over a band a few decades.
 ABSURD_RATIO = 1e8
 #: Optional real per-point fields.
-_REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support")
+_REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support",
+                "temperature_c")
 
 
 def _complex_or_none(values: ArrayLike | None) -> NDArray[np.complex128] | None:
@@ -46,6 +47,8 @@ class FrfData:
     variance_table, variance_support
         The analyser's normalized variance of each FRF at each point (relative power
         ``E|δH/H|²`` within the point's integration), or ``None``.
+    temperature_c
+        The specimen's recorded temperature at each point (°C), or ``None``.
     name
         Where the data comes from (run name), used in error messages.
     """
@@ -58,6 +61,7 @@ class FrfData:
     name: str = "data"
     variance_table: NDArray[np.float64] | None = None
     variance_support: NDArray[np.float64] | None = None
+    temperature_c: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         frequency = np.atleast_1d(np.asarray(self.frequency_hz, dtype=float))
@@ -101,7 +105,8 @@ class FrfData:
 
     def context(self) -> Context:
         """The model context at these points."""
-        return Context(self.frequency_hz, self.time_s, self.reference_amplitude)
+        return Context(self.frequency_hz, self.time_s, self.reference_amplitude,
+                       self.temperature_c)
 
     def select(self, index: NDArray[np.intp] | NDArray[np.bool_] | slice) -> FrfData:
         """The data at the selected points."""

@@ -80,6 +80,7 @@ def _tiled(ctx: Context, count: int) -> Context:
         np.tile(ctx.frequency_hz, count),
         None if ctx.time_s is None else np.tile(ctx.time_s, count),
         None if ctx.reference_amplitude is None else np.tile(ctx.reference_amplitude, count),
+        None if ctx.temperature_c is None else np.tile(ctx.temperature_c, count),
     )
     if len(_TILED) >= 16:
         _TILED.clear()

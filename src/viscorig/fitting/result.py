@@ -187,9 +187,11 @@ class FitResult:
         frequency_hz: ArrayLike,
         time_s: ArrayLike | None = None,
         reference_amplitude: ArrayLike | None = None,
+        temperature_c: ArrayLike | None = None,
     ) -> dict[str, NDArray[np.complex128]]:
         """The fitted model's accelerances on any frequency grid."""
-        ctx = Context(np.asarray(frequency_hz, dtype=float), time_s, reference_amplitude)  # type: ignore[arg-type]
+        ctx = Context(np.asarray(frequency_hz, dtype=float), time_s, reference_amplitude,  # type: ignore[arg-type]
+                      temperature_c)  # type: ignore[arg-type]
         return self.model.predict(ctx, self.values)
 
     def kstar(self, frequency_hz: ArrayLike) -> NDArray[np.complex128]:

@@ -115,17 +115,21 @@ class Context:
     reference_amplitude
         The vibration amplitude achieved at each point (m/s², peak), or ``None``
         (for amplitude effects).
+    temperature_c
+        The specimen's recorded temperature at each point (°C), or ``None`` (for the
+        ``temperature`` effect).
     """
 
     frequency_hz: NDArray[np.float64]
     time_s: NDArray[np.float64] | None = None
     reference_amplitude: NDArray[np.float64] | None = None
+    temperature_c: NDArray[np.float64] | None = None
     omega: NDArray[np.float64] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         frequency = np.atleast_1d(np.asarray(self.frequency_hz, dtype=float))
         object.__setattr__(self, "frequency_hz", frequency)
-        for name in ("time_s", "reference_amplitude"):
+        for name in ("time_s", "reference_amplitude", "temperature_c"):
             value = getattr(self, name)
             if value is not None:
                 value = np.atleast_1d(np.asarray(value, dtype=float))

@@ -10,6 +10,7 @@ term       stage               what it adds
 amplitude  modify_modulus      ``K* · (x/x_ref)^(−β)``, ``x`` the displacement amplitude
 kraus      modify_modulus      ``K* + K_f(x)``: the filler network of Kraus's Payne-effect model
 drift      modify_modulus      ``K* · (1 + κ t)``, ``t`` the test time ``time_s``
+temperature modify_modulus     ``K* · exp(γ (T − T_ref))``, ``T`` the recorded ``temperature_c``
 fixture    disc_stiffness      a local mode (mass ``m`` on a spring-damper) attached to the disc
 load_cell  couple              the two-DOF coupling of physics.md with a finite ``K_c``
 frame      frame               the inertial frame under the table, a mass on its isolators
@@ -369,6 +370,43 @@ class Drift(Term):
         if ctx.time_s is None:
             raise InputError("the drift term needs time_s", "model spec")
         return kstar * (1.0 + p["kappa"] * ctx.time_s)
+
+
+@register_term
+class Temperature(Term):
+    """The specimen's recorded temperature: ``K* · exp(γ (T − T_ref))``.
+
+    ``T`` is the temperature recorded at each point (a chamber run's ``temperature_c``, °C) and
+    ``T_ref`` the term's argument (``temperature(0)``: K* parameters are the values at 0 °C; the
+    run's set point in a diagnosis). ``γ`` in 1/K is the modulus' relative change per kelvin
+    (negative: softening as it warms; a rubber near its transition loses several % per K). It
+    explains a thermal drift from what was measured instead of inferring it from the test time,
+    as ``drift`` does. Without a recorded temperature (a plot's smooth grid) K* is the value at
+    ``T_ref``.
+    """
+
+    keyword = "temperature"
+    requires = ("temperature_c",)
+
+    def __init__(self, argument: float | None = None) -> None:
+        if argument is None or not np.isfinite(argument) or not -273.15 < argument < 1000.0:
+            raise InputError("the temperature term needs its reference temperature in °C, "
+                             "e.g. temperature(25)", "model spec")
+        self.argument = float(argument)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        return (
+            Parameter(
+                "gamma", "1/K", -0.5, 0.5, 0.0, log=False,
+                description="relative change of the modulus per kelvin of the recorded "
+                            "specimen temperature",
+            ),
+        )
+
+    def modify_modulus(self, ctx, p, kstar):
+        if ctx.temperature_c is None:
+            return kstar
+        return kstar * np.exp(p["gamma"] * (ctx.temperature_c - self.argument))
 
 
 #: Effect vocabulary of the design: effect name -> (term keyword, what is missing).
