@@ -7,6 +7,7 @@
 >>> d = campaign.diagnose("soft-0", auto=True)           # where it fails; the ladder climbed
 >>> campaign.compare("soft-0", "soft-10")                # what preload changed, with ±
 >>> campaign.master("dma-sweep").to_json()               # master curve, shifts, Prony series
+>>> campaign.payne_fits                                  # stored Payne fits (several runs)
 >>> run.to_pandas(), fit.to_xarray()                     # frequency_hz as index / coordinate
 
 Every object has a short ``repr`` and, in Jupyter, an HTML view (``_repr_html_``) that says the
@@ -47,6 +48,7 @@ from viscorig.report.figures import frf_figure
 from viscorig.report.headline import describe_specimen, headline
 from viscorig.report.page import diagnosis_section
 from viscorig.storage import CampaignFile
+from viscorig.strain import PayneFit, stored_payne_fits
 
 _DEFAULT_BAND = None  # every point, as identify and diagnose do
 
@@ -97,6 +99,14 @@ class Campaign:
 
         source = table_parameters(self.stored)
         return None if source is None else dict(source.values)
+
+    @property
+    def payne_fits(self) -> list[PayneFit]:
+        """The Payne fits stored in the file (``identify --run A --run B ... --model kraus``,
+        under ``/fits``), oldest first: each a :class:`viscorig.strain.PayneFit` with its
+        runs, parameters (``K_f``, ``L_f``, ``x_c``, ``m_k`` with standard errors), band,
+        ``fit_id`` and ``created``."""
+        return stored_payne_fits(self.stored)
 
     def identify(self, run: str, model: str | None = None, *,
                  band_hz: tuple[float, float] | None = _DEFAULT_BAND,

@@ -14,13 +14,17 @@ of the support FRF, and the differences against one base run correlated through 
 ``L_f`` and ``m_k`` from three levels came out 16 to 18 % too small over 50 simulated
 campaigns). Standard errors from the whitened Jacobian, scaled by the
 reduced chi-square.
+
+A fit is stored in the campaign file under ``/fits/<id>``, beside ``/runs`` (a fit of several
+runs belongs to none of them; :meth:`viscorig.storage.CampaignFile.add_joint_fit`):
+:func:`store_payne_fit` writes it, :func:`stored_payne_fits` reads every one back.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,9 +32,13 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.models.effects import KRAUS_PARAMETERS, kraus_stiffness
 from viscorig.numbers import Estimate
-from viscorig.storage import CampaignFile
+from viscorig.storage import CampaignFile, JointFitRecord
 
-__all__ = ["PayneFit", "identify_payne"]
+__all__ = ["PayneFit", "identify_payne", "read_payne_fit", "store_payne_fit",
+           "stored_payne_fits"]
+
+#: The model name a Payne fit is stored under (``/fits/<id>`` attribute ``model``).
+PAYNE_MODEL = "kraus"
 
 
 @dataclass(frozen=True)
@@ -49,6 +57,13 @@ class PayneFit:
         Of the weighted fit (1 when the misfit is the noise).
     displacement_range_m
         Smallest and largest displacement amplitude of the runs.
+    band_hz
+        Lowest and highest frequency of the differences fitted.
+    correlation
+        Correlation matrix of the parameters, in the order of ``parameters`` (``None`` when
+        the file stores none).
+    fit_id, created
+        The id under ``/fits`` and the time it was stored (``""`` for a fit made here).
     """
 
     runs: tuple[str, ...]
@@ -56,14 +71,24 @@ class PayneFit:
     points: int
     reduced_chi_square: float
     displacement_range_m: tuple[float, float]
+    band_hz: tuple[float, float] = (math.nan, math.nan)
+    correlation: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
+    fit_id: str = ""
+    created: str = ""
 
     def to_json(self) -> dict[str, object]:
-        return {
-            "runs": list(self.runs), "model": "kraus", "points": self.points,
+        document: dict[str, object] = {
+            "runs": list(self.runs), "model": PAYNE_MODEL, "points": self.points,
             "reduced_chi_square": self.reduced_chi_square,
             "displacement_range_m": list(self.displacement_range_m),
+            "band_hz": list(self.band_hz),
             "parameters": {name: p.to_json() for name, p in self.parameters.items()},
         }
+        if self.correlation is not None:
+            document["correlation"] = {
+                "parameters": list(self.parameters),
+                "matrix": [[round(float(v), 6) for v in row] for row in self.correlation]}
+        return document
 
 
 @dataclass(frozen=True)
@@ -120,7 +145,7 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
         raise InputError("needs two or more runs at different levels", "runs")
     levels = [_level(campaign, name, band_hz) for name in dict.fromkeys(runs)]
     levels.sort(key=lambda level: float(np.median(level.displacement_m)))
-    x, differences, whitening = _aligned(levels, str(campaign.path))
+    x, differences, whitening, frequency = _aligned(levels, str(campaign.path))
     x_low, x_high = x[:, :1], x[:, 1:]
     valid = np.isfinite(differences)
     measured = np.where(valid, differences, 0.0)
@@ -152,6 +177,9 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
     jac = best.jac
     covariance = np.linalg.pinv(jac.T @ jac) * max(chi2, 1e-300)
     theta_err = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    # the values' correlation is their logarithms' (each a positive multiple of its own)
+    scale = np.where(theta_err > 0, theta_err, 1.0)
+    correlation = np.clip(covariance / np.outer(scale, scale), -1.0, 1.0)
     values = unpack(best.x)
     # log-parameters: stderr of the value is value * stderr of its logarithm
     errors = {"K_f": values["K_f"] * theta_err[0], "L_f": values["L_f"] * theta_err[1],
@@ -163,15 +191,75 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
         parameters={name: Estimate(values[name], errors[name], units[name]) for name in names},
         points=int(valid.sum()), reduced_chi_square=chi2,
         displacement_range_m=(float(displacement.min()), float(displacement.max())),
+        band_hz=(float(frequency.min()), float(frequency.max())),
+        correlation=correlation,
     )
 
 
+def store_payne_fit(campaign: CampaignFile, fit: PayneFit) -> str:
+    """Store a Payne fit under ``/fits/<id>`` in one commit (all of it or nothing) and return
+    its id; each call adds a fit, as re-identifying a run does."""
+    names = tuple(fit.parameters)
+    return campaign.add_joint_fit(
+        fit.runs, model=PAYNE_MODEL, band_hz=fit.band_hz,
+        reduced_chi_square=fit.reduced_chi_square, points=fit.points,
+        parameters=fit.parameters,
+        correlation=None if fit.correlation is None else (names, fit.correlation),
+        weighting="noise",
+        attributes={"displacement_range_m": fit.displacement_range_m})
+
+
+def read_payne_fit(record: JointFitRecord) -> PayneFit:
+    """A Payne fit stored in a campaign file (:meth:`CampaignFile.joint_fits`), as
+    :func:`identify_payne` returns it.
+
+    Raises
+    ------
+    InputError
+        The stored fit is not a ``kraus`` fit, or lacks some of its parameters.
+    """
+    where = f"/fits/{record.id}"
+    if record.model != PAYNE_MODEL:
+        raise InputError(f"is a {record.model!r} fit, not {PAYNE_MODEL!r}", where)
+    names = [p.name for p in KRAUS_PARAMETERS]
+    missing = [name for name in names if name not in record.parameters]
+    if missing:
+        raise InputError(f"lacks {', '.join(missing)}", where)
+    correlation = None
+    if record.correlation is not None:
+        index = {name: i for i, name in enumerate(record.correlation[0])}
+        if all(name in index for name in names):
+            order = [index[name] for name in names]
+            correlation = np.asarray(record.correlation[1], dtype=float)[np.ix_(order, order)]
+    span = np.asarray(record.extra.get("displacement_range_m", (math.nan, math.nan)),
+                      dtype=float).ravel()
+    low, high = (float(span[0]), float(span[1])) if span.size == 2 else (math.nan, math.nan)
+    return PayneFit(
+        runs=record.runs, parameters={name: record.parameters[name] for name in names},
+        points=record.points, reduced_chi_square=record.reduced_chi_square,
+        displacement_range_m=(low, high), band_hz=record.band_hz, correlation=correlation,
+        fit_id=record.id, created=record.created)
+
+
+def stored_payne_fits(campaign: CampaignFile) -> list[PayneFit]:
+    """The Payne fits the file stores (``/fits``), oldest first; a stored fit of another
+    model, or one that is not whole, is left out."""
+    out = []
+    for record in campaign.joint_fits():
+        try:
+            out.append(read_payne_fit(record))
+        except InputError:
+            continue
+    return out
+
+
 def _aligned(levels: list[_Level], path: str) -> tuple[
-        NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64]]:
+        NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
     """At each frequency of the base run (the lowest level) that another run shares: the
     displacements ``(n, L)``, the differences of K* against the base ``(n, L − 1)`` (NaN where a
-    run lacks the frequency) and the whitening ``W`` (``W C Wᵀ = I``) of their covariance per
-    component, ``C = diag(s_j²) + s_0² 11ᵀ`` (``s`` a run's K* noise per component)."""
+    run lacks the frequency), the whitening ``W`` (``W C Wᵀ = I``) of their covariance per
+    component, ``C = diag(s_j²) + s_0² 11ᵀ`` (``s`` a run's K* noise per component), and the
+    frequencies ``(n,)``."""
     base = levels[0]
     keys = np.round(base.frequency_hz, 6)
     n, k = keys.size, len(levels) - 1
@@ -191,6 +279,7 @@ def _aligned(levels: list[_Level], path: str) -> tuple[
         spread[i, column + 1] = other.sigma[j] / math.sqrt(2.0)
     shared = np.any(np.isfinite(differences), axis=1)
     x, differences, spread = x[shared], differences[shared], spread[shared]
+    frequency = base.frequency_hz[shared]
     valid = np.isfinite(differences)
     if not np.all(np.isfinite(spread[:, 0]) & (spread[:, 0] > 0)) or not np.all(
             np.isfinite(spread[:, 1:][valid]) & (spread[:, 1:][valid] > 0)):
@@ -202,4 +291,4 @@ def _aligned(levels: list[_Level], path: str) -> tuple[
                            spread[:, :1, None] ** 2, 0.0)
     covariance = common_part + own[:, :, None] * np.eye(k)[None]
     whitening = np.linalg.inv(np.linalg.cholesky(covariance))
-    return x, differences, whitening
+    return x, differences, whitening, frequency

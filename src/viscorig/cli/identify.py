@@ -5,6 +5,11 @@ file untouched). Without ``--model``, a bare-table run gets ``table`` and a spec
 ``voigt``. Without ``--frf``, every FRF the model predicts and the run has is fitted. Each point
 is weighted by its noise (the project's estimate); ``--weights uniform`` weighs every point the
 same, as the paper does.
+
+Several runs with ``--model kraus`` (``--run A --run B --run C``): the strain-amplitude
+dependence (Payne effect) of one specimen from its runs at several levels
+(:func:`viscorig.strain.identify_payne`), stored under ``/fits/<id>`` beside ``/runs`` unless
+``--no-store``.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from viscorig.identify import (
 )
 from viscorig.numbers import with_uncertainty
 from viscorig.storage import CampaignFile
-from viscorig.strain import identify_payne
+from viscorig.strain import identify_payne, store_payne_fit
 
 FRF_CHOICES = {"table": ("table",), "support": ("support",), "both": ("table", "support")}
 
@@ -147,8 +152,9 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
     if args.model != "kraus":
         raise InputError("several runs are fitted together only for the strain-amplitude "
                          "dependence: add --model kraus (or give one --run)", "--run")
-    with CampaignFile.open(args.file, "r") as campaign:
+    with CampaignFile.open(args.file, "r" if args.no_store else "a") as campaign:
         fit = identify_payne(campaign, args.run, band_hz=band)
+        fit_id = None if args.no_store else store_payne_fit(campaign, fit)
     if args.json:
         print(jsontext.dumps(fit.to_json()))
         return 0
@@ -159,6 +165,6 @@ def _strain(args: argparse.Namespace, band: tuple[float, float] | None) -> int:
              f"{fit.reduced_chi_square:.2f}"]
     for name, parameter in fit.parameters.items():
         lines.append(f"  {name:<4} = {parameter.text()}")
-    lines.append("not stored (a fit of several runs)")
+    lines.append("not stored (--no-store)" if fit_id is None else f"stored as fit /fits/{fit_id}")
     print("\n".join(lines))
     return 0

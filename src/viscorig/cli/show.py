@@ -1,4 +1,5 @@
-"""``viscorig show FILE``: what a campaign file holds, run by run, with flagged points and fits.
+"""``viscorig show FILE``: what a campaign file holds, run by run, with flagged points and fits
+(a run's own, and the fits of several runs together under ``/fits``, such as the Payne effect's).
 
 Works on a file that is still being written or whose writer crashed (its last run stays
 "running" with every committed segment). A run that cannot be read is listed with the reason,
@@ -21,7 +22,14 @@ from viscorig.cli import summary_of
 from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names, read_dma
 from viscorig.numbers import with_uncertainty
-from viscorig.storage import FLAG_NAMES, CampaignFile, FitRecord, RunRecord, count_flags
+from viscorig.storage import (
+    FLAG_NAMES,
+    CampaignFile,
+    FitRecord,
+    JointFitRecord,
+    RunRecord,
+    count_flags,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -84,6 +92,30 @@ def fit_lines(fit: FitRecord) -> list[str]:
     return lines
 
 
+def joint_fit_lines(fit: JointFitRecord) -> list[str]:
+    """The listing's lines for one fit of several runs together."""
+    lo, hi = fit.band_hz
+    lines = [
+        f"  /fits/{fit.id}  {fit.model}  runs {', '.join(fit.runs)}  {lo:g}-{hi:g} Hz  "
+        f"{fit.points} points  reduced chi-square {_number(fit.reduced_chi_square)}  "
+        f"{fit.created}"
+    ]
+    for name, parameter in fit.parameters.items():
+        shown = with_uncertainty(parameter.value, parameter.stderr)
+        lines.append(f"      {name} = {shown} {parameter.unit}".rstrip())
+    return lines
+
+
+def joint_fits(campaign: CampaignFile, problems: list[str]) -> list[JointFitRecord]:
+    """The fits of several runs together (``/fits``); a file where they cannot be read puts
+    its reason in problems."""
+    try:
+        return campaign.joint_fits()
+    except InputError as error:
+        problems.append(str(error))
+        return []
+
+
 def table(rows: list[list[str]]) -> list[str]:
     """Rows as left-aligned columns."""
     widths = [max(len(row[i]) for row in rows if i < len(row)) for i in range(len(rows[0]))]
@@ -126,6 +158,8 @@ def listing(path: Path) -> tuple[list[str], list[str]]:
             rows.append([name, f"cannot be read: {error.detail}"])
             problems.append(str(error))
     dma = dma_runs(campaign, problems)
+    for joint in joint_fits(campaign, problems):
+        fits.extend(joint_fit_lines(joint))
     if len(rows) == 1 and not dma:
         lines.append("no runs")
     elif len(rows) > 1:
@@ -169,6 +203,21 @@ def fit_json(fit: FitRecord) -> dict[str, Any]:
         "band_hz": [float(fit.band_hz[0]), float(fit.band_hz[1])],
         "rms_error": float(fit.rms_error),
         "noise_floor": float(fit.noise_floor),
+        "weighting": fit.weighting or None,
+        "created": fit.created,
+        "parameters": {name: p.to_json() for name, p in fit.parameters.items()},
+    }
+
+
+def joint_fit_json(fit: JointFitRecord) -> dict[str, Any]:
+    """One fit of several runs together as JSON (the parameter layout of ``identify --json``)."""
+    return {
+        "id": fit.id,
+        "model": fit.model,
+        "runs": list(fit.runs),
+        "band_hz": [float(fit.band_hz[0]), float(fit.band_hz[1])],
+        "points": int(fit.points),
+        "reduced_chi_square": float(fit.reduced_chi_square),
         "weighting": fit.weighting or None,
         "created": fit.created,
         "parameters": {name: p.to_json() for name, p in fit.parameters.items()},
@@ -251,6 +300,7 @@ def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
             document["runs"].append({"name": name, "error": error.detail})
             problems.append(str(error))
     document["dma_runs"] = dma_runs(campaign, problems)
+    document["joint_fits"] = [joint_fit_json(fit) for fit in joint_fits(campaign, problems)]
     return document, problems
 
 

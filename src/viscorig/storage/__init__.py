@@ -19,6 +19,7 @@ from viscorig.storage.flags import (
 )
 from viscorig.storage.records import (
     FitRecord,
+    JointFitRecord,
     RunMetadata,
     RunRecord,
     RunSettings,
@@ -33,6 +34,7 @@ __all__ = [
     "SOURCE_AT_LIMIT",
     "CampaignFile",
     "FitRecord",
+    "JointFitRecord",
     "PointFlag",
     "RunMetadata",
     "RunRecord",

@@ -33,6 +33,13 @@ Additions to the contract, both readable by any HDF5 tool:
   order, one point per frequency).
 - A fit may carry the attribute ``weighting``: ``"noise"`` (generalised least squares under
   the run's noise model, the project's estimate) or ``"uniform"`` (the paper's method).
+- ``/fits/<id>``, beside ``/runs``: fits of several runs together (the Payne effect's Kraus
+  model from runs at several levels, ``identify --run A --run B --run C --model kraus``), ids
+  counted as a run's fits are; attributes ``model``, ``runs`` (the run names, separated by
+  spaces, in the fit's order), ``band_hz``, ``reduced_chi_square``, ``points`` (int64),
+  ``created``, ``weighting`` and what the model adds (``displacement_range_m`` [lo, hi]);
+  parameters and ``correlation`` as in a run's fit. Re-identifying adds a fit, as it does to a
+  run. Readers of ``/runs`` never see these; readers that do not know ``/fits`` ignore it.
 - Next to the file, while a writer has it: ``.NAME.lock``, the writer lock and a JSON record of
   who holds it (:mod:`viscorig.storage.writelock`); during a commit, ``.NAME.commit``, the new
   file before it replaces the old one (:mod:`viscorig.storage.atomic`).
@@ -62,7 +69,14 @@ from numpy.typing import ArrayLike
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
-from viscorig.storage.records import FitRecord, RunMetadata, RunRecord, RunSettings, Segment
+from viscorig.storage.records import (
+    FitRecord,
+    JointFitRecord,
+    RunMetadata,
+    RunRecord,
+    RunSettings,
+    Segment,
+)
 from viscorig.version import __version__
 
 
@@ -308,6 +322,12 @@ class CampaignFile:
         where = f"/{layout.RUNS_GROUP}/{run_name}/{layout.FITS_GROUP}"
         with self._reading() as h5, reading.guarded(self.path, where):
             return reading.read_fits(h5, run_name, self.path)
+
+    def joint_fits(self) -> list[JointFitRecord]:
+        """The fits of several runs together stored under ``/fits``, oldest first ([] when
+        there are none)."""
+        with self._reading() as h5, reading.guarded(self.path, f"/{layout.JOINT_FITS_GROUP}"):
+            return reading.read_joint_fits(h5, self.path)
 
     def _setup_text(self, dataset: str) -> str | None:
         where = f"/{layout.SETUP_GROUP}/{dataset}"
@@ -613,6 +633,108 @@ class CampaignFile:
             if matrix is not None:
                 dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
                 dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
+                dataset.attrs["units"] = "1"
+            return fit_id
+
+
+    def add_joint_fit(
+        self,
+        runs: Sequence[str],
+        *,
+        model: str,
+        band_hz: tuple[float, float],
+        reduced_chi_square: float,
+        points: int,
+        parameters: Mapping[str, tuple[float, float, str]],
+        correlation: tuple[Sequence[str], ArrayLike] | None = None,
+        weighting: str | None = None,
+        attributes: Mapping[str, str | float | int | Sequence[float]] | None = None,
+    ) -> str:
+        """Store a fit of several runs together under ``/fits/<id>`` (module text) in one
+        commit, and return its id.
+
+        Parameters
+        ----------
+        runs
+            The runs fitted (two or more, each a run of the file), in the fit's order.
+        model
+            What was fitted, e.g. ``"kraus"``.
+        band_hz
+            (lo, hi) band fitted, Hz.
+        reduced_chi_square, points
+            Of the fit.
+        parameters, correlation, weighting
+            As :meth:`add_fit`.
+        attributes
+            Further attributes of the fit (names not the ones above): text, a number, or
+            numbers (stored as a float64 array).
+
+        Raises
+        ------
+        InputError
+            Fewer than two runs, a run the file does not have, an invalid band, name or value.
+        """
+        where = f"{self.path}: /{layout.JOINT_FITS_GROUP}"
+        names = tuple(check_name(run, f"{where}: run") for run in runs)
+        if len(set(names)) < 2:
+            raise InputError("a joint fit names two or more runs", where)
+        lo, hi = (float(value) for value in band_hz)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
+            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo <= hi", where)
+        if not isinstance(model, str) or not model.strip():
+            raise InputError("model spec is empty", where)
+        checked = {}
+        for key, (value, stderr, unit) in parameters.items():
+            check_name(key, f"{where}: parameter")
+            checked[key] = (float(value), float(stderr), str(unit))
+        order: tuple[str, ...] = ()
+        matrix = None
+        if correlation is not None:
+            order = tuple(str(name) for name in correlation[0])
+            matrix = np.asarray(correlation[1], dtype=float).reshape(len(order), len(order))
+            if set(order) - set(checked) or layout.FIT_CORRELATION in checked:
+                raise InputError("correlation names parameters the fit does not have", where)
+        reserved = {"model", "runs", "band_hz", "reduced_chi_square", "points", "created",
+                    "weighting"}
+        more: dict[str, object] = {}
+        for key, given in (attributes or {}).items():
+            check_name(key, f"{where}: attribute")
+            if key in reserved:
+                raise InputError("is defined by the layout", f"{where}: attribute {key!r}")
+            if isinstance(given, str | int | float | np.integer | np.floating):
+                more[key] = given
+            else:
+                array = np.asarray(given, dtype=float).ravel()
+                if array.size > layout.MAX_ATTRIBUTE_VALUES:
+                    raise InputError(f"more than {layout.MAX_ATTRIBUTE_VALUES} values",
+                                     f"{where}: attribute {key!r}")
+                more[key] = array
+        with self._commit() as h5:
+            for run in names:
+                reading.run_group(h5, run, self.path)  # each a run of this file
+            untrusted.check_link(h5, layout.JOINT_FITS_GROUP, self.path)
+            fits = h5.require_group(layout.JOINT_FITS_GROUP)
+            numbers = [int(key) for key in fits if key.isdigit()]
+            if len(fits) >= layout.MAX_FITS:
+                raise InputError(f"holds {layout.MAX_FITS} fits, the most it may hold", where)
+            fit_id = f"{max(numbers, default=0) + 1:04d}"
+            fit = fits.create_group(fit_id)
+            fit.attrs["model"] = model
+            fit.attrs["runs"] = " ".join(names)  # one text: run names hold no space
+            fit.attrs["band_hz"] = np.array([lo, hi])
+            fit.attrs["reduced_chi_square"] = float(reduced_chi_square)
+            fit.attrs["points"] = np.int64(points)
+            fit.attrs["created"] = utc_now()
+            if weighting:
+                fit.attrs["weighting"] = str(weighting)
+            fit.attrs.update(more)
+            for key, (value, stderr, unit) in checked.items():
+                dataset = fit.create_dataset(key, data=np.float64(value))
+                dataset.attrs["stderr"] = stderr
+                dataset.attrs["units"] = unit
+            if matrix is not None:
+                dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
+                dataset.attrs["parameters"] = " ".join(order)
                 dataset.attrs["units"] = "1"
             return fit_id
 

@@ -43,6 +43,10 @@ RIG_INT_ATTRIBUTES = ("specimen_count",)
 
 #: Dataset of a fit group holding the correlation matrix of its parameters.
 FIT_CORRELATION = "correlation"
+#: Fits of several runs together (our addition to the contract): ``/fits/<id>``, beside
+#: ``/runs``; each names the runs it used in its attribute ``runs`` (data-format.md keeps
+#: ``/runs/<name>/fits`` for fits of one run).
+JOINT_FITS_GROUP = "fits"
 
 #: Elements of each dataset: 1-D, chunked, resizable.
 CHUNK_POINTS = 256

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.numbers import Estimate
 from viscorig.storage import layout, untrusted
-from viscorig.storage.records import FitRecord, RunMetadata, RunRecord
+from viscorig.storage.records import FitRecord, JointFitRecord, RunMetadata, RunRecord
 from viscorig.storage.text import printable
 
 #: What h5py raises on damaged objects, missing members, or values of an unexpected type.
@@ -391,6 +391,77 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
                 )
             )
     return result
+
+
+def read_joint_fits(h5: h5py.File, path: Path) -> list[JointFitRecord]:
+    """The fits of several runs together (``/fits/<id>``), in id order; [] when there are
+    none."""
+    name = layout.JOINT_FITS_GROUP
+    untrusted.check_link(h5, name, path)
+    group = h5.get(name)
+    if group is None:
+        return []
+    result = []
+    with guarded(path, f"/{name}"):
+        if not isinstance(group, h5py.Group):
+            raise InputError("not a group", f"{path}: /{name}")
+        untrusted.check_attributes(group, path)
+        for fit_id in sorted(untrusted.members(group, path, layout.MAX_FITS)):
+            untrusted.check_stored_name(fit_id, path, group.name, "fit")
+            fit = group[fit_id]
+            if not isinstance(fit, h5py.Group):
+                raise InputError("not a group", f"{path}: {fit.name}")
+            result.append(_read_joint_fit(fit_id, fit, path))
+    return result
+
+
+def _pair(fit: h5py.Group, name: str, path: Path) -> tuple[float, float]:
+    """A two-number attribute ``[lo, hi]``."""
+    value = attribute(fit, name, path)
+    try:
+        pair = np.asarray([] if value is None else value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        pair = np.empty(0)
+    if pair.shape != (2,):
+        raise InputError(f"{name} is not [lo, hi]", f"{path}: {fit.name}.{name}")
+    return float(pair[0]), float(pair[1])
+
+
+def _names(value: Any) -> tuple[str, ...]:
+    """Names stored as one text separated by spaces, or as an array of texts."""
+    if isinstance(value, np.ndarray):
+        return tuple(str(_decode(item)) for item in value.ravel())
+    return tuple(str(value).split()) if isinstance(value, str) else ()
+
+
+def _read_joint_fit(fit_id: str, fit: h5py.Group, path: Path) -> JointFitRecord:
+    runs = _names(attribute(fit, "runs", path))
+    if not runs:
+        raise InputError("names no runs", f"{path}: {fit.name}.runs")
+    for run in runs:
+        untrusted.check_stored_name(run, path, f"{fit.name}.runs", "run")
+    parameters = {}
+    for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
+        untrusted.check_stored_name(key, path, fit.name, "parameter")
+        parameter = _read_parameter(fit[key], path)
+        if parameter is not None:
+            parameters[key] = parameter
+    known = ("model", "runs", "band_hz", "reduced_chi_square", "points", "created", "weighting")
+    extra = {key: value for key, value in attributes(fit, path).items() if key not in known}
+    weighting = attribute(fit, "weighting", path)
+    return JointFitRecord(
+        id=fit_id,
+        model=text_attribute(fit, "model", path),
+        runs=runs,
+        band_hz=_pair(fit, "band_hz", path),
+        reduced_chi_square=read_number(fit, "reduced_chi_square", path),
+        points=read_number(fit, "points", path, integer=True),
+        created=text_attribute(fit, "created", path),
+        parameters=parameters,
+        correlation=_read_correlation(fit, path),
+        weighting=weighting if isinstance(weighting, str) else "",
+        extra=extra,
+    )
 
 
 def _read_correlation(

@@ -162,6 +162,30 @@ class FitRecord:
     """How the fit weighted the points (``"noise"``, ``"uniform"``), if stored."""
 
 
+@dataclass(frozen=True)
+class JointFitRecord:
+    """A fit of several runs together as the campaign file stores it under ``/fits/<id>`` (the
+    Payne effect's Kraus model from runs at several levels, :mod:`viscorig.strain`): what the
+    file says, unchecked against the model."""
+
+    id: str
+    model: str
+    """What was fitted, e.g. ``"kraus"``."""
+    runs: tuple[str, ...]
+    """The runs it used, in the fit's order (for ``kraus`` the lowest level first)."""
+    band_hz: tuple[float, float]
+    reduced_chi_square: float
+    points: int
+    created: str
+    parameters: dict[str, Estimate]
+    """name -> value, standard error (NaN when the file stores none) and unit."""
+    correlation: tuple[tuple[str, ...], NDArray[np.float64]] | None = None
+    """Names and correlation matrix of the parameters, if stored."""
+    weighting: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """The fit group's other attributes (``displacement_range_m`` of a ``kraus`` fit)."""
+
+
 @dataclass(frozen=True, eq=False)
 class RunRecord:
     """One sweep run read from a campaign file; arrays are read-only numpy arrays.
