@@ -3,6 +3,7 @@ clear line for bad input."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -273,3 +274,105 @@ def test_bad_trios_exports_name_file_row_and_column(trios_file, tmp_path, capsys
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "bad.txt" in err and "row " in err and expected in err, err
     assert "Traceback" not in err and not h5.exists()
+
+
+# --- the units row told from every named column; typographic primes; unitless kelvin; xlrd
+
+
+def _read(tmp_path, text: str, name: str = "t.csv"):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return read_dma_csv(path)
+
+
+@pytest.mark.parametrize("text", [
+    # a leading text column: its first data cell is a sample name, not a unit
+    "Sample,f [Hz],E' [MPa],E'' [MPa],T [°C]\nA1,0.1,10,1,20\nA1,1,11,1.5,20\nA1,10,12,2,20\n",
+    # a units row whose first cell is empty, then one whose first cell is the sample's name
+    "Sample,f,E',E'',T\n,Hz,MPa,MPa,C\nA1,0.1,10,1,20\nA1,1,11,1.5,20\nA1,10,12,2,20\n",
+    "Sample,f,E',E'',T\nA1,Hz,MPa,MPa,C\nA1,0.1,10,1,20\nA1,1,11,1.5,20\nA1,10,12,2,20\n",
+])
+def test_units_row_is_told_from_the_named_columns_not_the_first_cell(tmp_path, text):
+    table = _read(tmp_path, text)
+    assert table.points == 3 and table.frequency_hz.tolist() == [0.1, 1.0, 10.0]
+    assert table.storage_pa.tolist() == [10e6, 11e6, 12e6]
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    # a first data row with one bad cell is a data row: its row and column are named
+    ("f [Hz],E' [MPa],E'' [MPa],T [°C]\nabc,10,1,20\n1,11,1,20\n", "row 2, column 'f [Hz]'"),
+    ("Sample,f,E',E'',T\n,Hz,MPa,MPa,C\nA1,0.1,x,1,20\nA1,1,11,1,20\n", "row 3, column \"E'\""),
+    # a unit the units row gives wrongly is named with the units row's number
+    ("Sample,f,E',E'',T\nA1,Hz,furlong,MPa,C\nA1,0.1,10,1,20\nA1,1,11,1,20\n",
+     "row 2, column \"E'\": unit 'furlong'"),
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,F\n1,10,1,20\n2,11,1,20\n", "row 2, column 'T': unit 'F'"),
+    # a unit missing altogether: the header row and the column
+    ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "row 1, column 'E_stor': no unit"),
+])
+def test_unit_and_cell_errors_name_file_row_and_column(tmp_path, text, expected):
+    with pytest.raises(InputError) as error:
+        _read(tmp_path, text, "bad.csv")
+    message = str(error.value)
+    assert "bad.csv" in message and expected in message, message
+
+
+@pytest.mark.parametrize(("storage", "loss", "modulus"), [
+    ("E\u2019", "E\u2019\u2019", "E"),  # right single quotation mark (Word, Excel)
+    ("E\u2032", "E\u2033", "E"),  # prime and double prime
+    ("E\u2019", "E\u201d", "E"),  # right double quotation mark for the loss
+    ("G\u2019", "G\u201d", "G"),
+    ("G\u2032", "G\u2032\u2032", "G"),
+])
+def test_typographic_primes_name_storage_and_loss(tmp_path, storage, loss, modulus):
+    table = _read(tmp_path, f"f [Hz];{storage} [MPa];{loss} [MPa];T [°C]\n"
+                            "1;10;1;20\n10;11;1.5;20\n")
+    assert table.modulus == modulus and table.storage_pa.tolist() == [10e6, 11e6]
+    assert table.loss_pa.tolist() == [1e6, 1.5e6]
+
+
+def test_typographic_primes_in_a_windows_1252_file(tmp_path):
+    path = tmp_path / "cp.csv"
+    path.write_bytes("f [Hz];E\u2019 [MPa];E\u2019\u2019 [MPa];T [°C]\n1;10;1;20\n10;11;1;20\n"
+                     .encode("cp1252"))
+    assert read_dma_csv(path).storage_pa.tolist() == [10e6, 11e6]
+
+
+@pytest.mark.parametrize("units", ["f [Hz],E' [MPa],E'' [MPa],T\n",
+                                   "f,E',E'',T\nHz,MPa,MPa,-\n"])
+def test_temperatures_without_a_unit_that_look_like_kelvin_are_refused(tmp_path, units):
+    with pytest.raises(InputError) as error:
+        _read(tmp_path, units + "1,10,1,283.15\n10,11,1,283.2\n1,9,1,293.15\n", "k.csv")
+    message = str(error.value)
+    assert "k.csv: row 1, column 'T'" in message, message
+    assert "[K]" in message and "kelvin" in message and "\n" not in message, message
+
+
+def test_temperatures_without_a_unit_are_celsius_otherwise_and_kelvin_when_told(tmp_path):
+    assert _read(tmp_path, "f [Hz],E' [MPa],E'' [MPa],T\n1,10,1,20\n1,11,1,160\n") \
+        .temperature_c.tolist() == [20.0, 160.0]
+    table = _read(tmp_path, "f [Hz],E' [MPa],E'' [MPa],T [K]\n1,10,1,283.15\n1,11,1,293.15\n")
+    assert table.temperature_c == pytest.approx([10.0, 20.0])
+
+
+def test_xls_without_xlrd_names_the_fix_in_one_line(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "xlrd", None)  # import xlrd raises ImportError
+    book = tmp_path / "eplexor.xls"
+    book.write_bytes(b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 504)
+    assert main(["import", str(tmp_path / "c.h5"), "--run", "x", "--dma", str(book)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "eplexor.xls" in err and "xlrd" in err, err
+    assert 'pip install "viscorig[excel]"' in err, err
+
+
+def test_the_excel_extra_lists_the_packages_the_workbook_readers_import():
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    extra = tomllib.loads((root / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]["excel"]
+    names = {re.split(r"[<>=!~\[; ]", requirement)[0].lower() for requirement in extra}
+    source = (root / "src/viscorig/materials/dmafile.py").read_text()
+    assert {"xlrd", "openpyxl"} <= names
+    assert {"xlrd", "openpyxl"} <= set(re.findall(r"^\s*import (\w+)", source, re.MULTILINE))

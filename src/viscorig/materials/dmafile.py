@@ -12,11 +12,18 @@ Layouts read:
 
 Columns are found by their usual names: frequency (``f``, ``freq``, ``frequency``; or angular
 frequency ``omega`` in rad/s), temperature (``T``, ``temp``, ``temperature``), storage and loss
-modulus (``E'``, ``E''``, ``E_stor``, ``E_loss``, ``storage modulus``...; ``G...`` for shear),
-or ``|E*|`` with ``tan δ``, and a set number (``set``). Without a set column, points are grouped
-by temperature (within 1 K of each other, in file order). Units: Pa, kPa, MPa, GPa, psi, N/mm²;
-Hz, kHz, rad/s; °C or K. A column without a unit is refused where a unit matters (moduli,
-frequency in rad/s vs Hz is told by the name), except temperature (°C) and frequency (Hz).
+modulus (``E'``, ``E''``, ``E_stor``, ``E_loss``, ``storage modulus``...; ``G...`` for shear;
+the prime written as ``'``, ``’`` or ``′``, the double prime as ``''``, ``"``, ``″`` or ``”``),
+or ``|E*|`` with ``tan δ``, and a set number (``set``). Other columns (a sample name...) are
+ignored. Without a set column, points are grouped by temperature (within 1 K of each other, in
+file order). Units: Pa, kPa, MPa, GPa, psi, N/mm²; Hz, kHz, rad/s; °C or K. A column without a
+unit is refused where a unit matters (moduli, frequency in rad/s vs Hz is told by the name),
+except temperature (°C) and frequency (Hz); temperatures without a unit that all lie between
+150 and 700 are refused (almost surely kelvin: the unit must be given).
+
+The row after the column names is a units row when none of its cells under a dimensioned column
+(frequency, temperature, modulus) is a number, and at least one of them is filled; otherwise it
+is the first data row.
 
 Excel workbooks (``.xls`` through xlrd, ``.xlsx`` through openpyxl, the optional extra
 ``excel``) are read the same way from their "Exported Data" sheet (Eplexor's export) or their
@@ -62,11 +69,11 @@ ROLES: dict[str, tuple[str, ...]] = {
     "frequency": ("f", "freq", "frequency", "frequencyhz", "frq"),
     "angular": ("omega", "w", "angularfrequency", "angfrequency", "ω"),
     "temperature": ("t", "temp", "temperature", "tc", "θ"),
-    "storage": ("estor", "e'", "e′", "estorage", "storagemodulus", "e1", "eprime",
-                "gstor", "g'", "g′", "gstorage", "storagemodulusg", "g1", "gprime",
+    "storage": ("estor", "e'", "estorage", "storagemodulus", "e1", "eprime",
+                "gstor", "g'", "gstorage", "storagemodulusg", "g1", "gprime",
                 "storageshearmodulus", "shearstoragemodulus", "tensilestoragemodulus"),
-    "loss": ("eloss", "e''", "e\"", "e′′", "e″", "elossmodulus", "lossmodulus", "e2",
-             "edoubleprime", "gloss", "g''", "g\"", "g′′", "g″", "g2", "gdoubleprime",
+    "loss": ("eloss", "e''", "elossmodulus", "lossmodulus", "e2",
+             "edoubleprime", "gloss", "g''", "g2", "gdoubleprime",
              "lossshearmodulus", "shearlossmodulus", "tensilelossmodulus"),
     "complex": ("e*", "|e*|", "ecomplex", "complexmodulus", "estar", "|e|",
                 "g*", "|g*|", "gcomplex", "gstar", "|g|", "complexshearmodulus"),
@@ -74,6 +81,12 @@ ROLES: dict[str, tuple[str, ...]] = {
                   "eta", "η"),
     "set": ("set", "setno", "setnumber", "segment", "sweep", "step"),
 }
+#: Roles whose unit matters: a units row has no number under any of them.
+DIMENSIONED = ("frequency", "angular", "temperature", "storage", "loss", "complex")
+#: Primes as typed by word processors and spreadsheets (and ``"`` for a double prime) -> ``'``.
+_PRIMES = str.maketrans({"\u2019": "'", "\u2018": "'", "\u2032": "'", "\u00b4": "'",
+                         "`": "'", "\u2033": "''", "\u201d": "''", "\u201c": "''",
+                         '"': "''"})
 _SHEAR_HINT = re.compile(r"^\s*g|shear", re.IGNORECASE)
 _UNIT_IN_NAME = re.compile(r"^(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\)|/\s*([^/()\[\]]+))\s*$")
 
@@ -83,10 +96,15 @@ class _Column:
     index: int
     name: str
     unit: str | None
+    #: The row the unit was read from (the names row, or the units row), for messages.
+    row: int
+
+    def where(self, where: str) -> str:
+        return f"{where}: row {self.row}, column {self.name!r}"
 
 
 def _key(name: str) -> str:
-    return re.sub(r"[\s_\-.]", "", name).lower()
+    return re.sub(r"[\s_\-.]", "", name.translate(_PRIMES)).lower()
 
 
 def _split_unit(name: str) -> tuple[str, str | None]:
@@ -248,8 +266,8 @@ def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
             import openpyxl  # type: ignore[import-untyped, unused-ignore]
             reader = openpyxl
     except ImportError:
-        raise InputError(f"reading {suffix} workbooks needs {package} (pip install "
-                         "'viscorig[excel]')", where) from None
+        raise InputError(f"reading {suffix} workbooks needs {package}: pip install "
+                         f"\"viscorig[excel]\" (or pip install {package})", where) from None
     try:
         if suffix == ".xls":
             book = reader.open_workbook(str(path), on_demand=True)
@@ -285,15 +303,15 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
         name, unit = _split_unit(cell)
         role = _role(name)
         if role is not None and role not in columns:
-            columns[role] = _Column(index, cell.strip(), unit)
+            columns[role] = _Column(index, cell.strip(), unit, header_row)
     body = rows[1:]
-    if body and not _numeric_row(body[0][1], decimal_comma):
-        _units_row_number, units_row = body[0]
+    if body and _is_units_row(body[0][1], columns, decimal_comma):
+        units_row_number, units_row = body[0]
         body = body[1:]
         for role, column in list(columns.items()):
             if column.index < len(units_row) and units_row[column.index].strip() not in ("", "-"):
                 columns[role] = _Column(column.index, column.name,
-                                        units_row[column.index].strip())
+                                        units_row[column.index].strip(), units_row_number)
     _require(columns, header_row, where)
     if len(body) > MAX_POINTS:
         raise InputError(f"{len(body)} rows; a DMA table holds at most {MAX_POINTS}", where)
@@ -309,10 +327,19 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
     return _table(columns, values, body, modulus, where)
 
 
-def _numeric_row(row: list[str], decimal_comma: bool) -> bool:
-    try:
-        _number(row[0], decimal_comma)
-    except (ValueError, IndexError):
+def _is_units_row(row: list[str], columns: dict[str, _Column], decimal_comma: bool) -> bool:
+    """Whether ``row`` (the one after the names) gives units: none of its cells under a
+    dimensioned column is a number, and one at least is filled. Cells of other columns (a
+    sample name, a row number) and of tan δ or the set number do not count."""
+    cells = [row[column.index].strip() if column.index < len(row) else ""
+             for role, column in columns.items() if role in DIMENSIONED]
+    if not any(cells):
+        return False
+    for cell in cells:
+        try:
+            _number(cell, decimal_comma)
+        except ValueError:
+            continue
         return False
     return True
 
@@ -336,8 +363,8 @@ def _unit_factor(column: _Column, table: dict[str, float], quantity: str, where:
     if unit is None:
         raise InputError(f"no unit for {quantity} (give it in the name, e.g. "
                          f"\"{column.name} [MPa]\", or in a units row)",
-                         f"{where}: column {column.name!r}")
-    return factor(unit, table, quantity, f"{where}: column {column.name!r}")
+                         column.where(where))
+    return factor(unit, table, quantity, column.where(where))
 
 
 def _table(columns: dict[str, _Column], values: dict[str, np.ndarray], body: list,
@@ -349,17 +376,19 @@ def _table(columns: dict[str, _Column], values: dict[str, np.ndarray], body: lis
             frequency = values["frequency"] * ANGULAR_FREQUENCY_UNITS[normalised(unit)]
         else:
             frequency = values["frequency"] * factor(unit, FREQUENCY_UNITS, "frequency",
-                                                     f"{where}: column {column.name!r}")
+                                                     column.where(where))
     else:
         column = columns["angular"]
         frequency = values["angular"] * _unit_factor(
             column, ANGULAR_FREQUENCY_UNITS, "angular frequency", where, "rad/s")
     column = columns["temperature"]
+    if column.unit in (None, "", "-"):
+        _refuse_unitless_kelvin(column, values["temperature"], where)
     unit = column.unit if column.unit not in (None, "", "-") else "C"
     offset = TEMPERATURE_OFFSETS.get(normalised(unit).replace("º", "°"))
     if offset is None:
         raise InputError(f"unit {unit!r} is not a temperature unit (°C or K)",
-                         f"{where}: column {column.name!r}")
+                         column.where(where))
     temperature = values["temperature"] + offset
     if "storage" in columns and "loss" in columns:
         storage = values["storage"] * _unit_factor(columns["storage"], MODULUS_UNITS,
@@ -384,6 +413,23 @@ def _table(columns: dict[str, _Column], values: dict[str, np.ndarray], body: lis
                          source=Path(where).name)
     _check_rows(table, body, columns, where)
     return table
+
+
+#: Temperatures without a unit all within this range (°C or K?) are refused: kelvin, almost surely.
+KELVIN_LIKE = (150.0, 700.0)
+
+
+def _refuse_unitless_kelvin(column: _Column, temperature: np.ndarray, where: str) -> None:
+    """Temperatures without a unit are °C, unless they all lie in :data:`KELVIN_LIKE`: a DMA
+    sweep from 150 to 700 °C is rare, one from 150 to 700 K (-123 to 427 °C) is the usual
+    one, and reading kelvin as °C shifts every set by 273 K without a word."""
+    finite = temperature[np.isfinite(temperature)]
+    low, high = KELVIN_LIKE
+    if finite.size and low <= finite.min() and finite.max() <= high:
+        raise InputError(
+            f"temperatures {finite.min():g} to {finite.max():g} without a unit: kelvin, "
+            f"almost surely; give the unit (e.g. \"{column.name} [K]\", or "
+            f"\"{column.name} [°C]\" if they are °C)", column.where(where))
 
 
 def _sets_by_temperature(temperature: np.ndarray, tolerance_k: float = 1.0) -> np.ndarray:
