@@ -16,6 +16,8 @@ from rigsim.faults import parse_fault_spec
 
 from viscorig.bench import API_STATES, BenchError, BenchService
 from viscorig.bench.app import create_app
+from viscorig.cli import build_parser
+from viscorig.cli.bench import served
 from viscorig.sequences.station import BenchSettings
 from viscorig.storage import CampaignFile
 
@@ -184,3 +186,14 @@ def test_the_readme_api_table_names_the_apps_routes(tmp_path) -> None:
               for method in (route.methods or ()) if route.path.startswith("/api/")}
     assert len(named) == 10 and named <= routes, named - routes
     assert {path for _, path in routes} - {path for _, path in named} == {"/api/journal"}
+
+
+def test_hold_resume_is_chosen_on_the_command_line_for_the_embedded_rig(tmp_path) -> None:
+    parse = build_parser("bench").parse_args
+    service, address = served(parse(["bench", "serve", "--hold-resume", "auto"]))
+    assert address == "127.0.0.1" and service.bench_override.hold_resume == "auto"
+    service, _ = served(parse(["bench", "serve"]))
+    assert service.bench_override is None  # the station's, or the embedded rig's default
+    assert BenchSettings().hold_resume == "technician"
+    with pytest.raises(SystemExit):
+        parse(["bench", "serve", "--hold-resume", "later"])

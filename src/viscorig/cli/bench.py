@@ -26,7 +26,7 @@ from viscorig.cli.arguments import port_number, positive_number
 from viscorig.cli.watch import open_in_browser
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import PromptStep, Sequence, load_station
-from viscorig.sequences.station import TableParameters
+from viscorig.sequences.station import BenchSettings, TableParameters
 from viscorig.stations.opening import check_presets, lab_station, simulated_station
 
 #: The bench page's port a technician can bookmark.
@@ -70,6 +70,10 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
                        help="embedded simulated rig only: simulated seconds per wall-clock "
                        "second (default: as fast as the computer allows)")
+    serve.add_argument("--hold-resume", choices=("auto", "technician"), default=None,
+                       help="after an automatic hold: go on by itself when the condition "
+                       "clears, or wait for the technician (default: the station's [bench] "
+                       "hold_resume; the embedded rig's: technician)")
     serve.set_defaults(handler=serve_command)
 
 
@@ -126,17 +130,26 @@ def check_command(args: argparse.Namespace) -> int:
     return 0 if not failed else 1
 
 
+def served(args: argparse.Namespace) -> tuple[BenchService, str]:
+    """The service ``bench serve`` runs and the address it listens on, from its arguments."""
+    address, bench = "127.0.0.1", BenchSettings()
+    if args.station is not None:
+        if args.sim_pace is not None:
+            raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
+        bench = load_station(args.station).bench
+        address = bench.address
+    override = None
+    if args.hold_resume is not None:
+        override = dataclasses.replace(bench, hold_resume=args.hold_resume)
+    return BenchService(args.station, bench=override, sim_pace=args.sim_pace), address
+
+
 def serve_command(args: argparse.Namespace) -> int:
     """``viscorig bench serve``: print the address with its token first, serve until Ctrl-C."""
     # keeps the command's start fast: the web server loads only for serve
     from viscorig.bench.app import BenchServer
 
-    address = "127.0.0.1"
-    if args.station is not None:
-        if args.sim_pace is not None:
-            raise InputError("only for the embedded simulated rig (no --station)", "--sim-pace")
-        address = load_station(args.station).bench.address
-    service = BenchService(args.station, sim_pace=args.sim_pace)
+    service, address = served(args)
     try:
         server = BenchServer(service, args.port, address)
     except OSError as error:

@@ -81,6 +81,10 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "the shaker limit, the analyser stops answering or the specimen leaves "
                         "its temperature band (the station's [bench] settings); it goes on when "
                         "the condition clears (hold_resume = \"auto\") or at Ctrl-Z")
+    parser.add_argument("--hold-resume", choices=("auto", "technician"), default=None,
+                        help="with automatic holds (implies --holds): go on by itself when the "
+                        "condition clears, or wait for the technician (default: the station's "
+                        "[bench] hold_resume; the embedded rig's: technician)")
 
 
 def _fields_epilog() -> str:
@@ -245,8 +249,9 @@ def _run(campaign: CampaignFile, sequence: Sequence, opened, args: argparse.Name
     console = Console(yes=args.yes)
     floors = _forecast(campaign, sequence, opened)
     holds, hold_resume = [], "technician"
-    if args.holds:
-        holds, hold_resume = station_holds(opened), opened.station.bench.hold_resume
+    if args.holds or args.hold_resume is not None:
+        holds = station_holds(opened)
+        hold_resume = args.hold_resume or opened.station.bench.hold_resume
     runner = Runner(campaign, sequence, opened.station, opened.analyser, console, options,
                     floors=floors, holds=holds, hold_resume=hold_resume)
     engine = runner.engine
