@@ -19,6 +19,7 @@ import numpy as np
 
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support
+from viscorig.identify import identify_run
 from viscorig.materials.table import ModulusTable
 from viscorig.models import Context, parse_spec
 from viscorig.rig import RigDescription
@@ -32,6 +33,46 @@ def disc_mass_of(campaign: CampaignFile, run_name: str) -> float | None:
         if parameter is not None and math.isfinite(parameter.value) and parameter.value >= 0:
             return float(parameter.value)
     return None
+
+
+#: The models whose ``M_v`` master takes, the one of lower BIC per run, for runs that were
+#: never identified (a load cell's compliance left out biases ``M_v`` by several %).
+DISC_MASS_MODELS = ("fractional", "fractional+load_cell")
+#: Largest relative standard error of a run's ``M_v`` that master averages.
+DISC_MASS_PRECISION = 0.05
+
+
+def identified_disc_mass(campaign: CampaignFile, runs: list[str]) -> tuple[float, str]:
+    """``M_v`` (kg) for rig runs of one specimen that were never identified, and how it was
+    found: each run fitted with :data:`DISC_MASS_MODELS` (the table's parameters from its
+    bare-table run), the fit of lower BIC kept, the disc's mass taken as the weighted mean over
+    the runs, since the disc does not change with the temperature its rubber is measured at.
+
+    Raises
+    ------
+    InputError
+        No run could be fitted (what is missing is named).
+    """
+    masses, weights = [], []
+    for name in runs:
+        result = min((identify_run(campaign, name, spec)[0] for spec in DISC_MASS_MODELS),
+                     key=lambda fitted: fitted.bic)
+        estimate = result.parameters.get("M_v")
+        if (estimate is None or any("M_v is at a bound" in text for text in result.warnings)
+                or not 0 < estimate.stderr <= DISC_MASS_PRECISION * estimate.value):
+            continue
+        masses.append(estimate.value)
+        weights.append(1.0 / estimate.stderr**2)
+    if not masses:
+        raise InputError("no disc mass M_v: the runs do not tell it within "
+                         f"{DISC_MASS_PRECISION:.0%} (identify a run with a model that fits "
+                         "it, viscorig identify ... --model, or give --disc-mass)",
+                         f"{campaign.path}")
+    mass = float(np.average(masses, weights=weights))
+    spread = float(np.std(masses)) if len(masses) > 1 else math.nan
+    basis = (f"M_v {mass:.4g} kg, the mean of its fits to {len(masses)} run(s)"
+             + (f" (spread {spread:.2g} kg)" if math.isfinite(spread) else ""))
+    return mass, basis
 
 
 def _kstar_of_fit(campaign: CampaignFile, run_name: str, frequency_hz: np.ndarray,
