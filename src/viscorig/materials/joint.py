@@ -7,6 +7,9 @@ the shifts together with the series makes them the shifts under which the data a
 viscoelastic material, which is what an FE card assumes. Residuals and weights are those of the
 Prony fit (``ln(model/measured)`` over each modulus's scatter); the shifts' covariance is the
 marginal one from the Jacobian of the joint problem, scaled by the weighted residual variance.
+The series' moduli and relaxation times keep the bounds of the Prony fit
+(:func:`viscorig.materials.prony.prony_bounds`, at the reduced frequencies of the starting
+shifts); the shifts are free.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from viscorig.materials.prony import ModelFit, PronySeries, model_fit
+from viscorig.materials.prony import ModelFit, PronySeries, model_fit, prony_bounds
 
 LN10 = math.log(10.0)
 
@@ -90,7 +93,14 @@ def refine_jointly(
 
     start = np.concatenate([[np.log(series.long_term_modulus_pa)], np.log(series.moduli_pa),
                             np.log(series.tau_s), log10_at[free]])
-    solution = least_squares(residual, start, jac=jacobian, method="lm",
+    omega_start = 2 * np.pi * frequency_hz * 10.0 ** (log10_at[member] + point_offset)
+    lower, upper = prony_bounds(omega_start, storage, loss, n)
+    lower = np.concatenate([lower, np.full(free.size, -np.inf)])
+    upper = np.concatenate([upper, np.full(free.size, np.inf)])
+    margin = np.zeros(start.size)
+    margin[:2 * n + 1] = 1e-9 * (upper[:2 * n + 1] - lower[:2 * n + 1])
+    start = np.clip(start, lower + margin, upper - margin)
+    solution = least_squares(residual, start, jac=jacobian, method="trf", bounds=(lower, upper),
                              max_nfev=evaluations * start.size, x_scale="jac")
     e_inf, e, _, shifts = unpack(solution.x)
     tau = np.exp(solution.x[n + 1:2 * n + 1])

@@ -4,7 +4,17 @@ Prony series: ``E*(ω) = E_∞ + Σ E_i iωτ_i / (1 + iωτ_i)``, so
 ``E' = E_∞ + Σ E_i ω²τ_i²/(1+ω²τ_i²)`` and ``E'' = Σ E_i ωτ_i/(1+ω²τ_i²)``. It is fitted to E'
 and E'' together, each residual ``ln(model/measured)`` divided by that modulus's own scatter
 (its relative error). For ``N = 1, 2, ...`` terms, a non-negative least-squares solve on
-log-spaced ``τ_i`` starts a nonlinear fit of every ``E_i, τ_i`` (in logs, so all stay positive).
+log-spaced ``τ_i`` starts a nonlinear fit of every ``E_i, τ_i`` (in logs, so all stay positive),
+bounded (:func:`prony_bounds`): every ``τ_i`` within the relaxation times the reduced
+frequencies support, ``1/ω_max`` to a decade beyond ``1/ω_min``, every modulus at most
+:data:`MODULUS_CAP` times the largest measured one. (A term faster than ``1/ω_max`` adds only
+``E_i ω τ_i`` to the loss there: the data fix the product, so the faster the term, the larger its
+modulus, and the instantaneous modulus grows without any point asking for it.) Unbounded, a
+term the data do not hold runs away (``τ = 1e-77 s``, ``E = 1e71 Pa`` from six sweeps), and
+where it stopped depended on overflowing trial steps of the Levenberg-Marquardt solver, whose
+next step after one was not repeatable from one process to the next (the same residuals and
+Jacobian gave different trial points); bounded (trust-region reflective), no step overflows and
+the same data give the same series bit for bit.
 The series kept is the first whose rms errors reach the data's scatter (within 10 %), else the
 one of lowest BIC, with at most :data:`MAX_TERMS` terms.
 
@@ -25,6 +35,13 @@ from viscorig.models import Context
 from viscorig.models.modulus import Fractional
 
 MAX_TERMS = 24
+#: How far (a factor) beyond ``1/ω_min`` of the data a relaxation time may go (slow end; the
+#: fast end stops at ``1/ω_max``, see the module text).
+TAU_MARGIN = 10.0
+#: Largest modulus of any term (and the long-term one), times the largest measured ``|E*|``.
+MODULUS_CAP = 10.0
+#: Smallest, times the same: a floor for the logs (such a term carries nothing).
+MODULUS_FLOOR = 1e-9
 #: How close (relative) to the data's scatter counts as reaching it.
 SCATTER_MARGIN = 1.10
 
@@ -99,6 +116,33 @@ def model_fit(model: NDArray[np.complex128], storage: NDArray, loss: NDArray,
                     parameters)
 
 
+def tau_span(omega: ArrayLike) -> tuple[float, float]:
+    """The relaxation times a series fitted at angular frequencies ``omega`` may take (s):
+    ``1/ω_max`` to ``1/ω_min`` widened by :data:`TAU_MARGIN`."""
+    omega = np.asarray(omega, dtype=float)
+    return 1.0 / float(omega.max()), TAU_MARGIN / float(omega.min())
+
+
+def prony_bounds(omega: ArrayLike, storage: ArrayLike, loss: ArrayLike,
+                 terms: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Lower and upper bounds of ``ln E_∞, ln E_i, ln τ_i`` (see the module text)."""
+    largest = float(np.hypot(np.asarray(storage, dtype=float), np.asarray(loss, dtype=float))
+                    .max())
+    lo_tau, hi_tau = tau_span(omega)
+    lower = np.concatenate([np.full(terms + 1, math.log(MODULUS_FLOOR * largest)),
+                            np.full(terms, math.log(lo_tau))])
+    upper = np.concatenate([np.full(terms + 1, math.log(MODULUS_CAP * largest)),
+                            np.full(terms, math.log(hi_tau))])
+    return lower, upper
+
+
+def _inside(start: NDArray, bounds: tuple[NDArray, NDArray]) -> NDArray[np.float64]:
+    """``start`` moved just inside ``bounds``."""
+    lower, upper = bounds
+    margin = 1e-9 * (upper - lower)
+    return np.clip(start, lower + margin, upper - margin)
+
+
 def _start(omega: NDArray, storage: NDArray, loss: NDArray, scatter: tuple[float, float],
            terms: int) -> NDArray[np.float64]:
     """ln E_∞, ln E_i, ln τ_i from NNLS on ``terms`` log-spaced relaxation times."""
@@ -142,8 +186,9 @@ def _refine(omega: NDArray, storage: NDArray, loss: NDArray, scatter: tuple[floa
         bottom = np.hstack([np.zeros((omega.size, 1)), y * e, dy * e]) / el[:, None]
         return np.vstack([top / scatter[0], bottom / scatter[1]])
 
-    solution = least_squares(residual, start, jac=jacobian, method="lm",
-                             max_nfev=evaluations, x_scale="jac")
+    bounds = prony_bounds(omega, storage, loss, n)
+    solution = least_squares(residual, _inside(start, bounds), jac=jacobian, method="trf",
+                             bounds=bounds, max_nfev=evaluations, x_scale="jac")
     e_inf, e, _, _, _ = parts(solution.x)
     tau = np.exp(solution.x[n + 1:])
     order = np.argsort(tau)
