@@ -146,17 +146,23 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
     """``export --material``: build the master curve, write its card."""
     # keeps the command's start fast: scipy loads only for a material card
     from viscorig.cli.master import master_of
-    from viscorig.materials.fecards import write_card
+    from viscorig.materials.fecards import card_error, write_card
 
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
                        args.kstar)
     name = "VISCORIG_" + "_".join(args.run).upper().replace("-", "_").replace(".", "_")
-    write_card(master, args.material, out, name[:80], args.poisson_ratio)
-    fit = master.prony_fit
+    series = write_card(master, args.material, out, name[:80], args.poisson_ratio)
+    # what the card holds: LS-DYNA's six cards take a refitted, shorter series
+    function = master.shift_function
+    shifted = not (args.material == "lsdyna" and function is not None
+                   and function.kind != "wlf")
+    storage, loss = card_error(master, series, shifted)
+    refitted = (f" (the master's {master.prony.terms}-term series refitted)"
+                if series.terms != master.prony.terms else "")
     print(f"{out}: {args.material} material card of {', '.join(args.run)}: "
-          f"{master.prony.terms}-term Prony series, reference "
-          f"{master.reference_temperature_c:.2f} °C, rms ln error storage "
-          f"{fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f}")
+          f"{series.terms}-term Prony series{refitted}, reference "
+          f"{master.reference_temperature_c:.2f} °C, rms ln error of the card storage "
+          f"{storage:.3f}, loss {loss:.3f}")
     return 0
 
 

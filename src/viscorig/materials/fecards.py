@@ -40,6 +40,11 @@ Conventions, and the documentation each rests on (``docs/materials.md`` lists th
   confirmed; neither is the Arrhenius form, so no shift is written for an Arrhenius fit and the
   card says so, with its error at the reference-temperature series alone. ``BULK`` is left 0
   since the bulk series is given: not confirmed either.
+
+No card is written from a series the data do not hold (:func:`check_card_series`): an
+instantaneous modulus beyond :data:`CARD_MODULUS_LIMIT` times the largest measured one, or a
+relaxation time more than :data:`CARD_TAU_DECADES` decades outside the data's reduced times, is
+refused with one line.
 """
 
 from __future__ import annotations
@@ -64,6 +69,46 @@ LSDYNA_MAX_CARDS = 6
 #: Decaying terms on those cards: one card holds the long-term moduli (``β = 0``).
 LSDYNA_MAX_TERMS = LSDYNA_MAX_CARDS - 1
 DEFAULT_POISSON = 0.49
+#: Largest instantaneous modulus of a card's series, times the largest measured ``|E*|``.
+CARD_MODULUS_LIMIT = 100.0
+#: Decades a card's relaxation time may lie outside ``1/(2π f_max) .. 1/(2π f_min)`` of the
+#: reduced frequencies.
+CARD_TAU_DECADES = 3.0
+
+
+def check_card_series(master: MasterCurve, series: PronySeries) -> None:
+    """Refuse a series no card should hold (see the module text).
+
+    Raises
+    ------
+    InputError
+        A modulus or relaxation time that is not a positive finite number, an instantaneous
+        modulus beyond :data:`CARD_MODULUS_LIMIT` times the largest measured one, or a
+        relaxation time more than :data:`CARD_TAU_DECADES` decades outside the data's.
+    """
+    table = master.table
+    where = f"{table.source or ', '.join(master.runs)}: Prony series"
+    largest = float(np.hypot(table.storage_pa, table.loss_pa).max())
+    e0 = series.instantaneous_modulus_pa
+    values = np.concatenate([[series.long_term_modulus_pa], series.moduli_pa, series.tau_s])
+    if not (np.all(np.isfinite(values)) and np.all(values[1:] > 0)
+            and series.long_term_modulus_pa >= 0):
+        raise InputError("a modulus or relaxation time is not a positive number; no card "
+                         "written", where)
+    if e0 > CARD_MODULUS_LIMIT * largest:
+        raise InputError(f"instantaneous modulus {e0:.3g} Pa is {e0 / largest:.3g} times the "
+                         f"largest measured ({largest:.3g} Pa), more than "
+                         f"{CARD_MODULUS_LIMIT:g}: the data do not hold it; no card written",
+                         where)
+    reduced = master.reduced_frequency_hz
+    fast, slow = 1.0 / (2 * np.pi * float(reduced.max())), 1.0 / (2 * np.pi * float(reduced.min()))
+    margin = 10.0**CARD_TAU_DECADES
+    outside = series.tau_s[(series.tau_s < fast / margin) | (series.tau_s > slow * margin)]
+    if outside.size:
+        raise InputError(f"relaxation time {outside[0]:.3g} s is more than "
+                         f"{CARD_TAU_DECADES:g} decades outside the data's reduced times "
+                         f"{fast:.3g}..{slow:.3g} s: the data do not hold it; no card written",
+                         where)
 
 
 def _split(master: MasterCurve, poisson: float) -> tuple[float, float]:
@@ -146,6 +191,7 @@ ABAQUS_ARRHENIUS = (
 def abaqus_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON) -> str:
     """The Abaqus keyword lines of the material."""
     series = master.prony
+    check_card_series(master, series)
     e0 = series.instantaneous_modulus_pa * _young(master, poisson)
     relative = series.moduli_pa / series.instantaneous_modulus_pa
     function = master.shift_function
@@ -194,6 +240,7 @@ def ansys_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
                material: int = 1) -> str:
     """The ANSYS APDL commands of the material."""
     series = master.prony
+    check_card_series(master, series)
     e0 = series.instantaneous_modulus_pa * _young(master, poisson)
     pairs: list[float] = []
     for a, t in zip(series.moduli_pa / series.instantaneous_modulus_pa, series.tau_s,
@@ -263,8 +310,10 @@ LSDYNA_ARRHENIUS = (
 
 
 def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON,
-                material: int = 1, density_kg_per_m3: float = 1100.0) -> str:
-    """The LS-DYNA keyword deck of the material (*MAT_GENERAL_VISCOELASTIC).
+                material: int = 1, density_kg_per_m3: float = 1100.0,
+                held: tuple[PronySeries, str] | None = None) -> str:
+    """The LS-DYNA keyword deck of the material (*MAT_GENERAL_VISCOELASTIC); ``held`` is the
+    series the cards hold and its note when already found (:func:`card_series`).
 
     Raises
     ------
@@ -277,7 +326,8 @@ def lsdyna_card(master: MasterCurve, name: str, poisson: float = DEFAULT_POISSON
         raise InputError(f"{master.reference_temperature_c:g} C: LS-DYNA's "
                          "*MAT_GENERAL_VISCOELASTIC needs a reference temperature TREF > 0",
                          "--reference-temperature")
-    series, note = _lsdyna_series(master)
+    series, note = _lsdyna_series(master) if held is None else held
+    check_card_series(master, series)
     shear, bulk = _split(master, poisson)
     conventions: tuple[str, ...] = LSDYNA_CONVENTIONS
     if function is not None:
@@ -308,9 +358,16 @@ WRITERS: dict[str, Callable[..., str]] = {"abaqus": abaqus_card, "ansys": ansys_
                                           "lsdyna": lsdyna_card}
 
 
+def card_series(master: MasterCurve, kind: str) -> PronySeries:
+    """The Prony series the card of ``kind`` holds: the master's, or for LS-DYNA where that is
+    longer than its cards hold, the series refitted with :data:`LSDYNA_MAX_TERMS` terms."""
+    return _lsdyna_series(master)[0] if kind == "lsdyna" else master.prony
+
+
 def write_card(master: MasterCurve, kind: str, path: Path, name: str,
-               poisson: float = DEFAULT_POISSON) -> None:
-    """Write the card of ``kind`` to ``path`` (replaced atomically).
+               poisson: float = DEFAULT_POISSON) -> PronySeries:
+    """Write the card of ``kind`` to ``path`` (replaced atomically); returns the Prony series
+    the card holds (:func:`card_series`).
 
     Raises
     ------
@@ -322,5 +379,12 @@ def write_card(master: MasterCurve, kind: str, path: Path, name: str,
                          "--material")
     if not (math.isfinite(poisson) and -1.0 < poisson < 0.5):
         raise InputError(f"{poisson} must be in (-1, 0.5)", "--poisson-ratio")
-    text = WRITERS[kind](master, name, poisson)
+    if kind == "lsdyna":
+        held = _lsdyna_series(master)
+        text = lsdyna_card(master, name, poisson, held=held)
+        series = held[0]
+    else:
+        text = WRITERS[kind](master, name, poisson)
+        series = master.prony
     replace_atomically(Path(path), lambda stream: stream.write(text), text=True)
+    return series
