@@ -61,7 +61,6 @@ from viscorig.exchange.atomicfile import replace_atomically
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.prony import PronySeries, fit_prony_terms
 from viscorig.materials.shiftfunctions import GAS_CONSTANT_J_PER_MOL_K, KELVIN
-from viscorig.numbers import with_uncertainty
 
 FORMATS = ("abaqus", "ansys", "lsdyna")
 #: Cards ``GI, BETAI, KI, BETAKI`` that *MAT_GENERAL_VISCOELASTIC reads (LS-DYNA manual, MAT_076).
@@ -146,9 +145,10 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
              shifted: bool = True) -> list[str]:
     fit = master.prony_fit
     function = master.shift_function
-    shift = "none fitted" if function is None else ", ".join(
-        f"{name} = {with_uncertainty(entry['value'], entry['stderr'], entry['unit'])}"
-        for name, entry in function.to_json()["parameters"].items())
+    shift = "none fitted" if function is None else function.parameters_text()
+    if function is not None and function.at_bound:
+        shift += (f"; CAUTION: {', '.join(function.at_bound)} at the bound of the fit, so the "
+                  "shifts do not determine it")
     lines = [
         f"viscorig {__version__}: linear viscoelastic material from a master curve",
         f"data: {master.table.source or ', '.join(master.runs)} (runs: "

@@ -126,17 +126,25 @@ class MasterCurve:
         for t, a, e in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
                            strict=True):
             lines.append(f"  {t:8.2f} °C   log10 aT = {with_uncertainty(a, e, signed=True)}")
+        chosen = master.shift_function
         for function in master.shift_functions:
             data = function.to_json()
-            values = ", ".join(
-                f"{k} = " + with_uncertainty(v["value"], v["stderr"],
-                                             "" if v["unit"] == "1" else v["unit"])
-                for k, v in data["parameters"].items())
+            values = function.parameters_text()
             chi = function.reduced_chi2
             fit = "" if math.isnan(chi) else f" (χ²/dof {chi:.2f}"
             fit += ("" if not fit else ", describes the shifts)" if data["describes_shifts"]
                     else ", does not describe the shifts within their errors)")
-            best = "  <- better" if function is master.shift_function else ""
+            best = ""
+            if function is chosen:
+                best = "  <- better"
+                if function.at_bound:
+                    best += (f", though {', '.join(function.at_bound)} at the bound of its "
+                             "fit (no function fitted without one)")
+                lower = [f.kind for f in master.shift_functions
+                         if f is not function and f.aic < function.aic]
+                if lower:
+                    best += (f" ({', '.join(lower)} of lower AIC has a parameter at the bound "
+                             "of its fit)")
             lines.append(f"{function.kind}: {values}{fit}{best}")
         if master.left_out:
             named = "; ".join(f"{p['temperature_c']:.1f} °C, {p['frequency_hz']:.4g} Hz "

@@ -7,8 +7,10 @@ Both give ``aT > 1`` below the reference temperature. Each is fitted by generali
 squares with the full covariance of the shift factors (they are correlated through the master
 curve they share). Where the weighted residual ``χ²/dof`` exceeds 1 the function does not
 describe the shifts within their errors; its parameter errors are then scaled by
-``sqrt(χ²/dof)`` and the result says so. The better function is the one of lower AIC
-(``χ² + 2k``).
+``sqrt(χ²/dof)`` and the result says so. A parameter that ends at a bound of its fit (WLF's
+``C1`` at 1000) was not found by the shifts, only stopped: the function names it
+(:attr:`ShiftFunction.at_bound`). The better function is the one of lower AIC (``χ² + 2k``)
+among those with no parameter at a bound, then among the others.
 """
 
 from __future__ import annotations
@@ -21,10 +23,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import curve_fit
 
-from viscorig.numbers import Estimate
+from viscorig.numbers import Estimate, with_uncertainty
 
 GAS_CONSTANT_J_PER_MOL_K = 8.314462618
 KELVIN = 273.15
+#: A parameter this close to a bound of its fit (relative to the bound's size) is at it.
+BOUND_TOLERANCE = 1e-6
 
 
 def wlf(temperature_c: ArrayLike, reference_c: float, c1: float, c2_k: float) -> NDArray:
@@ -61,6 +65,9 @@ class ShiftFunction:
         Their covariance.
     chi2, dof
         Weighted residual sum of squares of the shifts and its degrees of freedom.
+    at_bound
+        Names of the parameters that ended at a bound of the fit (their values and errors say
+        nothing of the data).
     """
 
     kind: str
@@ -70,6 +77,7 @@ class ShiftFunction:
     covariance: NDArray[np.float64] = field(repr=False)
     chi2: float
     dof: int
+    at_bound: tuple[str, ...] = ()
 
     @property
     def parameters(self) -> dict[str, Estimate]:
@@ -103,7 +111,7 @@ class ShiftFunction:
         (C2 + ΔT)``, ``C2' = C2 + ΔT``; Arrhenius: same ``E_a``), errors propagated."""
         if self.kind == "arrhenius":
             return ShiftFunction("arrhenius", reference_c, self.values, self.stderr,
-                                 self.covariance, self.chi2, self.dof)
+                                 self.covariance, self.chi2, self.dof, self.at_bound)
         shift = reference_c - self.reference_temperature_c
 
         def moved(p: NDArray) -> NDArray:
@@ -117,16 +125,32 @@ class ShiftFunction:
         values = tuple(float(v) for v in moved(np.asarray(self.values)))
         return ShiftFunction("wlf", reference_c, values,
                              tuple(float(v) for v in np.sqrt(np.diag(covariance))),
-                             covariance, self.chi2, self.dof)
+                             covariance, self.chi2, self.dof, self.at_bound)
+
+    def parameters_text(self) -> str:
+        """``C1 = 13.5 ± 1.1, C2_K = 101 ± 7 K``; a parameter at a bound of the fit as
+        ``C1 = 1000 (at the bound of its fit, not found by the shifts)``."""
+        out = []
+        for name, estimate in self.parameters.items():
+            unit = "" if estimate.unit == "1" else estimate.unit
+            if name in self.at_bound:
+                out.append(f"{name} = {estimate.value:.4g}{' ' + unit if unit else ''} (at the "
+                           "bound of its fit, not found by the shifts)")
+            else:
+                out.append(f"{name} = "
+                           + with_uncertainty(estimate.value, estimate.stderr, unit))
+        return ", ".join(out)
 
     def to_json(self) -> dict:
-        """``{"kind", "parameters": {name: {"value", "stderr", "unit"}}, ...}``."""
+        """``{"kind", "parameters": {name: {"value", "stderr", "unit"}}, ..., "at_bound":
+        [names]}``."""
         return {
             "kind": self.kind,
             "reference_temperature_c": self.reference_temperature_c,
             "parameters": {name: p.to_json() for name, p in self.parameters.items()},
             "chi2_per_dof": None if math.isnan(self.reduced_chi2) else self.reduced_chi2,
             "describes_shifts": bool(not self.reduced_chi2 > 2.0),
+            "at_bound": list(self.at_bound),
         }
 
 
@@ -184,12 +208,16 @@ def fit_shift_function(
     dof = t.size - len(names)
     if dof > 0 and chi2 / dof > 1.0:
         pcov = pcov * (chi2 / dof)
+    at_bound = tuple(name for name, value, low, high in zip(names, values, *bounds, strict=True)
+                     if min(abs(value - low), abs(value - high))
+                     <= BOUND_TOLERANCE * max(abs(low), abs(high), 1.0))
     return ShiftFunction(kind, reference_c, tuple(float(v) for v in values),
                          tuple(float(v) for v in np.sqrt(np.clip(np.diag(pcov), 0, None))),
-                         pcov, chi2, dof)
+                         pcov, chi2, dof, at_bound)
 
 
 def best_shift_function(functions: Sequence[ShiftFunction | None]) -> ShiftFunction | None:
-    """The fitted function of lowest AIC, or ``None`` if none was fitted."""
+    """The fitted function of lowest AIC among those with no parameter at a bound (then among
+    the others), or ``None`` if none was fitted."""
     fitted = [f for f in functions if f is not None]
-    return min(fitted, key=lambda f: f.aic) if fitted else None
+    return min(fitted, key=lambda f: (bool(f.at_bound), f.aic)) if fitted else None
