@@ -208,3 +208,23 @@ def test_real_file_names_wlf_at_its_bound_and_still_fits(tmp_path):
     assert data["fit"]["terms"] <= 24
     assert data["fit"]["storage_rms_log_error"] <= 0.05
     assert data["fit"]["loss_rms_log_error"] <= 0.12
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("first, count", [(10, 4), (10, 6), (12, 6)])
+def test_real_subsets_keep_the_series_within_the_data(first, count):
+    """Where the shifts refined with the series moved the coldest sweep by three decades, the
+    series kept the fast bound of the first shifts: E_0 was 11 and 27 times the data's."""
+    from realdata import real_data
+
+    from viscorig.materials.dmafile import read_dma_file
+
+    source = real_data("dma", "pyvisco_freq_user_raw.csv") / "pyvisco_freq_user_raw.csv"
+    table = read_dma_file(source, None)
+    table = table.select((table.set_index >= first) & (table.set_index < first + count))
+    master = build_master(table, ("subset",))
+    largest = float(np.hypot(table.storage_pa, table.loss_pa).max())
+    assert master.prony.instantaneous_modulus_pa <= 2 * largest
+    reduced = master.reduced_frequency_hz
+    assert master.prony.tau_s.min() >= 1 / (2 * np.pi * reduced.max()) / 10
+    assert master.prony.tau_s.max() <= 1 / (2 * np.pi * reduced.min()) * 10

@@ -8,8 +8,9 @@ viscoelastic material, which is what an FE card assumes. Residuals and weights a
 Prony fit (``ln(model/measured)`` over each modulus's scatter); the shifts' covariance is the
 marginal one from the Jacobian of the joint problem, scaled by the weighted residual variance.
 The series' moduli and relaxation times keep the bounds of the Prony fit
-(:func:`viscorig.materials.prony.prony_bounds`, at the reduced frequencies of the starting
-shifts); the shifts are free.
+(:func:`viscorig.materials.prony.prony_bounds`) at the reduced frequencies of the shifts, which
+are free: where the shifts moved the data away from the series' fastest or slowest term, the
+refinement is repeated with the bounds of the shifts it found.
 """
 
 from __future__ import annotations
@@ -24,6 +25,11 @@ from scipy.optimize import least_squares
 from viscorig.materials.prony import ModelFit, PronySeries, model_fit, prony_bounds
 
 LN10 = math.log(10.0)
+#: Most refinements, each with the series' bounds at the reduced frequencies the last one left.
+JOINT_PASSES = 3
+#: How far (natural log) past the bounds of its own reduced frequencies a refined series may end
+#: without another pass.
+BOUND_SLACK = math.log(2.0)
 
 
 @dataclass(frozen=True)
@@ -93,15 +99,26 @@ def refine_jointly(
 
     start = np.concatenate([[np.log(series.long_term_modulus_pa)], np.log(series.moduli_pa),
                             np.log(series.tau_s), log10_at[free]])
-    omega_start = 2 * np.pi * frequency_hz * 10.0 ** (log10_at[member] + point_offset)
-    lower, upper = prony_bounds(omega_start, storage, loss, n)
-    lower = np.concatenate([lower, np.full(free.size, -np.inf)])
-    upper = np.concatenate([upper, np.full(free.size, np.inf)])
-    margin = np.zeros(start.size)
-    margin[:2 * n + 1] = 1e-9 * (upper[:2 * n + 1] - lower[:2 * n + 1])
-    start = np.clip(start, lower + margin, upper - margin)
-    solution = least_squares(residual, start, jac=jacobian, method="trf", bounds=(lower, upper),
-                             max_nfev=evaluations * start.size, x_scale="jac")
+    shifts_now = log10_at
+    for _ in range(JOINT_PASSES):
+        # the series' bounds follow the reduced frequencies, which move with the shifts: a pass
+        # whose shifts moved them away from a relaxation time is done again from there
+        omega_now = 2 * np.pi * frequency_hz * 10.0 ** (shifts_now[member] + point_offset)
+        lower, upper = prony_bounds(omega_now, storage, loss, n)
+        lower = np.concatenate([lower, np.full(free.size, -np.inf)])
+        upper = np.concatenate([upper, np.full(free.size, np.inf)])
+        margin = np.zeros(start.size)
+        margin[:2 * n + 1] = 1e-9 * (upper[:2 * n + 1] - lower[:2 * n + 1])
+        solution = least_squares(residual, np.clip(start, lower + margin, upper - margin),
+                                 jac=jacobian, method="trf", bounds=(lower, upper),
+                                 max_nfev=evaluations * start.size, x_scale="jac")
+        shifts_now = unpack(solution.x)[3]
+        omega_end = 2 * np.pi * frequency_hz * 10.0 ** (shifts_now[member] + point_offset)
+        lower_end, upper_end = prony_bounds(omega_end, storage, loss, n)
+        inside = solution.x[:2 * n + 1]
+        if np.all((inside >= lower_end - BOUND_SLACK) & (inside <= upper_end + BOUND_SLACK)):
+            break
+        start = solution.x
     e_inf, e, _, shifts = unpack(solution.x)
     tau = np.exp(solution.x[n + 1:2 * n + 1])
     order = np.argsort(tau)
