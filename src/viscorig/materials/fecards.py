@@ -147,8 +147,9 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
     function = master.shift_function
     shift = "none fitted" if function is None else function.parameters_text()
     if function is not None and function.at_bound:
-        shift += (f"; CAUTION: {', '.join(function.at_bound)} at the bound of the fit, so the "
-                  "shifts do not determine it")
+        shift += (f"; CAUTION: {', '.join(function.at_bound)} at the bound of the fit: the "
+                  "shifts do not determine the parameters, only the curve over the measured "
+                  "temperatures; do not extrapolate")
     lines = [
         f"viscorig {__version__}: linear viscoelastic material from a master curve",
         f"data: {master.table.source or ', '.join(master.runs)} (runs: "

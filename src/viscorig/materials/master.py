@@ -138,13 +138,9 @@ class MasterCurve:
             if function is chosen:
                 best = "  <- better"
                 if function.at_bound:
-                    best += (f", though {', '.join(function.at_bound)} at the bound of its "
-                             "fit (no function fitted without one)")
-                lower = [f.kind for f in master.shift_functions
-                         if f is not function and f.aic < function.aic]
-                if lower:
-                    best += (f" ({', '.join(lower)} of lower AIC has a parameter at the bound "
-                             "of its fit)")
+                    best += (f" by AIC, though {', '.join(function.at_bound)} at the bound of "
+                             "its fit: its curve over the measured temperatures follows the "
+                             "shifts, its parameters are not determined by them")
             lines.append(f"{function.kind}: {values}{fit}{best}")
         if master.left_out:
             named = "; ".join(f"{p['temperature_c']:.1f} °C, {p['frequency_hz']:.4g} Hz "
