@@ -239,3 +239,23 @@ def test_real_subsets_keep_the_series_within_the_data(first, count):
     reduced = master.reduced_frequency_hz
     assert master.prony.tau_s.min() >= 1 / (2 * np.pi * reduced.max()) / 10
     assert master.prony.tau_s.max() <= 1 / (2 * np.pi * reduced.min()) * 10
+
+
+def test_export_message_names_the_series_the_card_holds(tmp_path, capsys):
+    from viscorig.cli import main
+
+    path = tmp_path / "hn.h5"
+    import_dma(path, "hn", _hn_wlf_sweep())
+    terms = build_master(_hn_wlf_sweep(), ("hn",)).prony.terms
+    assert terms > 5
+    out = tmp_path / "card.k"
+    assert main(["export", str(path), "--run", "hn", "--material", "lsdyna", "--out",
+                 str(out)]) == 0
+    message = capsys.readouterr().out
+    # MAT_076's six cards hold five decaying terms: it said the master's count
+    assert f"5-term Prony series (the master's {terms}-term series refitted)" in message
+    stated = re.search(r"storage ([0-9.]+), loss ([0-9.]+)", message)
+    comment = next(line for line in out.read_text().splitlines() if "this card" in line)
+    card = re.search(r"storage ([0-9.]+), loss ([0-9.]+)", comment)
+    for a, b in zip(stated.groups(), card.groups(), strict=True):
+        assert float(a) == pytest.approx(float(b), abs=1e-3)
