@@ -105,18 +105,18 @@ def test_import_stores_a_dma_run_beside_the_rig_runs(tmp_path, capsys, sweep_csv
 
 @pytest.mark.slow
 def test_a_modulus_below_zero_is_stored_named_and_left_out_of_the_master_curve(
-        tmp_path, capsys, caplog, sweep_csv):
+        tmp_path, capsys, sweep_csv):
     lines = sweep_csv.read_text().splitlines()
     cells = lines[13].split(",")  # row 14 of the file: set 1's second point
     cells[2] = "-0.02"
     lines[13] = ",".join(cells)
     sweep_csv.write_text("\n".join(lines) + "\n")
     path = tmp_path / "c.h5"
-    with caplog.at_level("WARNING"):
-        assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
-    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
-    assert len(warned) == 1 and "row 14, column 'E_loss'" in warned[0], warned
-    assert "210 points" in capsys.readouterr().out
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
+    said = capsys.readouterr()  # the command's warnings go to stderr, not to the root logger
+    warned = [line for line in said.err.splitlines() if "warning" in line]
+    assert len(warned) == 1 and "row 14, column 'E_loss'" in warned[0], said.err
+    assert "210 points" in said.out
     stored = read_dma(CampaignFile.open(path), "eca")
     assert stored.loss_pa[11] == pytest.approx(-0.02e6)  # kept as measured
     assert main(["master", str(path), "--run", "eca", "--json"]) == 0
