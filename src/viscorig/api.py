@@ -39,8 +39,7 @@ from viscorig.identify import (
     stored_fits,
     table_parameters,
 )
-from viscorig.materials.master import build_master
-from viscorig.materials.sources import modulus_table
+from viscorig.materials.sources import master_curve
 from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.report import build_report, words
 from viscorig.report.analysis import RunAnalysis, climb_from
@@ -145,9 +144,9 @@ class Campaign:
         """
         names = [name for group in runs for name in ([group] if isinstance(group, str)
                                                       else group)]
-        table = modulus_table(self.stored, names, disc_mass_kg, kstar)
         with np.errstate(all="ignore"):
-            return build_master(table, tuple(names), reference_temperature_c)
+            return master_curve(self.stored, names, reference_temperature_c, disc_mass_kg,
+                                kstar)
 
     def diagnose(self, run: str, model: str | None = None, *, auto: bool = False,
                  band_hz: tuple[float, float] | None = _DEFAULT_BAND,

@@ -18,8 +18,8 @@ import argparse
 from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
-from viscorig.materials.master import MasterCurve, build_master
-from viscorig.materials.sources import modulus_table
+from viscorig.materials.master import MasterCurve
+from viscorig.materials.sources import master_curve
 from viscorig.storage import CampaignFile
 
 
@@ -46,9 +46,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def master_of(path: str, runs: list[str], reference_c: float | None = None,
               disc_mass_kg: float | None = None, kstar_source: str = "support") -> MasterCurve:
     """The master curve of named runs of a campaign file."""
-    campaign = CampaignFile.open(path)
-    table = modulus_table(campaign, runs, disc_mass_kg, kstar_source)
-    return build_master(table, tuple(runs), reference_c)
+    return master_curve(CampaignFile.open(path), runs, reference_c, disc_mass_kg, kstar_source)
 
 
 def handler(args: argparse.Namespace) -> int:

@@ -283,7 +283,8 @@ def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int
 
 
 def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
-                 reference_temperature_c: float | None = None) -> MasterCurve:
+                 reference_temperature_c: float | None = None, *,
+                 systematic: ModulusTable | None = None) -> MasterCurve:
     """Build the master curve of ``table`` (see the module text).
 
     Parameters
@@ -296,6 +297,9 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
         Temperature of the master curve; default the measured temperature nearest the middle of
         the range. A temperature between the measured ones is reached through the fitted shift
         function (its error added to every shift's).
+    systematic
+        The same points one standard error of a quantity they share off (the rig's disc mass):
+        the change of the shifts it makes is added to their covariance, common to all.
 
     Raises
     ------
@@ -305,11 +309,22 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        return _build(table, runs, reference_temperature_c)
+        return _build(table, runs, reference_temperature_c, systematic)
 
 
-def _build(table: ModulusTable, runs: tuple[str, ...],
-           reference_temperature_c: float | None) -> MasterCurve:
+def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
+                           ) -> NDArray[np.float64] | float:
+    """The shifts' covariance from a shared error (``build_master``'s ``systematic``)."""
+    if systematic is None:
+        return 0.0
+    moved = estimate_shift_factors(systematic.select(systematic.usable()),
+                                   reference_set=int(shifts.sets[shifts.reference]))
+    change = moved.log10_at - shifts.log10_at
+    return np.outer(change, change) if change.shape == shifts.log10_at.shape else 0.0
+
+
+def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
+           systematic: ModulusTable | None = None) -> MasterCurve:
     table.check(table.source or "modulus table")
     left_out = tuple(table.unusable_points())
     if left_out:
@@ -342,6 +357,7 @@ def _build(table: ModulusTable, runs: tuple[str, ...],
         prony, prony_fit = joint.series, joint_fit
         log10_at, covariance = joint.log10_at.copy(), _joint_covariance(joint.log10_at,
                                                                          joint.covariance, shifts)
+    covariance = covariance + _systematic_covariance(shifts, systematic)
     stderr = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     functions = [fit_shift_function(kind, shifts.temperature_c, log10_at, covariance, anchor_c)
                  for kind in ("wlf", "arrhenius")]

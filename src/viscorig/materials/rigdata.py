@@ -14,6 +14,7 @@ Flagged points and points whose K* has no positive real and imaginary part are l
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from viscorig.estimates import kstar_from_support
 from viscorig.identify import identify_run
 from viscorig.materials.table import ModulusTable
 from viscorig.models import Context, parse_spec
+from viscorig.numbers import with_uncertainty
 from viscorig.rig import RigDescription
 from viscorig.storage import CampaignFile
 
@@ -42,11 +44,22 @@ DISC_MASS_MODELS = ("fractional", "fractional+load_cell")
 DISC_MASS_PRECISION = 0.05
 
 
-def identified_disc_mass(campaign: CampaignFile, runs: list[str]) -> tuple[float, str]:
-    """``M_v`` (kg) for rig runs of one specimen that were never identified, and how it was
-    found: each run fitted with :data:`DISC_MASS_MODELS` (the table's parameters from its
-    bare-table run), the fit of lower BIC kept, the disc's mass taken as the weighted mean over
-    the runs, since the disc does not change with the temperature its rubber is measured at.
+@dataclass(frozen=True)
+class DiscMass:
+    """The disc's mass ``M_v`` found from the runs, kg, with its standard error and how."""
+
+    value: float
+    stderr: float
+    basis: str
+
+
+def identified_disc_mass(campaign: CampaignFile, runs: list[str]) -> DiscMass:
+    """``M_v`` for rig runs of one specimen that were never identified: each run fitted with
+    :data:`DISC_MASS_MODELS` (the table's parameters from its bare-table run), the fit of lower
+    BIC kept, the disc's mass taken as the weighted mean over the runs, since the disc does not
+    change with the temperature its rubber is measured at. Its standard error is the larger of
+    the mean's and the runs' scatter over the square root of their number: what the models
+    leave out moves each run's ``M_v`` a little, differently at each temperature.
 
     Raises
     ------
@@ -69,10 +82,12 @@ def identified_disc_mass(campaign: CampaignFile, runs: list[str]) -> tuple[float
                          "it, viscorig identify ... --model, or give --disc-mass)",
                          f"{campaign.path}")
     mass = float(np.average(masses, weights=weights))
-    spread = float(np.std(masses)) if len(masses) > 1 else math.nan
-    basis = (f"M_v {mass:.4g} kg, the mean of its fits to {len(masses)} run(s)"
-             + (f" (spread {spread:.2g} kg)" if math.isfinite(spread) else ""))
-    return mass, basis
+    stderr = 1.0 / math.sqrt(sum(weights))
+    if len(masses) > 1:
+        stderr = max(stderr, float(np.std(masses, ddof=1)) / math.sqrt(len(masses)))
+    basis = (f"M_v {with_uncertainty(mass, stderr)} kg, the mean of its fits to "
+             f"{len(masses)} run(s), its error in the shifts'")
+    return DiscMass(mass, stderr, basis)
 
 
 def _kstar_of_fit(campaign: CampaignFile, run_name: str, frequency_hz: np.ndarray,

@@ -20,8 +20,8 @@ from matplotlib.figure import Figure
 
 from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
-from viscorig.materials.master import MasterCurve, build_master
-from viscorig.materials.sources import modulus_table
+from viscorig.materials.master import MasterCurve
+from viscorig.materials.sources import master_curve
 from viscorig.numbers import with_uncertainty
 from viscorig.report.figures import SavedFigure, save, styled
 from viscorig.storage import CampaignFile
@@ -68,7 +68,7 @@ def analyse_materials(campaign: CampaignFile) -> list[Material]:
     for runs in candidate_groups(campaign):
         try:
             with np.errstate(all="ignore"):
-                master = build_master(modulus_table(campaign, list(runs)), runs)
+                master = master_curve(campaign, list(runs))
             out.append(Material(runs, master))
         except InputError as error:
             out.append(Material(runs, None, str(error)))
