@@ -22,7 +22,6 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.sources import master_curve
-from viscorig.numbers import with_uncertainty
 from viscorig.report.figures import SavedFigure, save, styled
 from viscorig.storage import CampaignFile
 
@@ -176,8 +175,7 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
                  f"{master.reference_temperature_c:.1f} °C.",
                  master.superposition.verdict[0].upper() + master.superposition.verdict[1:] + "."]
         if best is not None:
-            values = ", ".join(f"{k} = {with_uncertainty(v['value'], v['stderr'])}"
-                               for k, v in best.to_json()["parameters"].items())
+            values = best.parameters_text()
             fits = "describes" if best.to_json()["describes_shifts"] else "does not describe"
             words.append(f"Shift function: {best.kind} ({values}); it {fits} the shift factors "
                          "within their errors.")
