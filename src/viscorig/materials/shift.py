@@ -169,6 +169,10 @@ def _differ(squares: NDArray[np.float64], dof: NDArray[np.float64],
     return bool(chdtrc(k - 1, statistic) < significance)
 
 
+#: scipy's relative step of a forward difference (its ``2-point`` Jacobian's).
+_DIFF_STEP = float(np.finfo(float).eps) ** 0.5
+
+
 class _Problem:
     """The variable-projection residual of the shifts."""
 
@@ -213,6 +217,63 @@ class _Problem:
 
     def residual(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
         return ((self.y - self.fitted(free)) * self.weights).ravel(order="F")
+
+    def jacobian(self, free: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The residual's forward-difference Jacobian, with scipy's steps, all columns at once.
+
+        Moving one set's shift moves only its own points along the spline: their rows of the
+        design matrix change, the normal equations by their outer products, and every
+        column's spline coefficients come from one batched solve, where evaluating the
+        residual once per shift rebuilt the whole fit each time.
+        """
+        assert self.knots is not None, "knots are set before the first fit"
+        sign = np.where(free >= 0, 1.0, -1.0)
+        step = (free + _DIFF_STEP * sign * np.maximum(1.0, np.abs(free))) - free
+        u = self.reduced(free)
+        basis = _basis(u, self.knots)
+        moved_step = np.zeros(self.sets)
+        moved_step[self.free] = step
+        moved = _basis(u + moved_step[self.member], self.knots)
+        column = np.full(self.sets, -1)
+        column[self.free] = np.arange(self.free.size)
+        member = column[self.member]  # each point's column (-1: the reference set's)
+        rows = member >= 0
+        # each column's points, padded to the largest set (padding weighs nothing)
+        order = np.argsort(member, kind="stable")
+        order = order[member[order] >= 0]
+        counts = np.bincount(member[rows], minlength=self.free.size)
+        slot = np.arange(order.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        index = np.zeros((self.free.size, max(1, int(counts.max()))), dtype=np.intp)
+        present = np.zeros(index.shape, dtype=bool)
+        index[member[order], slot] = order
+        present[member[order], slot] = True
+        jac = np.empty((self.y.size, self.free.size))
+        size = basis.shape[1]
+        for k in range(self.y.shape[1]):
+            w2, y = self.weights[:, k] ** 2, self.y[:, k]
+            weighted = basis * w2[:, None]
+            normal = basis.T @ weighted
+            rhs = weighted.T @ y
+            trace = np.trace(normal)
+            ridge = 1e-8 * trace / size * np.eye(size)
+            base = basis @ np.linalg.solve(normal + ridge, rhs)
+            # per column: the normal matrix and right-hand side with its set's rows moved
+            w2_sets = np.where(present, w2[index], 0.0)[:, :, None]
+            moved_sets, basis_sets = moved[index], basis[index]
+            delta = (np.swapaxes(moved_sets, 1, 2) @ (moved_sets * w2_sets)
+                     - np.swapaxes(basis_sets, 1, 2) @ (basis_sets * w2_sets))
+            normals = normal + delta
+            traces = trace + np.trace(delta, axis1=1, axis2=2)
+            normals += (1e-8 * traces / size)[:, None, None] * np.eye(size)
+            rhss = rhs + np.einsum("pr,pra->pa", w2_sets[:, :, 0] * y[index],
+                                   moved_sets - basis_sets)
+            coefficients = np.linalg.solve(normals, rhss[:, :, None])[:, :, 0]
+            fitted = basis @ coefficients.T  # points x columns
+            own = np.einsum("ia,ia->i", moved[rows], coefficients[member[rows]])
+            fitted[np.flatnonzero(rows), member[rows]] = own
+            weight = self.weights[:, k][:, None]
+            jac[k * u.size:(k + 1) * u.size] = (-(fitted - base[:, None]) * weight) / step
+        return jac
 
 
 def estimate_shift_factors(
@@ -293,13 +354,15 @@ def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.
     free = start[problem.free]
     for _ in range(3):  # knots follow the span; weights follow the scatter
         problem.knots = _knots(problem.reduced(free), spacing)
-        solution = least_squares(problem.residual, free, method="trf", x_scale=1.0,
+        solution = least_squares(problem.residual, free, jac=problem.jacobian, method="trf",
+                                 x_scale=1.0,
                                  max_nfev=40, xtol=1e-6, ftol=1e-8)
         free = solution.x
         values, leverage = problem.fitted(free, leverage=True)
         problem.weights = 1.0 / _set_scatter(problem.y - values, leverage, problem.member,
                                              free.size)
-    solution = least_squares(problem.residual, free, method="trf", max_nfev=60, xtol=1e-8,
+    solution = least_squares(problem.residual, free, jac=problem.jacobian, method="trf",
+                             max_nfev=60, xtol=1e-8,
                              ftol=1e-10)
     deviation = table.temperature_c - temperatures[problem.member]
     if np.abs(deviation).max() > 0.01:
@@ -307,7 +370,8 @@ def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.
         # each is moved by the local slope d(log10 aT)/dT of the shifts found, then refitted
         slope = np.gradient(problem.shifts(solution.x), temperatures)
         problem.offset = slope[problem.member] * deviation
-        solution = least_squares(problem.residual, solution.x, method="trf", max_nfev=60,
+        solution = least_squares(problem.residual, solution.x, jac=problem.jacobian,
+                                 method="trf", max_nfev=60,
                                  xtol=1e-8, ftol=1e-10)
     # Gaussian likelihood with each set's own variance (the weights), so that fits with
     # different knots compare whatever scatter each leaves
