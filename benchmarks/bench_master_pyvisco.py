@@ -13,7 +13,8 @@ documented pipeline:
   as its tutorial ``freq_raw.py`` does; both its initial series and the optimised one are scored.
 
 Each is scored on every measured point, shifted by its own shift factors: the rms of
-``ln(model/measured)`` for E' and E'', the number of terms, and the wall time. With ``--figure
+``ln(model/measured)`` for E' and E'', the number of terms, and the wall time (BLAS
+single-threaded for both, as the ``viscorig`` command runs). With ``--figure
 PATH`` it also draws viscorig's master curve (points with the ± of their shift, the series, and
 pyvisco's optimised series) and the shift factors with WLF and Arrhenius.
 
@@ -22,18 +23,22 @@ Run: ``python benchmarks/bench_master_pyvisco.py [--figure docs/images/master-cu
 
 from __future__ import annotations
 
-import contextlib
-import io
-import os
-import sys
-import time
-import warnings
-from pathlib import Path
+from viscorig.runtime import limit_blas_threads
 
-import numpy as np
+limit_blas_threads()  # before numpy loads, as the command line does, for both tools
 
-from viscorig.materials.dmafile import read_dma_csv
-from viscorig.materials.master import build_master
+import contextlib  # noqa: E402
+import io  # noqa: E402
+import os  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from viscorig.materials.dmafile import read_dma_csv  # noqa: E402
+from viscorig.materials.master import build_master  # noqa: E402
 
 #: pyvisco's example sweep, not held by the repository (tests/data/dma/README.md names it).
 DATA = (Path(os.environ["VISCORIG_REAL_DATA"]) / "dma" if os.environ.get("VISCORIG_REAL_DATA")
