@@ -14,7 +14,7 @@ import pytest
 from eurotherm3200 import ChamberError, Eurotherm3200
 from rigsim.chamber import Chamber, ChamberParameters
 from rigsim.chamber_server import RATE, TARGET, ChamberServer
-from test_temperature_runner import HEAD
+from test_temperature_runner import lab_files
 
 from viscorig.acquisition.chamber import (
     SAFE_BUDGET_S,
@@ -120,47 +120,6 @@ def test_silent_controller_is_not_safe_within_the_budget(served) -> None:
     assert [address for address, _ in server.writes] == [TARGET] * 3
 
 
-def _lab(tmp_path: Path, server: ChamberServer, analyser, rig) -> tuple[Path, Path]:
-    station = tmp_path / "lab.toml"
-    station.write_text(f"""\
-resource = "{analyser.socket_resource}"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = {rig.sensors.force_v_per_n}
-table_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-device_force_v_per_n = {rig.sensors.force_v_per_n}
-device_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-[shaker]
-force_limit_n = 100.0
-gain_n_per_v = {rig.shaker.force_n_per_v}
-[source]
-limit_v = 2.0
-[chamber]
-address = "{server.address}"
-specimen_unit = 2
-low_limit_c = -30.0
-high_limit_c = 60.0
-safe_set_point_c = {SAFE_C}
-""")
-    sequence = tmp_path / "lab-seq.toml"
-    sequence.write_text(HEAD + """
-[[steps]]
-type = "temperature"
-set_point_c = 23.0
-soak_minutes = 0
-
-[[steps]]
-type = "sweep"
-run = "lab"
-temperature_c = 23.0
-""")
-    return station, sequence
-
-
 def _run_lab(tmp_path: Path, arm) -> tuple[int, Path, Chamber]:
     """``viscorig run --station`` on the simulated analyser and the faulty controller."""
     from rigsim.rigfile import load_preset
@@ -176,7 +135,7 @@ def _run_lab(tmp_path: Path, arm) -> tuple[int, Path, Chamber]:
     try:
         with FaultyController(chamber) as server:
             arm(server)
-            station, sequence = _lab(tmp_path, server, analyser, rig)
+            station, sequence = lab_files(tmp_path, analyser, rig, server.address)
             status = main(["run", str(sequence), "--station", str(station), "--yes", "--out",
                            str(out)])
     finally:

@@ -64,6 +64,50 @@ def _run(tmp_path: Path, text: str, monitor: type[ChamberMonitor] | None = None,
     return result, out, target
 
 
+
+def lab_files(tmp_path: Path, analyser, rig, address: str) -> tuple[Path, Path]:
+    """A lab station (the simulated analyser and chamber controller at ``address``) and a
+    sequence that soaks at 23 °C and sweeps one run, written in ``tmp_path``."""
+    station = tmp_path / "lab.toml"
+    station.write_text(f"""\
+resource = "{analyser.socket_resource}"
+[channels]
+excitation_force = 1
+table_acceleration = 2
+device_force = 3
+device_acceleration = 4
+[sensitivity]
+excitation_force_v_per_n = {rig.sensors.force_v_per_n}
+table_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
+device_force_v_per_n = {rig.sensors.force_v_per_n}
+device_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
+[shaker]
+force_limit_n = 100.0
+gain_n_per_v = {rig.shaker.force_n_per_v}
+[source]
+limit_v = 2.0
+[chamber]
+address = "{address}"
+specimen_unit = 2
+low_limit_c = -30.0
+high_limit_c = 60.0
+safe_set_point_c = 20.0
+""")
+    sequence = tmp_path / "lab-seq.toml"
+    sequence.write_text(HEAD + """
+[[steps]]
+type = "temperature"
+set_point_c = 23.0
+soak_minutes = 0
+
+[[steps]]
+type = "sweep"
+run = "lab"
+temperature_c = 23.0
+""")
+    return station, sequence
+
+
 def test_soak_then_every_point_has_its_temperature(tmp_path: Path, capsys) -> None:
     text = HEAD + """
 [[steps]]
@@ -243,43 +287,7 @@ def test_a_lab_station_with_a_chamber(tmp_path: Path) -> None:
     analyser.analyser.simulator.attach_chamber(chamber)
     try:
         with ChamberServer(chamber) as controller:
-            station = tmp_path / "lab.toml"
-            station.write_text(f"""\
-resource = "{analyser.socket_resource}"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = {rig.sensors.force_v_per_n}
-table_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-device_force_v_per_n = {rig.sensors.force_v_per_n}
-device_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-[shaker]
-force_limit_n = 100.0
-gain_n_per_v = {rig.shaker.force_n_per_v}
-[source]
-limit_v = 2.0
-[chamber]
-address = "{controller.address}"
-specimen_unit = 2
-low_limit_c = -30.0
-high_limit_c = 60.0
-safe_set_point_c = 20.0
-""")
-            sequence = tmp_path / "lab-seq.toml"
-            sequence.write_text(HEAD + """
-[[steps]]
-type = "temperature"
-set_point_c = 23.0
-soak_minutes = 0
-
-[[steps]]
-type = "sweep"
-run = "lab"
-temperature_c = 23.0
-""")
+            station, sequence = lab_files(tmp_path, analyser, rig, controller.address)
             out = tmp_path / "lab.h5"
             assert main(["run", str(sequence), "--station", str(station), "--yes", "--out",
                          str(out)]) == 0

@@ -64,7 +64,7 @@ from typing import Any, Self
 
 import h5py
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from viscorig.errors import InputError
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
@@ -602,17 +602,7 @@ class CampaignFile:
             raise InputError(f"band_hz {band_hz!r} is not 0 <= lo < hi", where)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
-        checked = {}
-        for key, (value, stderr, unit) in parameters.items():
-            check_name(key, f"{where}: parameter")
-            checked[key] = (float(value), float(stderr), str(unit))
-        names: tuple[str, ...] = ()
-        matrix = None
-        if correlation is not None:
-            names = tuple(str(name) for name in correlation[0])
-            matrix = np.asarray(correlation[1], dtype=float).reshape(len(names), len(names))
-            if set(names) - set(checked) or layout.FIT_CORRELATION in checked:
-                raise InputError("correlation names parameters the fit does not have", where)
+        checked, names, matrix = _checked_parameters(parameters, correlation, where)
         with self._commit() as h5:
             group = reading.run_group(h5, run_name, self.path)
             fits = group.require_group(layout.FITS_GROUP)
@@ -683,17 +673,7 @@ class CampaignFile:
             raise InputError(f"band_hz {band_hz!r} is not 0 <= lo <= hi", where)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
-        checked = {}
-        for key, (value, stderr, unit) in parameters.items():
-            check_name(key, f"{where}: parameter")
-            checked[key] = (float(value), float(stderr), str(unit))
-        order: tuple[str, ...] = ()
-        matrix = None
-        if correlation is not None:
-            order = tuple(str(name) for name in correlation[0])
-            matrix = np.asarray(correlation[1], dtype=float).reshape(len(order), len(order))
-            if set(order) - set(checked) or layout.FIT_CORRELATION in checked:
-                raise InputError("correlation names parameters the fit does not have", where)
+        checked, order, matrix = _checked_parameters(parameters, correlation, where)
         reserved = {"model", "runs", "band_hz", "reduced_chi_square", "points", "created",
                     "weighting"}
         more: dict[str, object] = {}
@@ -838,3 +818,23 @@ def campaign_for_import(path: Path, run_name: str) -> Iterator[CampaignFile]:
         if created:
             path.unlink(missing_ok=True)
         raise
+
+
+def _checked_parameters(parameters: Mapping[str, tuple[float, float, str]],
+                        correlation: tuple[Sequence[str], ArrayLike] | None, where: str
+                        ) -> tuple[dict[str, tuple[float, float, str]], tuple[str, ...],
+                                   NDArray[np.float64] | None]:
+    """A fit's parameters ``{name: (value, stderr, unit)}`` and correlation ``(names, matrix)``
+    checked for storing: names that HDF5 can hold, a correlation of the fit's own parameters."""
+    checked = {}
+    for key, (value, stderr, unit) in parameters.items():
+        check_name(key, f"{where}: parameter")
+        checked[key] = (float(value), float(stderr), str(unit))
+    names: tuple[str, ...] = ()
+    matrix = None
+    if correlation is not None:
+        names = tuple(str(name) for name in correlation[0])
+        matrix = np.asarray(correlation[1], dtype=float).reshape(len(names), len(names))
+        if set(names) - set(checked) or layout.FIT_CORRELATION in checked:
+            raise InputError("correlation names parameters the fit does not have", where)
+    return checked, names, matrix
