@@ -206,3 +206,20 @@ def test_a_channel_term_sent_to_a_worker_process_keeps_its_channel():
         others = [c for c in CHANNELS.values() if c.frf == term.channel.frf
                   and c is not term.channel]
         assert len(others) == 1 and others[0].name != name
+
+
+def test_modifiers_give_kstar_at_their_reference_without_their_covariate() -> None:
+    """K* on a grid or at one frequency (a plot, the report's headline) has no test time,
+    amplitude or temperature: each modifier then gives K* at its reference, never an error."""
+    f = np.array([20.0, 60.0, 120.0])
+    base = {"K_v": 2e5, "C_v": 100.0, "M_v": 0.15}
+    voigt = parse_spec("voigt").kstar(Context(f), base)
+    spec = "voigt+drift+amplitude+temperature(25)"
+    values = {**base, "kappa": -1e-5, "beta": 0.1, "gamma": -0.02}
+    np.testing.assert_allclose(parse_spec(spec).kstar(Context(f), values), voigt)
+    kraus = {**base, "K_f": 5e4, "L_f": 1.5e3, "x_c": 2.5e-4, "m_k": 1.5}
+    np.testing.assert_allclose(parse_spec("voigt+kraus").kstar(Context(f), kraus), voigt + 5e4)
+    # with the covariates the modifiers act
+    moved = parse_spec(spec).kstar(Context(f, np.full(3, 3600.0), np.full(3, 1.0),
+                                           np.full(3, 35.0)), values)
+    assert np.all(np.abs(moved / voigt - 1) > 0.05)

@@ -19,6 +19,11 @@ frame      frame               the inertial frame under the table, a mass on its
 The measuring chain's effects (``delay``, ``gain``, ``highpass``, ``lowpass`` on one channel) are
 in :mod:`viscorig.models.sensors`.
 
+A modifier's covariate (``time_s``, ``reference_amplitude``, ``temperature_c``) is required of
+the data a model is fitted to; without it (K* on a plot's grid, at one frequency) each modifier
+gives K* at its reference: ``drift`` at ``t = 0``, ``amplitude`` at 10 µm, ``kraus`` at vanishing
+amplitude, ``temperature`` at ``T_ref``.
+
 Terms whose start cannot come from defaults (a fixture's frequency, the load cell's stiffness)
 also give a start from the measured FRFs (:meth:`start_from_data`), so that
 ``identify --model voigt+fixture`` needs no guess either.
@@ -298,6 +303,8 @@ class Amplitude(Term):
         )
 
     def modify_modulus(self, ctx, p, kstar):
+        if ctx.reference_amplitude is None:  # K* at the reference amplitude (module text)
+            return kstar
         ratio = displacement_amplitude(ctx) / AMPLITUDE_REFERENCE_M
         return kstar * ratio ** (-p["beta"])
 
@@ -345,6 +352,8 @@ class Kraus(Term):
         return KRAUS_PARAMETERS
 
     def modify_modulus(self, ctx, p, kstar):
+        if ctx.reference_amplitude is None:  # at vanishing amplitude (module text)
+            return kstar + kraus_stiffness(np.zeros(ctx.omega.shape), p)
         return kstar + kraus_stiffness(displacement_amplitude(ctx), p)
 
 
@@ -367,8 +376,8 @@ class Drift(Term):
         )
 
     def modify_modulus(self, ctx, p, kstar):
-        if ctx.time_s is None:
-            raise InputError("the drift term needs time_s", "model spec")
+        if ctx.time_s is None:  # K* at t = 0 (module text)
+            return kstar
         return kstar * (1.0 + p["kappa"] * ctx.time_s)
 
 
