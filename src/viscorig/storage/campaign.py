@@ -674,8 +674,7 @@ class CampaignFile:
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
         checked, order, matrix = _checked_parameters(parameters, correlation, where)
-        reserved = {"model", "runs", "band_hz", "reduced_chi_square", "points", "created",
-                    "weighting"}
+        reserved = layout.JOINT_FIT_ATTRIBUTES
         more: dict[str, object] = {}
         for key, given in (attributes or {}).items():
             check_name(key, f"{where}: attribute")

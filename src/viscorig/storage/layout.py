@@ -47,6 +47,9 @@ FIT_CORRELATION = "correlation"
 #: ``/runs``; each names the runs it used in its attribute ``runs`` (data-format.md keeps
 #: ``/runs/<name>/fits`` for fits of one run).
 JOINT_FITS_GROUP = "fits"
+#: The attributes of a joint fit the layout defines; any other is the fit's own.
+JOINT_FIT_ATTRIBUTES = frozenset({"model", "runs", "band_hz", "reduced_chi_square", "points",
+                                  "created", "weighting"})
 
 #: Elements of each dataset: 1-D, chunked, resizable.
 CHUNK_POINTS = 256

@@ -361,32 +361,18 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
             fit = fits_group[fit_id]
             if not isinstance(fit, h5py.Group):
                 raise InputError("not a group", f"{path}: {fit.name}")
-            band_value = attribute(fit, "band_hz", path)
-            try:
-                band = np.asarray([] if band_value is None else band_value, dtype=float).ravel()
-            except (TypeError, ValueError):
-                band = np.empty(0)
-            if band.shape != (2,):
-                raise InputError("band_hz is not [lo, hi]", f"{path}: {fit.name}.band_hz")
-            parameters = {}
-            for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
-                untrusted.check_stored_name(key, path, fit.name, "parameter")
-                parameter = _read_parameter(fit[key], path)
-                if parameter is not None:
-                    parameters[key] = parameter
-            correlation = _read_correlation(fit, path)
             weighting = attribute(fit, "weighting", path)
             result.append(
                 FitRecord(
                     id=fit_id,
                     run=run_name,
                     model=text_attribute(fit, "model", path),
-                    band_hz=(float(band[0]), float(band[1])),
+                    band_hz=_pair(fit, "band_hz", path),
                     rms_error=read_number(fit, "rms_error", path),
                     noise_floor=read_number(fit, "noise_floor", path),
                     created=text_attribute(fit, "created", path),
-                    parameters=parameters,
-                    correlation=correlation,
+                    parameters=_read_parameters(fit, path),
+                    correlation=_read_correlation(fit, path),
                     weighting=weighting if isinstance(weighting, str) else "",
                 )
             )
@@ -440,14 +426,8 @@ def _read_joint_fit(fit_id: str, fit: h5py.Group, path: Path) -> JointFitRecord:
         raise InputError("names no runs", f"{path}: {fit.name}.runs")
     for run in runs:
         untrusted.check_stored_name(run, path, f"{fit.name}.runs", "run")
-    parameters = {}
-    for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
-        untrusted.check_stored_name(key, path, fit.name, "parameter")
-        parameter = _read_parameter(fit[key], path)
-        if parameter is not None:
-            parameters[key] = parameter
-    known = ("model", "runs", "band_hz", "reduced_chi_square", "points", "created", "weighting")
-    extra = {key: value for key, value in attributes(fit, path).items() if key not in known}
+    extra = {key: value for key, value in attributes(fit, path).items()
+             if key not in layout.JOINT_FIT_ATTRIBUTES}
     weighting = attribute(fit, "weighting", path)
     return JointFitRecord(
         id=fit_id,
@@ -457,11 +437,22 @@ def _read_joint_fit(fit_id: str, fit: h5py.Group, path: Path) -> JointFitRecord:
         reduced_chi_square=read_number(fit, "reduced_chi_square", path),
         points=read_number(fit, "points", path, integer=True),
         created=text_attribute(fit, "created", path),
-        parameters=parameters,
+        parameters=_read_parameters(fit, path),
         correlation=_read_correlation(fit, path),
         weighting=weighting if isinstance(weighting, str) else "",
         extra=extra,
     )
+
+
+def _read_parameters(fit: h5py.Group, path: Path) -> dict[str, Estimate]:
+    """A fit's parameters (its datasets and groups but the correlation), by name."""
+    parameters = {}
+    for key in untrusted.members(fit, path, layout.MAX_MEMBERS):
+        untrusted.check_stored_name(key, path, fit.name, "parameter")
+        parameter = _read_parameter(fit[key], path)
+        if parameter is not None:
+            parameters[key] = parameter
+    return parameters
 
 
 def _read_correlation(
