@@ -65,16 +65,20 @@ def run_data(run: RunRecord) -> FrfData:
     )
 
 
-def recorded_temperature_c(run: RunRecord) -> NDArray[np.float64] | None:
+def recorded_temperature_c(run: RunRecord, every_point: bool = True
+                           ) -> NDArray[np.float64] | None:
     """The specimen's temperature recorded at each point of ``run`` (°C; a chamber run's
-    ``temperature_c`` dataset), or ``None`` when the run has none or not at every point."""
+    ``temperature_c`` dataset, NaN where a point has none), or ``None`` when the run has none,
+    or, with ``every_point``, not at every point."""
     if "temperature_c" not in run.extra:
         return None
     values, units = run.extra["temperature_c"]
     values = np.asarray(values, dtype=float)
     if units.strip().lower() in {"k", "kelvin"}:
         values = values - 273.15
-    return values if values.size and bool(np.all(np.isfinite(values))) else None
+    if not values.size or (every_point and not bool(np.all(np.isfinite(values)))):
+        return None
+    return values
 
 
 #: The table's parameters, as a specimen fit inherits them.

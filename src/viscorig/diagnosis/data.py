@@ -21,7 +21,12 @@ from numpy.typing import NDArray
 from viscorig.errors import InputError
 from viscorig.fitting import FrfData, Known, NoiseModel, estimate_noise
 from viscorig.fitting.noise import MarkovWhitening
-from viscorig.identify import is_bare_table, run_data, table_parameters
+from viscorig.identify import (
+    is_bare_table,
+    recorded_temperature_c,
+    run_data,
+    table_parameters,
+)
 from viscorig.storage import CampaignFile, RunMetadata, RunRecord
 
 
@@ -397,9 +402,9 @@ def _same_temperature(a: RunRecord, b: RunRecord) -> bool:
 
 def recorded_temperature_range(run: RunRecord) -> tuple[float, float] | None:
     """Lowest and highest per-point ``temperature_c`` of a run, or None where not recorded."""
-    if "temperature_c" not in run.extra:
+    values = recorded_temperature_c(run, every_point=False)
+    if values is None:
         return None
-    values = np.asarray(run.extra["temperature_c"][0], dtype=float)
     values = values[np.isfinite(values)]
     return (float(values.min()), float(values.max())) if values.size else None
 

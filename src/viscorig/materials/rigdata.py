@@ -20,7 +20,7 @@ import numpy as np
 
 from viscorig.errors import InputError
 from viscorig.estimates import kstar_from_support
-from viscorig.identify import identify_run
+from viscorig.identify import identify_run, recorded_temperature_c
 from viscorig.materials.table import ModulusTable
 from viscorig.models import Context, parse_spec
 from viscorig.numbers import with_uncertainty
@@ -144,9 +144,8 @@ def rig_modulus_table(campaign: CampaignFile, run_name: str,
             raise InputError("no disc mass M_v: identify the run first (viscorig identify ... "
                              "--model voigt) or give --disc-mass", where)
         kstar = kstar_from_support(frequency, support, mass)
-    if "temperature_c" in run.extra:
-        temperature = np.asarray(run.extra["temperature_c"][0], dtype=float)
-    else:
+    temperature = recorded_temperature_c(run, every_point=False)
+    if temperature is None:
         temperature = np.full(frequency.size, run.metadata.temperature_c)
     if not np.isfinite(temperature).any():
         raise InputError("no temperature (the temperature_c attribute is NaN and there is no "
