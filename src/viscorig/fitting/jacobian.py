@@ -66,28 +66,6 @@ def stiffness_derivatives(
 _BATCHABLE: dict[int, tuple[Model, bool]] = {}
 
 
-#: The last contexts repeated (``(id(ctx), count)`` -> ``(ctx, repeated)``): a fit asks for the
-#: same one at every Jacobian.
-_TILED: dict[tuple[int, int], tuple[Context, Context]] = {}
-
-
-def _tiled(ctx: Context, count: int) -> Context:
-    """``ctx`` repeated ``count`` times end to end."""
-    known = _TILED.get((id(ctx), count))
-    if known is not None and known[0] is ctx:
-        return known[1]
-    tiled = Context(
-        np.tile(ctx.frequency_hz, count),
-        None if ctx.time_s is None else np.tile(ctx.time_s, count),
-        None if ctx.reference_amplitude is None else np.tile(ctx.reference_amplitude, count),
-        None if ctx.temperature_c is None else np.tile(ctx.temperature_c, count),
-    )
-    if len(_TILED) >= 16:
-        _TILED.clear()
-    _TILED[(id(ctx), count)] = (ctx, tiled)
-    return tiled
-
-
 def predict_many(
     model: Model,
     ctx: Context,
@@ -98,11 +76,12 @@ def predict_many(
     """The model's predictions for several parameter sets at once (a finite-difference
     Jacobian's, say): ``values`` with ``names`` set to each row of ``rows`` (sets × names).
 
-    Returns FRF name -> sets × points. The sets are evaluated in one pass of the pipeline, on
-    the points repeated once per set with each parameter a per-point array, so the cost of a
-    Jacobian is one evaluation of a longer model instead of one evaluation per column. A model
-    with a term that does not take per-point parameters falls back to one pass per set (found
-    once per model, by comparing the first set with a plain evaluation).
+    Returns FRF name -> sets × points (read-only where the sets share a value). The sets are
+    evaluated in one pass of the pipeline, each parameter of ``names`` a column of one value per
+    set broadcast against the points, so that a term none of whose parameters moves is
+    evaluated once for all sets, and any other once on sets × points. A model with a term that
+    does not take such parameters falls back to one pass per set (found once per model, by
+    comparing the first set with a plain evaluation).
     """
     rows = np.atleast_2d(np.asarray(rows, dtype=float))
     count, points = rows.shape[0], ctx.frequency_hz.size
@@ -111,11 +90,11 @@ def predict_many(
     if batchable is not False and count > 1:
         batch: dict[str, Any] = dict(values)  # a parameter may be an array, one per point
         for j, name in enumerate(names):
-            batch[name] = np.repeat(rows[:, j], points)
+            batch[name] = rows[:, j, None]
         try:
             with np.errstate(all="ignore"):
-                joined = model.predict(_tiled(ctx, count), batch)
-            out = {frf: np.asarray(h).reshape(count, points) for frf, h in joined.items()}
+                joined = model.predict(ctx, batch)
+            out = {frf: np.broadcast_to(h, (count, points)) for frf, h in joined.items()}
         except (TypeError, ValueError, IndexError):
             out = None
         if batchable is None:
