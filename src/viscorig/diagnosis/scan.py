@@ -171,8 +171,11 @@ def scan(
         t = residual.template({frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs})
         norm = np.sqrt(np.einsum("ij,ij->j", t, t))
         ok = norm > 0
-        unit = np.where(ok, t / np.where(ok, norm, 1.0), 0.0)
-        length += float(np.sum(np.linalg.norm(np.diff(unit[:, ok], axis=1), axis=0)))
+        unit = t / np.where(ok, norm, 1.0)
+        if not ok.all():  # a template the projection removed whole
+            unit[:, ~ok] = 0.0
+        along = unit if ok.all() else unit[:, ok]
+        length += float(np.sum(np.linalg.norm(np.diff(along, axis=1), axis=0)))
         count += int(np.count_nonzero(ok))
         projection = e @ unit  # = ⟨t, e⟩/|t|
         mass = np.where(ok, -projection / np.where(ok, norm, 1.0), 0.0)

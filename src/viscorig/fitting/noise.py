@@ -179,11 +179,15 @@ class MarkovWhitening:
         y = np.asarray(values, dtype=float)
         flat = y.ndim == 1
         matrix = y[:, None] if flat else y.reshape(y.shape[0], -1)
-        mean, info = dtbtrs(self.band, self.gain[:, None] * matrix, uplo="L", diag="U")
+        # column-major for LAPACK, solved in place: a wide matrix (the scan's templates) is
+        # then neither copied to that order nor copied back
+        mean, info = dtbtrs(self.band, np.multiply(self.gain[:, None], matrix, order="F"),
+                            uplo="L", diag="U", overwrite_b=True)
         if info != 0:
             raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
+        mean[:-1] *= (self.step[1:] * self.scale[1:])[:, None]
         out = matrix * self.scale[:, None]
-        out[1:] -= (self.step[1:] * self.scale[1:])[:, None] * mean[:-1]
+        out[1:] -= mean[:-1]
         return out[:, 0] if flat else out.reshape(y.shape)
 
 
