@@ -3,7 +3,8 @@
 Fits the model (default ``voigt`` on both FRFs, the table held at the file's bare-table run or
 ``/rig`` values), shows where it departs from the measurements, which effect is most likely
 missing and why, and the exact ``identify`` command with that effect added. ``--auto`` adds the
-best significant effect (and the local modes significant next to it) and refits until nothing
+best significant effect (and the local modes, the load cell and a K* in place of the current
+one significant next to it) and refits until nothing
 significant is left, and prints the ladder, each rung as it is reached: the diagnosis of the
 model given is printed first, while the ladder is climbed. Runs of the same specimen at other
 levels or in the other sweep direction are diagnosed jointly (``--alone`` to diagnose the run

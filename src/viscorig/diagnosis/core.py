@@ -46,6 +46,9 @@ DEFAULT_MODEL = "voigt"
 SPIKE, SPIKE_NEIGHBOUR = 5.0, 3.0
 #: Most effects ``auto`` adds.
 MAX_AUTO_STEPS = 6
+#: Effects a step of the ladder adds beside its best finding when they are significant next to
+#: it (:meth:`DiagnosisResult.with_significant`): the rig's and the specimen's mechanics.
+JOINING = ("fixture_resonance", "load_cell_compliance", "frequency_dependent_modulus")
 
 
 @dataclass
@@ -161,19 +164,21 @@ class DiagnosisResult:
         return analyse(self.data, finding.fit, finding.likelihood)
 
     def with_significant(self) -> DiagnosisResult:
-        """The diagnosis of this model with its best finding added, and with every local mode
-        found significant next to it (local modes at other frequencies do not compete with
-        it; any other effect waits for the next step, where it is judged against a model that
-        holds the best one)."""
+        """The diagnosis of this model with its best finding added, and with every mechanical
+        effect found significant next to it (:data:`JOINING`: local modes, the load cell, a K*
+        in place of the current one), each of which the data tell apart from every other
+        effect. A sensor term, a drift or an amplitude dependence waits for the next step, where
+        it is judged against a model that holds the mechanics found so far: far from the noise
+        such a term soaks up misfit that a mechanical effect explains."""
         found = self.significant
-        modes = [f for f in found[1:] if f.effect == "fixture_resonance"]
-        if not modes or self.together is None:
+        joining = [f for f in found[1:] if f.effect in JOINING and not f.alternatives]
+        if not joining or self.together is None:
             return self.with_effect(found[0])
         spec = self.fit.model
-        for finding in (found[0], *modes):
+        for finding in (found[0], *joining):
             spec = parse_spec(candidate_spec(spec, finding.term))
         start = {**carried_values(self.together, spec)}
-        for finding in (found[0], *modes):
+        for finding in (found[0], *joining):
             start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
                           if k not in start})
         held = self.together if self.together.model.spec == spec.spec else None
@@ -186,7 +191,7 @@ class DiagnosisResult:
         wide hardly moves the rms error): the ladder goes on while the tests find one.
 
         Returns the ladder: this diagnosis, then one per step; a step adds the best finding and
-        the local modes found significant next to it (:meth:`with_significant`). A climb that
+        the mechanical effects found significant next to it (:meth:`with_significant`). A climb that
         ends at a Maxwell K* tries the fractional one in its place once (:meth:`in_other_family`)
         and goes on from it when the data prefer it. Last, any effect that no longer pays for
         itself in the final model is taken out again, one step each (:meth:`without_unpaid`).
