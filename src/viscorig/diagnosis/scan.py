@@ -172,9 +172,10 @@ def scan(
         norm = np.sqrt(np.einsum("ij,ij->j", t, t))
         ok = norm > 0
         unit = t / np.where(ok, norm, 1.0)
+        along = unit
         if not ok.all():  # a template the projection removed whole
             unit[:, ~ok] = 0.0
-        along = unit if ok.all() else unit[:, ok]
+            along = unit[:, ok]
         length += float(np.sum(np.linalg.norm(np.diff(along, axis=1), axis=0)))
         count += int(np.count_nonzero(ok))
         projection = e @ unit  # = ⟨t, e⟩/|t|

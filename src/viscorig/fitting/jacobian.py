@@ -88,7 +88,7 @@ def predict_many(
     known = _BATCHABLE.get(id(model))
     batchable = None if known is None or known[0] is not model else known[1]
     if batchable is not False and count > 1:
-        batch: dict[str, Any] = dict(values)  # a parameter may be an array, one per point
+        batch: dict[str, Any] = dict(values)  # a parameter may be a column, one per set
         for j, name in enumerate(names):
             batch[name] = rows[:, j, None]
         try:
