@@ -220,3 +220,29 @@ def test_a_fit_of_another_model_is_not_read_as_payne(campaign: Path) -> None:
     with pytest.raises(InputError, match="not 'kraus'"):
         read_payne_fit(record)
     assert stored_payne_fits(CampaignFile.open(campaign)) == []
+
+
+@pytest.mark.parametrize("where", ["run", "joint"])
+def test_a_full_fits_group_refuses_one_more_and_the_file_still_reads(campaign: Path,
+                                                                     where: str) -> None:
+    """Readers refuse a fits group of more than ``MAX_FITS`` members (a hostile file's cap): a
+    run's ``fits`` and ``/fits`` each take that many and no more, and what is there still reads."""
+    from viscorig.storage import layout
+
+    group = f"runs/{RUNS[0]}/fits" if where == "run" else "fits"
+    with h5py.File(campaign, "a") as h5:  # filled to the cap by another writer
+        fits = h5.require_group(group)
+        for number in range(1, layout.MAX_FITS + 1):
+            fits.create_group(f"{number:04d}")
+    before = _digest(campaign)
+    with CampaignFile.open(campaign, mode="a") as stored, pytest.raises(
+            InputError, match=f"holds {layout.MAX_FITS} fits"):
+        parameters = {"K_v": (1.5e5, 1e2, "N/m")}
+        if where == "run":
+            stored.add_fit(RUNS[0], model="voigt", band_hz=(20, 120), rms_error=0.1,
+                           noise_floor=0.01, parameters=parameters)
+        else:
+            stored.add_joint_fit(RUNS, model="kraus", band_hz=(20, 120),
+                                 reduced_chi_square=1.0, points=10, parameters=parameters)
+    assert _digest(campaign) == before
+    assert CampaignFile.open(campaign).run(RUNS[0]).points == FREQUENCY_HZ.size

@@ -605,26 +605,10 @@ class CampaignFile:
         checked, names, matrix = _checked_parameters(parameters, correlation, where)
         with self._commit() as h5:
             group = reading.run_group(h5, run_name, self.path)
-            fits = group.require_group(layout.FITS_GROUP)
-            numbers = [int(key) for key in fits if key.isdigit()]
-            fit_id = f"{max(numbers, default=0) + 1:04d}"
-            fit = fits.create_group(fit_id)
-            fit.attrs["model"] = model
-            fit.attrs["band_hz"] = np.array([lo, hi])
-            fit.attrs["rms_error"] = float(rms_error)
-            fit.attrs["noise_floor"] = float(noise_floor)
-            fit.attrs["created"] = utc_now()
-            if weighting:
-                fit.attrs["weighting"] = str(weighting)
-            for key, (value, stderr, unit) in checked.items():
-                dataset = fit.create_dataset(key, data=np.float64(value))
-                dataset.attrs["stderr"] = stderr
-                dataset.attrs["units"] = unit
-            if matrix is not None:
-                dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
-                dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
-                dataset.attrs["units"] = "1"
-            return fit_id
+            untrusted.check_link(group, layout.FITS_GROUP, self.path)
+            return _write_fit(group.require_group(layout.FITS_GROUP), where, {
+                "model": model, "band_hz": np.array([lo, hi]), "rms_error": float(rms_error),
+                "noise_floor": float(noise_floor)}, weighting, checked, names, matrix)
 
 
     def add_joint_fit(
@@ -692,30 +676,10 @@ class CampaignFile:
             for run in names:
                 reading.run_group(h5, run, self.path)  # each a run of this file
             untrusted.check_link(h5, layout.JOINT_FITS_GROUP, self.path)
-            fits = h5.require_group(layout.JOINT_FITS_GROUP)
-            numbers = [int(key) for key in fits if key.isdigit()]
-            if len(fits) >= layout.MAX_FITS:
-                raise InputError(f"holds {layout.MAX_FITS} fits, the most it may hold", where)
-            fit_id = f"{max(numbers, default=0) + 1:04d}"
-            fit = fits.create_group(fit_id)
-            fit.attrs["model"] = model
-            fit.attrs["runs"] = " ".join(names)  # one text: run names hold no space
-            fit.attrs["band_hz"] = np.array([lo, hi])
-            fit.attrs["reduced_chi_square"] = float(reduced_chi_square)
-            fit.attrs["points"] = np.int64(points)
-            fit.attrs["created"] = utc_now()
-            if weighting:
-                fit.attrs["weighting"] = str(weighting)
-            fit.attrs.update(more)
-            for key, (value, stderr, unit) in checked.items():
-                dataset = fit.create_dataset(key, data=np.float64(value))
-                dataset.attrs["stderr"] = stderr
-                dataset.attrs["units"] = unit
-            if matrix is not None:
-                dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
-                dataset.attrs["parameters"] = " ".join(order)
-                dataset.attrs["units"] = "1"
-            return fit_id
+            return _write_fit(h5.require_group(layout.JOINT_FITS_GROUP), where, {
+                "model": model, "runs": " ".join(names),  # one text: run names hold no space
+                "band_hz": np.array([lo, hi]), "reduced_chi_square": float(reduced_chi_square),
+                "points": np.int64(points), **more}, weighting, checked, order, matrix)
 
 
 _STORED_DTYPES = {"float": np.float64, "complex": np.complex128, "flags": np.uint16}
@@ -817,6 +781,32 @@ def campaign_for_import(path: Path, run_name: str) -> Iterator[CampaignFile]:
         if created:
             path.unlink(missing_ok=True)
         raise
+
+
+def _write_fit(fits: h5py.Group, where: str, attributes: Mapping[str, object],
+               weighting: str | None, checked: Mapping[str, tuple[float, float, str]],
+               names: Sequence[str], matrix: NDArray[np.float64] | None) -> str:
+    """A new fit group in ``fits`` (a run's ``fits`` or ``/fits``): the next id, ``attributes``
+    with the creation time and the weighting, a dataset per parameter (value, ``stderr``,
+    ``units``) and the correlation matrix. Refused when ``fits`` holds :data:`~.layout.MAX_FITS`
+    fits already: a reader refuses more, and the run or file would no longer read."""
+    if len(fits) >= layout.MAX_FITS:
+        raise InputError(f"holds {layout.MAX_FITS} fits, the most it may hold", where)
+    numbers = [int(key) for key in fits if key.isdigit()]
+    fit_id = f"{max(numbers, default=0) + 1:04d}"
+    fit = fits.create_group(fit_id)
+    fit.attrs.update({**attributes, "created": utc_now()})
+    if weighting:
+        fit.attrs["weighting"] = str(weighting)
+    for key, (value, stderr, unit) in checked.items():
+        dataset = fit.create_dataset(key, data=np.float64(value))
+        dataset.attrs["stderr"] = stderr
+        dataset.attrs["units"] = unit
+    if matrix is not None:
+        dataset = fit.create_dataset(layout.FIT_CORRELATION, data=matrix)
+        dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
+        dataset.attrs["units"] = "1"
+    return fit_id
 
 
 def _checked_parameters(parameters: Mapping[str, tuple[float, float, str]],
