@@ -356,11 +356,7 @@ def read_fits(h5: h5py.File, run_name: str, path: Path) -> list[FitRecord]:
     with guarded(path, f"{group.name}/{layout.FITS_GROUP}"):
         if not isinstance(fits_group, h5py.Group):
             raise InputError("not a group", f"{path}: {fits_group.name}")
-        for fit_id in sorted(untrusted.members(fits_group, path, layout.MAX_FITS)):
-            untrusted.check_stored_name(fit_id, path, fits_group.name, "fit")
-            fit = fits_group[fit_id]
-            if not isinstance(fit, h5py.Group):
-                raise InputError("not a group", f"{path}: {fit.name}")
+        for fit_id, fit in _fit_groups(fits_group, path):
             weighting = attribute(fit, "weighting", path)
             result.append(
                 FitRecord(
@@ -392,13 +388,20 @@ def read_joint_fits(h5: h5py.File, path: Path) -> list[JointFitRecord]:
         if not isinstance(group, h5py.Group):
             raise InputError("not a group", f"{path}: /{name}")
         untrusted.check_attributes(group, path)
-        for fit_id in sorted(untrusted.members(group, path, layout.MAX_FITS)):
-            untrusted.check_stored_name(fit_id, path, group.name, "fit")
-            fit = group[fit_id]
-            if not isinstance(fit, h5py.Group):
-                raise InputError("not a group", f"{path}: {fit.name}")
+        for fit_id, fit in _fit_groups(group, path):
             result.append(_read_joint_fit(fit_id, fit, path))
     return result
+
+
+def _fit_groups(fits: h5py.Group, path: Path) -> Iterator[tuple[str, h5py.Group]]:
+    """Each fit of a fits group (a run's ``fits`` or ``/fits``), in id order: at most
+    :data:`~.layout.MAX_FITS`, each a hard link to a group with a stored name."""
+    for fit_id in sorted(untrusted.members(fits, path, layout.MAX_FITS)):
+        untrusted.check_stored_name(fit_id, path, fits.name, "fit")
+        fit = fits[fit_id]
+        if not isinstance(fit, h5py.Group):
+            raise InputError("not a group", f"{path}: {fit.name}")
+        yield fit_id, fit
 
 
 def _pair(fit: h5py.Group, name: str, path: Path) -> tuple[float, float]:
