@@ -23,6 +23,7 @@ from __future__ import annotations
 import hmac
 import json
 import secrets
+import signal
 import socket
 import threading
 import time
@@ -389,6 +390,10 @@ def _exception_handlers() -> dict[Any, Callable[[Request, Exception], Awaitable[
     return {404: not_found, 405: not_allowed, BenchError: refused, Exception: failed}
 
 
+#: The signals that stop ``bench serve`` (Ctrl-C, and a service manager's stop).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 class BenchServer:
     """The bench's web server on ``address:port`` (0: any free port), with a fresh token.
 
@@ -435,11 +440,23 @@ class BenchServer:
 
     def run(self) -> None:
         """Serve until Ctrl-C; then abort a run in progress (its data kept)."""
+        # A Ctrl-C raised while asyncio builds its event loop, before uvicorn takes the
+        # signals, leaves a half-built loop that prints a traceback as it is collected: until
+        # uvicorn's own handler is in place, the signal only asks the server to stop.
+        main = threading.current_thread() is threading.main_thread()
+        previous = {}
+        if main:
+            previous = {sig: signal.signal(sig, self._stop) for sig in STOP_SIGNALS}
         try:
             self.server.run(sockets=[self.socket])
         finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
             self.service.shutdown()
             self.socket.close()
+
+    def _stop(self, signum: int, frame: object) -> None:
+        self.server.should_exit = True
 
     def start(self) -> BenchServer:
         """Serve from a background thread."""
