@@ -149,28 +149,26 @@ def read_number(
 
 def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = False) -> float:
     """A numeric scalar attribute (NaN allowed for floats)."""
-    where = f"{path}: {obj.name}.{name}"
-    if name not in obj.attrs:
-        raise InputError("attribute missing", where)
     value = attribute(obj, name, path)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InputError(f"not a number ({type(value).__name__})", where)
-    if integer:
-        if not math.isfinite(value) or value != int(value):
-            raise InputError(f"not a whole number ({value!r})", where)
-        return int(value)
-    return float(value)
+    problem = None
+    if value is None:
+        problem = "attribute missing"
+    elif isinstance(value, bool) or not isinstance(value, int | float):
+        problem = f"not a number ({type(value).__name__})"
+    elif integer and (not math.isfinite(value) or value != int(value)):
+        problem = f"not a whole number ({value!r})"
+    if problem is not None:
+        raise InputError(problem, f"{path}: {obj.name}.{name}")
+    return int(value) if integer else float(value)
 
 
 def read_bool(obj: h5py.HLObject, name: str, path: Path) -> bool:
     """A boolean attribute (h5py enum, or 0/1)."""
-    where = f"{path}: {obj.name}.{name}"
-    if name not in obj.attrs:
-        raise InputError("attribute missing", where)
     value = attribute(obj, name, path)
-    if isinstance(value, bool) or value in (0, 1):
+    if value is not None and (isinstance(value, bool) or value in (0, 1)):
         return bool(value)
-    raise InputError(f"not a boolean ({value!r})", where)
+    problem = "attribute missing" if value is None else f"not a boolean ({value!r})"
+    raise InputError(problem, f"{path}: {obj.name}.{name}")
 
 
 def read_choice(obj: h5py.HLObject, name: str, path: Path, choices: tuple[str, ...]) -> str:
@@ -275,16 +273,18 @@ def _values(dataset: h5py.Dataset) -> NDArray:
     return values.astype(np.complex128 if values.dtype.kind == "c" else np.float64)
 
 
-def read_column(group: h5py.Group, spec: layout.DatasetSpec, path: Path) -> NDArray:
-    """One per-point dataset: 1-D, of the expected kind, with the expected units."""
-    where = f"{path}: {group.name}/{spec.name}"
-    untrusted.check_link(group, spec.name, path)
-    dataset = group.get(spec.name)
-    if dataset is None:
+def _read_column(
+    item: h5py.Group | h5py.Dataset | None, spec: layout.DatasetSpec, where: str, path: Path
+) -> NDArray:
+    """One per-point dataset, its structure checked already (:func:`untrusted.run_members`):
+    1-D, of the expected kind, with the expected units."""
+    if item is None:
         raise InputError("dataset missing", where)
-    if not isinstance(dataset, h5py.Dataset):
+    if not isinstance(item, h5py.Dataset):
         raise InputError("not a dataset", where)
-    untrusted.check_values_dataset(dataset, path)
+    dataset = item
+    if dataset.ndim != 1:  # a 1-D one's size, chunks and storage are checked with the run's
+        raise InputError(f"shape {dataset.shape} is not 1-D", where)
     units = attribute(dataset, "units", path)
     if not isinstance(units, str):
         raise InputError("no units attribute", where)
@@ -319,21 +319,25 @@ def read_run(h5: h5py.File, name: str, path: Path) -> RunRecord:
     """A whole run, checked: attributes, datasets, equal lengths."""
     group = run_group(h5, name, path)
     with guarded(path, group.name):
-        untrusted.check_run(group, path)  # links, names, points: before any value is read
-        lengths = {key: item.shape[0] for key, item in group.items()
-                   if isinstance(item, h5py.Dataset) and item.ndim == 1}
+        # links, names, points: before any value is read; each member opened once
+        items, _ = untrusted.run_members(group, path, fits=False)
+        datasets = {key: item for key, item in items.items() if isinstance(item, h5py.Dataset)}
+        lengths = {key: item.shape[0] for key, item in datasets.items() if item.ndim == 1}
         if len(set(lengths.values())) > 1:
             detail = ", ".join(f"{key} {length}" for key, length in lengths.items())
             raise InputError(f"datasets differ in length ({detail})", f"{path}: {group.name}")
         metadata = read_metadata(group, path)
+        where = f"{path}: {group.name}/"
         columns: dict[str, Any] = {  # Run checks each column's dtype and length
-            spec.name: read_column(group, spec, path) for spec in layout.REQUIRED_DATASETS
+            spec.name: _read_column(items.get(spec.name), spec, where + spec.name, path)
+            for spec in layout.REQUIRED_DATASETS
         }
         for spec in layout.OPTIONAL_DATASETS:
-            columns[spec.name] = read_column(group, spec, path) if spec.name in group else None
+            columns[spec.name] = (_read_column(items[spec.name], spec, where + spec.name, path)
+                                  if spec.name in items else None)
         extra: dict[str, tuple[NDArray, str]] = {}
-        for key, item in group.items():
-            if key in layout.KNOWN_DATASETS or not isinstance(item, h5py.Dataset):
+        for key, item in datasets.items():
+            if key in layout.KNOWN_DATASETS:
                 continue
             if item.ndim == 1 and untrusted.number_kind(item.dtype) is not None:
                 units = attribute(item, "units", path)

@@ -85,20 +85,20 @@ def check_attributes(obj: h5py.HLObject, path: Path) -> None:
 
 def check_attribute(obj: h5py.HLObject, name: str, path: Path) -> None:
     """Refuse an attribute whose value would be large, or of a kind no reader expects."""
-    where = f"{path}: {obj.name}.{_shown(name)}"
     attribute = obj.attrs.get_id(name)
     shape = attribute.shape or ()
     values = math.prod(shape)
+    problem = None
     if values > layout.MAX_ATTRIBUTE_VALUES:
-        raise InputError(f"holds {values} values; at most {layout.MAX_ATTRIBUTE_VALUES}", where)
-    dtype = attribute.dtype
-    if dtype.kind == "O" and h5py.check_string_dtype(dtype) is None:
-        raise InputError(f"dtype {dtype} (variable-length, not text) is not read", where)
-    if dtype.kind not in "biufSUO" and not _is_bool_enum(dtype):
-        raise InputError(f"dtype {dtype} is not a number, a boolean or text", where)
-    size = attribute.get_storage_size()
-    if size > layout.MAX_ATTRIBUTE_BYTES:
-        raise InputError(f"stores {size} bytes; at most {layout.MAX_ATTRIBUTE_BYTES}", where)
+        problem = f"holds {values} values; at most {layout.MAX_ATTRIBUTE_VALUES}"
+    elif (dtype := attribute.dtype).kind == "O" and h5py.check_string_dtype(dtype) is None:
+        problem = f"dtype {dtype} (variable-length, not text) is not read"
+    elif dtype.kind not in "biufSUO" and not _is_bool_enum(dtype):
+        problem = f"dtype {dtype} is not a number, a boolean or text"
+    elif (size := attribute.get_storage_size()) > layout.MAX_ATTRIBUTE_BYTES:
+        problem = f"stores {size} bytes; at most {layout.MAX_ATTRIBUTE_BYTES}"
+    if problem is not None:
+        raise InputError(problem, f"{path}: {obj.name}.{_shown(name)}")
 
 
 def _is_bool_enum(dtype: np.dtype) -> bool:
@@ -191,18 +191,28 @@ def check_structure(h5: h5py.File, path: Path) -> None:
 
 
 def check_run(group: h5py.Group, path: Path) -> int:
-    """Check one run group's structure; return its points (the length of ``frequency_hz``)."""
+    """Check one run group's structure, its fits' included; return its points (the length of
+    ``frequency_hz``)."""
+    return run_members(group, path)[1]
+
+
+def run_members(
+    group: h5py.Group, path: Path, *, fits: bool = True
+) -> tuple[dict[str, h5py.Group | h5py.Dataset], int]:
+    """Check one run group's structure (its fits' too unless ``fits`` is false: a reader of the
+    run's values does not open them); return its members, each opened once, and its points."""
     check_attributes(group, path)
     points = 0
+    opened: dict[str, h5py.Group | h5py.Dataset] = {}
     for name in members(group, path, layout.MAX_MEMBERS):
         check_stored_name(name, path, group.name, "dataset")
-        item = group[name]
+        item = opened[name] = group[name]
         if isinstance(item, h5py.Dataset):
             check_attributes(item, path)
             if item.ndim == 1:
                 length = check_values_dataset(item, path)
                 points = length if name == "frequency_hz" else points
-        elif name == layout.FITS_GROUP and isinstance(item, h5py.Group):
+        elif fits and name == layout.FITS_GROUP and isinstance(item, h5py.Group):
             for fit_id in members(item, path, layout.MAX_FITS):
                 check_stored_name(fit_id, path, item.name, "fit")
                 fit = item[fit_id]
@@ -210,4 +220,4 @@ def check_run(group: h5py.Group, path: Path) -> int:
                     check_attributes(fit, path)
                     for parameter in members(fit, path, layout.MAX_MEMBERS):
                         check_stored_name(parameter, path, fit.name, "parameter")
-    return points
+    return opened, points
