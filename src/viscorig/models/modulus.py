@@ -215,11 +215,11 @@ def _refine_relaxation_times(
         a /= scale
         gram_inverse = np.linalg.pinv(a.T @ a, hermitian=True)
         x = gram_inverse @ (a.T @ target)
-        state.update(lt=lt, a=a, gram_inverse=gram_inverse, iwt=iwt, x=x / scale)
+        state.update(lt=lt.copy(), a=a, gram_inverse=gram_inverse, iwt=iwt, x=x / scale)
         return a @ x - target
 
     def jacobian(lt: NDArray[np.float64]) -> NDArray[np.float64]:
-        if state.get("lt") is not lt:
+        if "lt" not in state or not np.array_equal(state["lt"], lt):  # the solver passes a copy
             project(lt)
         a, gram_inverse, iwt = state["a"], state["gram_inverse"], state["iwt"]
         d_columns = iwt / (1 + iwt) ** 2 * state["x"][None, 1:-1]
