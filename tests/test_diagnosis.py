@@ -26,7 +26,7 @@ from viscorig.cli import main
 from viscorig.cli.diagnose import LADDER_HEADING, format_diagnosis
 from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
 from viscorig.diagnosis.findings import fit_term
-from viscorig.diagnosis.scan import Residual
+from viscorig.diagnosis.scan import Residual, log_sensitivity, mode_stiffness
 from viscorig.diagnosis.screening import screen
 from viscorig.diagnosis.significance import alpha_of, judge, threshold
 from viscorig.errors import InputError
@@ -165,6 +165,35 @@ def test_a_term_screening_leaves_out_far_from_the_noise_could_not_have_passed(
         needed = threshold(1, alpha / 2 if term.startswith("delay(") else alpha)
         _, _, passes = judge(current, fit_term(current, data, term, {}), needed, data, term)
         assert not passes, term
+
+
+def test_a_family_of_templates_measures_what_its_projected_templates_do() -> None:
+    """The scan measures a family of mode templates through inner products, never forming the
+    projected templates: norms, the residual's components and the arc length must be those of
+    the templates themselves, projected and normalised one by one; a zero template is left
+    out of the length."""
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]))
+    current, data = diagnosis.likelihood, diagnosis.data
+    residual = Residual(current, data)
+    omega = 2 * np.pi * data.data.frequency_hz
+    sensitivity = log_sensitivity(current.model, current.values, data)
+    u = mode_stiffness(omega, np.geomspace(30.0, 90.0, 40), 0.02)
+    u[17] = 0.0  # removed: its neighbours are then joined across it
+    change = {frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs}
+    family = residual.family(change)
+    t = residual.template(change)
+    norm = np.linalg.norm(t, axis=0)
+    assert not family.ok[17] and family.ok.sum() == 39
+    kept = family.ok
+    np.testing.assert_allclose(family.norm[kept], norm[kept], rtol=1e-9)
+    np.testing.assert_allclose(family.along_e, residual.e @ t, rtol=1e-8,
+                               atol=1e-10 * np.linalg.norm(residual.e) * norm.max())
+    np.testing.assert_allclose(family.along_clipped, residual.clipped @ t, rtol=1e-8,
+                               atol=1e-10 * np.linalg.norm(residual.clipped) * norm.max())
+    unit = t[:, kept] / norm[kept]
+    length = float(np.sum(np.linalg.norm(np.diff(unit, axis=1), axis=0)))
+    assert family.length == pytest.approx(length, rel=1e-9)
+    assert family.length > 10 * np.linalg.norm(unit[:, 1] - unit[:, 0])
 
 
 def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:

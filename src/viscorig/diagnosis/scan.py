@@ -101,6 +101,27 @@ def _orthonormal(jacobian: NDArray[np.float64]) -> NDArray[np.float64]:
     return u[:, s > s.max() * 1e-10] if s.size and s.max() > 0 else u[:, :0]
 
 
+#: A template the projection leaves less than this share of (in norm) is removed whole: what is
+#: left of it is rounding.
+REMOVED = 1e-10
+
+
+@dataclass(frozen=True)
+class Family:
+    """A family of templates (:meth:`Residual.family`), one value per template."""
+
+    norm: NDArray[np.float64]
+    """``|t|``, the whitened, projected template's norm (0 where removed)."""
+    ok: NDArray[np.bool_]
+    """The template is not removed whole by the projection."""
+    length: float
+    """Summed distance between neighbouring unit templates (removed ones skipped)."""
+    along_e: NDArray[np.float64]
+    """``⟨t, e⟩``, ``e`` the projected whitened residual."""
+    along_clipped: NDArray[np.float64]
+    """``⟨t, ψ(e)⟩``, the same for the residual clipped at the Huber scale."""
+
+
 class Residual:
     """The whitened residual of a fit, with the directions its own parameters can follow
     projected out: what an added effect must explain, and a linear estimate of any effect."""
@@ -122,16 +143,50 @@ class Residual:
             t = np.concatenate([t, np.zeros((missing, *t.shape[1:]))])
         return t - self.basis @ (self.basis.T @ t)
 
-    def template(self, change: Mapping[str, NDArray[np.inexact]]) -> NDArray[np.float64]:
-        """Whitened, projected change of the residual for a change ``δ log H`` per FRF (an FRF
-        left out is unchanged); arrays of one column per effect are allowed."""
+    def _whitened(self, change: Mapping[str, NDArray[np.inexact]]) -> NDArray[np.float64]:
+        """The whitened change of the residual (the data's rows) for ``δ log H`` per FRF."""
         shape = np.shape(next(iter(change.values())))
         columns = {}
         for frf in self.data.frfs:
             c = np.asarray(change.get(frf, np.zeros(shape)), dtype=complex)
             factor = 1.0 + self.current.residuals[frf]
             columns[frf] = factor[:, None] * c if c.ndim > 1 else factor * c
-        return self.project(self.data.whiten(columns))
+        return self.data.whiten(columns)
+
+    def template(self, change: Mapping[str, NDArray[np.inexact]]) -> NDArray[np.float64]:
+        """Whitened, projected change of the residual for a change ``δ log H`` per FRF (an FRF
+        left out is unchanged); arrays of one column per effect are allowed."""
+        return self.project(self._whitened(change))
+
+    def family(self, change: Mapping[str, NDArray[np.inexact]]) -> Family:
+        """A family of templates (one column of ``change`` each, :meth:`template`) through
+        their norms, inner products and arc length, without forming the projected templates:
+        with ``w`` a whitened template and ``B`` the orthonormal basis of the model's own
+        directions, ``⟨Pw, Pv⟩ = ⟨w, v⟩ − ⟨Bᵀw, Bᵀv⟩``, and ``e`` and its clipped copy are
+        projected already (``⟨Pw, e⟩ = ⟨w, e⟩``). A template the projection leaves less than
+        :data:`REMOVED` of is removed whole (``ok`` false)."""
+        w = self._whitened(change)
+        rows = w.shape[0]  # the data's rows; a template's rows of the prior are zero
+        c = self.basis[:rows].T @ w
+        whole = np.einsum("ij,ij->j", w, w)
+        squared = whole - np.einsum("ij,ij->j", c, c)
+        ok = (whole > 0) & (squared > REMOVED**2 * whole)
+        norm = np.sqrt(np.where(ok, squared, 0.0))
+        at = np.flatnonzero(ok)
+        left: slice | NDArray[np.intp]
+        right: slice | NDArray[np.intp]
+        if at.size > 1 and at.size == ok.size:  # neighbours along the family, as slices
+            left, right = slice(None, -1), slice(1, None)
+        else:
+            left, right = at[:-1], at[1:]
+        if at.size > 1:
+            inner = (np.einsum("ij,ij->j", w[:, left], w[:, right])
+                     - np.einsum("ij,ij->j", c[:, left], c[:, right]))
+            cosine = inner / (norm[left] * norm[right])
+            length = float(np.sum(np.sqrt(np.maximum(2.0 - 2.0 * cosine, 0.0))))
+        else:
+            length = 0.0
+        return Family(norm, ok, length, self.e[:rows] @ w, self.clipped[:rows] @ w)
 
     def estimate(self, change: Mapping[str, NDArray[np.inexact]]) -> tuple[float, float, float]:
         """Least-squares size of one effect whose unit changes ``log H`` by ``change``: its
@@ -154,7 +209,6 @@ def scan(
     omega = 2 * np.pi * d.frequency_hz
     sensitivity = log_sensitivity(current.model, current.values, data)
     residual = Residual(current, data)
-    e, clipped = residual.e, residual.clipped
     f_lo, f_hi = float(d.frequency_hz.min()), float(d.frequency_hz.max())
     steps = np.diff(np.unique(d.frequency_hz))
     step = float(np.median(steps)) if steps.size else 1.0
@@ -168,20 +222,14 @@ def scan(
             continue
         f_n = np.exp(np.arange(np.log(f_min), np.log(f_max), zeta / 2))
         u = mode_stiffness(omega, f_n, zeta)  # (templates, points)
-        t = residual.template({frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs})
-        norm = np.sqrt(np.einsum("ij,ij->j", t, t))
-        ok = norm > 0
-        unit = t / np.where(ok, norm, 1.0)
-        along = unit
-        if not ok.all():  # a template the projection removed whole
-            unit[:, ~ok] = 0.0
-            along = unit[:, ok]
-        length += float(np.sum(np.linalg.norm(np.diff(along, axis=1), axis=0)))
+        family = residual.family({frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs})
+        ok, norm = family.ok, np.where(family.ok, family.norm, 1.0)
+        length += family.length
         count += int(np.count_nonzero(ok))
-        projection = e @ unit  # = ⟨t, e⟩/|t|
-        mass = np.where(ok, -projection / np.where(ok, norm, 1.0), 0.0)
+        projection = np.where(ok, family.along_e / norm, 0.0)  # = ⟨t, e⟩/|t|
+        mass = np.where(ok, -projection / norm, 0.0)
         gain = np.where(mass > 0, projection**2, 0.0)
-        robust = np.where(mass > 0, np.maximum(-(clipped @ unit), 0.0) ** 2, 0.0)
+        robust = np.where(mass > 0, np.maximum(-family.along_clipped / norm, 0.0) ** 2, 0.0)
         for i in range(f_n.size):
             best.append((float(gain[i]), float(f_n[i]), zeta, float(mass[i]), float(robust[i])))
     best.sort(reverse=True)

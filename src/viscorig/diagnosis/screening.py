@@ -318,12 +318,8 @@ def _frame_length(model: Model, framed: Model, current: Likelihood, data: Diagno
         moved = predict_many(framed, ctx, values, family, rows)
         with np.errstate(all="ignore"):
             columns = {frf: np.log(moved[frf] / base[frf][None, :]).T for frf in data.frfs}
-        t = residual.template({frf: np.nan_to_num(c) for frf, c in columns.items()})
-        norm = np.sqrt(np.einsum("ij,ij->j", t, t))
-        ok = norm > 0
-        unit = t[:, ok] / norm[ok]
         # the sign of a frame's change is fixed by its mass: a one-sided family
-        length += float(np.sum(np.linalg.norm(np.diff(unit, axis=1), axis=0)))
+        length += residual.family({frf: np.nan_to_num(c) for frf, c in columns.items()}).length
     return length
 
 
