@@ -274,15 +274,14 @@ def _values(dataset: h5py.Dataset) -> NDArray:
 
 
 def _read_column(
-    item: h5py.Group | h5py.Dataset | None, spec: layout.DatasetSpec, where: str, path: Path
+    dataset: h5py.Group | h5py.Dataset | None, spec: layout.DatasetSpec, where: str, path: Path
 ) -> NDArray:
     """One per-point dataset, its structure checked already (:func:`untrusted.run_members`):
     1-D, of the expected kind, with the expected units."""
-    if item is None:
+    if dataset is None:
         raise InputError("dataset missing", where)
-    if not isinstance(item, h5py.Dataset):
+    if not isinstance(dataset, h5py.Dataset):
         raise InputError("not a dataset", where)
-    dataset = item
     if dataset.ndim != 1:  # a 1-D one's size, chunks and storage are checked with the run's
         raise InputError(f"shape {dataset.shape} is not 1-D", where)
     units = attribute(dataset, "units", path)
