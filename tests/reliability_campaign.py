@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from rigsim.faults import Fault, FaultInjector
 from rigsim.rigfile import load_preset
+from stationfile import station_toml
 
 from viscorig.cli import main
 from viscorig.storage import CampaignFile
@@ -21,24 +22,10 @@ def station_text(resource: str, *, preset: str = "soft-0", source_limit_v: float
     """A station file for the simulated analyser at ``resource`` measuring ``preset``."""
     rig = load_preset(preset)
     sensors, shaker = rig.sensors, rig.shaker
-    text = f"""
-resource = "{resource}"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = {sensors.force_v_per_n}
-table_acceleration_v_per_m_s2 = {sensors.acceleration_v_per_m_s2}
-device_force_v_per_n = {sensors.force_v_per_n}
-device_acceleration_v_per_m_s2 = {sensors.acceleration_v_per_m_s2}
-[shaker]
-force_limit_n = {force_limit_n or shaker.force_limit_n}
-gain_n_per_v = {shaker.force_n_per_v}
-[source]
-limit_v = {source_limit_v}
-"""
+    text = station_toml(resource, force_v_per_n=sensors.force_v_per_n,
+                        acceleration_v_per_m_s2=sensors.acceleration_v_per_m_s2,
+                        force_limit_n=force_limit_n or shaker.force_limit_n,
+                        gain_n_per_v=shaker.force_n_per_v, source_limit_v=source_limit_v)
     if table:
         text += "[table]\nmass_kg = 3.4\nstiffness_n_per_m = 50194.0\ndamping_ns_per_m = 5.05\n"
     return text

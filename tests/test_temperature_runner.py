@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stationfile import station_toml
 
 from viscorig.acquisition import Console, Outcome, Runner, RunnerOptions
 from viscorig.acquisition.chamber import ChamberMonitor
@@ -69,23 +70,10 @@ def lab_files(tmp_path: Path, analyser, rig, address: str) -> tuple[Path, Path]:
     """A lab station (the simulated analyser and chamber controller at ``address``) and a
     sequence that soaks at 23 °C and sweeps one run, written in ``tmp_path``."""
     station = tmp_path / "lab.toml"
-    station.write_text(f"""\
-resource = "{analyser.socket_resource}"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = {rig.sensors.force_v_per_n}
-table_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-device_force_v_per_n = {rig.sensors.force_v_per_n}
-device_acceleration_v_per_m_s2 = {rig.sensors.acceleration_v_per_m_s2}
-[shaker]
-force_limit_n = 100.0
-gain_n_per_v = {rig.shaker.force_n_per_v}
-[source]
-limit_v = 2.0
+    station.write_text(station_toml(
+        analyser.socket_resource, force_v_per_n=rig.sensors.force_v_per_n,
+        acceleration_v_per_m_s2=rig.sensors.acceleration_v_per_m_s2,
+        gain_n_per_v=rig.shaker.force_n_per_v) + f"""\
 [chamber]
 address = "{address}"
 specimen_unit = 2

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import pytest
+from stationfile import station_toml
 
 from viscorig.cli import main
 from viscorig.sequences import FileCheckError, TemperatureStep, parse_sequence, parse_station
@@ -31,23 +32,8 @@ message = "Mount."
 simulated_rig = "medium-chamber"
 """
 
-STATION = """\
-resource = "GPIB0::11::INSTR"
-[channels]
-excitation_force = 1
-table_acceleration = 2
-device_force = 3
-device_acceleration = 4
-[sensitivity]
-excitation_force_v_per_n = 0.01124
-table_acceleration_v_per_m_s2 = 0.0102
-device_force_v_per_n = 0.01124
-device_acceleration_v_per_m_s2 = 0.0102
-[shaker]
-force_limit_n = 100.0
-[source]
-limit_v = 2.0
-"""
+STATION = station_toml("GPIB0::11::INSTR", force_v_per_n=0.01124,
+                       acceleration_v_per_m_s2=0.0102)
 
 CHAMBER = """\
 [chamber]
