@@ -5,6 +5,7 @@ notes in the file, abort (data kept, file resumable), automatic holds from injec
 from __future__ import annotations
 
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -128,10 +129,13 @@ def test_a_sequence_with_problems_is_shown_and_not_started(tmp_path) -> None:
         service.add("folder.toml", "x.h5")
 
 
-@pytest.mark.parametrize("delay_s", [0.0, 0.0, 0.001, 0.003])
-def test_bench_serve_prints_its_address_with_the_token_first(tmp_path, delay_s) -> None:
+@pytest.mark.parametrize(("stop", "delay_s"), [
+    (signal.SIGINT, 0.0), (signal.SIGINT, 0.0), (signal.SIGINT, 0.001), (signal.SIGINT, 0.003),
+    (signal.SIGTERM, 0.0), (signal.SIGTERM, 1.0)])
+def test_bench_serve_prints_its_address_with_the_token_first(tmp_path, stop, delay_s) -> None:
     # Ctrl-C this soon after the address lands while asyncio builds its event loop, before
-    # uvicorn takes the signals: it must stop the server as cleanly as later.
+    # uvicorn takes the signals: it must stop the server as cleanly as later; and so must a
+    # service manager's SIGTERM, at once or once serving.
     process = subprocess.Popen([sys.executable, "-m", "viscorig", "bench", "serve", "--port",
                                 "0", "--no-browser"], cwd=tmp_path, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
@@ -140,7 +144,7 @@ def test_bench_serve_prints_its_address_with_the_token_first(tmp_path, delay_s) 
         assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[A-Za-z0-9_-]{20,}", first), first
         time.sleep(delay_s)
     finally:
-        process.send_signal(2)
+        process.send_signal(stop)
         out, err = process.communicate(timeout=20)
     assert process.returncode == 0, err
     assert err == ""
