@@ -24,6 +24,7 @@ from hypothesis import strategies as st
 from simdata import DEFAULT_NOISE, rig_text, simulate_run
 
 from viscorig.cli import main
+from viscorig.errors import InputError
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
 RUNS = ("table", "soft-0")
@@ -199,6 +200,30 @@ def test_each_damage_to_the_first_run_is_reported(good_campaign: bytes, tmp_path
         assert status == 2, f"{how}: {err}"
     assert sha256(path) == before
     tally.add("inputs fuzzed")
+
+
+@pytest.mark.parametrize("how", [h for h in HOW if h not in ("truncate", "delete_group")])
+@pytest.mark.parametrize("target", ["frequency_hz", "accelerance_table", "flags"])
+def test_a_file_damaged_after_it_was_opened_is_checked_when_a_run_is_read(
+        good_campaign: bytes, tmp_path: Path, how: str, target: str) -> None:
+    """Opening checks the whole file; a writer may replace it afterwards. Reading a run then
+    checks what it reads again: the run, or one InputError naming the object."""
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    campaign = CampaignFile.open(path)
+    damaged = tmp_path / "damaged.h5"
+    damaged.write_bytes(good_campaign)
+    attribute = {"delete_attribute": "status", "wrong_attribute": "settle_cycles"}.get(how)
+    damage(damaged, how, attribute or target, 3)  # detail 3: the run "soft-0", a bad variant
+    damaged.replace(path)
+    try:
+        run = campaign.run("soft-0")
+    except InputError as error:
+        assert "\n" not in str(error) and "soft-0" in str(error), str(error)
+    else:
+        # only a damage that leaves the run readable: NaN values, or objects it does not read
+        assert how in ("nan_values", "extra_objects"), how
+        assert run.points == len(run.frequency_hz) > 0
 
 
 @pytest.mark.parametrize("value", [1e300, 1e-300, 3e9])
