@@ -178,8 +178,8 @@ def test_a_family_of_templates_measures_what_its_projected_templates_do() -> Non
     omega = 2 * np.pi * data.data.frequency_hz
     sensitivity = log_sensitivity(current.model, current.values, data)
     u = mode_stiffness(omega, np.geomspace(30.0, 90.0, 40), 0.02)
-    u[17] = 0.0  # removed: its neighbours are then joined across it
-    change = {frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs}
+    u[:, 17] = 0.0  # removed: its neighbours are then joined across it
+    change = {frf: sensitivity[frf][:, None] * u for frf in data.frfs}
     family = residual.family(change)
     t = residual.template(change)
     norm = np.linalg.norm(t, axis=0)

@@ -15,7 +15,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from viscorig.fitting import FrfData, FrfNoise, NoiseModel, estimate_frf_noise, estimate_noise
-from viscorig.fitting.noise import MarkovWhitening, exponential_kernel_apply
+from viscorig.fitting.noise import WIDE_COLUMNS, MarkovWhitening, exponential_kernel_apply
 
 FREQUENCY = np.arange(20.0, 120.0 + 1e-9, 0.25)
 OMEGA = 2 * np.pi * FREQUENCY
@@ -221,6 +221,34 @@ def test_joined_whitening_whitens_each_piece_as_its_own() -> None:
     alone = [piece.apply(y) if isinstance(piece, MarkovWhitening) else y * piece[:, None]
              for piece, y in zip(pieces, rows, strict=True)]
     np.testing.assert_allclose(joined, np.concatenate(alone), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("columns", [1, WIDE_COLUMNS - 1, WIDE_COLUMNS, 3 * WIDE_COLUMNS])
+def test_whitening_of_many_columns_is_the_dense_cholesky_solve(columns: int) -> None:
+    """Narrow and wide matrices (solved column by column, or filtered row by row across the
+    columns) whiten as ``L⁻¹`` of the dense covariance's Cholesky factor does, piece by piece,
+    white pieces and one-point pieces included."""
+    rng = np.random.default_rng(columns)
+    pieces, factors = [], []
+    for n, drift in ((50, True), (9, False), (1, True), (70, True)):
+        white = rng.uniform(1e-3, 1.0, n)
+        if drift:
+            axis = np.cumsum(rng.uniform(0.2, 3.0, n))
+            pieces.append(MarkovWhitening.of(white, 0.5, axis, 6.0))
+            covariance = np.diag(white) + 0.5 * np.exp(-np.abs(axis[:, None] - axis) / 6.0)
+        else:
+            pieces.append(1.0 / np.sqrt(white))
+            covariance = np.diag(white)
+        factors.append(np.linalg.cholesky(covariance))
+    y = rng.normal(size=(sum(f.shape[0] for f in factors), columns))
+    expected, start = [], 0
+    for factor in factors:
+        expected.append(np.linalg.solve(factor, y[start:start + factor.shape[0]]))
+        start += factor.shape[0]
+    whitened = MarkovWhitening.joined(pieces).apply(y)
+    np.testing.assert_allclose(whitened, np.concatenate(expected), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(MarkovWhitening.joined(pieces).apply(y[:, :1])[:, 0],
+                                  MarkovWhitening.joined(pieces).apply(y[:, 0]))
 
 
 def test_sandwich_matches_the_scatter_of_least_squares_estimates() -> None:

@@ -23,7 +23,7 @@ length of the normalised templates along frequency for each width.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,11 +86,14 @@ def log_sensitivity(
     return {frf: (probed[frf] / base[frf] - 1.0) / size for frf in data.frfs}
 
 
-def mode_stiffness(omega: NDArray[np.float64], f_n: NDArray[np.float64], zeta: float):
-    """``u(ω)`` of a mode of unit mass, for every ``f_n`` (rows) and point (columns)."""
-    w_n = 2 * np.pi * f_n[:, None]
-    w = omega[None, :]
-    spring = w_n**2 + 2j * zeta * w_n * w
+def mode_stiffness(
+    omega: NDArray[np.float64], f_n: NDArray[np.float64], zeta: float | NDArray[np.float64]
+) -> NDArray[np.complex128]:
+    """``u(ω)`` of a mode of unit mass, for every point (rows) and ``f_n`` (columns);
+    ``zeta``: one damping ratio, or one per ``f_n``."""
+    w_n = 2 * np.pi * np.asarray(f_n)[None, :]
+    w = omega[:, None]
+    spring = w_n**2 + 2j * np.asarray(zeta)[None, ...] * w_n * w
     return -(w**2) * spring / (spring - w**2)
 
 
@@ -165,6 +168,14 @@ class Residual:
         directions, ``⟨Pw, Pv⟩ = ⟨w, v⟩ − ⟨Bᵀw, Bᵀv⟩``, and ``e`` and its clipped copy are
         projected already (``⟨Pw, e⟩ = ⟨w, e⟩``). A template the projection leaves less than
         :data:`REMOVED` of is removed whole (``ok`` false)."""
+        columns = np.shape(next(iter(change.values())))[1]
+        return self.families(change, [columns])[0]
+
+    def families(
+        self, change: Mapping[str, NDArray[np.inexact]], sizes: Sequence[int]
+    ) -> list[Family]:
+        """Several families side by side in ``change`` (``sizes``: their numbers of columns, in
+        order), each measured as :meth:`family` does; whitened together, as one matrix."""
         w = self._whitened(change)
         rows = w.shape[0]  # the data's rows; a template's rows of the prior are zero
         c = self.basis[:rows].T @ w
@@ -172,21 +183,27 @@ class Residual:
         squared = whole - np.einsum("ij,ij->j", c, c)
         ok = (whole > 0) & (squared > REMOVED**2 * whole)
         norm = np.sqrt(np.where(ok, squared, 0.0))
-        at = np.flatnonzero(ok)
-        left: slice | NDArray[np.intp]
-        right: slice | NDArray[np.intp]
-        if at.size > 1 and at.size == ok.size:  # neighbours along the family, as slices
-            left, right = slice(None, -1), slice(1, None)
-        else:
-            left, right = at[:-1], at[1:]
-        if at.size > 1:
-            inner = (np.einsum("ij,ij->j", w[:, left], w[:, right])
-                     - np.einsum("ij,ij->j", c[:, left], c[:, right]))
-            cosine = inner / (norm[left] * norm[right])
-            length = float(np.sum(np.sqrt(np.maximum(2.0 - 2.0 * cosine, 0.0))))
-        else:
-            length = 0.0
-        return Family(norm, ok, length, self.e[:rows] @ w, self.clipped[:rows] @ w)
+        along_e, along_clipped = self.e[:rows] @ w, self.clipped[:rows] @ w
+        out, start = [], 0
+        for size in sizes:
+            at = start + np.flatnonzero(ok[start:start + size])
+            left: slice | NDArray[np.intp]
+            right: slice | NDArray[np.intp]
+            if at.size > 1 and at.size == size:  # neighbours along the family, as slices
+                left, right = slice(start, start + size - 1), slice(start + 1, start + size)
+            else:
+                left, right = at[:-1], at[1:]
+            if at.size > 1:
+                inner = (np.einsum("ij,ij->j", w[:, left], w[:, right])
+                         - np.einsum("ij,ij->j", c[:, left], c[:, right]))
+                cosine = inner / (norm[left] * norm[right])
+                length = float(np.sum(np.sqrt(np.maximum(2.0 - 2.0 * cosine, 0.0))))
+            else:
+                length = 0.0
+            part = slice(start, start + size)
+            out.append(Family(norm[part], ok[part], length, along_e[part], along_clipped[part]))
+            start += size
+        return out
 
     def estimate(self, change: Mapping[str, NDArray[np.inexact]]) -> tuple[float, float, float]:
         """Least-squares size of one effect whose unit changes ``log H`` by ``change``: its
@@ -212,17 +229,22 @@ def scan(
     f_lo, f_hi = float(d.frequency_hz.min()), float(d.frequency_hz.max())
     steps = np.diff(np.unique(d.frequency_hz))
     step = float(np.median(steps)) if steps.size else 1.0
-    length, count = 0.0, 0
-    best: list[tuple[float, float, float, float, float]] = []  # (Δχ², f_n, ζ, m, robust Δχ²)
+    grid: list[tuple[float, NDArray[np.float64]]] = []  # (ζ, its f_n)
     for zeta in DAMPING_RATIOS:
         # half-power band at least one step wide, and inside the data
         f_min = max(f_lo * (1 + 2 * zeta), step / (2 * zeta))
         f_max = f_hi * (1 - 2 * zeta)
-        if f_min >= f_max:
-            continue
-        f_n = np.exp(np.arange(np.log(f_min), np.log(f_max), zeta / 2))
-        u = mode_stiffness(omega, f_n, zeta)  # (templates, points)
-        family = residual.family({frf: (sensitivity[frf][None, :] * u).T for frf in data.frfs})
+        if f_min < f_max:
+            grid.append((zeta, np.exp(np.arange(np.log(f_min), np.log(f_max), zeta / 2))))
+    length, count = 0.0, 0
+    best: list[tuple[float, float, float, float, float]] = []  # (Δχ², f_n, ζ, m, robust Δχ²)
+    measured: list[Family] = []
+    if grid:  # every family's templates whitened as one matrix (points, templates)
+        u = mode_stiffness(omega, np.concatenate([f_n for _, f_n in grid]),
+                           np.concatenate([np.full(f_n.size, zeta) for zeta, f_n in grid]))
+        measured = residual.families({frf: sensitivity[frf][:, None] * u for frf in data.frfs},
+                                     [f_n.size for _, f_n in grid])
+    for (zeta, f_n), family in zip(grid, measured, strict=True):
         ok, norm = family.ok, np.where(family.ok, family.norm, 1.0)
         length += family.length
         count += int(np.count_nonzero(ok))

