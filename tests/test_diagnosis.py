@@ -25,6 +25,7 @@ from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
 from viscorig.cli import main
 from viscorig.cli.diagnose import LADDER_HEADING, format_diagnosis
 from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
+from viscorig.diagnosis import findings as findings_module
 from viscorig.diagnosis.findings import fit_term
 from viscorig.diagnosis.scan import Residual, log_sensitivity, mode_stiffness
 from viscorig.diagnosis.screening import screen
@@ -77,6 +78,26 @@ def test_clean_data_has_no_significant_finding_and_sits_at_the_noise_floor(seed:
     assert not diagnosis.significant
     assert diagnosis.auto() == [diagnosis]
     assert all("No clear sign" in finding.explanation for finding in diagnosis.findings)
+
+
+def test_candidates_are_finished_only_where_one_may_pass(monkeypatch) -> None:
+    """A candidate's first fit is carried on only where it may decide something: on clean data
+    none comes near its threshold and none is finished; with a load cell some are."""
+    finished: list[str] = []
+    original = findings_module._finish
+
+    def counted(first, data):
+        finished.append(first.spec)
+        return original(first, data)
+
+    monkeypatch.setattr(findings_module, "_finish", counted)
+    clean = single(rig_text(VOIGT, noise=QUIET), seed=11)
+    assert clean.findings and not clean.significant
+    assert all(f.delta_chi2 < 0.5 * f.threshold * f.dispersion for f in clean.findings)
+    assert finished == []
+    loaded = single(rig_text(VOIGT, noise=QUIET, load_cell_n_per_m=2.0e6))
+    assert top(loaded) == "load_cell_compliance"
+    assert any(spec.startswith("voigt+load_cell") for spec in finished)
 
 
 @pytest.mark.slow

@@ -388,9 +388,11 @@ def _near_decision(current: Likelihood, data: DiagnosisData, candidates: list[Ca
     """Which first fits (:func:`candidate_fits`, in its order) may decide something once
     finished: every term of a candidate one of whose terms is within :data:`NEAR_SHARE` of its
     threshold (:func:`judge`); passes it and names a local mode (by its fitted frequency) or
-    has alternatives; or whose ``ΔBIC`` is within :data:`NEAR_BEST` ``φ`` of the best one's
-    (or within :data:`NEAR_SHARE_OF_BEST` of it) or of another passing candidate's (the order
-    of the forward tests)."""
+    has alternatives; or, when any candidate comes that near to passing, whose ``ΔBIC`` is
+    within :data:`NEAR_BEST` ``φ`` of the best one's (or within :data:`NEAR_SHARE_OF_BEST` of
+    it) or of another passing candidate's (the order of the forward tests, whose lead may be a
+    candidate that does not pass). When none does, no rank decides anything (the forward tests
+    take only candidates that pass), and none is finished."""
     n_eff = data.effective_points
     terms = [(index, term) for index, candidate in enumerate(candidates)
              for term in (candidate.term, *candidate.alternatives)]
@@ -408,6 +410,8 @@ def _near_decision(current: Likelihood, data: DiagnosisData, candidates: list[Ca
             near.add(index)
         rows.append((index, passes, -delta + (len(result.free) - len(current.free))
                      * np.log(n_eff), phi))
+    if not any(row[1] for row in rows):
+        return [False] * len(terms)  # none can pass: their ranks decide nothing
     best = min((row[2] for row in rows), default=np.inf)
     for index, passes, bic, phi in rows:
         if bic <= best + max(NEAR_BEST * phi, -NEAR_SHARE_OF_BEST * best) or (passes and any(
