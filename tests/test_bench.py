@@ -22,10 +22,15 @@ from viscorig.cli.bench import served
 from viscorig.sequences.station import BenchSettings
 from viscorig.storage import CampaignFile
 
+#: Simulated seconds per wall-clock second where a test must act while a run is going on: the
+#: 81 points of the small sequence then take about three seconds, where unpaced they ended
+#: between seeing a run go on and aborting it on a loaded machine.
+PACE = 40.0
+
 
 def test_queue_prompt_pause_note_resume_abort_over_the_api(tmp_path) -> None:
     small_sequence(tmp_path)
-    with bench_server(tmp_path) as server:
+    with bench_server(tmp_path, sim_pace=PACE) as server:
         client = Client(server)
         first = client.post("/api/queue", {"sequence": "small.toml", "out": "a.h5"})
         assert first.status_code == 200, first.text
