@@ -186,7 +186,8 @@ class Residual:
         along_e, along_clipped = self.e[:rows] @ w, self.clipped[:rows] @ w
         out, start = [], 0
         for size in sizes:
-            at = start + np.flatnonzero(ok[start:start + size])
+            part = slice(start, start + size)
+            at = start + np.flatnonzero(ok[part])
             left: slice | NDArray[np.intp]
             right: slice | NDArray[np.intp]
             if at.size > 1 and at.size == size:  # neighbours along the family, as slices
@@ -200,7 +201,6 @@ class Residual:
                 length = float(np.sum(np.sqrt(np.maximum(2.0 - 2.0 * cosine, 0.0))))
             else:
                 length = 0.0
-            part = slice(start, start + size)
             out.append(Family(norm[part], ok[part], length, along_e[part], along_clipped[part]))
             start += size
         return out
