@@ -107,6 +107,43 @@ def test_the_frame_pays_for_looking_along_its_free_frequency() -> None:
     assert frame.threshold > chi2.isf(alpha, 3) + 1.0
 
 
+def test_the_frames_families_measured_together_are_each_measured_alone() -> None:
+    """The frame's look-elsewhere length, all its damping families evaluated and whitened as one
+    matrix, is the sum of each family's length measured alone, one frame model per frequency
+    and numpy's own complex logarithm."""
+    from viscorig.diagnosis.scan import Residual
+    from viscorig.diagnosis.screening import (
+        FRAME_SCAN_HZ,
+        FRAME_SCAN_ZETA,
+        FRAME_START,
+        _frame_length,
+    )
+    from viscorig.models import Frame, Model
+
+    diagnosis = diagnose(specimen_run("hard-10", 0.01, 7), "voigt", table=table_known(0.01, 7))
+    current, data = diagnosis.likelihood, diagnosis.data
+    model = current.model
+    framed = Model((*model.terms, Frame()))
+    residual = Residual(current, data)
+    ctx = data.data.context()
+    base = model.predict(ctx, current.values)
+    names = framed.local_names(next(t for t in framed.effects if t.keyword == "frame"))
+    alone = 0.0
+    for zeta in FRAME_SCAN_ZETA:
+        columns = {frf: [] for frf in data.frfs}
+        for f_g in FRAME_SCAN_HZ:
+            values = {**current.values, names["M_f"]: FRAME_START["M_f"], names["f_g"]: f_g,
+                      names["zeta_g"]: zeta}
+            moved = framed.predict(ctx, values)
+            for frf in data.frfs:
+                with np.errstate(all="ignore"):
+                    columns[frf].append(np.nan_to_num(np.log(moved[frf] / base[frf])))
+        alone += residual.family({frf: np.array(c).T for frf, c in columns.items()}).length
+    together = _frame_length(model, framed, current, data, residual)
+    assert together > 10.0
+    assert together == pytest.approx(alone, rel=1e-6)
+
+
 def _bands(data: FrfData) -> tuple[list, float]:
     d = combine([("run", data)], table=TABLE)
     result = fit("voigt", d.data, frfs=d.frfs, fixed=TABLE, noise=d.noise)
