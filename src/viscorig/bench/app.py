@@ -438,17 +438,29 @@ class BenchServer:
         """The address without the token."""
         return f"http://{self.address}:{self.port}"
 
-    def run(self) -> None:
-        """Serve until Ctrl-C; then abort a run in progress (its data kept)."""
+    def run(self, announce: Callable[[], None] | None = None) -> None:
+        """Serve until Ctrl-C or SIGTERM; then abort a run in progress (its data kept).
+
+        Parameters
+        ----------
+        announce
+            Called once the stop signals are handled and before serving (``bench serve``
+            prints the address there): a stop that follows the address at once still stops
+            the server cleanly.
+        """
         # A Ctrl-C raised while asyncio builds its event loop, before uvicorn takes the
-        # signals, leaves a half-built loop that prints a traceback as it is collected: until
-        # uvicorn's own handler is in place, the signal only asks the server to stop.
+        # signals, leaves a half-built loop that prints a traceback as it is collected, and a
+        # SIGTERM there kills the process: until uvicorn's own handler is in place, either
+        # signal only asks the server to stop.
         main = threading.current_thread() is threading.main_thread()
         previous = {}
         if main:
             previous = {sig: signal.signal(sig, self._stop) for sig in STOP_SIGNALS}
         try:
-            self.server.run(sockets=[self.socket])
+            if announce is not None:
+                announce()
+            if not self.server.should_exit:
+                self.server.run(sockets=[self.socket])
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)

@@ -156,14 +156,17 @@ def serve_command(args: argparse.Namespace) -> int:
         raise InputError(f"cannot serve on {address}:{args.port} ({error.strerror or error}); "
                          "choose another --port, or --port 0 for any free one",
                          "--port") from None
-    try:  # Ctrl-C is how the server is stopped, whenever it comes
+
+    def announce() -> None:
         print(server.url, flush=True)
         if address != "127.0.0.1":
             print(f"WARNING: served on {address} as the station's [bench] address allows: "
                   "other machines reach it (with the token)", flush=True)
         if not args.no_browser and not open_in_browser(server.url):
             print("no browser could be opened here: open the address above in one", flush=True)
-        server.run()
+
+    try:  # Ctrl-C is how the server is stopped, whenever it comes
+        server.run(announce)
     except KeyboardInterrupt:
         pass
     finally:
