@@ -160,7 +160,7 @@ class Guard:
         if scope["type"] == "websocket":  # none is served: refused before anything
             await send({"type": "websocket.close", "code": 1008})
             return
-        if scope["type"] != "http":  # the server's lifespan events
+        if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         refusal = self._refusal(scope)
@@ -422,9 +422,11 @@ class BenchServer:
         self.socket.listen(64)
         self.port = int(self.socket.getsockname()[1])
         self.token = secrets.token_urlsafe(24)
+        # lifespan off: the app has no startup or shutdown work, and uvicorn's lifespan task
+        # could be collected mid-protocol when a server thread stopped just as it started
         config = uvicorn.Config(create_app(service, self.token, self.port, address),
                                 log_level="warning", access_log=False, server_header=False,
-                                limit_concurrency=64, timeout_keep_alive=5)
+                                limit_concurrency=64, timeout_keep_alive=5, lifespan="off")
         self.server = uvicorn.Server(config)
         self._thread: threading.Thread | None = None
 
