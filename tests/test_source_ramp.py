@@ -18,8 +18,9 @@ from test_driver_35670a_protocol import Analyser, configured
 INPUTS = [(1, "N", 0.01), (2, "M/S2", 0.01), (3, "N", 0.01), (4, "M/S2", 0.01)]
 #: Simulated seconds per wall second: a point of 20 + 20 cycles near 20 Hz takes about 35 ms.
 PACE = 60.0
-#: Slow enough that the ramp of a few tenths of a volt lasts tens of milliseconds of wall time.
-SLEW_V_PER_S = 0.05
+#: Slow enough that the ramp of a few tenths of a volt lasts over a hundred milliseconds of wall
+#: time: a sampler held off for 50 ms by a loaded machine still sees it fall.
+SLEW_V_PER_S = 0.02
 
 
 def test_the_slew_rate_is_sent_after_the_limit_and_before_the_level() -> None:
