@@ -217,6 +217,39 @@ def test_a_family_of_templates_measures_what_its_projected_templates_do() -> Non
     assert family.length > 10 * np.linalg.norm(unit[:, 1] - unit[:, 0])
 
 
+def test_the_scan_forms_its_templates_from_shared_columns_as_from_each_frf_s_own() -> None:
+    """The scan's templates, one vector per FRF times columns every FRF shares, formed part by
+    part in the whitening's layout: the same families as the complex changes of each FRF, an
+    outlier point left out and an FRF missing from the change counted as unchanged; and the
+    mode's stiffness is ``−ω² s/(s − ω²)``, ``s = ω_n² + 2iζω_nω``."""
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]))
+    current, data = diagnosis.likelihood, diagnosis.data
+    kept = {frf: ~mask for frf, mask in data.outliers.items()}
+    kept["table"][[3, 200]] = False
+    object.__setattr__(data, "_kept", kept)  # two outlier points, on both paths
+    spiked = {frf: r.copy() for frf, r in current.residuals.items()}
+    spiked["table"][3] += 1e3  # an outlier point counts as zero, whatever it holds
+    np.testing.assert_array_equal(data.whiten(spiked), data.whiten(current.residuals))
+    residual = Residual(current, data)
+    omega = 2 * np.pi * data.data.frequency_hz
+    f_n = np.geomspace(25.0, 110.0, 30)
+    zeta = np.repeat([0.01, 0.05], 15)
+    u = mode_stiffness(omega, f_n, zeta)
+    w, w_n = omega[:, None], 2 * np.pi * f_n[None, :]
+    s = w_n**2 + 2j * zeta[None, :] * w_n * w
+    np.testing.assert_allclose(u, -(w**2) * s / (s - w**2), rtol=1e-12)
+    sensitivity = log_sensitivity(current.model, current.values, data)
+    for along in (sensitivity, {"support": sensitivity["support"]}):
+        shared = residual.families(along, [10, 20], shared=u)
+        alone = residual.families({frf: along[frf][:, None] * u for frf in along}, [10, 20])
+        for a, b in zip(shared, alone, strict=True):
+            np.testing.assert_array_equal(a.ok, b.ok)
+            for name in ("norm", "along_e", "along_clipped"):
+                np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9,
+                                           atol=1e-12 * np.abs(getattr(b, name)).max())
+            assert a.length == pytest.approx(b.length, rel=1e-9)
+
+
 def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:
     lag = 3e-5
     lines = f"[sensors.table_acceleration]\nlowpass_hz = {1 / (2 * np.pi * lag)}\n"

@@ -249,6 +249,11 @@ def test_whitening_of_many_columns_is_the_dense_cholesky_solve(columns: int) -> 
     np.testing.assert_allclose(whitened, np.concatenate(expected), rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(MarkovWhitening.joined(pieces).apply(y[:, :1])[:, 0],
                                   MarkovWhitening.joined(pieces).apply(y[:, 0]))
+    # whitened in place when allowed: the same numbers, in the array given
+    given = y.copy()
+    in_place = MarkovWhitening.joined(pieces).apply(given, overwrite=True)
+    np.testing.assert_array_equal(in_place, whitened)
+    assert np.shares_memory(in_place, given)
 
 
 def test_sandwich_matches_the_scatter_of_least_squares_estimates() -> None:

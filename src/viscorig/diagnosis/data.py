@@ -204,31 +204,44 @@ class DiagnosisData:
         :class:`~viscorig.fitting.noise.MarkovWhitening`, or ``L⁻¹`` of its Cholesky factor
         ``L`` where the points are not in time order) so that the many evaluations of a fit
         cost little each."""
-        masks = self._masks()
-        stacked = []
-        for frf in self.frfs:
-            r = np.asarray(residuals[frf], dtype=complex)
-            if not masks[frf].all():
-                r = np.where(masks[frf] if r.ndim == 1 else masks[frf][:, None], r, 0.0)
-            stacked.append(r)
+        stacked = [np.asarray(residuals[frf], dtype=complex) for frf in self.frfs]
+        return self.whiten_stacked(
+            np.concatenate([r.real for r in stacked] + [r.imag for r in stacked]),
+            overwrite=True)
+
+    def whiten_stacked(self, values: NDArray[np.float64], *,
+                       overwrite: bool = False) -> NDArray[np.float64]:
+        """:meth:`whiten` of residuals already stacked in its layout: the real parts of every
+        FRF in :attr:`frfs` order, then the imaginary parts, a point per row (outlier points
+        are set to zero). ``overwrite``: ``values`` may be whitened in place (no copy of a wide
+        matrix)."""
+        left_out = np.concatenate([~kept for kept in self._masks().values()] * 2)
+        if left_out.any():
+            values = values.copy() if not overwrite else values
+            values[left_out] = 0.0
         joined = self._joined()
-        if joined is not None:
-            values = np.concatenate([r.real for r in stacked] + [r.imag for r in stacked])
-            if np.isfinite(values).all():  # a NaN would leak past its block in the joined solve
-                return joined.apply(values)
+        if joined is not None and np.isfinite(values).all():
+            # (a NaN would leak past its block in the joined solve)
+            return joined.apply(values, overwrite=overwrite)
         operators = self._operators()
+        sizes = [self.noise.points(frf) for frf in self.frfs]
+        half = sum(sizes)
         parts: dict[str, list[NDArray[np.float64]]] = {"re": [], "im": []}
-        for frf, r in zip(self.frfs, stacked, strict=True):
+        start = 0
+        for frf, size in zip(self.frfs, sizes, strict=True):
             for rows, by_part in operators[frf]:
-                for part, values in (("re", r.real[rows]), ("im", r.imag[rows])):
+                at = slice(start + rows.start, start + rows.stop)
+                for part, offset in (("re", 0), ("im", half)):
+                    block = values[at.start + offset:at.stop + offset]
                     operator = by_part[part]
                     if isinstance(operator, MarkovWhitening):
-                        parts[part].append(operator.apply(values))
+                        parts[part].append(operator.apply(block))
                     elif operator.ndim == 1:
-                        scale = operator if values.ndim == 1 else operator[:, None]
-                        parts[part].append(values * scale)
+                        scale = operator if block.ndim == 1 else operator[:, None]
+                        parts[part].append(block * scale)
                     else:
-                        parts[part].append(operator @ values)
+                        parts[part].append(operator @ block)
+            start += size
         return np.concatenate(parts["re"] + parts["im"])
 
     def _joined(self) -> MarkovWhitening | None:

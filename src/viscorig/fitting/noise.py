@@ -180,11 +180,14 @@ class MarkovWhitening:
         band[1, :-1] = -decay[1:]
         return cls(step, decay, gain, scale, band)
 
-    def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``L⁻¹ values`` (rows: points; a vector or a matrix)."""
+    def apply(self, values: NDArray[np.float64], *, overwrite: bool = False
+              ) -> NDArray[np.float64]:
+        """``L⁻¹ values`` (rows: points; a vector or a matrix); ``overwrite``: a float array
+        ``values`` may hold the result (no copy of a wide matrix)."""
         y = np.asarray(values, dtype=float)
         flat = y.ndim == 1
         matrix = y[:, None] if flat else y.reshape(y.shape[0], -1)
+        in_place = overwrite and y is values and np.shares_memory(matrix, y)
         if matrix.shape[1] >= WIDE_COLUMNS:
             mean = self._filtered_by_rows(matrix)
         else:
@@ -194,7 +197,11 @@ class MarkovWhitening:
             if info != 0:
                 raise np.linalg.LinAlgError(f"banded solve failed (info {info})")
         mean[:-1] *= (self.step[1:] * self.scale[1:])[:, None]
-        out = matrix * self.scale[:, None]
+        if in_place:
+            matrix *= self.scale[:, None]
+            out = matrix
+        else:
+            out = matrix * self.scale[:, None]
         out[1:] -= mean[:-1]
         return out[:, 0] if flat else out.reshape(y.shape)
 
