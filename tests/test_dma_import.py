@@ -376,3 +376,18 @@ def test_the_excel_extra_lists_the_packages_the_workbook_readers_import():
     source = (root / "src/viscorig/materials/dmafile.py").read_text()
     assert {"xlrd", "openpyxl"} <= names
     assert {"xlrd", "openpyxl"} <= set(re.findall(r"^\s*import (\w+)", source, re.MULTILINE))
+
+
+def test_a_curve_at_one_temperature_imports_but_is_no_master_curve(tmp_path, capsys):
+    # a DMA program's master export: one curve already shifted to its reference temperature
+    frequency = np.geomspace(1e-6, 1e6, 25)
+    storage = 1.0 + 50.0 * (frequency / (1.0 + frequency))
+    rows = [f"{f:.6g},{e:.6g},{0.1 * e:.6g},25.0" for f, e in zip(frequency, storage, strict=True)]
+    source = tmp_path / "master.csv"
+    source.write_text("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n" + "\n".join(rows) + "\n")
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "m", "--dma", str(source)]) == 0
+    assert "25 points, 1 temperature, modulus E" in capsys.readouterr().out
+    assert main(["master", str(path), "--run", "m"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "one temperature only" in err and "raw sweeps" in err

@@ -177,7 +177,8 @@ def import_handler(args: argparse.Namespace) -> int:
         table = read_dma_file(Path(args.dma), args.modulus)
         points = import_dma(Path(args.file), args.run, table)
         print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
-              f"{table.sets.size} temperatures, modulus {table.modulus}")
+              f"{table.sets.size} temperature{'s' if table.sets.size != 1 else ''}, "
+              f"modulus {table.modulus}")
         return 0
     if args.uff:
         frfs = read_uff(Path(args.uff))
