@@ -250,6 +250,19 @@ def test_the_scan_forms_its_templates_from_shared_columns_as_from_each_frf_s_own
             assert a.length == pytest.approx(b.length, rel=1e-9)
 
 
+def test_the_support_frf_alone_is_diagnosed_without_the_table() -> None:
+    """Without the table's values only ẍ_v/F_v can be diagnosed (``--frf support``): the
+    candidates' likelihoods, a local mode renamed by its fitted frequency included, are
+    evaluated on that FRF alone, though the model predicts both."""
+    run = simulate_run(rig_text(VOIGT, noise=QUIET, fixtures=[FIXTURE_58]), seed=3, step_hz=0.5)
+    diagnosis = diagnose(run.frf_data("run"), "voigt", frfs=["support"])
+    assert diagnosis.fit.frfs == ("support",)
+    modes = [f for f in diagnosis.findings if f.effect == "fixture_resonance"]
+    assert modes and all(f.likelihood.whitened.size == 2 * run.frf_data("run").frequency_hz.size
+                         for f in modes)
+    assert any(f.significant and 55.0 < float(f.term[8:-1]) < 61.0 for f in modes)
+
+
 def test_an_anti_alias_filter_reads_as_a_lag_of_its_channel() -> None:
     lag = 3e-5
     lines = f"[sensors.table_acceleration]\nlowpass_hz = {1 / (2 * np.pi * lag)}\n"

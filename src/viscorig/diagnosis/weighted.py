@@ -373,7 +373,7 @@ def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> 
     shifted = predict_many(model, ctx, values, free, rows) if free else {}
     with np.errstate(all="ignore"):
         columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - residuals[frf]).T / steps
-                   for frf in shifted}
+                   for frf in data.frfs}
     jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
     jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
     weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
