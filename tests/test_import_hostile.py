@@ -216,6 +216,22 @@ def test_an_sdf_word_that_is_a_signalling_nan_is_refused_without_a_warning(
     assert "point 13 of 401" in one_clear_line(err) and "warning" not in err
 
 
+@pytest.mark.parametrize("damaged", [1.043e-309, 3.13e-134, 2.37e305])
+def test_an_sdf_frequency_word_no_analyser_writes_is_refused_naming_the_point(
+        tmp_path: Path, damaged: float) -> None:
+    # a hit exponent of the X record's 87th frequency (41.5 Hz), as a byte-damaged file held
+    path = _sdf(tmp_path, F, _table(F))
+    word = np.array([F[86]], dtype=">f8").tobytes()
+    assert path.read_bytes().count(word) == 1
+    path.write_bytes(path.read_bytes().replace(word, np.array([damaged], ">f8").tobytes()))
+    status, _, err = _import(tmp_path, "--sdf", path)
+    line = one_clear_line(err)
+    assert status == 2
+    assert "1 of 401 frequencies lie outside 1e-06 to 1e+06 Hz, the first at point 87 of 401" \
+        in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> None:
     falling = F[::-1].copy()
     status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))

@@ -245,6 +245,23 @@ def test_a_value_no_analyser_can_measure_is_named_not_fitted(
     assert "ẍ_v/F_v" in err and "1 value(s)" in err and f"at {frequency:g} Hz" in err
 
 
+@pytest.mark.parametrize("frequency_hz", [1.043e-309, 2.37e305])
+def test_a_frequency_no_analyser_measures_is_named_not_fitted(
+        good_campaign: bytes, tmp_path: Path, frequency_hz: float) -> None:
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    with h5py.File(path, "r+") as h5:
+        column = h5["runs/soft-0/frequency_hz"]
+        values = column[()]
+        values[10] = frequency_hz
+        column[...] = values
+    for command in (["identify", "--model", "voigt"], ["diagnose"]):
+        status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
+        assert_clean_outcome(status, err)
+        assert status == 2 and "soft-0" in err
+        assert "1 frequencies lie outside 1e-06 to 1e+06 Hz" in err and f"{frequency_hz:g}" in err
+
+
 def test_a_report_names_a_value_no_analyser_can_measure_and_draws_the_rest(
         good_campaign: bytes, tmp_path: Path) -> None:
     path = tmp_path / "campaign.h5"

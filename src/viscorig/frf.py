@@ -11,6 +11,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+#: Frequencies a measured frequency response may hold (Hz): wide of every vibration analyser's
+#: range (the 35670A's runs from 122 µHz resolution to 102.4 kHz), so that only a damaged number
+#: falls outside, such as a frequency word whose exponent bits were hit (1e-309 Hz, 2e305 Hz).
+FREQUENCY_RANGE_HZ = (1e-6, 1e6)
+
 
 def angular_frequency(frequency_hz: ArrayLike) -> NDArray[np.float64]:
     """Angular frequency ω = 2πf in rad/s."""

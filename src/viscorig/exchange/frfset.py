@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
+from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.storage import RunSettings, Segment
 from viscorig.storage.campaign import campaign_for_import, check_name
 from viscorig.storage.layout import MAX_RUN_POINTS
@@ -115,8 +116,9 @@ def check_whole(frfs: FrfSet) -> None:
     ------
     InputError
         Lengths differ, more points than a run holds, a frequency that is not finite and
-        positive, a frequency given twice, a non-finite value of ẍ_s/F_e, a ẍ_v/F_v that
-        is only partly present, or a value with a subnormal part.
+        positive or lies outside :data:`~viscorig.frf.FREQUENCY_RANGE_HZ`, a frequency given
+        twice, a non-finite value of ẍ_s/F_e, a ẍ_v/F_v that is only partly present, or a value
+        with a subnormal part.
     """
     where = frfs.source or "import"
     n = frfs.frequency_hz.size
@@ -133,6 +135,12 @@ def check_whole(frfs: FrfSet) -> None:
     if bad.any():
         raise InputError(f"{int(bad.sum())} of {n} frequencies are not finite and positive, "
                          f"the first at {_first_bad(bad, frequency)}", where)
+    low, high = FREQUENCY_RANGE_HZ
+    bad = (frequency < low) | (frequency > high)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} of {n} frequencies lie outside {low:g} to {high:g} "
+                         f"Hz, the first at {_first_bad(bad, frequency)}: no vibration analyser "
+                         "measures there (a damaged file?)", where)
     order = np.argsort(frequency, kind="stable")
     repeated = np.flatnonzero(np.diff(frequency[order]) == 0)
     if repeated.size:

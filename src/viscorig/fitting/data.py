@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.errors import InputError
+from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.models import FRF_NAMES, Context
 
 #: Fewest frequency points a fit accepts in its band.
@@ -133,6 +134,12 @@ class FrfData:
             raise InputError(
                 f"{data.frequency_hz.size} points, a fit needs at least {MIN_POINTS}", where
             )
+        low, high = FREQUENCY_RANGE_HZ
+        outside = np.flatnonzero(~((data.frequency_hz >= low) & (data.frequency_hz <= high)))
+        if outside.size:
+            raise InputError(
+                f"{outside.size} frequencies lie outside {low:g} to {high:g} Hz (first: "
+                f"{data.frequency_hz[outside[0]]:g} Hz), not a measurement", where)
         for name in frfs:
             values = data.frf(name)
             bad = int(np.count_nonzero(~np.isfinite(values) | (values == 0)))

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig import frf
+from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.numbers import Estimate
 
 
@@ -260,7 +261,8 @@ class RunRecord:
         unique, inverse = np.unique(f, return_inverse=True)
         count = unique.size
         settle, integrate = self.cycles
-        integrate_s = np.where(f > 0, integrate / np.where(f > 0, f, 1.0), 1.0)
+        measured = f >= FREQUENCY_RANGE_HZ[0]  # (a damaged 1e-309 Hz would overflow 1/f)
+        integrate_s = np.where(measured, integrate / np.where(measured, f, 1.0), 1.0)
 
         def total(values: NDArray) -> NDArray:
             return np.bincount(inverse, weights=values, minlength=count)
