@@ -226,19 +226,25 @@ def test_a_file_damaged_after_it_was_opened_is_checked_when_a_run_is_read(
         assert run.points == len(run.frequency_hz) > 0
 
 
+def _with_point(good_campaign: bytes, tmp_path: Path, column: str, value: float) -> Path:
+    """A copy of the good campaign whose run soft-0 holds ``value`` at point 11 of ``column``."""
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    with h5py.File(path, "r+") as h5:
+        stored = h5[f"runs/soft-0/{column}"]
+        values = stored[()]
+        values[10] = value
+        stored[...] = values
+    return path
+
+
 @pytest.mark.parametrize("value", [1e300, 1e-300, 3e9])
 @pytest.mark.parametrize("command", [["identify", "--model", "maxwell(2)+load_cell"],
                                      ["diagnose"]])
 def test_a_value_no_analyser_can_measure_is_named_not_fitted(
         good_campaign: bytes, tmp_path: Path, value: float, command: list[str]) -> None:
-    path = tmp_path / "campaign.h5"
-    path.write_bytes(good_campaign)
-    with h5py.File(path, "r+") as h5:
-        frf = h5["runs/soft-0/accelerance_support"]
-        values = frf[()]
-        values[10] = value
-        frf[...] = values
-        frequency = float(h5["runs/soft-0/frequency_hz"][10])
+    path = _with_point(good_campaign, tmp_path, "accelerance_support", value)
+    frequency = float(CampaignFile.open(path).run("soft-0").frequency_hz[10])
     status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
     assert_clean_outcome(status, err)
     assert status == 2
@@ -248,13 +254,7 @@ def test_a_value_no_analyser_can_measure_is_named_not_fitted(
 @pytest.mark.parametrize("frequency_hz", [1.043e-309, 2.37e305])
 def test_a_frequency_no_analyser_measures_is_named_not_fitted(
         good_campaign: bytes, tmp_path: Path, frequency_hz: float) -> None:
-    path = tmp_path / "campaign.h5"
-    path.write_bytes(good_campaign)
-    with h5py.File(path, "r+") as h5:
-        column = h5["runs/soft-0/frequency_hz"]
-        values = column[()]
-        values[10] = frequency_hz
-        column[...] = values
+    path = _with_point(good_campaign, tmp_path, "frequency_hz", frequency_hz)
     for command in (["identify", "--model", "voigt"], ["diagnose"]):
         status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
         assert_clean_outcome(status, err)
