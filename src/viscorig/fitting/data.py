@@ -138,7 +138,8 @@ class FrfData:
         outside = np.flatnonzero(~((data.frequency_hz >= low) & (data.frequency_hz <= high)))
         if outside.size:
             raise InputError(
-                f"{outside.size} frequencies lie outside {low:g} to {high:g} Hz (first: "
+                f"{outside.size} frequenc{'y lies' if outside.size == 1 else 'ies lie'} "
+                f"outside {low:g} to {high:g} Hz (first: "
                 f"{data.frequency_hz[outside[0]]:g} Hz), not a measurement", where)
         for name in frfs:
             values = data.frf(name)
