@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import materialdata as gen
 import numpy as np
@@ -307,3 +308,26 @@ def test_a_noisier_sweep_gets_a_larger_shift_standard_error_that_covers_the_trut
     for column in range(2):
         assert 0.7 < np.sqrt(np.mean(z[:, column] ** 2)) < 1.55, column
     assert np.mean(np.abs(z) <= 2) >= 0.9
+
+
+
+#: A table the fuzzer of the DMA reader made (30 sweeps of 5 points within 1.6 K, a sigmoid in
+#: log frequency under noise of rms ln 0.5, five loss moduli not positive): well formed, but no
+#: shift factor is determined by it.
+UNDETERMINED = Path(__file__).parent / "data" / "undetermined_shifts.csv"
+
+
+def test_shift_factors_the_data_do_not_determine_are_refused_not_fitted(tmp_path, capsys):
+    # their estimate spans 287 decades (± 48.5 at 20.94 °C), where the Prony fit met infinities
+    # and ended in a traceback before this check
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "d", "--dma", str(UNDETERMINED)]) == 0
+    capsys.readouterr()
+    for command in (["master", str(path), "--run", "d", "--json"],
+                    ["export", str(path), "--run", "d", "--material", "abaqus", "--out",
+                     str(tmp_path / "card.inp")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "do not determine the shift factors" in err, err
+        assert "20.94 °C" in err
+    assert not (tmp_path / "card.inp").exists()

@@ -304,8 +304,9 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     Raises
     ------
     InputError
-        Too few sets, or a reference temperature that needs a shift function none could be
-        fitted for.
+        Too few sets, a reference temperature that needs a shift function none could be
+        fitted for, or shift factors the data do not determine (:data:`UNDETERMINED_DECADES`,
+        :data:`MAX_SPAN_DECADES`).
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
@@ -321,6 +322,32 @@ def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
                                    reference_set=int(shifts.sets[shifts.reference]))
     change = moved.log10_at - shifts.log10_at
     return np.outer(change, change) if change.shape == shifts.log10_at.shape else 0.0
+
+
+#: A shift factor whose standard error exceeds this (decades) is not determined by the data
+#: (a sweep that hardly overlaps its neighbours, or moduli whose scatter hides their slope): a
+#: master curve and a Prony series built on it would describe the noise.
+UNDETERMINED_DECADES = 5.0
+#: Reduced frequencies spanning more decades than this are no material's master curve (WLF over
+#: 200 K spans about 25): shifts that far apart are the estimate failing on these data.
+MAX_SPAN_DECADES = 60.0
+
+
+def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], where: str
+                      ) -> None:
+    """Refuse shift factors the data do not determine (:data:`UNDETERMINED_DECADES`,
+    :data:`MAX_SPAN_DECADES`), naming the worst sweep."""
+    spread = np.where(np.isfinite(shifts.log10_at_stderr), shifts.log10_at_stderr, np.inf)
+    worst = int(np.argmax(spread))
+    span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
+    if spread[worst] <= UNDETERMINED_DECADES and span <= MAX_SPAN_DECADES:
+        return
+    raise InputError(
+        f"these data do not determine the shift factors: {shifts.temperature_c[worst]:.2f} °C "
+        f"shifts by {shifts.log10_at[worst]:+.1f} ± {spread[worst]:.3g} decades and the master "
+        f"curve would span {span:.0f} decades (the moduli scatter by rms ln "
+        f"{shifts.storage_scatter:.2g} and {shifts.loss_scatter:.2g} about it); sweeps that "
+        "overlap, at temperatures further apart, are needed", where)
 
 
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
@@ -341,8 +368,10 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     scatter = (shifts.storage_scatter, shifts.loss_scatter)
     position = {s: i for i, s in enumerate(shifts.sets.tolist())}
     member = np.array([position[s] for s in table.set_index.tolist()])
-    omega = 2 * np.pi * table.frequency_hz * 10.0 ** (shifts.log10_at[member]
-                                                      + shifts.point_offset)
+    log10_omega = np.log10(2 * np.pi * table.frequency_hz) + shifts.log10_at[member] + (
+        shifts.point_offset)
+    _check_determined(shifts, log10_omega, table.source or "modulus table")
+    omega = 10.0 ** log10_omega
     prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
     log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
     sweep_scatter = _sweep_scatter(shifts, member)
