@@ -310,7 +310,6 @@ def test_a_noisier_sweep_gets_a_larger_shift_standard_error_that_covers_the_trut
     assert np.mean(np.abs(z) <= 2) >= 0.9
 
 
-
 #: A table the fuzzer of the DMA reader made (30 sweeps of 5 points within 1.6 K, a sigmoid in
 #: log frequency under noise of rms ln 0.5, five loss moduli not positive): well formed, but no
 #: shift factor is determined by it.
