@@ -305,8 +305,7 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     ------
     InputError
         Too few sets, a reference temperature that needs a shift function none could be
-        fitted for, or shift factors the data do not determine (:data:`UNDETERMINED_DECADES`,
-        :data:`MAX_SPAN_DECADES`).
+        fitted for, or shift factors the data do not determine (:data:`MAX_SPAN_DECADES`).
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
@@ -324,10 +323,6 @@ def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
     return np.outer(change, change) if change.shape == shifts.log10_at.shape else 0.0
 
 
-#: A shift factor whose standard error exceeds this (decades) is not determined by the data
-#: (a sweep that hardly overlaps its neighbours, or moduli whose scatter hides their slope): a
-#: master curve and a Prony series built on it would describe the noise.
-UNDETERMINED_DECADES = 5.0
 #: Reduced frequencies spanning more decades than this are no material's master curve (WLF over
 #: 200 K spans about 25): shifts that far apart are the estimate failing on these data.
 MAX_SPAN_DECADES = 60.0
@@ -335,19 +330,20 @@ MAX_SPAN_DECADES = 60.0
 
 def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], where: str
                       ) -> None:
-    """Refuse shift factors the data do not determine (:data:`UNDETERMINED_DECADES`,
-    :data:`MAX_SPAN_DECADES`), naming the worst sweep."""
+    """Refuse shift factors that put the master curve over more than
+    :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst. A single sweep with a
+    large standard error (on a plateau, say) is kept, with its ±."""
+    span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
+    if span <= MAX_SPAN_DECADES:
+        return
     spread = np.where(np.isfinite(shifts.log10_at_stderr), shifts.log10_at_stderr, np.inf)
     worst = int(np.argmax(spread))
-    span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
-    if spread[worst] <= UNDETERMINED_DECADES and span <= MAX_SPAN_DECADES:
-        return
     raise InputError(
-        f"these data do not determine the shift factors: {shifts.temperature_c[worst]:.2f} °C "
-        f"shifts by {shifts.log10_at[worst]:+.1f} ± {spread[worst]:.3g} decades and the master "
-        f"curve would span {span:.0f} decades (the moduli scatter by rms ln "
-        f"{shifts.storage_scatter:.2g} and {shifts.loss_scatter:.2g} about it); sweeps that "
-        "overlap, at temperatures further apart, are needed", where)
+        f"these data do not determine the shift factors: the master curve would span {span:.0f} "
+        f"decades ({shifts.temperature_c[worst]:.2f} °C shifts by "
+        f"{shifts.log10_at[worst]:+.1f} ± {spread[worst]:.3g} decades; the moduli scatter by rms "
+        f"ln {shifts.storage_scatter:.2g} and {shifts.loss_scatter:.2g} about the curve); sweeps "
+        "that overlap, at temperatures further apart, are needed", where)
 
 
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
