@@ -11,7 +11,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig import frf
-from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.numbers import Estimate
 
 
@@ -261,7 +260,7 @@ class RunRecord:
         unique, inverse = np.unique(f, return_inverse=True)
         count = unique.size
         settle, integrate = self.cycles
-        measured = f >= FREQUENCY_RANGE_HZ[0]  # (a damaged 1e-309 Hz would overflow 1/f)
+        measured = f >= frf.FREQUENCY_RANGE_HZ[0]  # (a damaged 1e-309 Hz would overflow 1/f)
         integrate_s = np.where(measured, integrate / np.where(measured, f, 1.0), 1.0)
 
         def total(values: NDArray) -> NDArray:
@@ -276,16 +275,16 @@ class RunRecord:
         def usable(variance: NDArray | None) -> bool:
             return variance is not None and bool(np.all(np.isfinite(variance) & (variance > 0)))
 
-        def frf(values: NDArray, variance: NDArray | None) -> tuple[NDArray, NDArray | None]:
+        def joined(values: NDArray, variance: NDArray | None) -> tuple[NDArray, NDArray | None]:
             if usable(variance):
                 assert variance is not None
                 return mean(values, 1.0 / variance), 1.0 / total(1.0 / variance)
-            joined = mean(values, integrate_s)
-            return joined, None if variance is None else mean(variance, np.ones(f.size))
+            return (mean(values, integrate_s),
+                    None if variance is None else mean(variance, np.ones(f.size)))
 
         ones = np.ones(f.size)
-        table, variance_table = frf(self.accelerance_table, self.variance_table)
-        support, variance_support = frf(self.accelerance_support, self.variance_support)
+        table, variance_table = joined(self.accelerance_table, self.variance_table)
+        support, variance_support = joined(self.accelerance_support, self.variance_support)
         first = np.zeros(count, dtype=int)
         first[inverse[::-1]] = np.arange(f.size)[::-1]
         flags = np.zeros(count, dtype=np.uint16)
