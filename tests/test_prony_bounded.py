@@ -259,3 +259,40 @@ def test_export_message_names_the_series_the_card_holds(tmp_path, capsys):
     card = re.search(r"storage ([0-9.]+), loss ([0-9.]+)", comment)
     for a, b in zip(stated.groups(), card.groups(), strict=True):
         assert float(a) == pytest.approx(float(b), abs=1e-3)
+
+
+def test_maxwell_parts_hold_their_identities_over_any_reduced_frequency():
+    # x + x_c = 1 and y² = x·x_c are the algebra of ωτ/(1+ω²τ²); the naive formula is the
+    # reference where it does not overflow
+    from viscorig.materials.prony import maxwell_parts
+
+    log_wt = np.concatenate([np.linspace(-745.0, 745.0, 3001), [0.0, 1e-300, -1e-300]])
+    with np.errstate(over="raise", invalid="raise", divide="raise"):  # underflow to 0 is right
+        x, x_complement, y = maxwell_parts(log_wt)
+    assert np.all(np.isfinite(x) & np.isfinite(x_complement) & np.isfinite(y))
+    assert np.all((x >= 0) & (x <= 1) & (y >= 0) & (y <= 0.5))
+    np.testing.assert_allclose(x + x_complement, 1.0, rtol=0, atol=5e-16)
+    np.testing.assert_allclose(y**2, x * x_complement, rtol=1e-12, atol=1e-300)
+    safe = np.abs(log_wt) < 40
+    wt = np.exp(log_wt[safe])
+    np.testing.assert_allclose(x[safe], wt**2 / (1 + wt**2), rtol=1e-13)
+    np.testing.assert_allclose(x_complement[safe], 1 / (1 + wt**2), rtol=1e-13)
+    np.testing.assert_allclose(y[safe], wt / (1 + wt**2), rtol=1e-13)
+
+
+@pytest.mark.parametrize("decades", [80, 150])
+def test_a_prony_fit_over_a_very_wide_curve_stays_finite_and_warning_free(decades):
+    # the curve of a known series whose terms sit across the whole span: (1+ω²τ²)² overflowed a
+    # double from about 80 decades of reduced frequency (warnings, then NaN in the Jacobian)
+    omega = np.geomspace(10.0 ** (-decades / 2), 10.0 ** (decades / 2), 4 * decades)
+    truth = PronySeries(1e6, np.full(5, 2e8), np.geomspace(10.0 ** (-decades / 3),
+                                                           10.0 ** (decades / 3), 5))
+    modulus = truth.complex_modulus(omega)
+    from viscorig.materials.prony import fit_prony
+
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        series, fit, _ = fit_prony(omega, modulus.real, modulus.imag, (0.01, 0.01), max_terms=6)
+    assert np.all(np.isfinite(series.tau_s)) and np.all(np.isfinite(series.moduli_pa))
+    assert np.isfinite(fit.chi2)
+    assert series.tau_s.min() >= 1 / omega.max() * (1 - 1e-9)
+    assert series.tau_s.max() <= 10 / omega.min() * (1 + 1e-9)

@@ -22,7 +22,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from viscorig.materials.prony import ModelFit, PronySeries, model_fit, prony_bounds
+from viscorig.materials.prony import (
+    ModelFit,
+    PronySeries,
+    maxwell_parts,
+    model_fit,
+    prony_bounds,
+)
 
 LN10 = math.log(10.0)
 #: Most refinements, each with the series' bounds at the reduced frequencies the last one left.
@@ -71,29 +77,31 @@ def refine_jointly(
     ls, ll = np.log(storage), np.log(loss)
     indicator = (member[:, None] == free[None, :]).astype(float)
 
-    def unpack(p: NDArray) -> tuple[NDArray, ...]:
+    log_frequency = np.log(2 * np.pi * frequency_hz) + LN10 * point_offset
+
+    def shifts_of(p: NDArray) -> NDArray:
         shifts = np.zeros(sets)
         shifts[free] = p[2 * n + 1:]
-        omega = 2 * np.pi * frequency_hz * 10.0 ** (shifts[member] + point_offset)
-        e_inf, e, tau = np.exp(p[0]), np.exp(p[1:n + 1]), np.exp(p[n + 1:2 * n + 1])
-        wt = omega[:, None] * tau[None, :]
-        return e_inf, e, wt, shifts
+        return shifts
+
+    def unpack(p: NDArray) -> tuple[NDArray, ...]:
+        e_inf, e = np.exp(p[0]), np.exp(p[1:n + 1])
+        log_wt = (log_frequency + LN10 * shifts_of(p)[member])[:, None] + p[None, n + 1:2 * n + 1]
+        x, x_complement, y = maxwell_parts(log_wt)
+        return e_inf, e, x, x_complement, y
 
     def residual(p: NDArray) -> NDArray:
-        e_inf, e, wt, _ = unpack(p)
-        es = e_inf + (wt**2 / (1 + wt**2)) @ e
-        el = (wt / (1 + wt**2)) @ e
-        return np.concatenate([(np.log(es) - ls) / ws, (np.log(el) - ll) / wl])
+        e_inf, e, x, _, y = unpack(p)
+        return np.concatenate([(np.log(e_inf + x @ e) - ls) / ws, (np.log(y @ e) - ll) / wl])
 
     def jacobian(p: NDArray) -> NDArray:
-        e_inf, e, wt, _ = unpack(p)
-        x, y = wt**2 / (1 + wt**2), wt / (1 + wt**2)
+        e_inf, e, x, x_complement, y = unpack(p)
         es, el = e_inf + x @ e, y @ e
-        dx = 2 * wt**2 / (1 + wt**2) ** 2 * e
-        dy = wt * (1 - wt**2) / (1 + wt**2) ** 2 * e
-        top = np.hstack([np.full((wt.shape[0], 1), e_inf), x * e, dx,
+        dx = 2 * x * x_complement * e
+        dy = y * (x_complement - x) * e
+        top = np.hstack([np.full((size, 1), e_inf), x * e, dx,
                          LN10 * dx.sum(axis=1)[:, None] * indicator]) / es[:, None]
-        bottom = np.hstack([np.zeros((wt.shape[0], 1)), y * e, dy,
+        bottom = np.hstack([np.zeros((size, 1)), y * e, dy,
                             LN10 * dy.sum(axis=1)[:, None] * indicator]) / el[:, None]
         return np.vstack([top / ws[:, None], bottom / wl[:, None]])
 
@@ -112,14 +120,15 @@ def refine_jointly(
         solution = least_squares(residual, np.clip(start, lower + margin, upper - margin),
                                  jac=jacobian, method="trf", bounds=(lower, upper),
                                  max_nfev=evaluations * start.size, x_scale="jac")
-        shifts_now = unpack(solution.x)[3]
+        shifts_now = shifts_of(solution.x)
         omega_end = 2 * np.pi * frequency_hz * 10.0 ** (shifts_now[member] + point_offset)
         lower_end, upper_end = prony_bounds(omega_end, storage, loss, n)
         inside = solution.x[:2 * n + 1]
         if np.all((inside >= lower_end - BOUND_SLACK) & (inside <= upper_end + BOUND_SLACK)):
             break
         start = solution.x
-    e_inf, e, _, shifts = unpack(solution.x)
+    e_inf, e = np.exp(solution.x[0]), np.exp(solution.x[1:n + 1])
+    shifts = shifts_of(solution.x)
     tau = np.exp(solution.x[n + 1:2 * n + 1])
     order = np.argsort(tau)
     refined = PronySeries(float(e_inf), e[order], tau[order])

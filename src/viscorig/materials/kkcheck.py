@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
+from viscorig.materials.prony import maxwell_parts
+
 THRESHOLD_SIGMAS = 5.0
 MIN_DEVIATION = 0.05
 PER_DECADE = 4
@@ -76,9 +78,9 @@ def check_kramers_kronig(omega: ArrayLike, storage_pa: ArrayLike, loss_pa: Array
     omega, storage, loss = (np.asarray(v, dtype=float) for v in (omega, storage_pa, loss_pa))
     lo, hi = 0.01 / omega.max(), 100.0 / omega.min()
     tau = np.geomspace(lo, hi, int(np.log10(hi / lo) * PER_DECADE) + 1)
-    wt = omega[:, None] * tau[None, :]
-    columns_storage = np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)])
-    columns_loss = np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)])
+    x, _, y = maxwell_parts(np.log(omega)[:, None] + np.log(tau)[None, :])
+    columns_storage = np.hstack([np.ones((omega.size, 1)), x])
+    columns_loss = np.hstack([np.zeros((omega.size, 1)), y])
     n = omega.size
     if scatter is None:
         ws, wl = np.ones(n), np.ones(n)

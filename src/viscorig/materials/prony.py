@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares, nnls
+from scipy.special import expit
 
 from viscorig.models import Context
 from viscorig.models.modulus import Fractional
@@ -74,8 +75,10 @@ class PronySeries:
 
     def complex_modulus(self, omega: ArrayLike) -> NDArray[np.complex128]:
         """``E*(ω)`` (Pa) at angular frequencies ``omega`` (rad/s)."""
-        iwt = 1j * np.asarray(omega, dtype=float)[:, None] * self.tau_s[None, :]
-        return self.long_term_modulus_pa + (self.moduli_pa[None, :] * iwt / (1 + iwt)).sum(axis=1)
+        with np.errstate(divide="ignore"):  # ω = 0: the long-term modulus
+            log_omega = np.log(np.asarray(omega, dtype=float))
+        x, _, y = maxwell_parts(log_omega[:, None] + np.log(self.tau_s)[None, :])
+        return (self.long_term_modulus_pa + x @ self.moduli_pa) + 1j * (y @ self.moduli_pa)
 
     def relaxation(self, time_s: ArrayLike) -> NDArray[np.float64]:
         """Relaxation modulus ``E(t) = E_∞ + Σ E_i exp(−t/τ_i)`` (Pa)."""
@@ -143,16 +146,28 @@ def _inside(start: NDArray, bounds: tuple[NDArray, NDArray]) -> NDArray[np.float
     return np.clip(start, lower + margin, upper - margin)
 
 
+def maxwell_parts(log_wt: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """A Maxwell term's shares ``ω²τ²/(1+ω²τ²)`` (of E'), ``1/(1+ω²τ²)`` and ``ωτ/(1+ω²τ²)``
+    (of E''), from ``ln ωτ`` without forming ``ωτ``: over a master curve of a few dozen decades
+    ``(1+ω²τ²)²`` is beyond a double.
+
+    The derivatives by ``ln τ`` follow: ``2 x x_c`` for the first, ``y (x_c − x)`` for the
+    third (``x, x_c, y`` the three shares).
+    """
+    magnitude = np.abs(log_wt)
+    return (expit(2 * log_wt), expit(-2 * log_wt),
+            np.exp(-magnitude) / (1 + np.exp(-2 * magnitude)))
+
+
 def _start(omega: NDArray, storage: NDArray, loss: NDArray, scatter: tuple[float, float],
            terms: int) -> NDArray[np.float64]:
     """ln E_∞, ln E_i, ln τ_i from NNLS on ``terms`` log-spaced relaxation times."""
     lo, hi = 1.0 / omega.max(), 1.0 / omega.min()
     tau = np.array([math.sqrt(lo * hi)]) if terms == 1 else np.geomspace(lo, hi, terms)
-    wt = omega[:, None] * tau[None, :]
+    x, _, y = maxwell_parts(np.log(omega)[:, None] + np.log(tau)[None, :])
     a = np.vstack([
-        np.hstack([np.ones((omega.size, 1)), wt**2 / (1 + wt**2)])
-        / (storage[:, None] * scatter[0]),
-        np.hstack([np.zeros((omega.size, 1)), wt / (1 + wt**2)]) / (loss[:, None] * scatter[1]),
+        np.hstack([np.ones((omega.size, 1)), x]) / (storage[:, None] * scatter[0]),
+        np.hstack([np.zeros((omega.size, 1)), y]) / (loss[:, None] * scatter[1]),
     ])
     b = np.concatenate([np.full(omega.size, 1 / scatter[0]), np.full(omega.size, 1 / scatter[1])])
     x = nnls(a, b, maxiter=50 * a.shape[1])[0]
@@ -166,22 +181,23 @@ def _refine(omega: NDArray, storage: NDArray, loss: NDArray, scatter: tuple[floa
     n = (start.size - 1) // 2
     ls, ll = np.log(storage), np.log(loss)
 
+    log_omega = np.log(omega)[:, None]
+
     def parts(p: NDArray) -> tuple[NDArray, ...]:
-        e_inf, e, tau = np.exp(p[0]), np.exp(p[1:n + 1]), np.exp(p[n + 1:])
-        wt = omega[:, None] * tau[None, :]
-        x, y = wt**2 / (1 + wt**2), wt / (1 + wt**2)
-        return e_inf, e, x, y, wt
+        e_inf, e = np.exp(p[0]), np.exp(p[1:n + 1])
+        x, x_complement, y = maxwell_parts(log_omega + p[None, n + 1:])
+        return e_inf, e, x, x_complement, y
 
     def residual(p: NDArray) -> NDArray:
-        e_inf, e, x, y, _ = parts(p)
+        e_inf, e, x, _, y = parts(p)
         return np.concatenate([(np.log(e_inf + x @ e) - ls) / scatter[0],
                                (np.log(y @ e) - ll) / scatter[1]])
 
     def jacobian(p: NDArray) -> NDArray:
-        e_inf, e, x, y, wt = parts(p)
+        e_inf, e, x, x_complement, y = parts(p)
         es, el = e_inf + x @ e, y @ e
-        dx = 2 * wt**2 / (1 + wt**2) ** 2
-        dy = wt * (1 - wt**2) / (1 + wt**2) ** 2
+        dx = 2 * x * x_complement  # d/d ln τ of ω²τ²/(1+ω²τ²) and of ωτ/(1+ω²τ²)
+        dy = y * (x_complement - x)
         top = np.hstack([np.full((omega.size, 1), e_inf), x * e, dx * e]) / es[:, None]
         bottom = np.hstack([np.zeros((omega.size, 1)), y * e, dy * e]) / el[:, None]
         return np.vstack([top / scatter[0], bottom / scatter[1]])
