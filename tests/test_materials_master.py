@@ -330,3 +330,48 @@ def test_shift_factors_the_data_do_not_determine_are_refused_not_fitted(tmp_path
         assert err.count("\n") == 1 and "do not determine the shift factors" in err, err
         assert "20.94 °C" in err
     assert not (tmp_path / "card.inp").exists()
+
+
+def _flat_sweeps(path: Path, slope_per_decade: float, noise: float, seed: int) -> Path:
+    """30 sweeps of 5 frequencies within 1.5 K: ``ln E`` rising ``slope_per_decade`` per decade
+    of frequency, with log-normal noise of rms ``noise``."""
+    rng = np.random.default_rng(seed)
+    frequency = np.geomspace(0.1, 100.0, 5)
+    rows = []
+    for index, temperature in enumerate(np.linspace(20.0, 21.5, 30)):
+        trend = slope_per_decade * np.log10(frequency)
+        storage = 100.0 * np.exp(trend + noise * rng.standard_normal(5))
+        loss = 10.0 * np.exp(trend + noise * rng.standard_normal(5))
+        rows += [f"{f:g},{e1:.6g},{e2:.6g},{temperature:.3f},{index}"
+                 for f, e1, e2 in zip(frequency, storage, loss, strict=True)]
+    path.write_text("f,E_stor,E_loss,T,Set\nHz,MPa,MPa,C,-\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_sweeps_that_do_not_change_with_frequency_get_no_shift_factors(tmp_path, capsys):
+    # pure noise gave shifts of 0 to 6 decades within 1.5 K, each ± 0.3 to 0.5, "superposition
+    # holds", and a Prony card; the sweeps say nothing about a shift along the frequency axis
+    path = tmp_path / "c.h5"
+    table = _flat_sweeps(tmp_path / "noise.csv", 0.0, 0.5, seed=3)
+    assert main(["import", str(path), "--run", "d", "--dma", str(table)]) == 0
+    capsys.readouterr()
+    for command in (["master", str(path), "--run", "d"],
+                    ["export", str(path), "--run", "d", "--material", "ansys", "--out",
+                     str(tmp_path / "card.mac")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "no sweep changes with frequency" in err, err
+    assert not (tmp_path / "card.mac").exists()
+
+
+def test_a_slope_the_sweeps_share_is_enough_to_shift_them(tmp_path, capsys):
+    # the same sweeps rising 0.3 of ln E per decade under noise 0.05: each sweep's slope stands
+    # clear of its scatter, the shifts are estimated, and they are near 0 (1.5 K apart)
+    path = tmp_path / "c.h5"
+    table = _flat_sweeps(tmp_path / "sloped.csv", 0.3, 0.05, seed=3)
+    assert main(["import", str(path), "--run", "d", "--dma", str(table)]) == 0
+    capsys.readouterr()
+    assert main(["master", str(path), "--run", "d", "--json"]) == 0
+    shifts = json.loads(capsys.readouterr().out)["shift_factors"]
+    assert len(shifts) == 30
+    assert max(abs(s["log10_aT"]) for s in shifts) < 1.0

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
-from scipy.special import chdtrc
+from scipy.special import chdtrc, fdtrc
 
 from viscorig.errors import InputError
 from viscorig.materials.table import ModulusTable
@@ -31,6 +31,12 @@ from viscorig.materials.table import ModulusTable
 KNOT_SPACINGS_DECADES = (0.5, 0.35, 0.25)
 #: Largest shift searched between neighbouring sets (decades).
 MAX_STEP_DECADES = 8.0
+#: Chance below which the sweeps' own slopes count as a dependence on frequency: above it, no
+#: shift along the frequency axis is determined by the data.
+SLOPE_SIGNIFICANCE = 0.01
+#: Fewest degrees of freedom of the scatter about the sweeps' lines for that test to be made
+#: (two sweeps of three points leave two, and miss a real slope under a few per cent of noise).
+SLOPE_TEST_DOF = 10
 
 
 @dataclass(frozen=True)
@@ -169,6 +175,44 @@ def _differ(squares: NDArray[np.float64], dof: NDArray[np.float64],
     return bool(chdtrc(k - 1, statistic) < significance)
 
 
+def frequency_dependence(table: ModulusTable) -> tuple[float, float, float]:
+    """The chance that no sweep of ``table`` changes with frequency, and the scatter about each
+    sweep's own straight line of ``ln E'`` and of ``ln E''`` over ``log10 f``.
+
+    Each sweep's slope is tested against zero with the scatter pooled over the sweeps (an F
+    test over both moduli). A shift moves a sweep along the frequency axis: where no sweep
+    changes along it beyond its scatter, the criterion of :func:`estimate_shift_factors` is
+    flat in every shift, and the shifts it finds follow the noise with standard errors that do
+    not say so (a spline drawn through pure noise has slopes of its own). Sweeps leaving fewer
+    than :data:`SLOPE_TEST_DOF` degrees of freedom for the scatter are too few to tell: the
+    chance is 0 then.
+    """
+    _, member = np.unique(table.set_index, return_inverse=True)
+    x = np.log10(table.frequency_hz)
+
+    def total(values: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.bincount(member, weights=values).astype(float)
+
+    count = total(np.ones(x.size))
+    dx = x - (total(x) / count)[member]
+    sxx = total(dx * dx)
+    sloped = sxx > 1e-12 * np.maximum(count, 1.0)
+    dof = x.size - count.size - int(sloped.sum())
+    if dof < SLOPE_TEST_DOF or not sloped.any():
+        return 0.0, 0.0, 0.0
+    statistic, scatter = 0.0, []
+    for y in (np.log(table.storage_pa), np.log(table.loss_pa)):
+        dy = y - (total(y) / count)[member]
+        sxy = total(dx * dy)
+        slope_squares = np.where(sloped, sxy**2 / np.where(sloped, sxx, 1.0), 0.0)
+        variance = max(float((dy @ dy) - slope_squares.sum()) / dof, 1e-300)
+        statistic += float(slope_squares.sum()) / variance
+        scatter.append(float(np.sqrt(variance)))
+    slopes = 2 * int(sloped.sum())
+    chance = float(fdtrc(slopes, 2 * dof, statistic / slopes))
+    return chance, scatter[0], scatter[1]
+
+
 #: scipy's relative step of a forward difference (its ``2-point`` Jacobian's).
 _DIFF_STEP = float(np.finfo(float).eps) ** 0.5
 
@@ -297,7 +341,8 @@ def estimate_shift_factors(
     Raises
     ------
     InputError
-        Fewer than two sets, or a set of a single point.
+        Fewer than two sets, a set of a single point, or sweeps that do not change with
+        frequency beyond their scatter (:func:`frequency_dependence`).
     """
     sets, temperatures = _ordered_sets(table)
     where = table.source or "modulus table"
@@ -311,6 +356,13 @@ def estimate_shift_factors(
         bad = float(temperatures[int(np.argmin(counts))])
         raise InputError(f"the sweep at {bad:.1f} °C has a single point; a set needs two or "
                          "more frequencies", where)
+    chance, storage_scatter, loss_scatter = frequency_dependence(table)
+    if chance > SLOPE_SIGNIFICANCE:
+        raise InputError(
+            "no sweep changes with frequency beyond its scatter (rms "
+            f"{storage_scatter:.2g} of ln E', {loss_scatter:.2g} of ln E'' about each sweep's "
+            f"line; chance {chance:.2f} that the slopes are noise): no shift along the frequency "
+            "axis is determined by these data", where)
     if reference_set is None:
         middle = 0.5 * (temperatures[0] + temperatures[-1])
         reference = int(np.argmin(np.abs(temperatures - middle)))
