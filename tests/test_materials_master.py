@@ -4,6 +4,7 @@ from rig campaign files at several temperatures, through ``viscorig master --jso
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -15,6 +16,7 @@ import pytest
 from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.master import build_master
+from viscorig.materials.shift import estimate_shift_factors
 from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
@@ -285,7 +287,6 @@ def test_a_noisier_sweep_gets_a_larger_shift_standard_error_that_covers_the_trut
     """Sweeps differ in noise (a hot rubber's small loss modulus is measured far less well):
     the shift of a sweep ten times noisier than the others must carry its own, larger error.
     Replicates from the independent generator, the noisy sweep at 60 °C."""
-    from viscorig.materials.shift import estimate_shift_factors
 
     temperatures, frequencies = np.arange(-10.0, 71.0, 10.0), np.logspace(-1, 2, 12)
     noisy = int(np.flatnonzero(temperatures == 60.0)[0])
@@ -317,8 +318,9 @@ UNDETERMINED = Path(__file__).parent / "data" / "undetermined_shifts.csv"
 
 
 def test_shift_factors_the_data_do_not_determine_are_refused_not_fitted(tmp_path, capsys):
-    # their estimate spans 287 decades (± 48.5 at 20.94 °C), where the Prony fit met infinities
-    # and ended in a traceback before this check
+    # the estimate once spread these sweeps over 287 decades, where the Prony fit met infinities
+    # and ended in a traceback; from the sweeps unshifted it puts two sweeps 0.13 K apart
+    # 15 decades apart, each ± 0.6
     path = tmp_path / "c.h5"
     assert main(["import", str(path), "--run", "d", "--dma", str(UNDETERMINED)]) == 0
     capsys.readouterr()
@@ -328,8 +330,47 @@ def test_shift_factors_the_data_do_not_determine_are_refused_not_fitted(tmp_path
         assert main(command) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "do not determine the shift factors" in err, err
-        assert "20.94 °C" in err
+        assert "decades per kelvin" in err
     assert not (tmp_path / "card.inp").exists()
+
+
+def test_a_master_curve_over_more_than_sixty_decades_is_refused_naming_the_worst_sweep():
+    from viscorig.materials.master import _check_determined
+
+    table = _table(seed=4)
+    shifts = estimate_shift_factors(table)
+    stretched = dataclasses.replace(shifts, log10_at=shifts.log10_at * 30,
+                                    covariance=shifts.covariance * 900,
+                                    log10_at_stderr=shifts.log10_at_stderr * 30)
+    worst = float(stretched.temperature_c[int(np.argmax(stretched.log10_at_stderr))])
+    reduced = np.log10(table.frequency_hz) + stretched.of_points(table)
+    assert np.ptp(reduced) > 60
+    with pytest.raises(InputError, match=f"would span .* decades .*{worst:.2f} °C"):
+        _check_determined(stretched, reduced, "t")
+    _check_determined(shifts, np.log10(table.frequency_hz) + shifts.of_points(table), "t")
+
+
+def test_shift_factors_of_sweeps_on_one_grid_mean_their_standard_errors():
+    # 30 sweeps of 5 frequencies (one grid) within 1.5 K, ln E a straight line of slope 0.3 per
+    # decade under noise 0.05, so every true shift is 0: knots closer than the grid's step, and
+    # a start that adds up the neighbours' steps, gave rms z of 5 and 41 % of |z| beyond 2
+    z = []
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        frequency = np.geomspace(0.1, 100.0, 5)
+        temperature = np.repeat(np.linspace(20.0, 21.5, 30), 5)
+        trend = np.tile(0.3 * np.log10(frequency), 30)
+        table = ModulusTable(
+            frequency_hz=np.tile(frequency, 30), temperature_c=temperature,
+            storage_pa=1e8 * np.exp(trend + 0.05 * rng.standard_normal(150)),
+            loss_pa=1e7 * np.exp(trend + 0.05 * rng.standard_normal(150)),
+            set_index=np.repeat(np.arange(30), 5), modulus="E", source="one grid")
+        shifts = estimate_shift_factors(table)
+        known = shifts.log10_at_stderr > 0
+        z.extend(shifts.log10_at[known] / shifts.log10_at_stderr[known])
+    z = np.array(z)
+    assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3
+    assert np.mean(np.abs(z) > 2) < 0.1
 
 
 def _flat_sweeps(path: Path, slope_per_decade: float, noise: float, seed: int) -> Path:

@@ -305,7 +305,8 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     ------
     InputError
         Too few sets, a reference temperature that needs a shift function none could be
-        fitted for, or shift factors the data do not determine (:data:`MAX_SPAN_DECADES`).
+        fitted for, or shift factors the data do not determine (:data:`MAX_SPAN_DECADES`,
+        :data:`MAX_SHIFT_RATE_DECADES_PER_K`).
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
@@ -326,15 +327,26 @@ def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
 #: Reduced frequencies spanning more decades than this are no material's master curve (WLF over
 #: 200 K spans about 25): shifts that far apart are the estimate failing on these data.
 MAX_SPAN_DECADES = 60.0
+#: Fastest change of a shift factor with temperature taken from data (decades per kelvin): WLF
+#: with the universal constants changes 0.34 decade/K at its reference, Arrhenius with an
+#: activation energy of 1,000 kJ/mol 0.84 decade/K at 250 K.
+MAX_SHIFT_RATE_DECADES_PER_K = 5.0
+#: Temperatures closer than this count as this far apart in that test (a chamber's resolution):
+#: two sweeps at one temperature may differ by half a decade and their errors.
+TEMPERATURE_RESOLUTION_K = 0.1
 
 
 def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], where: str
                       ) -> None:
     """Refuse shift factors that put the master curve over more than
-    :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst. A single sweep with a
-    large standard error (on a plateau, say) is kept, with its ±."""
+    :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst, and shift factors of
+    two sweeps that differ, beyond three standard errors, by more than
+    :data:`MAX_SHIFT_RATE_DECADES_PER_K` per kelvin between them (at least
+    :data:`TEMPERATURE_RESOLUTION_K` apart). A single sweep with a large
+    standard error (on a plateau, say) is kept, with its ±."""
     span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
     if span <= MAX_SPAN_DECADES:
+        _check_rate(shifts, where)
         return
     spread = np.where(np.isfinite(shifts.log10_at_stderr), shifts.log10_at_stderr, np.inf)
     worst = int(np.argmax(spread))
@@ -344,6 +356,32 @@ def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], wh
         f"{shifts.log10_at[worst]:+.1f} ± {spread[worst]:.3g} decades; the moduli scatter by rms "
         f"ln {shifts.storage_scatter:.2g} and {shifts.loss_scatter:.2g} about the curve); sweeps "
         "that overlap, at temperatures further apart, are needed", where)
+
+
+def _check_rate(shifts: ShiftFactors, where: str) -> None:
+    """The rate part of :func:`_check_determined`: every pair of sweeps, the worst one named.
+
+    Sweeps on one frequency grid under noise comparable to the change of their moduli across it
+    can settle on each other's frequencies, decades apart and each with a small ±: 30 sweeps
+    within 1.5 K shifted by 14 decades, ± 0.7.
+    """
+    shift, covariance = shifts.log10_at, shifts.covariance
+    variance = (np.diag(covariance)[:, None] + np.diag(covariance)[None, :] - 2 * covariance)
+    apart = np.abs(shift[:, None] - shift[None, :])
+    allowed = MAX_SHIFT_RATE_DECADES_PER_K * np.maximum(np.abs(
+        shifts.temperature_c[:, None] - shifts.temperature_c[None, :]), TEMPERATURE_RESOLUTION_K)
+    excess = apart - allowed - 3 * np.sqrt(np.clip(variance, 0.0, None))
+    if not np.any(np.nan_to_num(excess, nan=0.0) > 0):
+        return
+    i, j = sorted(np.unravel_index(int(np.nanargmax(excess)), excess.shape))
+    raise InputError(
+        f"these data do not determine the shift factors: the sweeps at "
+        f"{shifts.temperature_c[i]:.2f} °C and {shifts.temperature_c[j]:.2f} °C shift "
+        f"{shift[j] - shift[i]:+.1f} ± {math.sqrt(max(variance[i, j], 0.0)):.2g} decades apart, "
+        f"more than {MAX_SHIFT_RATE_DECADES_PER_K:g} decades per kelvin (no material's shift "
+        f"factor changes that fast; the moduli scatter by rms ln {shifts.storage_scatter:.2g} and "
+        f"{shifts.loss_scatter:.2g} about the curve); sweeps that overlap, at temperatures "
+        "further apart, are needed", where)
 
 
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,

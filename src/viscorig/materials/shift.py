@@ -175,6 +175,22 @@ def _differ(squares: NDArray[np.float64], dof: NDArray[np.float64],
     return bool(chdtrc(k - 1, statistic) < significance)
 
 
+def frequency_step(table: ModulusTable) -> float:
+    """The typical step between a sweep's neighbouring frequencies (decades): the median over the
+    sweeps of each sweep's median step.
+
+    Knots closer than this let one sweep, shifted off the others' frequencies, draw a piece of
+    master curve of its own through its noise: a shift of a fraction of a step then fits better
+    than the right one, and looks better known than it is.
+    """
+    steps = []
+    for value in np.unique(table.set_index):
+        x = np.unique(np.log10(table.frequency_hz[table.set_index == value]))
+        if x.size > 1:
+            steps.append(float(np.median(np.diff(x))))
+    return float(np.median(steps)) if steps else 0.0
+
+
 def frequency_dependence(table: ModulusTable) -> tuple[float, float, float]:
     """The chance that no sweep of ``table`` changes with frequency, and the scatter about each
     sweep's own straight line of ``ln E'`` and of ``ln E''`` over ``log10 f``.
@@ -375,8 +391,17 @@ def estimate_shift_factors(
         a, b = table.set_index == sets[i - 1], table.set_index == sets[i]
         start[i] = start[i - 1] - _pair_step(probe.x[a], probe.y[a], probe.x[b], probe.y[b])
     start -= start[reference]
-    spacings = KNOT_SPACINGS_DECADES if knot_spacing is None else (knot_spacing,)
+    if knot_spacing is None:
+        floor = frequency_step(table)
+        spacings = tuple(sorted({max(spacing, floor) for spacing in KNOT_SPACINGS_DECADES},
+                                reverse=True))
+    else:
+        spacings = (knot_spacing,)
+    # and from every set unshifted, with the widest knots: under noise the neighbour-by-neighbour
+    # steps add up like a random walk, and a sweep started far from the others stays there on a
+    # piece of curve of its own
     fits = [_fit(table, sets, temperatures, reference, start, spacing) for spacing in spacings]
+    fits.append(_fit(table, sets, temperatures, reference, np.zeros(sets.size), spacings[0]))
     problem, solution, _ = min(fits, key=lambda fit: fit[2])
     free = solution.x
     residual = problem.residual(free)
