@@ -344,10 +344,11 @@ def test_a_master_curve_over_more_than_sixty_decades_is_refused_naming_the_worst
                                     log10_at_stderr=shifts.log10_at_stderr * 30)
     worst = float(stretched.temperature_c[int(np.argmax(stretched.log10_at_stderr))])
     reduced = np.log10(table.frequency_hz) + stretched.of_points(table)
+    member = np.array([shifts.sets.tolist().index(s) for s in table.set_index.tolist()])
     assert np.ptp(reduced) > 60
     with pytest.raises(InputError, match=f"would span .* decades .*{worst:.2f} °C"):
-        _check_determined(stretched, reduced, "t")
-    _check_determined(shifts, np.log10(table.frequency_hz) + shifts.of_points(table), "t")
+        _check_determined(stretched, reduced, member, "t")
+    _check_determined(shifts, np.log10(table.frequency_hz) + shifts.of_points(table), member, "t")
 
 
 def test_shift_factors_of_sweeps_on_one_grid_mean_their_standard_errors():

@@ -336,8 +336,8 @@ MAX_SHIFT_RATE_DECADES_PER_K = 5.0
 TEMPERATURE_RESOLUTION_K = 0.1
 
 
-def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], where: str
-                      ) -> None:
+def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64],
+                      member: NDArray[np.int64], where: str) -> None:
     """Refuse shift factors that put the master curve over more than
     :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst, and shift factors of
     two sweeps that differ, beyond three standard errors, by more than
@@ -346,7 +346,7 @@ def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], wh
     standard error (on a plateau, say) is kept, with its ±."""
     span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
     if span <= MAX_SPAN_DECADES:
-        _check_rate(shifts, where)
+        _check_rate(shifts, member, where)
         return
     spread = np.where(np.isfinite(shifts.log10_at_stderr), shifts.log10_at_stderr, np.inf)
     worst = int(np.argmax(spread))
@@ -358,12 +358,13 @@ def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64], wh
         "that overlap, at temperatures further apart, are needed", where)
 
 
-def _check_rate(shifts: ShiftFactors, where: str) -> None:
-    """The rate part of :func:`_check_determined`: every pair of sweeps, the worst one named.
+def _check_rate(shifts: ShiftFactors, member: NDArray[np.int64], where: str) -> None:
+    """The rate part of :func:`_check_determined`: every pair of sweeps, the worst one named
+    with each one's scatter about the curve (``member``: each point's sweep).
 
     Sweeps on one frequency grid under noise comparable to the change of their moduli across it
     can settle on each other's frequencies, decades apart and each with a small ±: 30 sweeps
-    within 1.5 K shifted by 14 decades, ± 0.7.
+    within 1.5 K shifted by 14 decades, ± 0.7; so can one sweep far noisier than the others.
     """
     shift, covariance = shifts.log10_at, shifts.covariance
     variance = (np.diag(covariance)[:, None] + np.diag(covariance)[None, :] - 2 * covariance)
@@ -374,14 +375,16 @@ def _check_rate(shifts: ShiftFactors, where: str) -> None:
     if not np.any(np.nan_to_num(excess, nan=0.0) > 0):
         return
     i, j = sorted(np.unravel_index(int(np.nanargmax(excess)), excess.shape))
+    squares = shifts.residual_storage**2 + shifts.residual_loss**2
+    scatter = [math.sqrt(float(np.mean(squares[member == k])) / 2) for k in (i, j)]
     raise InputError(
         f"these data do not determine the shift factors: the sweeps at "
-        f"{shifts.temperature_c[i]:.2f} °C and {shifts.temperature_c[j]:.2f} °C shift "
+        f"{shifts.temperature_c[i]:.2f} °C and {shifts.temperature_c[j]:.2f} °C (rms ln "
+        f"{scatter[0]:.2g} and {scatter[1]:.2g} about the master curve) shift "
         f"{shift[j] - shift[i]:+.1f} ± {math.sqrt(max(variance[i, j], 0.0)):.2g} decades apart, "
-        f"more than {MAX_SHIFT_RATE_DECADES_PER_K:g} decades per kelvin (no material's shift "
-        f"factor changes that fast; the moduli scatter by rms ln {shifts.storage_scatter:.2g} and "
-        f"{shifts.loss_scatter:.2g} about the curve); sweeps that overlap, at temperatures "
-        "further apart, are needed", where)
+        f"more than {MAX_SHIFT_RATE_DECADES_PER_K:g} decades per kelvin, faster than any "
+        "material's shift factor changes; leave the noisier sweep out, or measure sweeps that "
+        "overlap at temperatures further apart", where)
 
 
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
@@ -404,7 +407,7 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     member = np.array([position[s] for s in table.set_index.tolist()])
     log10_omega = np.log10(2 * np.pi * table.frequency_hz) + shifts.log10_at[member] + (
         shifts.point_offset)
-    _check_determined(shifts, log10_omega, table.source or "modulus table")
+    _check_determined(shifts, log10_omega, member, table.source or "modulus table")
     omega = 10.0 ** log10_omega
     prony, prony_fit, ladder = fit_prony(omega, table.storage_pa, table.loss_pa, scatter)
     log10_at, covariance = shifts.log10_at.copy(), shifts.covariance.copy()
