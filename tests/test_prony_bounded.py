@@ -23,7 +23,7 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import import_dma
 from viscorig.materials.fecards import CARD_MODULUS_LIMIT, write_card
 from viscorig.materials.master import build_master
-from viscorig.materials.prony import PronySeries
+from viscorig.materials.prony import PronySeries, fit_prony, maxwell_parts
 from viscorig.materials.shiftfunctions import best_shift_function, fit_shift_function
 from viscorig.materials.table import ModulusTable
 
@@ -264,8 +264,6 @@ def test_export_message_names_the_series_the_card_holds(tmp_path, capsys):
 def test_maxwell_parts_hold_their_identities_over_any_reduced_frequency():
     # x + x_c = 1 and y² = x·x_c are the algebra of ωτ/(1+ω²τ²); the naive formula is the
     # reference where it does not overflow
-    from viscorig.materials.prony import maxwell_parts
-
     log_wt = np.concatenate([np.linspace(-745.0, 745.0, 3001), [0.0, 1e-300, -1e-300]])
     with np.errstate(over="raise", invalid="raise", divide="raise"):  # underflow to 0 is right
         x, x_complement, y = maxwell_parts(log_wt)
@@ -288,8 +286,6 @@ def test_a_prony_fit_over_a_very_wide_curve_stays_finite_and_warning_free(decade
     truth = PronySeries(1e6, np.full(5, 2e8), np.geomspace(10.0 ** (-decades / 3),
                                                            10.0 ** (decades / 3), 5))
     modulus = truth.complex_modulus(omega)
-    from viscorig.materials.prony import fit_prony
-
     with np.errstate(over="raise", invalid="raise", divide="raise"):
         series, fit, _ = fit_prony(omega, modulus.real, modulus.imag, (0.01, 0.01), max_terms=6)
     assert np.all(np.isfinite(series.tau_s)) and np.all(np.isfinite(series.moduli_pa))

@@ -154,9 +154,8 @@ def maxwell_parts(log_wt: NDArray) -> tuple[NDArray, NDArray, NDArray]:
     The derivatives by ``ln τ`` follow: ``2 x x_c`` for the first, ``y (x_c − x)`` for the
     third (``x, x_c, y`` the three shares).
     """
-    magnitude = np.abs(log_wt)
-    return (expit(2 * log_wt), expit(-2 * log_wt),
-            np.exp(-magnitude) / (1 + np.exp(-2 * magnitude)))
+    decay = np.exp(-np.abs(log_wt))  # ωτ or 1/ωτ, whichever is at most 1
+    return expit(2 * log_wt), expit(-2 * log_wt), decay / (1 + decay * decay)
 
 
 def _start(omega: NDArray, storage: NDArray, loss: NDArray, scatter: tuple[float, float],
