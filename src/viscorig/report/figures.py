@@ -16,7 +16,9 @@ from typing import ParamSpec, TypeVar
 import matplotlib
 import numpy as np
 from matplotlib import ticker
+from matplotlib.artist import Artist
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from viscorig.compare import Pair, loss_factor_of, storage_stiffness_of
 from viscorig.report.analysis import (
@@ -31,6 +33,7 @@ from viscorig.report.parallel import parallel_map
 from viscorig.storage import INPUT_OVERLOAD, RunRecord
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
+FRF_SHORT = {"table": "table", "support": "disc"}
 MEASURED = "#1f4e79"
 MODEL = "#c0392b"
 FLAGGED = "#e67e22"
@@ -112,6 +115,80 @@ def _log_axes(figure: Figure) -> None:
                                               minor_thresholds=formatter.minor_thresholds))
 
 
+#: Size (points) of legend and tick-label text set in small type.
+SMALL_FONT = 7.0
+#: Width of a character of :data:`SMALL_FONT` text, as a share of the font size: DejaVu Sans,
+#: matplotlib's font, averages 0.55 to 0.57 on model specs and words (digits 0.64).
+CHARACTER_WIDTH = 0.58
+#: Height of a line of text, as a share of the font size.
+LINE_HEIGHT = 1.3
+
+
+_BREAKS = re.compile(r"(?<=\+)(?=\S)|(?<=[^+−] )")
+
+
+def wrapped(text: str, characters: int) -> str:
+    """``text`` broken into lines of at most ``characters`` characters where it can be: at its
+    spaces (a sign ``+`` or ``−`` stays with the word after it) and after each ``+`` joining the
+    terms of a model spec; a single word longer than a line stays whole."""
+    pieces = [piece for piece in _BREAKS.split(text) if piece]
+    lines: list[str] = []
+    line = ""
+    for piece in pieces:
+        if line and len(line + piece.rstrip()) > characters:
+            lines.append(line.rstrip())
+            line = piece.lstrip()
+        else:
+            line += piece
+    lines.append(line.rstrip())
+    return "\n".join(lines)
+
+
+def _characters(width_in: float) -> int:
+    """Characters of :data:`SMALL_FONT` text that fit in ``width_in`` inches."""
+    return max(8, int(width_in * 72 / (CHARACTER_WIDTH * SMALL_FONT)))
+
+
+def _grow_below(figure: Figure, height_in: float) -> None:
+    """Make the figure ``height_in`` inches taller at the bottom, every axes keeping its size
+    and place from the top: room for what is drawn below the axes."""
+    width, height = figure.get_size_inches()
+    params = figure.subplotpars
+    top_in, bottom_in = (1 - params.top) * height, params.bottom * height
+    figure.set_size_inches(width, height + height_in)
+    total = height + height_in
+    figure.subplots_adjust(top=1 - top_in / total, bottom=(bottom_in + height_in) / total)
+
+
+def legend_below(figure: Figure, columns: int = 1) -> None:
+    """One legend for the whole figure, below its axes, in ``columns`` columns: every entry of
+    every axes once (the first of a label wins), long labels wrapped to their column. The figure
+    grows to hold it, so that the legend covers no data and no label, where a legend inside an
+    axes hid curves and ran into the axes beside it."""
+    entries: dict[str, Artist] = {}
+    for axes in figure.axes:
+        for handle, label in zip(*axes.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if not entries:
+        return
+    # the curves first, then what is shaded (a band is drawn first, under the curves)
+    ordered = sorted(entries.items(), key=lambda item: isinstance(item[1], Patch))
+    labels = [label for label, _ in ordered]
+    handles = [handle for _, handle in ordered]
+    columns = max(1, min(columns, len(labels)))
+    width_in = figure.get_size_inches()[0] * 0.92 / columns - 0.45  # the handle and the gaps
+    labels = [wrapped(label, _characters(width_in)) for label in labels]
+    rows = -(-len(labels) // columns)
+    # matplotlib fills a legend's columns top to bottom: row r holds labels r, r + rows, ...
+    lines = sum(max(labels[i].count("\n") + 1 for i in range(r, len(labels), rows))
+                for r in range(rows))
+    pad_in = 0.08
+    _grow_below(figure, lines * LINE_HEIGHT * SMALL_FONT / 72 + rows * 0.05 + 2 * pad_in)
+    figure.legend(handles, labels, loc="lower center", ncols=columns, fontsize=SMALL_FONT,
+                  frameon=False, bbox_to_anchor=(0.5, pad_in / figure.get_size_inches()[1] / 2),
+                  borderaxespad=0.0, columnspacing=1.5, handlelength=1.8)
+
+
 def save(figure: Figure, folder: Path | None, stem: str, caption: str, *,
          svg: bool = False) -> SavedFigure:
     """Write ``stem.png`` (and ``stem.svg`` with ``svg``) in ``folder`` when given; return the
@@ -191,11 +268,11 @@ def frf_figure(analysis: RunAnalysis, *, failures: list | None = None) -> Figure
         phase.set_yticks([-180, -90, 0, 90, 180])
         for ax in (magnitude, phase):
             ax.grid(True, which="major", alpha=0.3)
-        magnitude.legend(fontsize=7, loc="best")
     m = run.metadata
     status = "" if m.status == "complete" else f", {m.status}"
     figure.suptitle(f"run {run.name}: {m.specimen}, preload {m.preload_strain:g}, "
                     f"{run.points} points{status}", fontsize=11)
+    legend_below(figure, columns=len(frfs))
     return figure
 
 
@@ -210,19 +287,20 @@ def residual_figure(analysis: RunAnalysis) -> Figure | None:
     axes = figure.subplots(1, count, squeeze=False)[0]
     figure.subplots_adjust(left=0.1 if count == 2 else 0.16, right=0.98, top=0.9, bottom=0.16,
                            wspace=0.25)
-    for ax, residual in zip(axes, analysis.residuals, strict=True):
+    floors = ", ".join(f"{FRF_SHORT[r.frf]} {r.floor:.2g}" for r in analysis.residuals)
+    for index, (ax, residual) in enumerate(zip(axes, analysis.residuals, strict=True)):
         _shade(ax, analysis.failures, residual.frf, label=True)
         ax.semilogy(residual.frequency_hz, residual.magnitude, "-", lw=0.8,
                     color=MODEL, label=f"|model/measured − 1|, {curve.spec}")
         ax.semilogy(residual.frequency_hz, residual.noise, "-", lw=1.0, color="grey",
                     label="local noise σ (the run's noise model)")
         ax.axhline(residual.floor, ls="--", lw=1.0, color="black",
-                   label=f"noise floor {residual.floor:.2g}")
+                   label=f"noise floor ({floors})" if index == 0 else None)
         ax.set_title(f"residual, {FRF_TITLES[residual.frf]}")
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("relative error")
         ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
+    legend_below(figure, columns=count)
     return figure
 
 
@@ -233,9 +311,9 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
     steps = analysis.ladder
     if not steps:
         return None
-    figure = Figure(figsize=(7.5, 3.6), layout=None)
+    figure = Figure(figsize=(7.5, 3.0), layout=None)
     ax = figure.subplots()
-    figure.subplots_adjust(left=0.1, right=0.98, top=0.9, bottom=0.26)
+    figure.subplots_adjust(left=0.1, right=0.98, top=0.88, bottom=0.04)
     if len(steps) > 1:
         labels = [steps[0].model] + [
             _added(steps[i - 1].model, steps[i].model) for i in range(1, len(steps))]
@@ -259,11 +337,23 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
     for i, error in enumerate(errors):
         ax.annotate(f"{error:.2g}", (i, error), textcoords="offset points", xytext=(0, 6),
                     ha="center", fontsize=7)
-    ax.set_xticks(x, labels, rotation=20, ha="right", fontsize=7)
+    # each step's label under its point, wrapped to its share of the width; a figure too
+    # narrow for the longest word of a label grows wider
+    longest = max(len(piece.strip()) for label in labels for piece in _BREAKS.split(label))
+    width_in, height_in = figure.get_size_inches()
+    room = max(width_in * (0.98 - 0.1) / len(errors),
+               longest * CHARACTER_WIDTH * SMALL_FONT / 72 + 0.1)
+    if room * len(errors) > width_in * (0.98 - 0.1):
+        figure.set_size_inches(room * len(errors) / (0.98 - 0.1), height_in)
+    labels = [wrapped(label, _characters(room - 0.08)) for label in labels]
+    ax.set_xticks(x, labels, fontsize=SMALL_FONT)
+    ax.set_xlim(-0.5, len(errors) - 0.5)
+    lines = max(label.count("\n") + 1 for label in labels)
+    _grow_below(figure, lines * LINE_HEIGHT * SMALL_FONT / 72 + 0.1)
     ax.set_ylabel("rms error")
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(fontsize=7)
+    legend_below(figure)
     return figure
 
 
@@ -308,8 +398,8 @@ def moduli_figure(rubber: str, members: list[RunAnalysis], theta_m: float | None
     for ax in (stiffness_ax, loss_ax):
         ax.set_xlabel("frequency [Hz]")
         ax.grid(True, alpha=0.3)
-    stiffness_ax.legend(fontsize=7)
     figure.suptitle(f"{rubber} rubber: estimated properties", fontsize=11)
+    legend_below(figure, columns=2)
     return figure
 
 
@@ -356,7 +446,7 @@ def preload_figure(groups: dict[str, list[RunAnalysis]]) -> Figure | None:
         ax.set_xlabel("frequency [Hz]")
         ax.grid(True, alpha=0.3)
         ax.axhline(0, color="black", lw=0.6)
-    stiffness_ax.legend(fontsize=7)
+    legend_below(figure, columns=len(pairs))
     figure.suptitle("preload effect (K* of the models shown, ± one standard uncertainty)",
                     fontsize=11)
     return figure

@@ -22,7 +22,7 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.sources import master_curve
-from viscorig.report.figures import SavedFigure, save, styled
+from viscorig.report.figures import SavedFigure, legend_below, save, styled
 from viscorig.storage import CampaignFile
 
 
@@ -98,7 +98,6 @@ def master_figure(master: MasterCurve) -> Figure:
     left.set_xlabel(f"reduced frequency f·aT [Hz] at {master.reference_temperature_c:.1f} °C")
     left.set_ylabel(f"{m}', {m}'' [Pa]")
     left.set_title("master curve")
-    left.legend(fontsize=7)
     left.grid(True, which="major", alpha=0.3)
     right.errorbar(master.temperature_c, master.log10_at, yerr=master.log10_at_stderr,
                    fmt="o", color="black", capsize=3, ms=4, label="log10 aT ± stderr")
@@ -110,8 +109,8 @@ def master_figure(master: MasterCurve) -> Figure:
     right.set_xlabel("temperature [°C]")
     right.set_ylabel("log10 aT")
     right.set_title("shift factors")
-    right.legend(fontsize=7)
     right.grid(True, alpha=0.3)
+    legend_below(figure, columns=2)
     return figure
 
 
@@ -135,7 +134,7 @@ def master_residual_figure(master: MasterCurve) -> Figure:
     ax.set_xlabel("reduced frequency f·aT [Hz]")
     ax.set_ylabel("ln(model/measured)")
     ax.set_title("Prony series residuals (bands: the data's scatter about one smooth curve)")
-    ax.legend(fontsize=7)
+    legend_below(figure, columns=2)
     return figure
 
 
