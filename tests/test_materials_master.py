@@ -16,7 +16,7 @@ import pytest
 from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.master import build_master
-from viscorig.materials.shift import estimate_shift_factors
+from viscorig.materials.shift import estimate_shift_factors, frequency_dependence
 from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
@@ -404,6 +404,24 @@ def test_sweeps_that_do_not_change_with_frequency_get_no_shift_factors(tmp_path,
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "no sweep changes with frequency" in err, err
     assert not (tmp_path / "card.mac").exists()
+
+
+def test_the_slope_test_says_when_the_sweeps_are_too_few_to_tell() -> None:
+    def table(sweeps: int, frequencies: int, noise: float) -> ModulusTable:
+        rng = np.random.default_rng(5)
+        f = np.tile(np.geomspace(1.0, 100.0, frequencies), sweeps)
+        value = np.exp(noise * rng.standard_normal((2, f.size)))
+        return ModulusTable(frequency_hz=f, storage_pa=1e6 * value[0], loss_pa=1e5 * value[1],
+                            temperature_c=np.repeat(np.arange(sweeps) * 10.0, frequencies),
+                            set_index=np.repeat(np.arange(sweeps), frequencies), source="t")
+
+    # 2 sweeps of 3 points leave 2 degrees of freedom for the scatter: not tested, not passed
+    assert frequency_dependence(table(2, 3, 0.1)) is None
+    chance, storage, loss = frequency_dependence(table(6, 8, 0.1))
+    assert 0.0 < chance <= 1.0 and 0.05 < storage < 0.2 and 0.05 < loss < 0.2
+    sloped = table(6, 8, 0.01)
+    sloped.storage_pa[:] *= sloped.frequency_hz ** 0.3
+    assert frequency_dependence(sloped)[0] < 1e-10
 
 
 def test_a_slope_the_sweeps_share_is_enough_to_shift_them(tmp_path, capsys):

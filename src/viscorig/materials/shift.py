@@ -191,17 +191,18 @@ def frequency_step(table: ModulusTable) -> float:
     return float(np.median(steps)) if steps else 0.0
 
 
-def frequency_dependence(table: ModulusTable) -> tuple[float, float, float]:
+def frequency_dependence(table: ModulusTable) -> tuple[float, float, float] | None:
     """The chance that no sweep of ``table`` changes with frequency, and the scatter about each
-    sweep's own straight line of ``ln E'`` and of ``ln E''`` over ``log10 f``.
+    sweep's own straight line of ``ln E'`` and of ``ln E''`` over ``log10 f``; ``None`` when
+    the sweeps are too few to tell.
 
     Each sweep's slope is tested against zero with the scatter pooled over the sweeps (an F
     test over both moduli). A shift moves a sweep along the frequency axis: where no sweep
     changes along it beyond its scatter, the criterion of :func:`estimate_shift_factors` is
     flat in every shift, and the shifts it finds follow the noise with standard errors that do
     not say so (a spline drawn through pure noise has slopes of its own). Sweeps leaving fewer
-    than :data:`SLOPE_TEST_DOF` degrees of freedom for the scatter are too few to tell: the
-    chance is 0 then.
+    than :data:`SLOPE_TEST_DOF` degrees of freedom for the scatter, or none with two
+    frequencies, are too few to tell.
     """
     _, member = np.unique(table.set_index, return_inverse=True)
     x = np.log10(table.frequency_hz)
@@ -215,7 +216,7 @@ def frequency_dependence(table: ModulusTable) -> tuple[float, float, float]:
     sloped = sxx > 1e-12 * np.maximum(count, 1.0)
     dof = x.size - count.size - int(sloped.sum())
     if dof < SLOPE_TEST_DOF or not sloped.any():
-        return 0.0, 0.0, 0.0
+        return None
     statistic, scatter = 0.0, []
     for y in (np.log(table.storage_pa), np.log(table.loss_pa)):
         dy = y - (total(y) / count)[member]
@@ -372,8 +373,9 @@ def estimate_shift_factors(
         bad = float(temperatures[int(np.argmin(counts))])
         raise InputError(f"the sweep at {bad:.1f} °C has a single point; a set needs two or "
                          "more frequencies", where)
-    chance, storage_scatter, loss_scatter = frequency_dependence(table)
-    if chance > SLOPE_SIGNIFICANCE:
+    tested = frequency_dependence(table)
+    if tested is not None and tested[0] > SLOPE_SIGNIFICANCE:
+        chance, storage_scatter, loss_scatter = tested
         raise InputError(
             "no sweep changes with frequency beyond its scatter (rms "
             f"{storage_scatter:.2g} of ln E', {loss_scatter:.2g} of ln E'' about each sweep's "
