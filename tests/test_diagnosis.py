@@ -539,3 +539,19 @@ def test_example_sequence_measures_the_runs_diagnosis_asks_for() -> None:
     soft = {step.run: step for step in sequence.sweeps if step.specimen == "soft"}
     assert soft["soft-0-level2"].level_m_per_s2 == 2 * soft["soft-0"].level_m_per_s2
     assert soft["soft-0-down"].direction == "down" and soft["soft-0"].direction == "up"
+
+
+@pytest.mark.parametrize(("stiffness_error", "expected"), [
+    (4.1e-5 + 0j, "model stiffness too high (by 0.0041 % of |K*| near 20.0 Hz)"),
+    (-2.5e-3j, "model damping too low (by 0.25 % of |K*| near 20.0 Hz)"),
+    (-0.123 + 0j, "model stiffness too low (by 12 % of |K*| near 20.0 Hz)"),
+])
+def test_a_failing_band_says_its_size_to_two_significant_digits(stiffness_error, expected):
+    # a model near the noise floor fails by thousandths of a per cent: one decimal wrote 0.0 %
+    from viscorig.diagnosis.residuals import FrfResidual, _describe
+
+    f = np.linspace(20.0, 60.0, 41)
+    error = np.full(f.size, 1e-5 + 0j)
+    residual = FrfResidual("r", "support", f, error, np.zeros(f.size), np.zeros(f.size),
+                           np.ones(f.size), np.full(f.size, stiffness_error))
+    assert _describe(residual, slice(0, f.size)) == expected

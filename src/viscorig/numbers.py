@@ -12,7 +12,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-__all__ = ["Estimate", "with_uncertainty"]
+import numpy as np
+
+__all__ = ["Estimate", "significant", "with_uncertainty"]
 
 
 class Estimate(NamedTuple):
@@ -89,3 +91,19 @@ def with_uncertainty(value: float, stderr: float, unit: str = "", *, signed: boo
         return f"{round(v, decimals):{sign}.0f} ± {round(e, decimals):.0f}{shown_unit}"
     decimals = min(decimals, _MAX_DECIMALS)
     return f"{v:{sign}.{decimals}f} ± {e:.{decimals}f}{shown_unit}"
+
+
+def significant(value: float, digits: int = 2) -> str:
+    """``value`` to ``digits`` significant digits, written out without a power of ten: a size in
+    words (``0.0041``, ``1.2``, ``150``), where a fixed number of decimals writes a small one as
+    ``0.0``.
+
+    Examples
+    --------
+    >>> significant(0.004123), significant(12.34), significant(-0.5)
+    ('0.0041', '12', '-0.5')
+    """
+    if not math.isfinite(value):
+        return "–"
+    return str(np.format_float_positional(value, precision=digits, unique=False,
+                                          fractional=False, trim="-"))

@@ -24,6 +24,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
 from viscorig.fitting import FitResult
 from viscorig.models.effects import edge_held_median
+from viscorig.numbers import significant
 
 #: Smoothed whitened residual power above which a point belongs to a failure band.
 FAILURE_LEVEL = 6.0
@@ -142,7 +143,7 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     ):
         return (
             f"a narrow peak at {f[peak]:.1f} Hz not in the model "
-            f"({excess[peak] * 100:.1f} % of |K*|)"
+            f"({significant(100 * excess[peak])} % of |K*|)"
         )
     phase = np.unwrap(np.angle(ratio))
     magnitude = np.log(np.abs(ratio))
@@ -154,9 +155,11 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     k = mean if abs(mean) > 0.3 * size[worst] else dz[worst]
     if abs(k.real) >= abs(k.imag):
         sense = "high" if k.real > 0 else "low"
-        return f"model stiffness too {sense} (by {abs(k.real) * 100:.1f} % of |K*| near {where})"
+        return (f"model stiffness too {sense} (by {significant(100 * abs(k.real))} % of |K*| "
+                f"near {where})")
     sense = "high" if k.imag > 0 else "low"
-    return f"model damping too {sense} (by {abs(k.imag) * 100:.1f} % of |K*| near {where})"
+    return (f"model damping too {sense} (by {significant(100 * abs(k.imag))} % of |K*| "
+            f"near {where})")
 
 
 def coherence(residual: FrfResidual, part: slice) -> tuple[float, int]:

@@ -51,7 +51,7 @@ from viscorig.fitting.jacobian import predict_many
 from viscorig.models import TERMS, Fixture, Frame, Model
 from viscorig.models.effects import compliance_estimate
 from viscorig.models.sensors import force_channel, response_channel
-from viscorig.numbers import with_uncertainty
+from viscorig.numbers import significant, with_uncertainty
 
 #: Most local modes tried per diagnosis step.
 MAX_FIXTURES = 3
@@ -163,7 +163,8 @@ def screen_load_cell(current: Likelihood, data: DiagnosisData, alpha: float) -> 
     start = {"K_c": 1.0 / compliance} if compliance > 0 else {}
     stiffness = f"K_c ≈ {1.0 / compliance:.3g} N/m" if compliance > 0 else "no finite K_c"
     evidence = (
-        f"the table FRF (Eq. 4) sees a K* {abs(gap):.1f} % {'softer' if gap < 0 else 'stiffer'}"
+        f"the table FRF (Eq. 4) sees a K* {significant(abs(gap))} % "
+        f"{'softer' if gap < 0 else 'stiffer'}"
         f" than the support FRF (Eq. 5) does ({stiffness})"
     )
     return Candidate("load_cell_compliance", "load_cell", evidence, threshold(1, alpha), start)
