@@ -395,3 +395,35 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text() -> None
     assert len(shown) == len(expected) == 4
     assert shown == ["2×10⁻¹", "3×10⁻¹", "4×10⁻¹", "6×10⁻¹"] and "10⁻¹" in majors
     assert not any("$" in label for label in shown + majors)
+
+
+def test_specimen_names_from_the_file_stay_text_and_inside_the_report(tmp_path: Path):
+    # a name holding '/' stopped the report (and '..' pointed its figure outside the folder);
+    # one holding $...$ was parsed as mathtext and stopped it with a traceback
+    from viscorig.storage import RunSettings, Segment
+
+    f = np.linspace(20.0, 120.0, 41)
+    segment = Segment(frequency_hz=f, time_s=np.arange(f.size) * 2.0,
+                      accelerance_table=np.full(f.size, 0.1 + 0.01j),
+                      accelerance_support=np.full(f.size, 0.1 + 0.01j),
+                      reference_amplitude=np.ones(f.size), source_amplitude=np.full(f.size, 0.1),
+                      force_amplitude=np.full(f.size, 10.0), flags=np.zeros(f.size, np.uint16))
+    names = ["soft/25 $\\frac{$", "soft_25 $\\frac{$", "../../../x", "a" * 200]
+    path = tmp_path / "odd.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        for index, name in enumerate(names):
+            for preload in (0.0, 0.1):
+                settings = RunSettings(specimen=name, level_m_per_s2=1.0, direction="up",
+                                       settle_cycles=100, integrate_cycles=100,
+                                       resolution_hz=2.5, preload_strain=preload, simulated=True)
+                campaign.add_run(f"r{index}-{preload:g}", settings, segment)
+    out = tmp_path / "deep" / "report"
+    assert main(["report", str(path), "--out", str(out), "--no-diagnosis"]) == 0
+    written = sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*")
+                     if p.is_file() and p != path)
+    assert all(name.startswith("deep/report/") and name.count("/") == 2 for name in written)
+    moduli = [name for name in written if "/moduli-" in name]
+    assert len(moduli) == len(names)  # one figure per specimen, none overwriting another
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert page.count('src="data:image/png;base64,') == len(written) - 1  # every figure shown
+    assert html.escape("soft/25 $\\frac{$") in page

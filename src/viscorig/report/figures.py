@@ -6,6 +6,7 @@ the figure by another renderer: it costs about two thirds of the PNG's time agai
 from __future__ import annotations
 
 import functools
+import hashlib
 import io
 import re
 from collections.abc import Callable
@@ -48,18 +49,54 @@ _R = TypeVar("_R")
 def styled(builder: Callable[_P, _R]) -> Callable[_P, _R]:
     """``builder`` (a function making a figure) run with the report's matplotlib settings.
 
-    Titles sit at the top of their axes (``axes.titley`` set, not left to matplotlib's
-    automatic placement): no figure of the report puts ticks or labels above an axes, and the
-    automatic placement measured every y tick label again for each title, about a tenth of
-    drawing the report's figures (the pixels are the same).
+    - Titles sit at the top of their axes (``axes.titley`` set, not left to matplotlib's
+      automatic placement): no figure of the report puts ticks or labels above an axes, and the
+      automatic placement measured every y tick label again for each title, about a tenth of
+      drawing the report's figures (the pixels are the same).
+    - Titles, axis labels, legends and notes are text, not mathtext (:func:`_as_text`).
     """
 
     @functools.wraps(builder)
     def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         with matplotlib.rc_context({"axes.titley": 1.0}):
-            return builder(*args, **kwargs)
+            figure = builder(*args, **kwargs)
+        if isinstance(figure, Figure):
+            _as_text(figure)
+        return figure
 
     return wrapper
+
+
+#: A name written into a figure's file name as it is: a plain file name of at most 64 characters.
+_PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
+
+
+def figure_stem(kind: str, name: str) -> str:
+    """The file stem of the figure ``kind`` (``frf``, ``moduli``...) of ``name`` (a run, a
+    specimen, a group of runs): ``kind-name`` where the name is a plain file name; else its
+    letters and digits with a digest of the whole name, so that a specimen named in a file
+    (``soft/25``, ``../x``) writes no figure outside the report's folder and two names never
+    share one file."""
+    if _PLAIN_NAME.fullmatch(name):
+        return f"{kind}-{name}"
+    plain = re.sub(r"[^A-Za-z0-9_+-]+", "_", name).strip("_")[:40]
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:10]
+    return f"{kind}-{plain}-{digest}" if plain else f"{kind}-{digest}"
+
+
+def _as_text(figure: Figure) -> None:
+    """Draw the figure's titles, axis labels, legends and notes as they read, never as
+    matplotlib's mathtext: a specimen's name or a run's status comes from the file, and one
+    holding ``$...$`` stopped the report on anything mathtext cannot parse. Tick labels keep
+    mathtext: their formatters write it (and :func:`_log_axes` rewrites it as plain text)."""
+    texts = list(figure.texts)
+    for legend in [*figure.legends, *(ax.get_legend() for ax in figure.axes)]:
+        if legend is not None:
+            texts += legend.get_texts()
+    for ax in figure.axes:
+        texts += [ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts]
+    for text in texts:
+        text.set_parse_math(False)
 
 
 @dataclass(frozen=True)
@@ -468,20 +505,21 @@ def _run_figures(run: RunAnalysis, folder: Path | None, svg: bool) -> dict[str, 
     saved: dict[str, SavedFigure] = {}
     if not run.run.points:
         return saved
-    saved[f"frf-{run.name}"] = save(
-        frf_figure(run), folder, f"frf-{run.name}",
+    stems = {kind: figure_stem(kind, run.name) for kind in ("frf", "residual", "ladder")}
+    saved[stems["frf"]] = save(
+        frf_figure(run), folder, stems["frf"],
         f"Run {run.name}: measured FRFs and the model shown; shaded: bands where that "
         "model still fails (diagnosis); crosses: flagged points.", svg=svg)
     residual = residual_figure(run)
     if residual is not None:
-        saved[f"residual-{run.name}"] = save(
-            residual, folder, f"residual-{run.name}",
+        saved[stems["residual"]] = save(
+            residual, folder, stems["residual"],
             f"Run {run.name}: relative residual of the model shown, with the local noise "
             "estimated from the data and the noise floor.", svg=svg)
     ladder = ladder_figure(run)
     if ladder is not None:
-        saved[f"ladder-{run.name}"] = save(
-            ladder, folder, f"ladder-{run.name}",
+        saved[stems["ladder"]] = save(
+            ladder, folder, stems["ladder"],
             f"Run {run.name}: diagnosis ladder, rms error as the most significant missing "
             "effect is added, step by step (or, without the ladder, each candidate alone).",
             svg=svg)
@@ -501,8 +539,9 @@ def campaign_figures(analysis: CampaignAnalysis, folder: Path | None,
         saved.update(figures)
     groups = rubbers(analysis)
     for name, members in groups.items():
-        saved[f"moduli-{name}"] = save(
-            moduli_figure(name, members, analysis.theta_m), folder, f"moduli-{name}",
+        stem = figure_stem("moduli", name)
+        saved[stem] = save(
+            moduli_figure(name, members, analysis.theta_m), folder, stem,
             f"{name}: storage {'modulus' if analysis.theta_m else 'stiffness'} and loss factor "
             "against frequency, Eq. (5) estimates (points) and the K* of the models shown "
             "(lines).", svg=svg)

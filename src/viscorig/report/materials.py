@@ -22,7 +22,7 @@ from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.sources import master_curve
-from viscorig.report.figures import SavedFigure, legend_below, save, styled
+from viscorig.report.figures import SavedFigure, figure_stem, legend_below, save, styled
 from viscorig.storage import CampaignFile
 
 
@@ -145,7 +145,7 @@ def material_figures(materials: list[Material], folder: Path | None, svg: bool =
     for material in materials:
         if material.master is None:
             continue
-        stem = "material-" + "-".join(material.runs)[:60]
+        stem = figure_stem("material", "-".join(material.runs))
         figures[f"{stem}-master"] = save(master_figure(material.master), folder,
                                          f"{stem}-master", "Master curve and shift factors.",
                                          svg=svg)
@@ -190,7 +190,7 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
                      f"{master.fractional_fit.storage_rms_log_error:.3f}, "
                      f"{master.fractional_fit.loss_rms_log_error:.3f}.")
         parts.append("<p>" + html.escape(" ".join(words)) + "</p>")
-        stem = "material-" + "-".join(material.runs)[:60]
+        stem = figure_stem("material", "-".join(material.runs))
         parts.append(figure_html(figures.get(f"{stem}-master")))
         parts.append(figure_html(figures.get(f"{stem}-residuals")))
     return "\n".join(parts)

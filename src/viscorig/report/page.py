@@ -32,7 +32,7 @@ from viscorig.report.analysis import (
     preload_pairs,
     rubbers,
 )
-from viscorig.report.figures import SavedFigure
+from viscorig.report.figures import SavedFigure, figure_stem
 from viscorig.report.headline import FRF_WORDS, headline
 from viscorig.report.words import error_words, evidence_words
 from viscorig.storage import FLAG_NAMES, count_flags
@@ -412,7 +412,7 @@ def diagnosis_section(run: RunAnalysis, figures: dict[str, SavedFigure]) -> str:
     if not climb.climbed:
         parts.append("<p>The ladder was not climbed (<code>--no-ladder</code>): the model "
                      "shown is the one diagnosed.</p>")
-    parts.append(_figure(figures.get(f"ladder-{run.name}")))
+    parts.append(_figure(figures.get(figure_stem("ladder", run.name))))
     if climb.candidates:
         words, numbers = _candidate_rows(climb.candidates[:8])
         parts.append(f"<h3>Candidate effects on {_e(climb.rungs[0].model)}</h3>")
@@ -451,8 +451,8 @@ def run_section(run: RunAnalysis, figures: dict[str, SavedFigure]) -> str:
     if run.shown is not None:
         parts.append("<details><summary>every parameter of the model shown</summary>"
                      + parameter_table(run) + "</details>")
-    parts.append(_figure(figures.get(f"frf-{run.name}")))
-    parts.append(_figure(figures.get(f"residual-{run.name}")))
+    parts.append(_figure(figures.get(figure_stem("frf", run.name))))
+    parts.append(_figure(figures.get(figure_stem("residual", run.name))))
     parts.append(diagnosis_section(run, figures))
     return "\n".join(part for part in parts if part)
 
@@ -482,7 +482,7 @@ def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], titl
              "θ unknown: /rig gives neither specimen_diameter_m nor geometry_factor_m (the "
              "paper gives h = 12 mm and no d), so the storage stiffness K' = θE' is shown "
              "instead of E'; η does not depend on θ")
-    moduli = [_figure(figures.get(f"moduli-{name}")) for name in rubbers(analysis)]
+    moduli = [_figure(figures.get(figure_stem("moduli", name))) for name in rubbers(analysis)]
     runs_shown = len(analysis.runs)
     band = f"{analysis.band_hz[0]:g}–{analysis.band_hz[1]:g} Hz"
     parts = [
