@@ -29,6 +29,7 @@ READERS = {
     "diagnose": ["--run", "soft-0"],
     "identify": ["--run", "soft-0", "--no-store"],
     "export": ["--run", "soft-0", "--format", "csv", "--out", "{out}"],
+    "report": ["--no-diagnosis", "--out", "{out}"],
 }
 #: The bound asserted on a reading command's peak resident memory, whatever the file declares.
 MEMORY_BOUND_MB = 500
@@ -117,3 +118,27 @@ def test_escape_sequences_never_reach_the_terminal(good: Path, tmp_path: Path) -
         assert fit.model == "voigt[2J]0;owned31m"
         assert fit.parameters["K_v"].unit == "N/m[2J]0;owned31m"
         assert campaign.setup_files["sequence_file"] == "paper[2J]0;owned31m.toml"
+
+
+def test_a_refused_report_leaves_the_last_one_as_it_was(good: Path, tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    status, _, err = cli(["report", good, "--no-diagnosis", "--out", out])
+    assert status == 0, err
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert "index.html" in before and any(name.endswith(".png") for name in before)
+    for name in ("text for numbers", "compound with text"):  # refused once the runs are read
+        path, words = hostile(good, tmp_path, hostilefiles.REFUSED[name])
+        status, _, err = cli(["report", path, "--no-diagnosis", "--out", out])
+        assert status == 2 and words in one_clear_line(err), err
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_a_report_that_cannot_replace_a_figure_says_so_in_one_line(good: Path,
+                                                                     tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    (out / "frf-soft-0.png").mkdir(parents=True)  # a folder where a figure goes
+    status, _, err = cli(["report", good, "--no-diagnosis", "--out", out])
+    assert status == 2 and "cannot write the report" in one_clear_line(err), err
+    assert not (out / "index.html").exists()  # the page goes last: none beside half a report
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []

@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import shutil
+import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -48,27 +53,62 @@ def build_report(
     materials = analyse_materials(campaign)
     if not campaign.run_names and not materials:
         raise InputError("has no run to report", str(campaign_path))
+    _check_writable(out_dir)
+    title = f"viscorig report: {Path(campaign_path).name}"
+    analysis = None
+    jobs = default_jobs() if jobs is None else max(1, jobs)
+    if campaign.run_names:
+        with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
+            analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder,
+                                        jobs=jobs, scheduler=scheduler)
+        _log.info("analysis: %.1f s (diagnosis %.1f s over %d process(es))", analysis.seconds,
+                  analysis.diagnosis_seconds, analysis.jobs)
+    with _staged(out_dir) as staging:
+        section = material_section(materials, material_figures(materials, staging, svg),
+                                   figure_html)
+        if analysis is None:
+            text = materials_page(title, section, str(campaign_path))
+        else:
+            started = time.perf_counter()
+            figures = campaign_figures(analysis, staging, jobs, svg)
+            _log.info("%d figures (%s): %.1f s", len(figures), "PNG and SVG" if svg else "PNG",
+                      time.perf_counter() - started)
+            text = build_page(analysis, figures, title, section)
+        (staging / PAGE_NAME).write_text(text, encoding="utf-8")
+    return out_dir / PAGE_NAME
+
+
+def _check_writable(out_dir: Path) -> None:
+    """Refuse, before the analysis, a report folder that cannot be made or written."""
+    existing = next(p for p in (out_dir, *out_dir.parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"cannot create the report folder ({existing} is a file)",
+                         str(out_dir))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"cannot create the report folder ({existing} is not writable)",
+                         str(out_dir))
+
+
+@contextlib.contextmanager
+def _staged(out_dir: Path) -> Iterator[Path]:
+    """A hidden folder beside ``out_dir`` to write the report into; its files replace those of
+    ``out_dir`` (made if missing), the page last, only when everything was written. A report
+    stopped half way (a run the file refuses, a full disk) leaves ``out_dir`` as it was, not
+    an old page beside new figures."""
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-", dir=out_dir.parent))
     except OSError as error:
         raise InputError(f"cannot create the report folder ({error.strerror})",
                          str(out_dir)) from None
-    section = material_section(materials, material_figures(materials, out_dir, svg), figure_html)
-    title = f"viscorig report: {Path(campaign_path).name}"
-    if not campaign.run_names:
-        page = out_dir / PAGE_NAME
-        page.write_text(materials_page(title, section, str(campaign_path)), encoding="utf-8")
-        return page
-    jobs = default_jobs() if jobs is None else max(1, jobs)
-    with np.errstate(all="ignore"):  # trial fits at a bound warn; their results are checked
-        analysis = analyse_campaign(campaign, band_hz, diagnosis=diagnosis, ladder=ladder,
-                                    jobs=jobs, scheduler=scheduler)
-    _log.info("analysis: %.1f s (diagnosis %.1f s over %d process(es))", analysis.seconds,
-              analysis.diagnosis_seconds, analysis.jobs)
-    started = time.perf_counter()
-    figures = campaign_figures(analysis, out_dir, jobs, svg)
-    _log.info("%d figures (%s): %.1f s", len(figures), "PNG and SVG" if svg else "PNG",
-              time.perf_counter() - started)
-    page = out_dir / PAGE_NAME
-    page.write_text(build_page(analysis, figures, title, section), encoding="utf-8")
-    return page
+    try:
+        yield staging
+        try:
+            out_dir.mkdir(exist_ok=True)
+            for item in sorted(staging.iterdir(), key=lambda path: path.name == PAGE_NAME):
+                os.replace(item, out_dir / item.name)
+        except OSError as error:
+            raise InputError(f"cannot write the report ({error.strerror})",
+                             str(out_dir)) from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
