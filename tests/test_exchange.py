@@ -267,3 +267,16 @@ def test_export_of_a_missing_run_is_one_line_and_writes_nothing(campaign_file, t
                  "--out", str(out)]) == 2
     assert "no such run" in capsys.readouterr().err
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(("out", "words"), [
+    ("folder", "a folder has this name: "), ("missing/x.csv", "folder does not exist: "),
+])
+def test_an_export_that_cannot_be_written_says_why_once(campaign_file, tmp_path, capsys, out,
+                                                        words):
+    (tmp_path / "folder").mkdir()
+    assert main(["export", str(campaign_file), "--run", "soft-0", "--format", "csv",
+                 "--out", str(tmp_path / out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "cannot write (" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder"]

@@ -118,6 +118,7 @@ def test_a_write_past_the_file_size_limit_is_an_error_not_a_crash(tmp_path: Path
     (errno.ENOSPC, "disk full: "), (errno.EDQUOT, "disk quota exceeded on /"),
     (errno.EFBIG, "file "), (errno.EROFS, "read-only file system: /"),
     (errno.EACCES, "permission denied: cannot write in"),
+    (errno.EISDIR, "a folder has this name: "), (errno.EIO, "cannot write (x)"),
 ])
 def test_each_write_failure_is_named(tmp_path: Path, number: int, words: str) -> None:
     error = room.write_failure(OSError(number, "x"), tmp_path / "c.h5")

@@ -29,11 +29,11 @@ def _create(path: Path) -> tuple[int, Path]:
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
         return os.open(temporary, flags, 0o666), temporary
     except OSError as error:
-        raise InputError(f"cannot write here ({cause(error, path)})", str(path)) from None
+        raise InputError(cause(error, path), str(path)) from None
 
 
 def _failed(error: OSError, path: Path) -> InputError:
-    return InputError(f"cannot write ({cause(error, path)})", str(path))
+    return InputError(cause(error, path), str(path))
 
 
 def replace_atomically(path: Path, write: Callable[[IO[Any]], object], *, text: bool) -> None:

@@ -129,6 +129,8 @@ def cause(error: OSError, path: Path) -> str:
         return f"permission denied: cannot write in {folder}"
     if number == errno.ENOENT:
         return f"folder does not exist: {folder}"
+    if number == errno.EISDIR:
+        return f"a folder has this name: {path}"
     return f"cannot write ({error.strerror or type(error).__name__})"
 
 
