@@ -108,6 +108,7 @@ def change(doc: dict, path: str, value: object) -> dict:
         ("steps.4.level", "900 m/s^2", "steps[4].level", "beyond any shaker"),
         ("steps.4.run", "table", "steps[4].run", "duplicate run name 'table' (also steps[1])"),
         ("steps.4.run", "soft/0", "steps[4].run", "letters, digits"),
+        ("steps.4.run", "soft-0\n", "steps[4].run", "letters, digits"),  # '$' before a newline
         ("steps.4.colour", "red", "steps[4].colour", "unknown key"),
         ("steps.0.level", "1 g", "steps[0].level", "unknown key"),
         ("steps.4.type", "dance", "steps[4].type", "not one of prompt, wait, sweep"),

@@ -384,3 +384,11 @@ def test_missing_file_and_folder_are_input_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="unknown /rig attribute 'mass'"):
         CampaignFile.create(tmp_path / "c.h5", sequence_text="", rig={"mass": 3.4})
     assert not (tmp_path / "c.h5").exists()
+
+
+@pytest.mark.parametrize("name", ["soft-0\n", "soft-0\r", "", "-x", "a/b", "x" * 65])
+def test_a_name_is_refused_unless_it_is_plain_to_its_end(name: str) -> None:
+    from viscorig.storage.campaign import check_name
+
+    with pytest.raises(InputError, match="not a valid name"):
+        check_name(name, "run name")

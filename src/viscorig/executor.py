@@ -49,7 +49,7 @@ def default_jobs() -> int:
 
 def check_scheduler(address: str) -> str:
     """``address`` if it reads as ``tcp://HOST:PORT``; else :class:`InputError`."""
-    match = SCHEDULER_PATTERN.match(address.strip())
+    match = SCHEDULER_PATTERN.fullmatch(address.strip())
     if match is None or not 0 < int(match.group(3)) < 65536:
         raise InputError(f"'{address}' is not a scheduler address tcp://HOST:PORT", "--scheduler")
     return address.strip()

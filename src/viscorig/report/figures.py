@@ -32,6 +32,7 @@ from viscorig.report.analysis import (
 )
 from viscorig.report.parallel import parallel_map
 from viscorig.storage import INPUT_OVERLOAD, RunRecord
+from viscorig.storage.layout import NAME
 
 FRF_TITLES = {"table": "ẍ_s/F_e (table)", "support": "ẍ_v/F_v (disc)"}
 FRF_SHORT = {"table": "table", "support": "disc"}
@@ -67,17 +68,14 @@ def styled(builder: Callable[_P, _R]) -> Callable[_P, _R]:
     return wrapper
 
 
-#: A name written into a figure's file name as it is: a plain file name of at most 64 characters.
-_PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
-
-
 def figure_stem(kind: str, name: str) -> str:
     """The file stem of the figure ``kind`` (``frf``, ``moduli``...) of ``name`` (a run, a
-    specimen, a group of runs): ``kind-name`` where the name is a plain file name; else its
+    specimen, a group of runs): ``kind-name`` where the name is a plain file name (as a run's
+    name is, :data:`viscorig.storage.layout.NAME`); else its
     letters and digits with a digest of the whole name, so that a specimen named in a file
     (``soft/25``, ``../x``) writes no figure outside the report's folder and two names never
     share one file."""
-    if _PLAIN_NAME.fullmatch(name):
+    if NAME.fullmatch(name):
         return f"{kind}-{name}"
     plain = re.sub(r"[^A-Za-z0-9_+-]+", "_", name).strip("_")[:40]
     digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:10]

@@ -75,7 +75,7 @@ def effect_phrases(effects: Sequence[tuple[str, str]], values: dict[str, float])
     unplaced_fixture = False
     seen: set[str] = set()
     for effect, term in effects:
-        match = _FIXTURE.match(term)
+        match = _FIXTURE.fullmatch(term)
         if effect == "fixture_resonance" or match:
             if match:
                 fixtures.append(float(match.group(1)))

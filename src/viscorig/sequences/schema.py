@@ -143,7 +143,7 @@ class Field:
 
     def _name(self, value: object) -> str:
         text = self._text(value)
-        if self.pattern is not None and not self.pattern.match(text):
+        if self.pattern is not None and not self.pattern.fullmatch(text):
             raise FieldError(f"{text!r} is not {self.rule}")
         return text
 

@@ -247,7 +247,7 @@ def _check_chamber(problems: Problems, chamber: ReadTable | None) -> None:
     if chamber is None or not chamber.ok:
         return
     values = chamber.values
-    if not CHAMBER_ADDRESS.match(values["address"]):
+    if not CHAMBER_ADDRESS.fullmatch(values["address"]):
         problems.add(("chamber", "address"), f"{values['address']!r} is neither "
                      "tcp://HOST:PORT nor a serial port", 'e.g. address = "/dev/ttyUSB1"')
     low, high = values["low_limit_c"], values["high_limit_c"]

@@ -87,7 +87,7 @@ def utc_now() -> str:
 
 def check_name(name: str, what: str) -> str:
     """A run or parameter name usable as an HDF5 object name."""
-    if not isinstance(name, str) or not layout.NAME.match(name):
+    if not isinstance(name, str) or not layout.NAME.fullmatch(name):
         raise InputError(f"{name!r} is not a valid name ({layout.NAME_RULE})", what)
     return name
 

@@ -70,7 +70,7 @@ def check_link(group: h5py.Group, name: str, path: Path) -> None:
 
 def check_stored_name(name: str, path: Path, parent: str, what: str) -> None:
     """Refuse a run, dataset or parameter name outside the naming rule."""
-    if not layout.NAME.match(name):
+    if not layout.NAME.fullmatch(name):
         raise InputError(f"{what} name {_shown(name)!r} is not valid ({layout.NAME_RULE})",
                          f"{path}: {parent}")
 
