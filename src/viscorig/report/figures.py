@@ -376,10 +376,10 @@ def ladder_figure(analysis: RunAnalysis) -> Figure | None:
     # narrow for the longest word of a label grows wider
     longest = max(len(piece.strip()) for label in labels for piece in _BREAKS.split(label))
     width_in, height_in = figure.get_size_inches()
-    room = max(width_in * (0.98 - 0.1) / len(errors),
-               longest * CHARACTER_WIDTH * SMALL_FONT / 72 + 0.1)
-    if room * len(errors) > width_in * (0.98 - 0.1):
-        figure.set_size_inches(room * len(errors) / (0.98 - 0.1), height_in)
+    span = figure.subplotpars.right - figure.subplotpars.left
+    room = max(width_in * span / len(errors), longest * CHARACTER_WIDTH * SMALL_FONT / 72 + 0.1)
+    if room * len(errors) > width_in * span:
+        figure.set_size_inches(room * len(errors) / span, height_in)
     labels = [wrapped(label, _characters(room - 0.08)) for label in labels]
     ax.set_xticks(x, labels, fontsize=SMALL_FONT)
     ax.set_xlim(-0.5, len(errors) - 0.5)
