@@ -427,3 +427,18 @@ def test_specimen_names_from_the_file_stay_text_and_inside_the_report(tmp_path: 
     page = (out / "index.html").read_text(encoding="utf-8")
     assert page.count('src="data:image/png;base64,') == len(written) - 1  # every figure shown
     assert html.escape("soft/25 $\\frac{$") in page
+
+
+def test_a_band_that_misses_the_runs_is_said_and_the_table_stays_known(campaign_file: Path,
+                                                                        tmp_path: Path):
+    # Table 1 refuses a band holding no point of a specimen run; that used to make the table's
+    # M_s, K_s, C_s "unknown (no bare-table run)" for every diagnosis, with a bare table there,
+    # and the runs were drawn over their own band without a word
+    out = tmp_path / "report"
+    assert main(["report", str(campaign_file), "--band", "0:1", "--no-ladder",
+                 "--out", str(out)]) == 0
+    page = html.unescape((out / "index.html").read_text(encoding="utf-8"))
+    assert "Table 1 and 2 not computed: run 'soft-0', band 0:1 Hz: 0 points" in page
+    assert "M_s, K_s, C_s are unknown" not in page
+    assert page.count("the band 0–1 Hz holds none of its points: shown and diagnosed over its "
+                      "own 20–120 Hz") == 2  # soft-0 and soft-10; the bare table has its own

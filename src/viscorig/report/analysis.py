@@ -44,6 +44,7 @@ from viscorig.identify import (
     read_fit,
     run_data,
     summarize,
+    table_parameters,
 )
 from viscorig.identify import (
     preload_pairs as pair_preloaded,
@@ -388,8 +389,12 @@ def analyse_campaign(
     try:
         table, summaries = summarize(campaign, band_hz)
     except InputError as error:
-        table, summaries = None, []
+        summaries = []
         notes.append(f"Table 1 and 2 not computed: {error}")
+        try:  # one specimen run the tables refuse does not make the table's values unknown
+            table = table_parameters(campaign)
+        except InputError:
+            table = None
     by_name = {summary.run: summary for summary in summaries}
     use_diagnosis = diagnosis and _diagnosis is not None
     analyses: list[RunAnalysis] = []
@@ -397,6 +402,11 @@ def analyse_campaign(
     for run in runs:
         analysis = RunAnalysis(run, is_bare_table(run), _run_band(run, band_hz),
                                summary=by_name.get(run.name))
+        if run.points and not analysis.bare and not (
+                max(band_hz[0], run.frequency_hz.min()) < min(band_hz[1], run.frequency_hz.max())):
+            lo, hi = analysis.band_hz
+            analysis.notes.append(f"the band {band_hz[0]:g}–{band_hz[1]:g} Hz holds none of its "
+                                  f"points: shown and diagnosed over its own {lo:g}–{hi:g} Hz")
         analyses.append(analysis)
         spec = _first_look(campaign, analysis, table, use_diagnosis)
         if spec is not None:
