@@ -442,3 +442,24 @@ def test_a_band_that_misses_the_runs_is_said_and_the_table_stays_known(campaign_
     assert "M_s, K_s, C_s are unknown" not in page
     assert page.count("the band 0–1 Hz holds none of its points: shown and diagnosed over its "
                       "own 20–120 Hz") == 2  # soft-0 and soft-10; the bare table has its own
+
+
+@pytest.mark.parametrize("command", [
+    ["identify", "--run", "soft-0", "--no-store"], ["summary"],
+    ["diagnose", "--run", "soft-0", "--auto"], ["report", "--no-ladder"],
+])
+def test_a_band_of_nine_points_is_refused_in_one_line_or_said(campaign_file: Path,
+                                                               tmp_path: Path, capsys, command):
+    # a fit takes 8 points and estimated its noise from them, which takes 10: with 8 or 9
+    # points in the band, identify, summary, diagnose and report stopped with a traceback
+    name, *options = command
+    out = ["--out", str(tmp_path / "report")] if name == "report" else []
+    status = main([name, str(campaign_file), *options, "--band", "20:22", *out])
+    err = capsys.readouterr().err
+    if name == "report":  # the report goes on, and says why there are no tables
+        assert status == 0, err
+        page = html.unescape((tmp_path / "report" / "index.html").read_text(encoding="utf-8"))
+        assert "band 20:22 Hz: 9 points, a fit needs at least 10" in page
+    else:
+        assert status == 2 and err.count("\n") == 1, err
+        assert "band 20:22 Hz: 9 points, a fit needs at least 10" in err, err

@@ -351,7 +351,7 @@ def combine(
     segments, noises = [], []
     start = 0
     for name, data in pieces:
-        data.checked(frfs, None)
+        data.checked(frfs, band_hz)
         n = data.frequency_hz.size
         segments.append(RunSlice(name, slice(start, start + n), _level(data), _direction(
             data.frequency_hz)))

@@ -12,8 +12,9 @@ from viscorig.errors import InputError
 from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.models import FRF_NAMES, Context
 
-#: Fewest frequency points a fit accepts in its band.
-MIN_POINTS = 8
+#: Fewest frequency points a fit accepts in its band: a fit estimates its noise model from its
+#: own points (:mod:`viscorig.fitting.noise_estimation`), which takes this many.
+MIN_POINTS = 10
 #: An FRF value this many times above or below the band's median magnitude is no measurement:
 #: the analyser's dynamic range is about 90 dB (3e4), a rig's FRF over a band a few decades.
 ABSURD_RATIO = 1e8

@@ -77,6 +77,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import median_filter
 
 from viscorig.analyser import FREQUENCY_STEP_HZ
+from viscorig.fitting.data import MIN_POINTS
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 
 #: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
@@ -417,8 +418,8 @@ def estimate_frf_noise(
         Estimate the correlated part (``False``: white only).
     """
     frf = np.asarray(frf, dtype=complex)
-    if frf.size < 10:
-        raise ValueError("the noise estimate needs at least 10 points")
+    if frf.size < MIN_POINTS:
+        raise ValueError(f"the noise estimate needs at least {MIN_POINTS} points")
     if frequency_hz is None:
         order = np.arange(frf.size)
         z = 1.0 / frf
