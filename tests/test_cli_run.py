@@ -219,6 +219,14 @@ def test_an_existing_file_is_never_overwritten(tmp_path) -> None:
     assert path.read_bytes() == b"precious"
 
 
+def test_a_folder_given_as_out_is_named_as_such(tmp_path) -> None:
+    # it was refused as an existing campaign file, to be continued with 'viscorig resume FOLDER'
+    result = viscorig("run", str(PAPER), "--yes", "--out", str(tmp_path), cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "is a folder" in result.stderr and "resume" not in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_bad_sequence_is_one_line_exit_2_and_nothing_written(tmp_path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text(PAPER.read_text(encoding="utf-8").replace('level = "1.4 m/s^2"',

@@ -142,6 +142,9 @@ def run_command(args: argparse.Namespace) -> int:
             option = f" --station {args.station}" if args.station else ""
             refuse(checked, f"viscorig check {text}{option}")
         out = Path(args.out) if args.out else Path.cwd() / f"{Path(text).stem}.h5"
+        if out.is_dir():
+            raise InputError("is a folder; --out names the campaign file to write "
+                             f"(for example {out / (Path(text).stem + '.h5')})", str(out))
         if out.exists():
             raise InputError(
                 f"exists; a campaign file is never overwritten. Continue it with "
