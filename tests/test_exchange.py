@@ -144,6 +144,25 @@ def test_csv_with_flags_survives_and_bad_cell_is_named(tmp_path: Path, campaign_
         read_csv(out)
 
 
+@pytest.mark.parametrize("delimiter", [";", "\t"])
+def test_csv_saved_by_a_spreadsheet_with_a_decimal_comma_reads_the_same(
+        tmp_path: Path, campaign_file: Path, delimiter: str):
+    # a spreadsheet under a regional setting saves the table with ';' (or tabs) between cells
+    # and decimal commas; it was refused as "unknown columns frequency_hz;time_s;..."
+    run = CampaignFile.open(campaign_file).run("soft-0")
+    out = tmp_path / "soft.csv"
+    write_csv(run, out)
+    lines = out.read_text(encoding="utf-8").splitlines()
+    regional = tmp_path / "regional.csv"
+    regional.write_text("\r\n".join([lines[0].replace(",", delimiter)] + [
+        delimiter.join(cell.replace(".", ",") for cell in line.split(","))
+        for line in lines[1:]]) + "\r\n", encoding="utf-8-sig")
+    assert "0,0" in regional.read_text(encoding="utf-8-sig")
+    back = read_csv(regional)
+    for name in ("frequency_hz", "accelerance_table", "accelerance_support", "flags", "time_s"):
+        assert np.array_equal(getattr(back, name), getattr(run, name)), name
+
+
 F = np.arange(20.0, 120.0 + 1e-9, 0.25)
 H_TABLE = -0.1 * F**2 / (50e3 + 150e3 - (2 * np.pi * F) ** 2 * 3.6 + 2j * np.pi * F * 120)
 H_SUPPORT = -(2 * np.pi * F) ** 2 / (150e3 - (2 * np.pi * F) ** 2 * 0.15 + 2j * np.pi * F * 115)

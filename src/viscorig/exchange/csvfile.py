@@ -15,7 +15,9 @@ bits) is in a sidecar ``NAME.csv-metadata.json`` in the W3C "CSV on the Web" for
 CSVW tools look for next to a CSV: the columns with their units and descriptions, and the run's
 metadata under ``notes``.
 
-Reading accepts these files, and older ones whose first lines are ``#`` comments. A line longer
+Reading accepts these files, older ones whose first lines are ``#`` comments, and the same
+table as a spreadsheet saves it under a regional setting with a decimal comma: cells separated
+by ``;`` or a tab, ``-0,0997`` (:mod:`viscorig.exchange.cells`). A line longer
 than any row of this table, a cell that is not a number or not finite (``nan``, ``inf``), an
 empty cell where a value is needed, a frequency given twice, or more rows than a run holds is
 an error naming the line (and the column); nothing is imported from a file with an error. Rows
@@ -35,6 +37,7 @@ import numpy as np
 from viscorig import jsontext
 from viscorig.errors import InputError
 from viscorig.exchange.atomicfile import replace_atomically
+from viscorig.exchange.cells import DELIMITERS, parse_number
 from viscorig.exchange.frfset import FrfSet
 from viscorig.storage import FLAG_NAMES, RunRecord
 from viscorig.storage.layout import MAX_RUN_POINTS
@@ -160,11 +163,20 @@ def _lines(path: Path):
             yield number, line.rstrip("\r\n")
 
 
-def _cells(line: str, where: str) -> list[str]:
+def _cells(line: str, where: str, delimiter: str = ",") -> list[str]:
     try:
-        return [cell.strip() for cell in next(csv.reader([line]))]
+        return [cell.strip() for cell in next(csv.reader([line], delimiter=delimiter))]
     except (csv.Error, StopIteration) as error:
         raise InputError(f"not a CSV row ({error})", where) from None
+
+
+def _delimiter(header: str, where: str) -> str:
+    """The separator of the header's cells: the one that gives the most of :data:`COLUMNS`
+    (a comma when none does, for the message about the columns)."""
+    found = {delimiter: len(set(_cells(header, where, delimiter)) & set(COLUMNS))
+             for delimiter in DELIMITERS}
+    best = max(DELIMITERS, key=lambda delimiter: found[delimiter])
+    return best if found[best] else ","
 
 
 #: Columns whose cell may be empty (a missing value); every other cell holds a number.
@@ -203,10 +215,13 @@ def read_csv(path: Path) -> FrfSet:
     index: list[int] = []
     rows: list[list[float]] = []
     lines_of: dict[float, int] = {}
+    delimiter = ","
     for number, line in _lines(path):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
-        cells = _cells(line, f"{where}:{number}")
+        if header is None:
+            delimiter = _delimiter(line, f"{where}:{number}")
+        cells = _cells(line, f"{where}:{number}", delimiter)
         if header is None:
             header = cells
             missing = [name for name in COLUMNS if name not in header]
@@ -228,7 +243,8 @@ def read_csv(path: Path) -> FrfSet:
             raise InputError(f"more than {MAX_RUN_POINTS} rows; a run holds at most "
                              f"{MAX_RUN_POINTS} points", f"{where}:{number}")
         try:
-            row = [float(cells[i]) if cells[i] else math.nan for i in index]
+            row = [parse_number(cells[i], delimiter != ",") if cells[i] else math.nan
+                   for i in index]
         except ValueError:
             raise InputError("a cell is not a number", f"{where}:{number}") from None
         _check_row(row, [cells[i] for i in index], f"{where}:{number}")

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from viscorig.errors import InputError
+from viscorig.exchange.cells import DELIMITERS, parse_number
 from viscorig.exchange.units import (
     ANGULAR_FREQUENCY_UNITS,
     FREQUENCY_UNITS,
@@ -129,23 +130,15 @@ def _dialect(text: str, where: str) -> tuple[str, bool]:
     lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")][:5]
     if not lines:
         raise InputError("no table in the file", where)
-    for delimiter in ("\t", ";", ","):
+    for delimiter in DELIMITERS:
         counts = {line.count(delimiter) for line in lines}
         if min(counts) >= 1 and len(counts) == 1:
             break
     else:
-        delimiter = max(("\t", ";", ","), key=lines[0].count)
+        delimiter = max(DELIMITERS, key=lines[0].count)
     decimal_comma = delimiter != "," and any(
         re.search(r"\d,\d", line) for line in lines[1:])
     return delimiter, decimal_comma
-
-
-def _number(cell: str, decimal_comma: bool) -> float:
-    text = cell.strip()
-    if decimal_comma:
-        text = text.replace(".", "").replace(",", ".") if text.count(",") == 1 and \
-            text.count(".") >= 1 else text.replace(",", ".")
-    return float(text)
 
 
 def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
@@ -320,7 +313,7 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
         for role, column in columns.items():
             cell = row[column.index] if column.index < len(row) else ""
             try:
-                values[role][i] = _number(cell, decimal_comma)
+                values[role][i] = parse_number(cell, decimal_comma)
             except ValueError:
                 raise InputError(f"{cell.strip()!r} is not a number",
                                  f"{where}: row {row_number}, column {column.name!r}") from None
@@ -337,7 +330,7 @@ def _is_units_row(row: list[str], columns: dict[str, _Column], decimal_comma: bo
         return False
     for cell in cells:
         try:
-            _number(cell, decimal_comma)
+            parse_number(cell, decimal_comma)
         except ValueError:
             continue
         return False
