@@ -14,7 +14,8 @@ from realdata import real_data
 from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.dmafile import read_dma_csv
-from viscorig.materials.dmastore import dma_run_names, read_dma
+from viscorig.materials.dmastore import dma_run_names, import_dma, read_dma
+from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile
 
 SWEEP = "pyvisco_freq_user_raw.csv"
@@ -391,3 +392,17 @@ def test_a_curve_at_one_temperature_imports_but_is_no_master_curve(tmp_path, cap
     assert main(["master", str(path), "--run", "m"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "one temperature only" in err and "raw sweeps" in err
+
+
+def test_a_dma_sweep_named_where_a_rig_run_is_needed_is_said_to_be_one(tmp_path, capsys):
+    # it read "no such run (runs: none)", as if the name were wrong
+    path = tmp_path / "c.h5"
+    data = dma_sweep([0.0, 20.0], np.geomspace(1.0, 100.0, 8), seed=1)
+    import_dma(path, "sweep", ModulusTable(**data, source="generated"))
+    for command in (["identify", str(path), "--run", "sweep"],
+                    ["diagnose", str(path), "--run", "sweep"]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "'sweep' is a DMA sweep" in err, err
+    assert main(["identify", str(path), "--run", "other"]) == 2
+    assert "DMA" not in capsys.readouterr().err

@@ -26,7 +26,7 @@ from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile, layout, reading, untrusted
 from viscorig.storage.campaign import campaign_for_import, check_name, utc_now
 
-DMA_GROUP = "dma"
+DMA_GROUP = layout.DMA_GROUP
 #: dataset name -> (table attribute, units, dtype)
 COLUMNS = {
     "frequency_hz": ("frequency_hz", "Hz", np.float64),

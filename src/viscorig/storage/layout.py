@@ -21,6 +21,8 @@ FITS_GROUP = "fits"
 #: Where the sequence and station texts a campaign ran with are kept (our addition to the
 #: contract): scalar UTF-8 string datasets, with attributes naming the original files.
 SETUP_GROUP = "setup"
+#: Where imported DMA sweeps are kept (our addition; :mod:`viscorig.materials.dmastore`).
+DMA_GROUP = "dma"
 SEQUENCE_TEXT = "sequence_toml"
 STATION_TEXT = "station_toml"
 

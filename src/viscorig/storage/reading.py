@@ -234,6 +234,12 @@ def run_group(h5: h5py.File, name: str, path: Path) -> h5py.Group:
     runs = h5[layout.RUNS_GROUP]
     if name not in runs:
         known = ", ".join(printable(key) for key in untrusted.members(runs, path, layout.MAX_RUNS))
+        link = h5.get(layout.DMA_GROUP, getlink=True)
+        dma = h5[layout.DMA_GROUP] if isinstance(link, h5py.HardLink) else None
+        if isinstance(dma, h5py.Group) and name in dma:
+            raise InputError(f"no such run (runs: {known or 'none'}); '{printable(name)}' is a DMA "
+                             "sweep, a material's modulus over frequency: see viscorig master",
+                             where)
         raise InputError(f"no such run (runs: {known or 'none'})", where)
     untrusted.check_link(runs, name, path)
     group = runs[name]
