@@ -435,3 +435,20 @@ def test_a_slope_the_sweeps_share_is_enough_to_shift_them(tmp_path, capsys):
     shifts = json.loads(capsys.readouterr().out)["shift_factors"]
     assert len(shifts) == 30
     assert max(abs(s["log10_aT"]) for s in shifts) < 1.0
+
+
+def test_sweeps_repeated_at_one_temperature_are_shifted_together() -> None:
+    # repeated sweeps (or strain steps) at one temperature, with points measured a little off
+    # their sweep's mean temperature: the local slope of the shifts divided by the zero step
+    # between the two sweeps, and the fit stopped on NaN (the temperature-strain sequence's
+    # report stopped so)
+    temperatures = np.array([-10.0, 0.0, 10.0, 10.0, 20.0, 30.0])
+    data = gen.dma_sweep(temperatures, FREQUENCIES, seed=4)
+    data["temperature_c"] = data["temperature_c"] + np.tile([-0.05, 0.05], data["set_index"].size
+                                                            // 2)
+    shifts = estimate_shift_factors(ModulusTable(**data, source="generated"))
+    assert np.all(np.isfinite(shifts.log10_at)) and np.all(np.isfinite(shifts.log10_at_stderr))
+    twins = shifts.log10_at[np.isclose(shifts.temperature_c, 10.0)]
+    assert twins.size == 2 and abs(twins[0] - twins[1]) < 0.05
+    truth = gen.true_log10_at(shifts.temperature_c, shifts.temperature_c[shifts.reference])
+    assert np.all(np.abs(shifts.log10_at - truth) < 4 * shifts.log10_at_stderr + 0.02)

@@ -36,3 +36,22 @@ def test_a_run_at_zero_celsius_is_grouped_and_one_of_unknown_temperature_is_not(
     with CampaignFile.open(path) as campaign:
         assert candidate_groups(campaign) == [("soft-0c", "soft-25c"),
                                               ("soft-10-0c", "soft-10-25c")]
+
+
+def test_strain_steps_at_one_temperature_join_no_master_curve(tmp_path: Path):
+    # the temperature-strain sequence's campaign: a series at 0.2 m/s² over temperature, then
+    # steps at 0.5, 1.5, 4.5 m/s² at 25 °C; the steps measure the amplitude dependence and
+    # were put into the master curve (whose shift estimate then stopped the report)
+    path = tmp_path / "c.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        for name, temperature, level in (("T0", 0.0, 0.2), ("T25", 25.0, 0.2), ("T50", 50.0, 0.2),
+                                         ("s1", 25.0, 0.5), ("s2", 25.0, 1.5), ("s3", 25.0, 4.5),
+                                         ("hot", 80.0, 0.5), ("again", 50.0, 0.2)):
+            settings = RunSettings(specimen="medium", level_m_per_s2=level, direction="up",
+                                   settle_cycles=100, integrate_cycles=100, resolution_hz=25.0,
+                                   preload_strain=0.0, temperature_c=temperature,
+                                   simulated=True)
+            campaign.add_run(name, settings, _segment())
+    with CampaignFile.open(path) as campaign:
+        # at 80 °C only another level was run: the nearest to the series' joins
+        assert candidate_groups(campaign) == [("T0", "T25", "T50", "again", "hot")]

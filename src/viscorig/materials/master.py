@@ -25,7 +25,11 @@ from viscorig.materials.prony import (
     fit_prony,
     model_fit,
 )
-from viscorig.materials.shift import ShiftFactors, estimate_shift_factors
+from viscorig.materials.shift import (
+    TEMPERATURE_RESOLUTION_K,
+    ShiftFactors,
+    estimate_shift_factors,
+)
 from viscorig.materials.shiftfunctions import (
     ShiftFunction,
     best_shift_function,
@@ -331,9 +335,6 @@ MAX_SPAN_DECADES = 60.0
 #: with the universal constants changes 0.34 decade/K at its reference, Arrhenius with an
 #: activation energy of 1,000 kJ/mol 0.84 decade/K at 250 K.
 MAX_SHIFT_RATE_DECADES_PER_K = 5.0
-#: Temperatures closer than this count as this far apart in that test (a chamber's resolution):
-#: two sweeps at one temperature may differ by half a decade and their errors.
-TEMPERATURE_RESOLUTION_K = 0.1
 
 
 def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64],
@@ -342,7 +343,7 @@ def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64],
     :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst, and shift factors of
     two sweeps that differ, beyond three standard errors, by more than
     :data:`MAX_SHIFT_RATE_DECADES_PER_K` per kelvin between them (at least
-    :data:`TEMPERATURE_RESOLUTION_K` apart). A single sweep with a large
+    :data:`~viscorig.materials.shift.TEMPERATURE_RESOLUTION_K` apart). A single sweep with a large
     standard error (on a plateau, say) is kept, with its ±."""
     span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
     if span <= MAX_SPAN_DECADES:

@@ -429,6 +429,26 @@ def estimate_shift_factors(
     )
 
 
+#: Sets whose mean temperatures are closer than this are at one temperature (repeated sweeps,
+#: strain steps): a thermocouple and a chamber's control tell no finer.
+TEMPERATURE_RESOLUTION_K = 0.1
+
+
+def _temperature_slope(shifts: NDArray[np.float64],
+                       temperatures: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``d(log10 aT)/dT`` at each set's temperature: the gradient of the shifts averaged over the
+    sets at one temperature (within :data:`TEMPERATURE_RESOLUTION_K`), 0 with one temperature.
+    A gradient taken across two sets at the same temperature divided by zero."""
+    levels = np.round(temperatures / TEMPERATURE_RESOLUTION_K)
+    unique, inverse = np.unique(levels, return_inverse=True)
+    if unique.size < 2:
+        return np.zeros(temperatures.size)
+    count = np.bincount(inverse)
+    mean_shift = np.bincount(inverse, weights=shifts) / count
+    mean_temperature = np.bincount(inverse, weights=temperatures) / count
+    return np.gradient(mean_shift, mean_temperature)[inverse]
+
+
 def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.float64],
          reference: int, start: NDArray[np.float64], spacing: float) -> tuple:
     """The shifts with knots ``spacing`` decades apart: (problem, solution, BIC)."""
@@ -450,7 +470,7 @@ def _fit(table: ModulusTable, sets: NDArray[np.int64], temperatures: NDArray[np.
     if np.abs(deviation).max() > 0.01:
         # points measured off their set's mean temperature (a specimen warming during a sweep):
         # each is moved by the local slope d(log10 aT)/dT of the shifts found, then refitted
-        slope = np.gradient(problem.shifts(solution.x), temperatures)
+        slope = _temperature_slope(problem.shifts(solution.x), temperatures)
         problem.offset = slope[problem.member] * deviation
         solution = least_squares(problem.residual, solution.x, jac=problem.jacobian,
                                  method="trf", max_nfev=60,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,10 +44,35 @@ def _number(value: object, missing: float) -> float:
     return missing
 
 
+def _one_level_per_temperature(
+    members: list[tuple[float, float, str]],
+) -> list[tuple[float, float, str]]:
+    """The runs ``(temperature, level, name)`` at the level nearest (in ratio) the most common
+    one, at each temperature (to 0.1 °C); every run where levels are unknown."""
+    levels = Counter(level for _, level, _ in members if level > 0)
+    usual = levels.most_common(1)[0][0] if levels else math.nan
+
+    def distance(level: float) -> float:
+        return abs(math.log(level / usual)) if level > 0 and usual > 0 else math.inf
+
+    at: dict[float, list[tuple[float, float, str]]] = {}
+    for member in members:
+        at.setdefault(round(member[0], 1), []).append(member)
+    kept = []
+    for runs in at.values():
+        nearest = min(distance(level) for _, level, _ in runs)
+        kept += [run for run in runs if distance(run[1]) == nearest]
+    return kept
+
+
 def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
-    """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures."""
+    """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures.
+
+    At a temperature where the specimen was run at several vibration levels (strain steps, which
+    measure the amplitude dependence, not the temperature's), only the runs at the level nearest
+    the group's most common one join: a master curve holds one amplitude per temperature."""
     groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
-    by_specimen: dict[tuple[str, float], list[tuple[float, str]]] = {}
+    by_specimen: dict[tuple[str, float], list[tuple[float, float, str]]] = {}
     for name in campaign.run_names:
         attributes = campaign.run_attributes(name)
         specimen = str(attributes.get("specimen", ""))
@@ -54,10 +80,12 @@ def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
         if specimen.lower() in ("none", "") or not math.isfinite(temperature):
             continue
         key = (specimen, round(_number(attributes.get("preload_strain"), 0.0), 4))
-        by_specimen.setdefault(key, []).append((temperature, name))
+        level = _number(attributes.get("level_m_per_s2"), math.nan)
+        by_specimen.setdefault(key, []).append((temperature, level, name))
     for members in by_specimen.values():
-        if len({round(t, 1) for t, _ in members}) >= 2:
-            groups.append(tuple(name for _, name in sorted(members)))
+        kept = _one_level_per_temperature(members)
+        if len({round(temperature, 1) for temperature, _, _ in kept}) >= 2:
+            groups.append(tuple(name for _, _, name in sorted(kept)))
     return groups
 
 
