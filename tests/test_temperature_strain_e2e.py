@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from viscorig.report.figures import figure_stem
 from viscorig.storage import CampaignFile
 from viscorig.strain import identify_payne
 
@@ -158,3 +159,23 @@ def test_shift_factors_within_three_standard_errors_of_the_wlf(campaign: Path) -
     parameters = document["shift_function"]["parameters"]
     for name, truth in (("C1", wlf.c1), ("C2_K", wlf.c2_k)):
         assert abs(parameters[name]["value"] - truth) <= 3 * parameters[name]["stderr"], name
+
+
+@pytest.mark.slow
+def test_the_report_puts_the_temperature_series_alone_in_its_master_curve(campaign: Path,
+                                                                           tmp_path: Path) -> None:
+    # the strain steps at 25 °C joined the series' master curve, and the report stopped with a
+    # traceback (a shift slope divided by the zero step between sweeps at one temperature)
+    out = tmp_path / "report"
+    done = subprocess.run([sys.executable, "-m", "viscorig", "report", str(campaign),
+                           "--no-diagnosis", "--out", str(out)], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    series = [name for name in CampaignFile.open(campaign).run_names
+              if name.startswith("medium_T")]
+    assert len(series) == 13
+    # one master curve, of the series' runs exactly (its file is named after them)
+    (master,) = out.glob("material-*-master.png")
+    assert master.name == f"{figure_stem('material', '-'.join(series))}-master.png"
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "Materials over temperature and frequency" in page
