@@ -429,15 +429,17 @@ def estimate_shift_factors(
     )
 
 
-#: Sets whose mean temperatures are closer than this are at one temperature (repeated sweeps,
-#: strain steps): a thermocouple and a chamber's control tell no finer.
+#: Temperature resolution: sets whose mean temperatures round to the same multiple of it are at
+#: one temperature (repeated sweeps, strain steps); a thermocouple and a chamber's control tell
+#: no finer.
 TEMPERATURE_RESOLUTION_K = 0.1
 
 
 def _temperature_slope(shifts: NDArray[np.float64],
                        temperatures: NDArray[np.float64]) -> NDArray[np.float64]:
     """``d(log10 aT)/dT`` at each set's temperature: the gradient of the shifts averaged over the
-    sets at one temperature (within :data:`TEMPERATURE_RESOLUTION_K`), 0 with one temperature.
+    sets at one temperature (to the nearest :data:`TEMPERATURE_RESOLUTION_K`), 0 with one
+    temperature.
     A gradient taken across two sets at the same temperature divided by zero."""
     levels = np.round(temperatures / TEMPERATURE_RESOLUTION_K)
     unique, inverse = np.unique(levels, return_inverse=True)
