@@ -21,6 +21,7 @@ from viscorig.report.materials import analyse_materials, material_figures, mater
 from viscorig.report.page import build_page, figure_html, materials_page
 from viscorig.report.parallel import default_jobs
 from viscorig.storage import CampaignFile
+from viscorig.storage.room import cause
 
 PAGE_NAME = "index.html"
 
@@ -99,16 +100,18 @@ def _staged(out_dir: Path) -> Iterator[Path]:
         out_dir.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-", dir=out_dir.parent))
     except OSError as error:
-        raise InputError(f"cannot create the report folder ({error.strerror})",
+        raise InputError(f"cannot create the report folder ({cause(error, out_dir)})",
                          str(out_dir)) from None
     try:
         yield staging
+        target = out_dir
         try:
             out_dir.mkdir(exist_ok=True)
             for item in sorted(staging.iterdir(), key=lambda path: path.name == PAGE_NAME):
-                os.replace(item, out_dir / item.name)
+                target = out_dir / item.name
+                os.replace(item, target)
         except OSError as error:
-            raise InputError(f"cannot write the report ({error.strerror})",
+            raise InputError(f"cannot write the report ({cause(error, target)})",
                              str(out_dir)) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
