@@ -208,10 +208,16 @@ class CampaignAnalysis:
         return next(r for r in self.runs if r.name == name)
 
 
-def _band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:
+def _clipped(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float] | None:
+    """``band_hz`` clipped to the run's frequencies; ``None`` when it holds none of them."""
     lo = max(band_hz[0], float(run.frequency_hz.min()))
     hi = min(band_hz[1], float(run.frequency_hz.max()))
-    return (lo, hi) if lo < hi else (float(run.frequency_hz.min()), float(run.frequency_hz.max()))
+    return (lo, hi) if lo < hi else None
+
+
+def _band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:
+    return _clipped(run, band_hz) or (float(run.frequency_hz.min()),
+                                      float(run.frequency_hz.max()))
 
 
 def _in_band(run: RunRecord, band: tuple[float, float]) -> NDArray[np.intp]:
@@ -402,8 +408,7 @@ def analyse_campaign(
     for run in runs:
         analysis = RunAnalysis(run, is_bare_table(run), _run_band(run, band_hz),
                                summary=by_name.get(run.name))
-        if run.points and not analysis.bare and not (
-                max(band_hz[0], run.frequency_hz.min()) < min(band_hz[1], run.frequency_hz.max())):
+        if run.points and not analysis.bare and _clipped(run, band_hz) is None:
             lo, hi = analysis.band_hz
             analysis.notes.append(f"the band {band_hz[0]:g}–{band_hz[1]:g} Hz holds none of its "
                                   f"points: shown and diagnosed over its own {lo:g}–{hi:g} Hz")
