@@ -26,7 +26,6 @@ from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile, layout, reading, untrusted
 from viscorig.storage.campaign import campaign_for_import, check_name, utc_now
 
-DMA_GROUP = layout.DMA_GROUP
 #: dataset name -> (table attribute, units, dtype)
 COLUMNS = {
     "frequency_hz": ("frequency_hz", "Hz", np.float64),
@@ -55,10 +54,10 @@ def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
     table.check(table.source or "DMA table")
     path = Path(campaign_path)
     with campaign_for_import(path, name) as campaign, campaign.commit() as h5:
-        group = h5.require_group(DMA_GROUP)
+        group = h5.require_group(layout.DMA_GROUP)
         if name in group:
             raise InputError("DMA run exists; imports never overwrite a run",
-                             f"{path}: /{DMA_GROUP}/{name}")
+                             f"{path}: /{layout.DMA_GROUP}/{name}")
         run = group.create_group(name)
         run.attrs.update({"kind": "dma", "modulus": table.modulus,
                           "source": table.source[:200], "created": utc_now(),
@@ -71,27 +70,27 @@ def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
 
 def dma_run_names(campaign: CampaignFile) -> list[str]:
     """Names of the DMA runs of a campaign file ([] when it has none)."""
-    with campaign.reading() as h5, reading.guarded(campaign.path, f"/{DMA_GROUP}"):
-        untrusted.check_link(h5, DMA_GROUP, campaign.path)
-        group = h5.get(DMA_GROUP)
+    with campaign.reading() as h5, reading.guarded(campaign.path, f"/{layout.DMA_GROUP}"):
+        untrusted.check_link(h5, layout.DMA_GROUP, campaign.path)
+        group = h5.get(layout.DMA_GROUP)
         if group is None:
             return []
         if not isinstance(group, h5py.Group):
-            raise InputError("not a group", f"{campaign.path}: /{DMA_GROUP}")
+            raise InputError("not a group", f"{campaign.path}: /{layout.DMA_GROUP}")
         names = untrusted.members(group, campaign.path, layout.MAX_RUNS)
         for name in names:
-            untrusted.check_stored_name(name, campaign.path, f"/{DMA_GROUP}", "DMA run")
+            untrusted.check_stored_name(name, campaign.path, f"/{layout.DMA_GROUP}", "DMA run")
         return names
 
 
 def read_dma(campaign: CampaignFile, name: str) -> ModulusTable:
     """DMA run ``name`` as a :class:`ModulusTable`, every object checked before it is read."""
     path = campaign.path
-    where = f"{path}: /{DMA_GROUP}/{name}"
+    where = f"{path}: /{layout.DMA_GROUP}/{name}"
     if name not in dma_run_names(campaign):
         raise InputError("no such DMA run", where)
-    with campaign.reading() as h5, reading.guarded(path, f"/{DMA_GROUP}/{name}"):
-        group = h5[DMA_GROUP]
+    with campaign.reading() as h5, reading.guarded(path, f"/{layout.DMA_GROUP}/{name}"):
+        group = h5[layout.DMA_GROUP]
         untrusted.check_link(group, name, path)
         run = group[name]
         if not isinstance(run, h5py.Group):
