@@ -34,7 +34,7 @@ from viscorig.errors import InputError
 Result = TypeVar("Result")
 
 #: A scheduler address: ``tcp://HOST:PORT`` (or ``tls://``), HOST a name or an IPv4/IPv6 address.
-SCHEDULER_PATTERN = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})$")
+SCHEDULER_PATTERN = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})\Z")
 #: Seconds a Dask client waits for the scheduler before giving up.
 CONNECT_TIMEOUT_S = 3.0
 

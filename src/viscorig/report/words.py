@@ -64,7 +64,7 @@ def _spoken_list(items: Sequence[str]) -> str:
     return ", ".join(items[:-1]) + " and " + items[-1]
 
 
-_FIXTURE = re.compile(r"^fixture\(([-+0-9.e]+)\)$")
+_FIXTURE = re.compile(r"^fixture\(([-+0-9.e]+)\)\Z")
 
 
 def effect_phrases(effects: Sequence[tuple[str, str]], values: dict[str, float]) -> list[str]:

@@ -33,9 +33,9 @@ MIN_RESOLUTION_HZ = FREQUENCY_STEP_HZ
 #: Beyond any shaker rig, m/s² peak.
 MAX_LEVEL_M_PER_S2 = 500.0
 #: Rig preset names (``sim/rigs/<name>.toml``).
-PRESET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
+PRESET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}\Z")
 #: A VISA resource string.
-VISA_RESOURCE = re.compile(r"^[A-Za-z][A-Za-z0-9-]*::\S+::(INSTR|SOCKET|INTFC)$")
+VISA_RESOURCE = re.compile(r"^[A-Za-z][A-Za-z0-9-]*::\S+::(INSTR|SOCKET|INTFC)\Z")
 
 
 class FieldError(ValueError):

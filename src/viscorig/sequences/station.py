@@ -56,7 +56,7 @@ from viscorig.sequences.schema import STATION_SECTIONS, STATION_TOP, ReadTable, 
 from viscorig.sequences.sequence import parse_toml, read_text
 
 #: A chamber controller's address: Modbus TCP, or a serial port (a path or COMn).
-CHAMBER_ADDRESS = re.compile(r"^(tcp://[^\s:/]+(:\d{1,5})?|/\S+|COM\d+)$")
+CHAMBER_ADDRESS = re.compile(r"^(tcp://[^\s:/]+(:\d{1,5})?|/\S+|COM\d+)\Z")
 #: The analyser's source output limit, V peak.
 SOURCE_MAX_V = 5.0
 

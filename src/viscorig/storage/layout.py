@@ -9,7 +9,7 @@ import re
 from dataclasses import dataclass
 
 #: Run, fit-parameter and attribute names: they become HDF5 object names.
-NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}$")
+NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,63}\Z")
 NAME_RULE = "letters, digits, '.', '_', '+', '-'; at most 64"
 
 FORMAT_NAME = "viscorig"
