@@ -88,7 +88,7 @@ class DiagnosisData:
         if not self.nuisance or phi == self.prior_scale:
             return self
         other = replace(self, prior_scale=float(phi))
-        for key in ("_whitening", "_joined_whitening", "_kept", "_prior_w"):
+        for key in ("_whitening", "_joined_whitening", "_kept", "_left_out_rows", "_prior_w"):
             if key in self.__dict__:
                 object.__setattr__(other, key, self.__dict__[key])
         return other
@@ -215,8 +215,8 @@ class DiagnosisData:
         FRF in :attr:`frfs` order, then the imaginary parts, a point per row (outlier points
         are set to zero). ``overwrite``: ``values`` may be whitened in place (no copy of a wide
         matrix)."""
-        left_out = np.concatenate([~kept for kept in self._masks().values()] * 2)
-        if left_out.any():
+        left_out = self._left_out()
+        if left_out is not None:
             values = values.copy() if not overwrite else values
             values[left_out] = 0.0
         joined = self._joined()
@@ -293,6 +293,13 @@ class DiagnosisData:
             out[frf] = (re**2 + im**2) / 2.0
             start += size
         return out
+
+    def _left_out(self) -> NDArray[np.bool_] | None:
+        """The outlier points' rows in :meth:`whiten_stacked`'s layout; ``None`` if none."""
+        if "_left_out_rows" not in self.__dict__:
+            rows = np.concatenate([~kept for kept in self._masks().values()] * 2)
+            object.__setattr__(self, "_left_out_rows", rows if rows.any() else None)
+        return self.__dict__["_left_out_rows"]
 
     def _masks(self) -> dict[str, NDArray[np.bool_]]:
         cached = self.__dict__.get("_kept")

@@ -195,7 +195,8 @@ class _Objective:
         self.model, self.data, self.values, self.free = model, data, values, free
         self.log, self.upper = log, upper
         self.ctx = data.data.context()
-        self.measured = {name: data.data.frf(name) for name in data.frfs}
+        with np.errstate(all="ignore"):  # (a product is a fraction of a division's time)
+            self.inverse = {name: 1.0 / data.data.frf(name) for name in data.frfs}
         self.nuisance = data.nuisance
         self.prior_at = [free.index(name) for name in self.nuisance]
         # With a prior, the Huber loss is applied here to the data's rows only (r = sign(e)·√ρ(e),
@@ -218,7 +219,7 @@ class _Objective:
         """``H_model/H_measured − 1`` per FRF at ``x``."""
         with np.errstate(all="ignore"):
             predicted = self.model.predict(self.ctx, self.current(x))
-            return {name: predicted[name] / self.measured[name] - 1.0
+            return {name: predicted[name] * self.inverse[name] - 1.0
                     for name in self.data.frfs}
 
     def _cached_ratio(self, x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
@@ -250,21 +251,27 @@ class _Objective:
         moved = x[None, :] + np.diag(steps)
         shifted = predict_many(self.model, self.ctx, self.values, self.free,
                                self.to_values(moved))
+        columns = {}
         with np.errstate(all="ignore"):
-            columns = {frf: ((shifted[frf] / self.measured[frf] - 1.0) - base[frf]).T / steps
-                       for frf in base}
+            for frf in base:
+                change = shifted[frf] * self.inverse[frf]
+                change -= 1.0 + base[frf]
+                change /= steps[:, None]
+                columns[frf] = change.T
         matrix = self.data.whiten(columns)
         if self.robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
             e = np.abs(self._cached_whitened(x))
             slope = np.where(e <= HUBER_SCALE, 1.0,
                              HUBER_SCALE / np.sqrt(np.maximum(huber(e), 1e-300)))
-            matrix = matrix * slope[:, None]
-        rows = np.zeros((len(self.nuisance), x.size))
+            matrix *= slope[:, None]
         if self.nuisance:
+            rows = np.zeros((len(self.nuisance), x.size))
             rows[:, self.prior_at] = self.data.prior_jacobian(self.current(x),
                                                               self.log[self.prior_at])
-        matrix = np.vstack([matrix, rows])
-        return np.where(np.isfinite(matrix), matrix, 0.0)
+            matrix = np.vstack([matrix, rows])
+        if not np.isfinite(matrix).all():
+            matrix[~np.isfinite(matrix)] = 0.0
+        return matrix
 
 
 def ml_fit(
