@@ -27,7 +27,7 @@ from viscorig.cli.diagnose import LADDER_HEADING, format_diagnosis
 from viscorig.diagnosis import DiagnosisResult, diagnose, diagnose_run
 from viscorig.diagnosis import findings as findings_module
 from viscorig.diagnosis.findings import fit_term
-from viscorig.diagnosis.scan import Residual, log_sensitivity, mode_stiffness
+from viscorig.diagnosis.scan import Residual, _grid, log_sensitivity, mode_stiffness
 from viscorig.diagnosis.screening import screen
 from viscorig.diagnosis.significance import alpha_of, judge, threshold
 from viscorig.errors import InputError
@@ -249,6 +249,21 @@ def test_the_scan_forms_its_templates_from_shared_columns_as_from_each_frf_s_own
                 np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-9,
                                            atol=1e-12 * np.abs(getattr(b, name)).max())
             assert a.length == pytest.approx(b.length, rel=1e-9)
+
+
+def test_the_scan_s_templates_follow_the_frequencies_they_are_asked_for() -> None:
+    """The grid and templates kept from the last scan serve the same frequencies only: other
+    frequencies get their own, as formed afresh, and the kept templates cannot be written to."""
+    first, second = np.arange(10.0, 100.0, 0.25), np.arange(12.0, 80.0, 0.5)
+    for f in (first, second, first):
+        grid, u = _grid(f)
+        assert all(f_n.min() > f.min() and f_n.max() < f.max() for _, f_n in grid)
+        f_n = np.concatenate([f_n for _, f_n in grid])
+        zeta = np.concatenate([np.full(f_n.size, z) for z, f_n in grid])
+        np.testing.assert_array_equal(u, mode_stiffness(2 * np.pi * f, f_n, zeta))
+        assert _grid(f)[1] is u
+        with pytest.raises(ValueError):
+            u[0, 0] = 0.0
 
 
 def test_the_support_frf_alone_is_diagnosed_without_the_table() -> None:

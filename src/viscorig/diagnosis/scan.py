@@ -255,32 +255,54 @@ class Residual:
         return -inner / norm2, 1.0 / np.sqrt(norm2), inner**2 / norm2
 
 
-def scan(
-    current: Likelihood, data: DiagnosisData, existing_hz: tuple[float, ...] = ()
-) -> ScanResult:
-    """Scan the residual of ``current`` for local modes; peaks near ``existing_hz`` are left
-    out (modes the model already has). Its threshold is at the ``α`` of one test of the
-    diagnosis step's family (:func:`~viscorig.diagnosis.significance.alpha_of`)."""
-    d = data.data
-    omega = 2 * np.pi * d.frequency_hz
-    sensitivity = log_sensitivity(current.model, current.values, data)
-    residual = Residual(current, data)
-    f_lo, f_hi = float(d.frequency_hz.min()), float(d.frequency_hz.max())
-    steps = np.diff(np.unique(d.frequency_hz))
+Grid = list[tuple[float, NDArray[np.float64]]]
+"""The scan's grid: ``(ζ, its f_n)`` per damping ratio."""
+#: The last frequencies scanned, with their grid and mode templates: they depend on the
+#: frequencies alone, and a ladder scans the same data at every rung. (Rebound whole, never
+#: changed in place: a reader in another thread sees an old entry or a new one.)
+_last_grid: tuple[bytes, Grid, NDArray[np.complex128]] | None = None
+
+
+def _grid(frequency_hz: NDArray[np.float64]) -> tuple[Grid, NDArray[np.complex128]]:
+    """The grid of modes scanned for over these frequencies, and their ``u(ω)`` (points ×
+    templates, the grid's families side by side; read-only)."""
+    global _last_grid
+    key = np.asarray(frequency_hz, dtype=float).tobytes()
+    last = _last_grid
+    if last is not None and last[0] == key:
+        return last[1], last[2]
+    f_lo, f_hi = float(frequency_hz.min()), float(frequency_hz.max())
+    steps = np.diff(np.unique(frequency_hz))
     step = float(np.median(steps)) if steps.size else 1.0
-    grid: list[tuple[float, NDArray[np.float64]]] = []  # (ζ, its f_n)
+    grid: Grid = []
     for zeta in DAMPING_RATIOS:
         # half-power band at least one step wide, and inside the data
         f_min = max(f_lo * (1 + 2 * zeta), step / (2 * zeta))
         f_max = f_hi * (1 - 2 * zeta)
         if f_min < f_max:
             grid.append((zeta, np.exp(np.arange(np.log(f_min), np.log(f_max), zeta / 2))))
+    u = np.zeros((frequency_hz.size, 0), dtype=complex)
+    if grid:
+        u = mode_stiffness(2 * np.pi * frequency_hz, np.concatenate([f_n for _, f_n in grid]),
+                           np.concatenate([np.full(f_n.size, zeta) for zeta, f_n in grid]))
+    u.flags.writeable = False
+    _last_grid = (key, grid, u)
+    return grid, u
+
+
+def scan(
+    current: Likelihood, data: DiagnosisData, existing_hz: tuple[float, ...] = ()
+) -> ScanResult:
+    """Scan the residual of ``current`` for local modes; peaks near ``existing_hz`` are left
+    out (modes the model already has). Its threshold is at the ``α`` of one test of the
+    diagnosis step's family (:func:`~viscorig.diagnosis.significance.alpha_of`)."""
+    sensitivity = log_sensitivity(current.model, current.values, data)
+    residual = Residual(current, data)
+    grid, u = _grid(data.data.frequency_hz)
     length, count = 0.0, 0
     best: list[tuple[float, float, float, float, float]] = []  # (Δχ², f_n, ζ, m, robust Δχ²)
     measured: list[Family] = []
     if grid:  # every family's templates whitened as one matrix (points, templates)
-        u = mode_stiffness(omega, np.concatenate([f_n for _, f_n in grid]),
-                           np.concatenate([np.full(f_n.size, zeta) for zeta, f_n in grid]))
         measured = residual.families(sensitivity, [f_n.size for _, f_n in grid], shared=u)
     for (zeta, f_n), family in zip(grid, measured, strict=True):
         ok, norm = family.ok, np.where(family.ok, family.norm, 1.0)
