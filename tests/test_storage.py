@@ -12,6 +12,7 @@ import pytest
 
 from viscorig import __version__, frf
 from viscorig.errors import InputError
+from viscorig.numbers import Estimate
 from viscorig.storage import (
     FORCE_ABOVE_SHAKER_LIMIT,
     INPUT_OVERLOAD,
@@ -286,6 +287,64 @@ def test_reads_a_file_written_with_plain_h5py(tmp_path: Path, names: tuple[str, 
     assert np.isnan(run.accelerance_support).all()
     assert run.force_amplitude.dtype == np.float64 and run.flags.dtype == np.uint16
     assert run.extra["probe_temperature"][1] == "degC"
+
+
+def as_matlab_writes(path: Path) -> None:
+    """Rewrite every attribute of a campaign file as MATLAB's ``h5writeatt`` stores it: each
+    number in an array of one value, each text a fixed-length string, and the fit's parameter
+    datasets as 1 × 1 matrices (MATLAB has no scalars)."""
+    with h5py.File(path, "r+") as h5:
+        def rewrite(name: str, obj: h5py.HLObject) -> None:
+            for key, value in list(obj.attrs.items()):
+                if isinstance(value, str):
+                    obj.attrs[key] = np.bytes_(value.encode())
+                elif np.ndim(value) == 0:
+                    obj.attrs[key] = np.array([value], dtype=np.asarray(value).dtype)
+        rewrite("/", h5)
+        h5.visititems(rewrite)
+        fit = h5.create_group("runs/table/fits/0001")
+        for key, value in (("model", "voigt"), ("created", "2024-05-01T12:11:00Z")):
+            fit.attrs[key] = np.bytes_(value.encode())
+        fit.attrs["band_hz"] = np.array([[12.0, 28.0]])
+        for key, value in (("rms_error", 0.01), ("noise_floor", 0.008)):
+            fit.attrs[key] = np.array([value])
+        parameter = fit.create_dataset("K_v", data=np.array([[1.2e5]]))
+        parameter.attrs["stderr"] = np.array([300.0])
+        parameter.attrs["units"] = np.bytes_(b"N/m")
+
+
+def test_reads_a_file_whose_single_values_are_arrays_of_one_as_matlab_writes(
+        tmp_path: Path) -> None:
+    path = tmp_path / "matlab.h5"
+    write_plain_campaign(path)
+    with CampaignFile.open(path) as campaign:
+        before = campaign.run("table")
+    as_matlab_writes(path)
+    with h5py.File(path, "r") as h5:  # (what the file holds, as h5py shows it)
+        assert h5.attrs["format_version"].shape == (1,)
+        assert h5["runs/table"].attrs["level_m_per_s2"].shape == (1,)
+    with CampaignFile.open(path) as campaign:
+        run = campaign.run("table")
+        assert campaign.rig == {"table_stiffness_n_per_m": 50194.0}
+        (fit,) = campaign.fits("table")
+    assert repr(run.metadata) == repr(before.metadata)  # (repr: NaN equals NaN)
+    assert fit.band_hz == (12.0, 28.0) and fit.rms_error == 0.01
+    assert fit.parameters["K_v"] == Estimate(1.2e5, 300.0, "N/m")
+
+
+def test_a_vector_stored_as_a_one_row_matrix_is_named_with_how_to_write_it(
+        tmp_path: Path) -> None:
+    path = tmp_path / "matlab.h5"
+    write_plain_campaign(path)
+    with h5py.File(path, "r+") as h5:
+        frequency = h5["runs/table/frequency_hz"][()]
+        del h5["runs/table/frequency_hz"]
+        h5["runs/table"].create_dataset("frequency_hz", data=frequency[None, :]).attrs[
+            "units"] = "Hz"
+    expected = (r"frequency_hz: shape \(1, 3\) is not 1-D: a vector stored as a one-row matrix "
+                r"\(in MATLAB, h5create\(file, name, N\)\)")
+    with pytest.raises(InputError, match=expected), CampaignFile.open(path) as campaign:
+        campaign.run("table")
 
 
 def damage(path: Path, how: str) -> str:

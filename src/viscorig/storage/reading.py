@@ -82,8 +82,10 @@ def _decode(value: Any, keep: str = "") -> Any:
         return printable(value.decode("utf-8", errors="replace"), keep=keep)
     if isinstance(value, str):
         return printable(value, keep=keep)
-    if isinstance(value, np.ndarray) and value.shape == ():
-        return _decode(value[()], keep)
+    if isinstance(value, np.ndarray) and value.size == 1:
+        # a scalar, or one value in an array of one: MATLAB's h5writeatt, netCDF and Igor Pro
+        # write every single number so
+        return _decode(value.reshape(())[()], keep)
     if isinstance(value, np.generic):
         return value.item()
     return value
@@ -289,7 +291,8 @@ def _read_column(
     if not isinstance(dataset, h5py.Dataset):
         raise InputError("not a dataset", where)
     if dataset.ndim != 1:  # a 1-D one's size, chunks and storage are checked with the run's
-        raise InputError(f"shape {dataset.shape} is not 1-D", where)
+        raise InputError(
+            f"shape {dataset.shape} is not 1-D{untrusted.matrix_vector_hint(dataset)}", where)
     units = attribute(dataset, "units", path)
     if not isinstance(units, str):
         raise InputError("no units attribute", where)
@@ -488,10 +491,10 @@ def _read_parameter(item: h5py.HLObject, path: Path) -> Estimate | None:
     """A parameter stored as a scalar dataset (attrs stderr, units) or a group (attrs value,
     stderr, units); other objects in a fit group are not parameters."""
     if isinstance(item, h5py.Dataset):
-        if item.shape != () or untrusted.number_kind(item.dtype) not in ("real", "integer"):
+        if item.size != 1 or untrusted.number_kind(item.dtype) not in ("real", "integer"):
             return None
         untrusted.check_values_dataset(item, path, scalar=True)
-        value = float(item[()])
+        value = float(np.asarray(item[()]).reshape(()))
     else:
         value = read_number(item, "value", path)
     stderr = read_number(item, "stderr", path) if "stderr" in item.attrs else math.nan

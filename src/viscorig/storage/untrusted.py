@@ -119,11 +119,12 @@ def check_values_dataset(dataset: h5py.Dataset, path: Path, *, scalar: bool = Fa
     if dataset.external:
         raise InputError("a dataset stored in external files is not read", where)
     if scalar:
-        if dataset.shape != ():
+        if dataset.size != 1:  # (a scalar, or one value in an array of one, as MATLAB writes)
             raise InputError(f"shape {dataset.shape} is not a scalar", where)
         return 1
     if dataset.ndim != 1:
-        raise InputError(f"shape {dataset.shape} is not 1-D", where)
+        raise InputError(f"shape {dataset.shape} is not 1-D{matrix_vector_hint(dataset)}",
+                         where)
     points = int(dataset.shape[0])
     if points > layout.MAX_RUN_POINTS:
         raise InputError(f"declares {points} points; a run holds at most "
@@ -135,6 +136,14 @@ def check_values_dataset(dataset: h5py.Dataset, path: Path, *, scalar: bool = Fa
             raise InputError(f"chunks of {chunk_bytes} bytes; at most "
                              f"{layout.MAX_CHUNK_BYTES}", where)
     return points
+
+
+def matrix_vector_hint(dataset: h5py.Dataset) -> str:
+    """How to write a vector stored as a matrix of one row or one column (MATLAB's
+    ``h5create(file, name, size(x))``) as the 1-D dataset the layout holds; else ``""``."""
+    if dataset.ndim == 2 and 1 in dataset.shape:
+        return ": a vector stored as a one-row matrix (in MATLAB, h5create(file, name, N))"
+    return ""
 
 
 def number_kind(dtype: np.dtype) -> str | None:
