@@ -108,6 +108,25 @@ def test_a_station_file_with_several_mistakes_gets_them_all(tmp_path, capsys) ->
     assert "force_limit_n: missing" not in out
 
 
+@pytest.mark.parametrize("command", ["check", "plan", "run"])
+def test_a_station_file_and_a_sequence_given_in_each_other_s_place_are_named(
+        command: str, tmp_path: Path, capsys) -> None:
+    """One line saying which file is which, where each table of the one read as the other was
+    an unknown key (eight problems, none naming the mix-up)."""
+    station = ROOT / "sequences" / "station-example.toml"
+    extra = ["--yes", "--out", str(tmp_path / "x.h5")] if command == "run" else []
+    assert main([command, str(station), *extra]) == 2
+    err = capsys.readouterr()
+    text = err.out + err.err
+    assert "a station file (resource, [channels], [sensitivity]), not a test sequence: give a " \
+           "sequence first and this file with --station" in text
+    assert "unknown key" not in text
+    assert main([command, str(PAPER), "--station", str(PAPER), *extra]) == 2
+    err = capsys.readouterr()
+    assert "paper.toml: a test sequence ([[steps]]), not a station file" in err.out + err.err
+    assert not (tmp_path / "x.h5").exists()
+
+
 @pytest.mark.parametrize(("text", "expected"), [
     ("1.4 m/s2", 1.4), ("1.4 m/s²", 1.4), ("1.4 m/s^2", 1.4), ("1.4 m/s**2", 1.4),
     ("1.4 m s^-2", 1.4), ("1.4 m·s⁻²", 1.4), ("1.4 m/s/s", 1.4), ("1400 mm/s2", 1.4),

@@ -93,6 +93,11 @@ def load_sequence(path: str | Path) -> Sequence:
     return parse_sequence(read_text(path), source=str(path))
 
 
+#: Keys only a station file has at its top: a file with one of them and no steps, given as a
+#: sequence, is a station file in the sequence's place.
+STATION_MARKS = ("resource", "adapter", "channels", "sensitivity")
+
+
 def parse_toml(text: str, source: str) -> dict[str, Any]:
     """TOML text as a dict; syntax errors become InputErrors naming the file and line."""
     if not isinstance(text, str):
@@ -114,6 +119,10 @@ def parse_sequence(text: str, source: str = "sequence") -> Sequence:
         Every problem of the file.
     """
     document = parse_toml(text, source)
+    if "steps" not in document and any(key in document for key in STATION_MARKS):
+        raise InputError("a station file (resource, [channels], [sensitivity]), not a test "
+                         "sequence: give a sequence first and this file with --station "
+                         "(viscorig run SEQUENCE.toml --station STATION.toml)", source)
     problems = Problems(source, text)
     top = read_table(problems, (), document, SEQUENCE, also_known=("defaults", "steps"))
     defaults = document.get("defaults", {})

@@ -51,6 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from viscorig.errors import InputError
 from viscorig.sequences.problems import Problems
 from viscorig.sequences.schema import STATION_SECTIONS, STATION_TOP, ReadTable, read_table
 from viscorig.sequences.sequence import parse_toml, read_text
@@ -202,6 +203,9 @@ def parse_station(text: str, source: str = "station") -> Station:
         Every problem of the file.
     """
     document = parse_toml(text, source)
+    if "steps" in document:
+        raise InputError("a test sequence ([[steps]]), not a station file: give it first, as "
+                         "the sequence, and the station with --station", source)
     problems = Problems(source, text)
     names = tuple(section.name for section in STATION_SECTIONS)
     top = read_table(problems, (), document, STATION_TOP, also_known=names)
