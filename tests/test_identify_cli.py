@@ -18,9 +18,11 @@ from viscorig.storage import CampaignFile, RunSettings, Segment
 VOIGT = {"mass_kg": 0.25, "model": "voigt", "stiffness_n_per_m": 1.5e5, "damping_ns_per_m": 114.59}
 
 
-def add_run(campaign: CampaignFile, name: str, run: SimulatedRun, specimen: str) -> None:
+def add_run(campaign: CampaignFile, name: str, run: SimulatedRun, specimen: str,
+            preload_strain: float = 0.0) -> None:
     settings = RunSettings(
         specimen=specimen,
+        preload_strain=preload_strain,
         level_m_per_s2=1.0,
         direction="up",
         settle_cycles=100,
@@ -168,6 +170,56 @@ def test_summary_json_gives_every_number_with_its_uncertainty(
     assert all("hard-10" not in note for note in document["notes"])
 
 
+def cut(run: SimulatedRun, points: int) -> SimulatedRun:
+    """The run's first ``points`` points: a sweep stopped there."""
+    fields = {name: getattr(run, name)[:points] for name in (
+        "frequency_hz", "time_s", "accelerance_table", "accelerance_support",
+        "reference_amplitude", "force_amplitude", "flags")}
+    return SimulatedRun(**fields, rig=run.rig)
+
+
+@pytest.fixture(scope="module")
+def stopped_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The table, a whole soft-0, a soft-10 stopped below its resonance (20-29 Hz), and a
+    medium-0 aborted after three points."""
+    path = tmp_path_factory.mktemp("stopped") / "stopped.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
+        add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
+        add_run(campaign, "soft-10", cut(simulate_run("soft-10", seed=3), 37), "soft", 0.104)
+        add_run(campaign, "medium-0", cut(simulate_run("medium-0", seed=4), 3), "medium")
+    return path
+
+
+def test_summary_leaves_out_a_run_too_short_to_fit_and_marks_one_fitted_over_part_of_the_band(
+    stopped_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One aborted run of three points used to refuse the whole summary; a run stopped below its
+    resonance showed the last point measured as the measured peak, without a word."""
+    assert main(["summary", str(stopped_campaign)]) == 0
+    out = capsys.readouterr().out
+    table_1 = out.split("Table 1")[1].split("Table 2")[0]
+    assert "soft-0 " in table_1 and "medium-0" not in table_1
+    soft_10 = next(line for line in table_1.splitlines() if line.strip().startswith("soft-10"))
+    assert soft_10.rstrip().endswith("†") or "† " in soft_10
+    assert "† fitted over part of the 20–120 Hz band only, where the run has points (soft-10 " \
+           "20–29 Hz)" in table_1
+    table_2 = out.split("Table 2")[1]
+    row = next(line for line in table_2.splitlines() if line.strip().startswith("soft-10"))
+    assert re.search(r"\sn/a\s+n/a\s", row), row  # no peak inside 20-29 Hz: none measured
+    assert "Left out of the tables:\n  - run 'medium-0', band 20:20.5 Hz: 3 points, a fit " \
+           "needs at least 10" in out
+    assert "soft-0 → soft-10 †" in out
+    assert main(["summary", str(stopped_campaign), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["left_out"] == [{"run": "medium-0", "reason": "run 'medium-0', band "
+                                     "20:20.5 Hz: 3 points, a fit needs at least 10"}]
+    runs = {entry["run"]: entry for entry in document["runs"]}
+    assert runs["soft-10"]["band_hz"] == [20.0, 29.0]
+    assert runs["soft-10"]["measured"]["peak_hz"] is None
+    assert runs["soft-0"]["measured"]["peak_hz"] == pytest.approx(39.1, abs=0.5)
+
+
 def test_identify_says_what_the_uncertainty_includes(
     campaign_file: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -196,3 +248,18 @@ def test_identify_says_what_the_uncertainty_leaves_out(
                  "--model", "voigt+load_cell+frame(2000)"]) == 0
     excludes = json.loads(capsys.readouterr().out)["uncertainty"]["excludes"]
     assert len(excludes) == 1 and "calibration" in excludes[0]
+
+
+def test_the_report_keeps_its_tables_beside_a_run_too_short_to_fit(
+    stopped_campaign: Path, tmp_path: Path
+) -> None:
+    """The report's Tables 1 and 2 were refused whole for one aborted run of three points."""
+    out = tmp_path / "report"
+    assert main(["report", str(stopped_campaign), "--out", str(out), "--no-ladder"]) == 0
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "Table 1 and 2 not computed" not in page
+    table_1 = page.split("Table 1: Voigt fit")[1].split("Table 2")[0]
+    assert "soft-0" in table_1 and "medium-0" not in table_1
+    assert "fitted over 20–29 Hz only, where the run has points" in table_1
+    assert "run medium-0: 3 points, too few to fit; shown as measured" in page
+    assert "left out of Tables 1 and 2" not in page  # (said once, by the note above)

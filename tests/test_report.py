@@ -181,7 +181,7 @@ def test_preload_pairs_are_compared_with_their_uncertainty(quick_report: Path,
     from viscorig.identify import summarize
 
     page = (quick_report / "index.html").read_text(encoding="utf-8")
-    _, summaries = summarize(CampaignFile.open(campaign_file))
+    _, summaries, _ = summarize(CampaignFile.open(campaign_file))
     fits = {s.run: s.fit for s in summaries}
     (k_v, c_v) = compare_fits(fits["soft-0"], fits["soft-10"], ["K_v", "C_v"])
     assert k_v.significant and 0.05 < k_v.relative < 0.15  # the rig's preload stiffens K_v

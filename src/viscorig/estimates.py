@@ -98,7 +98,9 @@ class MeasuredResonance:
     Attributes
     ----------
     peak_hz
-        Frequency of the largest ``|X/F|`` (parabolic interpolation on ``log|X/F|``).
+        Frequency of the largest ``|X/F|`` (parabolic interpolation on ``log|X/F|``); NaN,
+        and so are the others, when that is the first or last point: the resonance is then
+        outside the data, and the edge is no peak.
     bandwidth_hz
         Half-power bandwidth: distance between the frequencies where ``|X/F|`` falls to
         ``peak/√2`` (linear interpolation), NaN if the band does not hold both.
@@ -116,6 +118,8 @@ def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> Measu
     f = np.asarray(frequency_hz, dtype=float)
     magnitude = np.abs(accelerance_to_receptance(f, accelerance))
     i = int(np.nanargmax(magnitude))
+    if i in (0, f.size - 1):
+        return MeasuredResonance(float("nan"), float("nan"), float("nan"))
     peak_hz = f[i]
     peak = magnitude[i]
     if 0 < i < f.size - 1:  # parabola through log-magnitudes of the three top points

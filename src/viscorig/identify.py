@@ -304,6 +304,11 @@ def stored_fits(campaign: CampaignFile, run_name: str) -> list[FitResult]:
     return out
 
 
+#: A run fitted over less than this share of the band asked for covers part of it only (a
+#: sweep's last point a step short of the band's edge still covers it).
+COVERED_SHARE = 0.95
+
+
 @dataclass(frozen=True)
 class RunSummary:
     """Table 1 and Table 2 quantities of one run (Voigt on the table FRF, as the paper).
@@ -327,6 +332,21 @@ class RunSummary:
     weighted: FitResult | None = None
     direction: str = "up"
     level_m_per_s2: float = math.nan
+
+    def covers(self, band_hz: tuple[float, float]) -> bool:
+        """The fit spans at least :data:`COVERED_SHARE` of ``band_hz``: not a run whose points
+        stop short of the band (an interrupted sweep, a narrower one)."""
+        lo, hi = self.fit.band_hz
+        inside = min(hi, band_hz[1]) - max(lo, band_hz[0])
+        return inside >= COVERED_SHARE * (band_hz[1] - band_hz[0])
+
+
+@dataclass(frozen=True)
+class LeftOut:
+    """A specimen run the tables could not fit, and why."""
+
+    run: str
+    reason: str
 
 
 @dataclass(frozen=True)
@@ -403,16 +423,21 @@ def summarize(
     campaign: CampaignFile,
     band_hz: tuple[float, float] = PAPER_BAND_HZ,
     table_model: str = "table",
-) -> tuple[TableSource | None, list[RunSummary]]:
+) -> tuple[TableSource | None, list[RunSummary], list[LeftOut]]:
     """Identify every run as the paper does: the table, then Voigt on ``X_s/F_e``, table fixed,
     every point weighted the same (the paper's method, which the simulated rigs were calibrated
     to reproduce Table 1 with); beside it the same fit by the project's estimate (weighted by
     the noise, :attr:`RunSummary.weighted`).
 
     ``table_model``: the bare table's model (``"table+frame(2000)"`` takes the frame out of
-    ``K_s``; the specimen fits then stay Voigt, as the paper's)."""
+    ``K_s``; the specimen fits then stay Voigt, as the paper's).
+
+    Returns the table's values, a summary of every run fitted, and the specimen runs that
+    could not be (an aborted run of three points, a band that misses a run), each with why: one
+    such run leaves the others' tables whole."""
     table = table_parameters(campaign, table_model)
     summaries = []
+    left_out: list[LeftOut] = []
     for name in campaign.run_names:
         run = campaign.run(name)
         if not run.points:
@@ -433,13 +458,17 @@ def summarize(
                     "Table 1 needs the table's M_s, K_s, C_s: no bare-table run, no /rig values",
                     str(campaign.path),
                 )
-            band = _band_within(data, band_hz)
-            result, _ = _identify(
-                campaign, run, "voigt", band_hz=band, frfs=("table",), table=table,
-                weighting="uniform",
-            )
-            weighted = fit("voigt", data, frfs=("table",), band_hz=band, known=table.known,
-                           noise=result.noise, weighting="noise")
+            try:
+                band = _band_within(data, band_hz)
+                result, _ = _identify(
+                    campaign, run, "voigt", band_hz=band, frfs=("table",), table=table,
+                    weighting="uniform",
+                )
+                weighted = fit("voigt", data, frfs=("table",), band_hz=band, known=table.known,
+                               noise=result.noise, weighting="noise")
+            except InputError as error:
+                left_out.append(LeftOut(name, str(error)))
+                continue
             system = voigt_system_properties(result.values)
         inside = data.in_band(band)
         metadata = run.metadata
@@ -461,4 +490,4 @@ def summarize(
                 float(metadata.level_m_per_s2),
             )
         )
-    return table, summaries
+    return table, summaries, left_out

@@ -21,6 +21,7 @@ from viscorig.cli.arguments import parse_band
 from viscorig.compare import Change
 from viscorig.identify import (
     PAPER_BAND_HZ,
+    LeftOut,
     RunSummary,
     TableSource,
     Variation,
@@ -60,12 +61,12 @@ def handler(args: argparse.Namespace) -> int:
     """Run ``summary``."""
     band = parse_band(args.band) or PAPER_BAND_HZ
     with CampaignFile.open(args.file) as campaign:
-        table, runs = summarize(campaign, band, args.table_model)
+        table, runs, left_out = summarize(campaign, band, args.table_model)
     variations = preload_variations(runs)
     if args.json:
-        print(jsontext.dumps(summary_json(table, runs, variations, band)))
+        print(jsontext.dumps(summary_json(table, runs, variations, band, left_out)))
     else:
-        print(format_summary(table, runs, variations))
+        print(format_summary(table, runs, variations, left_out, band_hz=band))
     return 0
 
 
@@ -85,17 +86,24 @@ def format_summary(
     table: TableSource | None,
     runs: list[RunSummary],
     variations: list[Variation] | None = None,
+    left_out: list[LeftOut] | None = None,
+    *,
+    band_hz: tuple[float, float] = PAPER_BAND_HZ,
 ) -> str:
-    """Table 1, Table 2 and the preload variations as text, with the paper's values beside."""
+    """Table 1, Table 2 and the preload variations as text, with the paper's values beside,
+    and the runs left out of the tables with why; a run fitted over much less of ``band_hz``
+    than asked (its points stop short) is marked."""
     variations = preload_variations(runs) if variations is None else variations
     present = [run.run for run in runs]
     paper_names = any(name in PAPER_TABLE_1 for name in present)
     specimen = [run for run in runs if not run.bare]
     lines = _table_lines(table, paper_names)
-    lines += _table_1_lines(specimen, paper_names)
+    lines += _table_1_lines(specimen, paper_names, band_hz)
     lines += _weighted_lines(specimen)
     lines += _table_2_lines(specimen, paper_names)
-    lines += _preload_lines(variations)
+    lines += _preload_lines(variations, {run.run for run in specimen if not run.covers(band_hz)})
+    if left_out:
+        lines += ["", "Left out of the tables:"] + [f"  - {run.reason}" for run in left_out]
     if paper_names:
         lines += ["", "Notes on the paper's numbers:"]
         lines += [f"  - {note}" for note in consistency_notes(present)]
@@ -119,7 +127,8 @@ def _table_lines(table: TableSource | None, paper_names: bool) -> list[str]:
     return lines
 
 
-def _table_1_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
+def _table_1_lines(specimen: list[RunSummary], paper_names: bool,
+                   band_hz: tuple[float, float] = PAPER_BAND_HZ) -> list[str]:
     """Table 1: the paper's Voigt fit of each specimen run, its error against the floor."""
     lines = ["", "Table 1: Voigt fit of X_s/F_e, table fixed, every point weighted the same as "
              "in the paper (± one standard uncertainty)"]
@@ -130,7 +139,8 @@ def _table_1_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
     if paper_names:
         header += f" {'paper K_v':>12} {'paper C_v':>10}"
     lines.append(header)
-    misfits = []
+    misfits: list[str] = []
+    short: list[str] = []
     for run in specimen:
         p = run.fit.parameters
         ratio = run.fit.rms_error / run.fit.noise_floor
@@ -142,6 +152,9 @@ def _table_1_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
         if not run.fit.fits_noise:
             text += "*"
             misfits.append(run.run)
+        if not run.covers(band_hz):
+            text += "†"
+            short.append(f"{run.run} {run.fit.band_hz[0]:g}–{run.fit.band_hz[1]:g} Hz")
         if run.run in PAPER_TABLE_1:
             k_v, c_v = PAPER_TABLE_1[run.run]
             text += f" {k_v:>12.2f} {c_v:>10.2f}"
@@ -151,6 +164,10 @@ def _table_1_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
             "  * the Voigt model does not fit these runs to the noise: their ± are those of the "
             "model's band-average (scaled by the misfit), not of the specimen"
         )
+    if short:
+        lines.append(f"  † fitted over part of the {band_hz[0]:g}–{band_hz[1]:g} Hz band only, "
+                     f"where the run has points ({'; '.join(short)}): an interrupted run, or "
+                     "one measured over a narrower band; not comparable with the others")
     return lines
 
 
@@ -188,9 +205,10 @@ def _table_2_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
             continue
         s, m = run.system_uncertain, run.measured
         bandwidth = "n/a" if math.isnan(m.bandwidth_hz) else f"{m.bandwidth_hz:.3f}"
+        peak = "n/a" if math.isnan(m.peak_hz) else f"{m.peak_hz:.2f}"
         text = (
             f"  {run.run:<10} {_q(s['f_r']):>16} {_q(s['xi']):>18} "
-            f"{_q(s['B_r']):>17} {m.peak_hz:>9.2f} {bandwidth:>9}"
+            f"{_q(s['B_r']):>17} {peak:>9} {bandwidth:>9}"
         )
         paper = paper_values(run.run)
         if paper is not None:
@@ -199,8 +217,9 @@ def _table_2_lines(specimen: list[RunSummary], paper_names: bool) -> list[str]:
     return lines
 
 
-def _preload_lines(variations: list[Variation]) -> list[str]:
-    """Each preloaded run's change against its base, with the paper's where it has one."""
+def _preload_lines(variations: list[Variation], short: set[str] | None = None) -> list[str]:
+    """Each preloaded run's change against its base, with the paper's where it has one; a
+    pair with a run in ``short`` (fitted over part of the band, Table 1's †) marked so."""
     if not variations:
         return []
     lines = ["", "Preload: change against the same specimen without preload"]
@@ -208,6 +227,8 @@ def _preload_lines(variations: list[Variation]) -> list[str]:
     lines.append(header)
     for variation in variations:
         label = f"{variation.base} → {variation.run}"
+        if {variation.base, variation.run} & (short or set()):
+            label += " †"
         lines.append(
             f"  {label:<22}"
             + "".join(f" {_change(q):>16}" for q in variation.changes.values())
@@ -228,8 +249,10 @@ def summary_json(
     runs: list[RunSummary],
     variations: list[Variation],
     band_hz: tuple[float, float],
+    left_out: list[LeftOut] | None = None,
 ) -> dict[str, Any]:
-    """The summary as one JSON object: every number as ``{value, stderr, unit}``."""
+    """The summary as one JSON object: every number as ``{value, stderr, unit}``; the runs
+    left out of the tables under ``left_out``, each with its ``reason``."""
     present = [run.run for run in runs]
     document: dict[str, Any] = {"band_hz": [float(band_hz[0]), float(band_hz[1])]}
     if table is not None:
@@ -252,6 +275,7 @@ def summary_json(
         entry = {
             "run": run.run,
             "model": fit["model"],
+            "band_hz": fit["band_hz"],
             "rms_error": fit["rms_error"],
             "noise_floor": fit["noise_floor"],
             "fits_noise": fit["fits_noise"],
@@ -265,7 +289,8 @@ def summary_json(
             },
             "system": {name: q.to_json() for name, q in (run.system_uncertain or {}).items()},
             "measured": {
-                "peak_hz": float(run.measured.peak_hz),
+                "peak_hz": None if math.isnan(run.measured.peak_hz)
+                else float(run.measured.peak_hz),
                 "bandwidth_hz": None if math.isnan(run.measured.bandwidth_hz)
                 else float(run.measured.bandwidth_hz),
             },
@@ -284,6 +309,7 @@ def summary_json(
         }
         for v in variations
     ]
+    document["left_out"] = [{"run": run.run, "reason": run.reason} for run in left_out or []]
     document["notes"] = (
         consistency_notes(present) if any(name in PAPER_TABLE_1 for name in present) else []
     )

@@ -36,6 +36,7 @@ from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
 from viscorig.executor import default_jobs, executor
 from viscorig.fitting import FitResult, estimate_noise, fit
+from viscorig.fitting.data import MIN_POINTS
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -389,11 +390,13 @@ def analyse_campaign(
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
     runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
-    for run in runs:
-        if 0 < run.points < 10:
-            notes.append(f"run {run.name}: {run.points} points, too few to fit; shown as measured")
+    few = [run for run in runs if 0 < run.points < MIN_POINTS]
+    notes += [f"run {run.name}: {run.points} points, too few to fit; shown as measured"
+              for run in few]
     try:
-        table, summaries = summarize(campaign, band_hz)
+        table, summaries, left_out = summarize(campaign, band_hz)
+        notes += [f"left out of Tables 1 and 2: {run.reason}" for run in left_out
+                  if run.run not in {run.name for run in few}]  # (said already)
     except InputError as error:
         summaries = []
         notes.append(f"Table 1 and 2 not computed: {error}")

@@ -280,10 +280,14 @@ def tables(analysis: CampaignAnalysis) -> str:
         for s in specimen:
             p = s.fit.parameters
             variation = variations.get(s.run)
+            error = error_words(s.fit.rms_error, s.fit.noise_floor)
+            if not s.covers(analysis.band_hz):
+                error += (f"; fitted over {s.fit.band_hz[0]:g}–{s.fit.band_hz[1]:g} Hz only, "
+                          "where the run has points: not comparable with the others")
             rows.append([_e(s.run), _pm(p["K_v"].value, p["K_v"].stderr),
                          _variation(variation, "K_v"), _pm(p["C_v"].value, p["C_v"].stderr),
                          _variation(variation, "C_v"), _pm(p["M_v"].value, p["M_v"].stderr),
-                         _e(error_words(s.fit.rms_error, s.fit.noise_floor))])
+                         _e(error)])
             classes.append("")
             if s.run in PAPER_TABLE_1:
                 pk, pc = PAPER_TABLE_1[s.run]
