@@ -434,7 +434,8 @@ def summarize(
 
     Returns the table's values, a summary of every run fitted, and the specimen runs that
     could not be (an aborted run of three points, a band that misses a run), each with why: one
-    such run leaves the others' tables whole."""
+    such run leaves the others' tables whole. When no specimen run can be fitted, the first's
+    reason is raised (:class:`InputError`)."""
     table = table_parameters(campaign, table_model)
     summaries = []
     left_out: list[LeftOut] = []
@@ -490,4 +491,6 @@ def summarize(
                 float(metadata.level_m_per_s2),
             )
         )
+    if left_out and all(summary.bare for summary in summaries):
+        raise InputError(left_out[0].reason)  # no specimen run to table
     return table, summaries, left_out
