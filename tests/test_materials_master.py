@@ -16,7 +16,11 @@ import pytest
 from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.master import build_master
-from viscorig.materials.shift import estimate_shift_factors, frequency_dependence
+from viscorig.materials.shift import (
+    _temperature_slope,
+    estimate_shift_factors,
+    frequency_dependence,
+)
 from viscorig.materials.table import ModulusTable
 from viscorig.storage import CampaignFile, RunSettings, Segment
 
@@ -452,3 +456,17 @@ def test_sweeps_repeated_at_one_temperature_are_shifted_together() -> None:
     assert twins.size == 2 and abs(twins[0] - twins[1]) < 0.05
     truth = gen.true_log10_at(shifts.temperature_c, shifts.temperature_c[shifts.reference])
     assert np.all(np.abs(shifts.log10_at - truth) < 4 * shifts.log10_at_stderr + 0.02)
+
+
+def test_sweeps_a_few_hundredths_of_a_kelvin_apart_are_one_temperature_wherever_they_fall() -> None:
+    # the local slope d(log10 aT)/dT moves each point by its own temperature's offset: twin
+    # sweeps at 10.04 and 10.06 °C, rounded to a 0.1 K grid, were two temperatures 0.02 K apart,
+    # and the slope there their shifts' scatter over 0.02 K (0.5 decade/K for 0.01 decade)
+    shifts = np.array([1.0, 0.5, 0.0, 0.01, -0.5, -1.0])
+    apart = _temperature_slope(shifts, np.array([-10.0, 0.0, 10.04, 10.06, 20.0, 30.0]))
+    together = _temperature_slope(shifts, np.array([-10.0, 0.0, 10.05, 10.05, 20.0, 30.0]))
+    np.testing.assert_allclose(apart, together, atol=1e-3)
+    assert np.all(np.abs(apart) < 0.06)
+    # and sweeps 0.1 K apart or more are temperatures of their own
+    assert _temperature_slope(np.array([0.0, -0.01]), np.array([10.0, 10.1])) == \
+        pytest.approx([-0.1, -0.1])

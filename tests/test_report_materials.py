@@ -55,3 +55,20 @@ def test_strain_steps_at_one_temperature_join_no_master_curve(tmp_path: Path):
     with CampaignFile.open(path) as campaign:
         # at 80 °C only another level was run: the nearest to the series' joins
         assert candidate_groups(campaign) == [("T0", "T25", "T50", "again", "hot")]
+
+
+def test_strain_steps_read_a_few_hundredths_of_a_kelvin_off_their_series_still_join_none(
+        tmp_path: Path):
+    # the chamber holds 25 °C to a few hundredths: a step read at 25.06 °C beside the series'
+    # 25.04 °C fell, rounded to 0.1 °C, at another temperature (25.1), and joined the curve
+    path = tmp_path / "c.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        for name, temperature, level in (("T0", 0.0, 0.2), ("T25", 25.04, 0.2),
+                                         ("s1", 25.06, 4.5), ("T50", 50.0, 0.2)):
+            settings = RunSettings(specimen="medium", level_m_per_s2=level, direction="up",
+                                   settle_cycles=100, integrate_cycles=100, resolution_hz=25.0,
+                                   preload_strain=0.0, temperature_c=temperature,
+                                   simulated=True)
+            campaign.add_run(name, settings, _segment())
+    with CampaignFile.open(path) as campaign:
+        assert candidate_groups(campaign) == [("T0", "T25", "T50")]

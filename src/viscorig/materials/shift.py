@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
 from scipy.special import chdtrc, fdtrc
@@ -429,21 +429,33 @@ def estimate_shift_factors(
     )
 
 
-#: Temperature resolution: sets whose mean temperatures round to the same multiple of it are at
-#: one temperature (repeated sweeps, strain steps); a thermocouple and a chamber's control tell
-#: no finer.
+#: Temperature resolution: sets whose mean temperatures, in order, lie less than this apart are
+#: at one temperature (repeated sweeps, strain steps); a thermocouple and a chamber's control
+#: tell no finer.
 TEMPERATURE_RESOLUTION_K = 0.1
+
+
+def temperature_groups(temperatures: ArrayLike) -> NDArray[np.int64]:
+    """Which temperature each of ``temperatures`` (°C) is at, numbered from the coldest: values
+    that, in order, lie less than :data:`TEMPERATURE_RESOLUTION_K` apart are one temperature
+    (grouped by the gaps between them, not rounded to a grid: 24.99 and 25.01 °C are one
+    temperature however a grid falls)."""
+    values = np.asarray(temperatures, dtype=float).ravel()
+    order = np.argsort(values, kind="stable")
+    # (a resolution's worth less its rounding: 10.1 − 10.0 is 0.0999999999999996)
+    gaps = np.diff(values[order]) >= TEMPERATURE_RESOLUTION_K * (1 - 1e-9)
+    groups = np.empty(values.size, dtype=np.int64)
+    groups[order] = np.concatenate([[0], np.cumsum(gaps)]).astype(np.int64)
+    return groups
 
 
 def _temperature_slope(shifts: NDArray[np.float64],
                        temperatures: NDArray[np.float64]) -> NDArray[np.float64]:
     """``d(log10 aT)/dT`` at each set's temperature: the gradient of the shifts averaged over the
-    sets at one temperature (to the nearest :data:`TEMPERATURE_RESOLUTION_K`), 0 with one
-    temperature.
-    A gradient taken across two sets at the same temperature divided by zero."""
-    levels = np.round(temperatures / TEMPERATURE_RESOLUTION_K)
-    unique, inverse = np.unique(levels, return_inverse=True)
-    if unique.size < 2:
+    sets at one temperature (:func:`temperature_groups`), 0 with one temperature. A gradient
+    taken across two sets at the same temperature divided by zero."""
+    inverse = temperature_groups(temperatures)
+    if not inverse.any():
         return np.zeros(temperatures.size)
     count = np.bincount(inverse)
     mean_shift = np.bincount(inverse, weights=shifts) / count

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from viscorig.errors import InputError
 from viscorig.materials.dmastore import dma_run_names
 from viscorig.materials.master import MasterCurve
+from viscorig.materials.shift import temperature_groups
 from viscorig.materials.sources import master_curve
 from viscorig.report.figures import SavedFigure, figure_stem, legend_below, save, styled
 from viscorig.storage import CampaignFile
@@ -48,16 +49,18 @@ def _one_level_per_temperature(
     members: list[tuple[float, float, str]],
 ) -> list[tuple[float, float, str]]:
     """The runs ``(temperature, level, name)`` at the level nearest (in ratio) the most common
-    one, at each temperature (to 0.1 °C); every run where levels are unknown."""
+    one, at each temperature (:func:`~viscorig.materials.shift.temperature_groups`); every run
+    where levels are unknown."""
     levels = Counter(level for _, level, _ in members if level > 0)
     usual = levels.most_common(1)[0][0] if levels else math.nan
 
     def distance(level: float) -> float:
         return abs(math.log(level / usual)) if level > 0 and usual > 0 else math.inf
 
-    at: dict[float, list[tuple[float, float, str]]] = {}
-    for member in members:
-        at.setdefault(round(member[0], 1), []).append(member)
+    at: dict[int, list[tuple[float, float, str]]] = {}
+    groups = temperature_groups([temperature for temperature, _, _ in members])
+    for group, member in zip(groups.tolist(), members, strict=True):
+        at.setdefault(group, []).append(member)
     kept = []
     for runs in at.values():
         nearest = min(distance(level) for _, level, _ in runs)
@@ -84,7 +87,7 @@ def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
         by_specimen.setdefault(key, []).append((temperature, level, name))
     for members in by_specimen.values():
         kept = _one_level_per_temperature(members)
-        if len({round(temperature, 1) for temperature, _, _ in kept}) >= 2:
+        if np.ptp(temperature_groups([temperature for temperature, _, _ in kept])) >= 1:
             groups.append(tuple(name for _, _, name in sorted(kept)))
     return groups
 
