@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import pickle
+import time
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from simdata import DEFAULT_NOISE, rig_text, simulate_run
 from viscorig.cli import main
 from viscorig.diagnosis import diagnose
 from viscorig.diagnosis.workers import fit_all, fitting_on
-from viscorig.executor import LocalExecutor
+from viscorig.executor import LocalExecutor, default_jobs
 from viscorig.models import parse_spec
 
 TABLE = {"M_s": 3.4, "K_s": 50194.0, "C_s": 5.05}
@@ -64,6 +65,23 @@ def test_jobs_must_be_a_whole_number_of_at_least_one(jobs: str, tmp_path, capsys
         main(["diagnose", str(tmp_path / "none.h5"), "--run", "x", "--jobs", jobs])
     assert stop.value.code == 2
     assert "--jobs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["diagnose", "report"])
+def test_jobs_beyond_four_per_core_are_refused_before_any_process_is_forked(
+        command: str, tmp_path, capsys) -> None:
+    # local workers are forked all at once: a mistyped --jobs 99999 forked for minutes
+    arguments = [command, str(tmp_path / "none.h5")] + (["--run", "x"] if command == "diagnose"
+                                                         else [])
+    start = time.perf_counter()
+    with pytest.raises(SystemExit) as stop:
+        main([*arguments, "--jobs", "99999"])
+    assert stop.value.code == 2 and time.perf_counter() - start < 5
+    most = 4 * default_jobs()
+    assert f"--jobs: at most {most} (4 per core of this machine), got 99999" in \
+        capsys.readouterr().err
+    assert main([*arguments, "--jobs", str(most)]) == 2  # accepted: the file is what is refused
+    assert "no such file" in capsys.readouterr().err
 
 
 def test_diagnose_json_is_the_same_with_one_job_and_two(tmp_path, capsys) -> None:

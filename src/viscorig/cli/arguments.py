@@ -6,6 +6,7 @@ import argparse
 import math
 
 from viscorig.errors import InputError
+from viscorig.executor import default_jobs
 
 
 def positive_number(text: str) -> float:
@@ -27,6 +28,21 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
+
+
+#: Worker processes per core that ``--jobs`` may ask for: the fits are CPU-bound, so more run
+#: no faster, and local workers are forked all at once (a mistyped 99999 forked for minutes).
+JOBS_PER_CORE = 4
+
+
+def job_count(text: str) -> int:
+    """An ``argparse`` type: worker processes, 1 to :data:`JOBS_PER_CORE` per core."""
+    value = positive_int(text)
+    most = JOBS_PER_CORE * default_jobs()
+    if value > most:
+        raise argparse.ArgumentTypeError(
+            f"at most {most} ({JOBS_PER_CORE} per core of this machine), got {text}")
     return value
 
 

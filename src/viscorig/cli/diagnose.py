@@ -22,7 +22,7 @@ from collections.abc import Iterable, Iterator
 
 from viscorig import jsontext
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import parse_band, positive_int
+from viscorig.cli.arguments import job_count, parse_band
 from viscorig.cli.identify import FRF_CHOICES
 from viscorig.diagnosis import DEFAULT_MODEL, DiagnosisResult, diagnose, from_campaign
 from viscorig.diagnosis.workers import fitting_on
@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="leave out the specimen's runs at other levels or directions",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--jobs", type=positive_int, default=None,
+    parser.add_argument("--jobs", type=job_count, default=None,
                         help="worker processes for each step's candidate fits (default: one "
                              "per core; 1: all in this process)")
     parser.set_defaults(handler=handler)

@@ -20,7 +20,7 @@ import argparse
 from pathlib import Path
 
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import parse_band, positive_int
+from viscorig.cli.arguments import job_count, parse_band
 from viscorig.executor import check_scheduler
 from viscorig.identify import PAPER_BAND_HZ
 from viscorig.report import build_report
@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="diagnose each run once instead of climbing the ladder of effects "
                         "to the best model (faster; shows the most likely missing effect)")
     parser.add_argument("--ladder", action="store_true", help=argparse.SUPPRESS)  # the default
-    parser.add_argument("--jobs", type=positive_int, default=None,
+    parser.add_argument("--jobs", type=job_count, default=None,
                         help="processes climbing ladders at once (default: one per core)")
     parser.add_argument("--svg", action="store_true",
                         help="also write every figure as SVG, for print (draws each figure a "
