@@ -280,6 +280,28 @@ def test_bad_import_is_one_line_exit_2_and_leaves_the_campaign_unchanged(
     assert _digest(target) == before
 
 
+@pytest.mark.parametrize(("option", "value", "message"), [
+    ("--hardness", "500", "--hardness: 500 is outside 0..100 Shore A"),
+    ("--temperature", "-300", "--temperature: -300 is outside -100..300 °C"),
+    ("--temperature", "1e9", "--temperature: 1e+09 is outside -100..300 °C"),
+    ("--preload-strain", "0.6", "--preload-strain: 0.6 is outside 0..0.5"),
+    ("--preload-strain", "nan", "--preload-strain: nan is not a number"),
+    ("--level", "-1", "--level: -1.0 must be a positive number"),
+])
+def test_an_imported_run_s_options_are_held_to_a_sequence_s_bounds(
+    campaign_file: Path, tmp_path: Path, capsys, option: str, value: str, message: str
+):
+    # a hardness of 500 Shore A, or a run at -300 °C, was stored as given
+    good = tmp_path / "good.uff"
+    write_uff(CampaignFile.open(campaign_file).run("soft-0"), good)
+    target = tmp_path / "c.h5"
+    assert main(["import", str(target), "--run", "r", "--uff", str(good), option, value]) == 2
+    assert capsys.readouterr().err == f"viscorig: {message}\n"
+    assert not target.exists()
+    assert main(["import", str(target), "--run", "r", "--uff", str(good), "--temperature",
+                 "-70", "--hardness", "0"]) == 0  # a chamber run's temperature; the scale's end
+
+
 def test_export_of_a_missing_run_is_one_line_and_writes_nothing(campaign_file, tmp_path, capsys):
     out = tmp_path / "x.uff"
     assert main(["export", str(campaign_file), "--run", "nope", "--format", "uff",

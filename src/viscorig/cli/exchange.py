@@ -47,6 +47,7 @@ from viscorig.exchange import (
 from viscorig.materials.dmafile import read_dma_file
 from viscorig.materials.dmastore import import_dma
 from viscorig.sequences import load_station
+from viscorig.sequences.schema import SWEEP, TEMPERATURE
 from viscorig.storage import CampaignFile
 
 
@@ -180,6 +181,7 @@ def import_handler(args: argparse.Namespace) -> int:
               f"{table.sets.size} temperature{'s' if table.sets.size != 1 else ''}, "
               f"modulus {table.modulus}")
         return 0
+    _check_run_options(args)
     if args.uff:
         frfs = read_uff(Path(args.uff))
     elif args.csv:
@@ -189,11 +191,6 @@ def import_handler(args: argparse.Namespace) -> int:
             raise InputError(f"{len(args.sdf)} files; give one or two", "--sdf")
         station = load_station(args.station) if args.station else None
         frfs = read_sdf_frfs([Path(p) for p in args.sdf], station)
-    for value, name in ((args.hardness, "--hardness"), (args.level, "--level")):
-        if not (math.isnan(value) or (math.isfinite(value) and value > 0)):
-            raise InputError(f"{value} must be a positive number", name)
-    if not (math.isfinite(args.preload_strain) and 0 <= args.preload_strain < 1):
-        raise InputError(f"{args.preload_strain} must be in 0..1", "--preload-strain")
     settings = ImportSettings(
         specimen=args.specimen, hardness_shore_a=args.hardness,
         preload_strain=args.preload_strain, temperature_c=args.temperature,
@@ -203,3 +200,20 @@ def import_handler(args: argparse.Namespace) -> int:
     present = "two FRFs" if np.any(np.isfinite(frfs.accelerance_support)) else "ẍ_s/F_e only"
     print(f"{args.file}: run {args.run} imported from {frfs.source}: {points} points, {present}")
     return 0
+
+
+def _check_run_options(args: argparse.Namespace) -> None:
+    """The run's options within the bounds a sequence holds a run's to (a sweep step's
+    hardness and preload, a temperature step's set point: a run measured in a chamber records
+    that), NaN where an option is not given (unknown), before any file is read."""
+    if not (math.isnan(args.level) or (math.isfinite(args.level) and args.level > 0)):
+        raise InputError(f"{args.level} must be a positive number", "--level")
+    for option, field in (("--hardness", SWEEP.field("hardness_shore_a")),
+                          ("--preload-strain", SWEEP.field("preload_strain")),
+                          ("--temperature", TEMPERATURE.field("set_point_c"))):
+        value = getattr(args, option[2:].replace("-", "_"))
+        if math.isnan(value) and option == "--preload-strain":  # (0 when not given)
+            raise InputError("nan is not a number", option)
+        if not math.isnan(value) and not field.low <= value <= field.high:
+            unit = f" {field.unit}" if field.unit else ""
+            raise InputError(f"{value:g} is outside {field.low:g}..{field.high:g}{unit}", option)
