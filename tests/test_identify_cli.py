@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from simdata import DEFAULT_NOISE, SimulatedRun, rig_text, simulate_run
@@ -263,3 +264,31 @@ def test_the_report_keeps_its_tables_beside_a_run_too_short_to_fit(
     assert "fitted over 20–29 Hz only, where the run has points" in table_1
     assert "run medium-0: 3 points, too few to fit; shown as measured" in page
     assert "left out of Tables 1 and 2" not in page  # (said once, by the note above)
+
+
+def test_a_few_outlier_points_are_not_the_floor_a_model_is_judged_against(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Twenty points of the table FRF off by half their value: each outlier's noise power is
+    its own error, so they made the whole noise floor 200 times the others', and Voigt, 240
+    times from the noise of the other points, was called at the noise floor."""
+    path = tmp_path / "outliers.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
+        add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
+    with h5py.File(path, "r+") as h5:
+        dataset = h5["runs/soft-0/accelerance_table"]
+        values = dataset[()]
+        spoilt = np.arange(10, values.size, values.size // 20)[:20]  # isolated points
+        values[spoilt] = 1.5 * values[spoilt].real + 0.5j * values[spoilt].imag
+        dataset[...] = values
+    assert main(["diagnose", str(path), "--run", "soft-0", "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["outlier_points"] >= 20
+    assert document["noise_floor_without_outliers"] < document["noise_floor"] / 20
+    assert document["rms_error_without_outliers"] > 50 * document["noise_floor_without_outliers"]
+    assert document["at_noise_floor"] is False
+    assert main(["diagnose", str(path), "--run", "soft-0"]) == 0
+    second = capsys.readouterr().out.splitlines()[1]
+    assert re.search(r"\(\d+\.\d\d x floor; \d+\.\d\d x without its \d+ outlier points\)$",
+                     second), second

@@ -125,11 +125,28 @@ def diagnosis_text(
         yield "next: " + next_command(file, d.data.run, last.model, band_hz)
 
 
+#: The ratio to the floor without the outlier points is shown beside the whole one when the two
+#: differ by more than this share.
+OUTLIERS_SHOWN = 0.1
+
+
+def floor_ratio(d: DiagnosisResult) -> str:
+    """``rms_error / noise_floor``, and beside it the same without the outlier points where
+    they make a difference: a few points off by tens of per cent are their own floor, and the
+    whole ratio then hides how far the model is from the noise of the others."""
+    whole = d.rms_error / d.noise_floor
+    text = f"{whole:.2f} x floor"
+    if d.outlier_points:
+        clean = d.rms_error_without_outliers / d.noise_floor_without_outliers
+        if abs(clean - whole) > OUTLIERS_SHOWN * whole:
+            text += f"; {clean:.2f} x without its {d.outlier_points} outlier points"
+    return text
+
+
 def rung_line(step: DiagnosisResult) -> str:
     """One rung of the ladder: model, rms error, its ratio to the noise floor."""
     mark = "  at the noise floor" if step.at_noise_floor else ""
-    return (f"  {step.model:<44} {step.rms_error:.3e}  "
-            f"({step.rms_error / step.noise_floor:.2f} x floor){mark}")
+    return f"  {step.model:<44} {step.rms_error:.3e}  ({floor_ratio(step)}){mark}"
 
 
 def diagnosis_lines(
@@ -139,8 +156,7 @@ def diagnosis_lines(
     lines = [
         f"run {d.data.run}: model {d.model}, FRFs {', '.join(d.data.frfs)}"
         + (f", with runs {', '.join(d.data.runs[1:])}" if len(d.data.runs) > 1 else ""),
-        f"rms_error {d.rms_error:.3e}   noise_floor {d.noise_floor:.3e}   "
-        f"({d.rms_error / d.noise_floor:.2f} x floor"
+        f"rms_error {d.rms_error:.3e}   noise_floor {d.noise_floor:.3e}   ({floor_ratio(d)}"
         + (", at the noise floor)" if d.at_noise_floor else ")"),
         "noise: " + "; ".join(d.data.noise.describe()),
     ]

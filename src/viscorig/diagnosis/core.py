@@ -127,10 +127,22 @@ class DiagnosisResult:
         return float(np.sqrt(np.mean(kept))) if kept.size else self.rms_error
 
     @property
+    def noise_floor_without_outliers(self) -> float:
+        """:attr:`noise_floor` over every point but the outliers (:meth:`outliers`): an
+        outlier point's noise power is its own error, which a few such points make the whole
+        floor's."""
+        masks = self.outliers()
+        kept = np.concatenate([np.asarray(self.data.noise_power[frf])[~masks[frf]]
+                               for frf in self.fit.frfs])
+        return float(np.sqrt(np.mean(kept))) if kept.size else self.noise_floor
+
+    @property
     def at_noise_floor(self) -> bool:
         """The error is within :data:`AT_FLOOR_RATIO` of the noise floor, outlier points left
-        out on both sides (the noise floor describes the noise without them)."""
-        return self.rms_error_without_outliers <= AT_FLOOR_RATIO * self.noise_floor
+        out on both sides: of the error (:attr:`rms_error_without_outliers`) and of the floor
+        (:attr:`noise_floor_without_outliers`), which holds each outlier's own error."""
+        return self.rms_error_without_outliers <= AT_FLOOR_RATIO * (
+            self.noise_floor_without_outliers)
 
     @property
     def significant(self) -> list[Finding]:
@@ -243,7 +255,8 @@ class DiagnosisResult:
 
     def to_json(self, ladder: Sequence[DiagnosisResult] | None = None) -> dict[str, object]:
         """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
-        ``outlier_points`` and ``scan``: what the thresholds rest on)."""
+        ``outlier_points``, ``rms_error_without_outliers``, ``noise_floor_without_outliers``
+        and ``scan``: what the thresholds and the noise-floor verdict rest on)."""
         document: dict[str, object] = {
             "run": self.data.run,
             "runs": list(self.data.runs),
@@ -251,6 +264,8 @@ class DiagnosisResult:
             "rms_error": float(self.rms_error),
             "noise_floor": float(self.noise_floor),
             "at_noise_floor": bool(self.at_noise_floor),
+            "rms_error_without_outliers": float(self.rms_error_without_outliers),
+            "noise_floor_without_outliers": float(self.noise_floor_without_outliers),
             "outlier_points": self.outlier_points,
             "noise": self.data.noise.describe(),
             "scan": None if self.scan is None else {
