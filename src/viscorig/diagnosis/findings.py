@@ -284,10 +284,25 @@ def fit_term(
         # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
-        return ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
+        result = ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
+        if result.chi2 <= current.chi2:
+            return result
+        # That start minimises every point's error alike: a few outlier points can drag it
+        # where the likelihood ends worse than the model without the term. Start from that
+        # model as well, and keep the better.
+        other = ml_fit(model, data, _warm_start(current, model, term_text, start), only=only,
+                       tolerance=tolerance)
+        return other if other.chi2 < result.chi2 else result
+    return ml_fit(model, data, _warm_start(current, model, term_text, start), only=only,
+                  tolerance=tolerance)
+
+
+def _warm_start(current: Likelihood, model: Model, term_text: str,
+                start: dict[str, float]) -> dict[str, float]:
+    """``model``'s values from ``current``'s, the new term's from ``start`` or its defaults."""
     values = {**model.defaults(), **carried_values(current, model)}
     values.update(_start_of(model, term_text, start))
-    return ml_fit(model, data, values, only=only, tolerance=tolerance)
+    return values
 
 
 #: Candidates are first fitted to this tolerance (a step lowering the cost by less than this
