@@ -266,22 +266,30 @@ def test_the_report_keeps_its_tables_beside_a_run_too_short_to_fit(
     assert "left out of Tables 1 and 2" not in page  # (said once, by the note above)
 
 
-def test_a_few_outlier_points_are_not_the_floor_a_model_is_judged_against(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """Twenty points of the table FRF off by half their value: each outlier's noise power is
-    its own error, so they made the whole noise floor 200 times the others', and Voigt, 240
-    times from the noise of the other points, was called at the noise floor."""
-    path = tmp_path / "outliers.h5"
+def with_outliers(path: Path, points) -> Path:
+    """The table and soft-0, with the table FRF of soft-0 off by half its value (real part
+    x 1.5, imaginary x 0.5) at the points ``points(size)`` picks: outliers written with plain
+    h5py, as a glitch would leave them."""
     with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
         add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
         add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
     with h5py.File(path, "r+") as h5:
         dataset = h5["runs/soft-0/accelerance_table"]
         values = dataset[()]
-        spoilt = np.arange(10, values.size, values.size // 20)[:20]  # isolated points
+        spoilt = points(values.size)
         values[spoilt] = 1.5 * values[spoilt].real + 0.5j * values[spoilt].imag
         dataset[...] = values
+    return path
+
+
+def test_a_few_outlier_points_are_not_the_floor_a_model_is_judged_against(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Twenty points of the table FRF off by half their value: each outlier's noise power is
+    its own error, so they made the whole noise floor 200 times the others', and Voigt, 240
+    times from the noise of the other points, was called at the noise floor."""
+    path = with_outliers(tmp_path / "outliers.h5",
+                         lambda size: np.arange(10, size, size // 20)[:20])  # isolated points
     assert main(["diagnose", str(path), "--run", "soft-0", "--json"]) == 0
     document = json.loads(capsys.readouterr().out)
     assert document["outlier_points"] >= 20
@@ -300,16 +308,8 @@ def test_a_whole_band_candidate_is_not_dragged_by_outliers_far_below_the_model_w
     """A new K* or load cell starts from an identify fit, which weighs every point alike: twenty
     outlier points dragged the load cell's start where its likelihood fit ended worse than the
     model without it (Δχ² −33,910), as if the data refused a term that can only add."""
-    path = tmp_path / "outliers.h5"
-    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
-        add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
-        add_run(campaign, "soft-0", simulate_run("soft-0", seed=2), "soft")
-    with h5py.File(path, "r+") as h5:
-        dataset = h5["runs/soft-0/accelerance_table"]
-        values = dataset[()]
-        spoilt = np.random.default_rng(5).choice(values.size, 20, replace=False)
-        values[spoilt] = 1.5 * values[spoilt].real + 0.5j * values[spoilt].imag
-        dataset[...] = values
+    path = with_outliers(tmp_path / "outliers.h5",
+                         lambda size: np.random.default_rng(5).choice(size, 20, replace=False))
     for model in ("voigt", "fractional+fixture(37.3)+fixture(58)+fixture(92)+gain(x_v)"):
         assert main(["diagnose", str(path), "--run", "soft-0", "--model", model, "--json"]) == 0
         findings = json.loads(capsys.readouterr().out)["findings"]
