@@ -122,13 +122,12 @@ def measured_resonance(frequency_hz: ArrayLike, accelerance: ArrayLike) -> Measu
         return MeasuredResonance(float("nan"), float("nan"), float("nan"))
     peak_hz = f[i]
     peak = magnitude[i]
-    if 0 < i < f.size - 1:  # parabola through log-magnitudes of the three top points
-        y = np.log(magnitude[i - 1 : i + 2])
-        denominator = y[0] - 2 * y[1] + y[2]
-        if denominator < 0:
-            shift = 0.5 * (y[0] - y[2]) / denominator
-            peak_hz = f[i] + shift * 0.5 * (f[i + 1] - f[i - 1])
-            peak = float(np.exp(y[1] - 0.25 * (y[0] - y[2]) * shift))
+    y = np.log(magnitude[i - 1 : i + 2])  # parabola through the three top points' log-magnitudes
+    denominator = y[0] - 2 * y[1] + y[2]
+    if denominator < 0:
+        shift = 0.5 * (y[0] - y[2]) / denominator
+        peak_hz = f[i] + shift * 0.5 * (f[i + 1] - f[i - 1])
+        peak = float(np.exp(y[1] - 0.25 * (y[0] - y[2]) * shift))
     level = peak / np.sqrt(2.0)
     below = np.nonzero(magnitude[:i] < level)[0]
     above = np.nonzero(magnitude[i:] < level)[0]

@@ -390,13 +390,13 @@ def analyse_campaign(
     rig = RigDescription.from_attributes(campaign.rig)
     notes: list[str] = []
     runs = [campaign.run(name).merged() for name in campaign.run_names]  # one point per frequency
-    few = [run for run in runs if 0 < run.points < MIN_POINTS]
-    notes += [f"run {run.name}: {run.points} points, too few to fit; shown as measured"
-              for run in few]
+    few = {run.name: run.points for run in runs if 0 < run.points < MIN_POINTS}
+    notes += [f"run {name}: {points} points, too few to fit; shown as measured"
+              for name, points in few.items()]
     try:
         table, summaries, left_out = summarize(campaign, band_hz)
-        notes += [f"left out of Tables 1 and 2: {run.reason}" for run in left_out
-                  if run.run not in {run.name for run in few}]  # (said already)
+        notes += [f"left out of Tables 1 and 2: {out.reason}" for out in left_out
+                  if out.run not in few]  # (a run too few to fit is said above)
     except InputError as error:
         summaries = []
         notes.append(f"Table 1 and 2 not computed: {error}")
