@@ -470,3 +470,18 @@ def test_sweeps_a_few_hundredths_of_a_kelvin_apart_are_one_temperature_wherever_
     # and sweeps 0.1 K apart or more are temperatures of their own
     assert _temperature_slope(np.array([0.0, -0.01]), np.array([10.0, 10.1])) == \
         pytest.approx([-0.1, -0.1])
+
+
+def test_a_reference_temperature_at_or_below_the_wlf_pole_is_refused_not_rereferenced():
+    # the generator's WLF (C2 = 101.6 K at 20 °C) puts its pole at -81.6 °C: re-referenced
+    # below it, the constants came out negative (C1 -5.7, C2 -160 K at -273 °C) and were printed
+    # as the shift function that describes the shifts
+    vogel = gen.REFERENCE_C - gen.C2_K
+    with pytest.raises(InputError, match=r"--reference-temperature: -150 °C is at or below the "
+                                         r"WLF function's Vogel temperature, -8\d\.\d °C"):
+        build_master(_table(), ("generated",), reference_temperature_c=-150.0)
+    colder = build_master(_table(), ("generated",), reference_temperature_c=vogel + 30.0)
+    assert colder.shift_function is not None and colder.shift_function.kind == "wlf"
+    c1, c2 = colder.shift_function.values
+    assert c1 > 0 and c2 > 0
+    assert all(f.reaches(vogel + 30.0) for f in colder.shift_functions)

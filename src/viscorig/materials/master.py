@@ -431,6 +431,14 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     fitted = [f for f in functions if f is not None]
     reference_c = anchor_c if reference_temperature_c is None else float(reference_temperature_c)
     best = best_shift_function(fitted)
+    if best is not None and not best.reaches(reference_c):
+        raise InputError(
+            f"{reference_c:g} °C is at or below the {best.kind.upper()} function's Vogel "
+            f"temperature, {best.reference_temperature_c - best.values[1]:.1f} °C, where the "
+            f"shift is infinite (the sweeps span {temperatures.min():.1f} to "
+            f"{temperatures.max():.1f} °C): give a temperature above it",
+            "--reference-temperature")
+    fitted = [f for f in fitted if f.reaches(reference_c)]
     if abs(reference_c - anchor_c) > SAME_TEMPERATURE_K or (
             abs(reference_c - anchor_c) > 1e-9 and best is not None):
         if best is None:

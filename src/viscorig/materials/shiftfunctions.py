@@ -109,6 +109,13 @@ class ShiftFunction:
             _function(self.kind)(temperature_c, self.reference_temperature_c, *p)), self.values)
         return float(np.sqrt(max(0.0, gradient @ self.covariance @ gradient)))
 
+    def reaches(self, temperature_c: float) -> bool:
+        """The function is finite at ``temperature_c``: WLF above its Vogel temperature
+        ``T_ref − C2`` (where ``log10 aT`` goes to infinity), Arrhenius above 0 K."""
+        if self.kind == "arrhenius":
+            return temperature_c > -KELVIN
+        return temperature_c > self.reference_temperature_c - self.values[1]
+
     def rereferenced(self, reference_c: float) -> ShiftFunction:
         """The same function with ``log10 aT = 0`` at ``reference_c`` (WLF: ``C1' = C1 C2 /
         (C2 + ΔT)``, ``C2' = C2 + ΔT``; Arrhenius: same ``E_a``), errors propagated."""
