@@ -406,3 +406,19 @@ def test_a_dma_sweep_named_where_a_rig_run_is_needed_is_said_to_be_one(tmp_path,
         assert err.count("\n") == 1 and "'sweep' is a DMA sweep" in err, err
     assert main(["identify", str(path), "--run", "other"]) == 2
     assert "DMA" not in capsys.readouterr().err
+
+
+def test_summary_of_a_file_without_rig_runs_says_so_and_where_its_dma_sweeps_go(
+        tmp_path, capsys, sweep_csv):
+    # it printed two empty tables and exited 0
+    empty = tmp_path / "empty.h5"
+    CampaignFile.create(empty, sequence_text="", durable=False).close()
+    assert main(["summary", str(empty)]) == 2
+    assert capsys.readouterr().err == (f"viscorig: {empty}: holds no sweep run with points: "
+                                       "Tables 1 and 2 are of the rig's runs\n")
+    path = tmp_path / "c.h5"
+    assert main(["import", str(path), "--run", "eca", "--dma", str(sweep_csv)]) == 0
+    capsys.readouterr()
+    assert main(["summary", str(path)]) == 2
+    assert "(its DMA sweeps, eca, make a master curve: see viscorig master)" in \
+        capsys.readouterr().err

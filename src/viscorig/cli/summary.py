@@ -19,6 +19,7 @@ from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import parse_band
 from viscorig.compare import Change
+from viscorig.errors import InputError
 from viscorig.identify import (
     PAPER_BAND_HZ,
     LeftOut,
@@ -28,6 +29,7 @@ from viscorig.identify import (
     preload_variations,
     summarize,
 )
+from viscorig.materials.dmastore import dma_run_names
 from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.paper import (
     PAPER_TABLE_1,
@@ -62,6 +64,12 @@ def handler(args: argparse.Namespace) -> int:
     band = parse_band(args.band) or PAPER_BAND_HZ
     with CampaignFile.open(args.file) as campaign:
         table, runs, left_out = summarize(campaign, band, args.table_model)
+        if not runs and not left_out:
+            dma = dma_run_names(campaign)
+            raise InputError(
+                "holds no sweep run with points: Tables 1 and 2 are of the rig's runs"
+                + (f" (its DMA sweeps, {', '.join(dma)}, make a master curve: see viscorig "
+                   "master)" if dma else ""), args.file)
     variations = preload_variations(runs)
     if args.json:
         print(jsontext.dumps(summary_json(table, runs, variations, band, left_out)))
@@ -139,6 +147,8 @@ def _table_1_lines(specimen: list[RunSummary], paper_names: bool,
     if paper_names:
         header += f" {'paper K_v':>12} {'paper C_v':>10}"
     lines.append(header)
+    if not specimen:
+        lines.append("  no specimen run in this campaign")
     misfits: list[str] = []
     short: list[str] = []
     for run in specimen:
