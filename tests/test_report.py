@@ -463,3 +463,23 @@ def test_a_band_of_nine_points_is_refused_in_one_line_or_said(campaign_file: Pat
     else:
         assert status == 2 and err.count("\n") == 1, err
         assert "band 20:22 Hz: 9 points, a fit needs at least 10" in err, err
+
+
+def test_the_report_ends_with_the_bench_journal_escaped(campaign_file: Path, tmp_path: Path):
+    path = tmp_path / "noted.h5"
+    path.write_bytes(campaign_file.read_bytes())
+    with CampaignFile.open(path, "a", durable=False) as campaign:
+        campaign.add_journal_entry("note", "specimen slipped <b>twice</b>\nre-tightened",
+                                   run="soft-0")
+        campaign.add_journal_entry("hold", "level missed 3 times", run="soft-10")
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out), "--no-diagnosis"]) == 0
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert '<a href="#journal">Journal</a>' in page
+    journal = page.split('<h2 id="journal">Journal</h2>')[1]
+    assert ('<td class="text">soft-0</td><td class="text">note</td><td class="text">specimen '
+            "slipped &lt;b&gt;twice&lt;/b&gt;<br>re-tightened</td>") in journal
+    assert '<td class="text">hold</td><td class="text">level missed 3 times</td>' in journal
+    assert main(["report", str(campaign_file), "--out", str(tmp_path / "plain"),
+                 "--no-diagnosis"]) == 0
+    assert 'id="journal"' not in (tmp_path / "plain" / "index.html").read_text(encoding="utf-8")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -124,3 +126,36 @@ def test_json_of_a_damaged_run_names_it_and_exits_2(campaign_path: Path, capsys)
     assert runs["soft-10"] == {"name": "soft-10", "error": "dataset missing"}
     assert runs["table"]["status"] == "complete"
     assert captured.err.count("\n") == 1
+
+
+def test_the_journal_is_listed_in_order_without_control_characters(
+        campaign_path: Path, capsys) -> None:
+    # the bench's notes and the run engine's events were stored and shown nowhere after the run
+    with CampaignFile.open(campaign_path, "a", durable=False) as campaign:
+        campaign.add_journal_entry("note", "bolt re-tightened\nafter the table run")
+        campaign.add_journal_entry("pause", "paused at the bench", run="soft-10")
+        campaign.add_journal_entry("note", "soft\x1b[2J <b>rubber</b>")
+    assert main(["show", str(campaign_path)]) == 0
+    out = capsys.readouterr().out
+    journal = out.split("\njournal\n")[1].splitlines()
+    assert [re.split(r"\s{2,}", line)[1:3] for line in journal] == [
+        ["-", "note"], ["soft-10", "pause"], ["-", "note"]]
+    assert journal[0].endswith("bolt re-tightened / after the table run")
+    assert journal[2].endswith("soft[2J <b>rubber</b>") and "\x1b" not in out
+    assert main(["show", str(campaign_path), "--json"]) == 0
+    entries = json.loads(capsys.readouterr().out)["journal"]
+    assert entries[1] == {"time_utc": entries[1]["time_utc"], "kind": "pause", "run": "soft-10",
+                          "text": "paused at the bench"}
+    assert entries[0]["text"] == "bolt re-tightened\nafter the table run"
+
+
+def test_a_damaged_journal_is_named_and_the_runs_still_listed(campaign_path: Path,
+                                                              capsys) -> None:
+    with CampaignFile.open(campaign_path, "a", durable=False) as campaign:
+        campaign.add_journal_entry("note", "first")
+    with h5py.File(campaign_path, "r+") as h5:
+        h5["journal/text"].resize((2,))
+    assert main(["show", str(campaign_path)]) == 2
+    captured = capsys.readouterr()
+    assert "soft-10" in captured.out and "\njournal\n" not in captured.out
+    assert "/journal: columns of different lengths" in captured.err

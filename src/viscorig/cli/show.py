@@ -10,6 +10,7 @@ object (units in the key names, ``null`` for unknown numbers), for scripts.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from viscorig.storage import (
     RunRecord,
     count_flags,
 )
+from viscorig.storage.journal import JournalEntry
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -176,7 +178,22 @@ def listing(path: Path) -> tuple[list[str], list[str]]:
         lines.extend(["", *plans])
     if fits:
         lines.extend(["", "fits", *fits])
+    entries = journal(campaign, problems)
+    if entries:
+        lines.extend(["", "journal", *table([[entry.time_utc, entry.run or "-", entry.kind,
+                                              entry.text.replace("\n", " / ")]
+                                             for entry in entries])])
     return lines, problems
+
+
+def journal(campaign: CampaignFile, problems: list[str]) -> list[JournalEntry]:
+    """The notes and run events of the bench (``/journal``); a journal that cannot be read
+    puts its reason in problems."""
+    try:
+        return campaign.journal
+    except InputError as error:
+        problems.append(str(error))
+        return []
 
 
 def plan_line(run: RunRecord, attributes: dict[str, Any]) -> str:
@@ -301,6 +318,7 @@ def describe_json(path: Path) -> tuple[dict[str, Any], list[str]]:
             problems.append(str(error))
     document["dma_runs"] = dma_runs(campaign, problems)
     document["joint_fits"] = [joint_fit_json(fit) for fit in joint_fits(campaign, problems)]
+    document["journal"] = [dataclasses.asdict(entry) for entry in journal(campaign, problems)]
     return document, problems
 
 

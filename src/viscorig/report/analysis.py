@@ -53,6 +53,7 @@ from viscorig.identify import (
 from viscorig.numbers import Estimate
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, CampaignFile, RunRecord
+from viscorig.storage.journal import JournalEntry
 
 _diagnosis: ModuleType | None
 try:  # diagnosis is optional: the report is built without its sections when it is absent
@@ -203,6 +204,8 @@ class CampaignAnalysis:
     diagnosis_seconds: float = 0.0
     """CPU-side sum of every run's diagnosis (and ladder) time."""
     jobs: int = 1
+    journal: list[JournalEntry] = field(default_factory=list)
+    """The bench's notes and run events (``/journal``), in the order written."""
 
     def run(self, name: str) -> RunAnalysis:
         """One run's analysis by name."""
@@ -430,10 +433,15 @@ def analyse_campaign(
                         else "switched off"))
     _READ.clear()  # the runs read are not kept past the analysis
     spent = sum(c.seconds for c in climbs.values() if isinstance(c, Climb))
+    try:
+        entries = campaign.journal
+    except InputError as error:
+        entries = []
+        notes.append(f"journal not shown: {error}")
     return CampaignAnalysis(str(campaign.path), analyses, table, rig.theta, band_hz,
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
-                            min(workers, max(1, len(requests))))
+                            min(workers, max(1, len(requests))), entries)
 
 
 def _run_band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:

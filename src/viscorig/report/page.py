@@ -36,6 +36,7 @@ from viscorig.report.figures import SavedFigure, figure_stem
 from viscorig.report.headline import FRF_WORDS, headline
 from viscorig.report.words import error_words, evidence_words
 from viscorig.storage import FLAG_NAMES, count_flags
+from viscorig.storage.journal import JournalEntry
 from viscorig.version import __version__
 
 STYLE = """
@@ -482,6 +483,8 @@ def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], titl
                 '<li><a href="#runs">Runs</a></li>']
     contents += [f'<li><a href="#run-{_e(r.name)}">Run {_e(r.name)}</a></li>'
                  for r in analysis.runs]
+    if analysis.journal:
+        contents.append('<li><a href="#journal">Journal</a></li>')
     theta = (f"θ = {analysis.theta_m:.4g} m (from /rig)" if analysis.theta_m else
              "θ unknown: /rig gives neither specimen_diameter_m nor geometry_factor_m (the "
              "paper gives h = 12 mm and no d), so the storage stiffness K' = θE' is shown "
@@ -515,6 +518,8 @@ def build_page(analysis: CampaignAnalysis, figures: dict[str, SavedFigure], titl
               *moduli, _figure(figures.get("preload")),
               '<h2 id="runs">Runs</h2>', overview(analysis)]
     parts += [run_section(run, figures) for run in analysis.runs]
+    if analysis.journal:
+        parts += ['<h2 id="journal">Journal</h2>', journal_table(analysis.journal)]
     if materials:
         parts.append(materials)
     parts.append("</body></html>")
@@ -531,6 +536,15 @@ def materials_page(title: str, materials: str, path: str) -> str:
         f"<h1>{_e(title)}</h1>",
         f'<p class="lead">Campaign file <code>{_e(path)}</code>; report made {now} by viscorig '
         f"{__version__}.</p>", materials, "</body></html>"])
+
+
+def journal_table(entries: list[JournalEntry]) -> str:
+    """The bench's notes and run events (pauses, holds, aborts) with their time and run."""
+    rows = [[_e(entry.time_utc), _e(entry.run or "–"), _e(entry.kind),
+             _e(entry.text).replace("\n", "<br>")] for entry in entries]
+    return ("<p>What the technician noted and what the run engine did, as the campaign file "
+            "keeps it (UTC).</p>"
+            + _table(["time", "run", "kind", "text"], rows, text_columns=4))
 
 
 def overview(analysis: CampaignAnalysis) -> str:

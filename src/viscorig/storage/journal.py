@@ -20,6 +20,7 @@ from pathlib import Path
 import h5py
 
 from viscorig.errors import InputError
+from viscorig.storage.text import printable
 
 JOURNAL_GROUP = "journal"
 COLUMNS = ("time_utc", "kind", "run", "text")
@@ -77,7 +78,8 @@ def append(h5: h5py.File, entry: JournalEntry, path: Path) -> int:
 
 
 def read(h5: h5py.File, path: Path) -> list[JournalEntry]:
-    """Every entry (none when the file has no journal).
+    """Every entry (none when the file has no journal), its texts without control characters
+    (a note keeps its line breaks).
 
     Raises
     ------
@@ -103,5 +105,6 @@ def read(h5: h5py.File, path: Path) -> list[JournalEntry]:
                         else str(value) for value in item[()]])
     if len({len(column) for column in columns}) > 1:
         raise InputError("columns of different lengths", f"{path}: /{JOURNAL_GROUP}")
-    return [JournalEntry(*(column[i][:MAX_TEXT] for column in columns))
+    return [JournalEntry(*(printable(column[i][:MAX_TEXT], keep="\n" if name == "text" else "")
+                           for name, column in zip(COLUMNS, columns, strict=True)))
             for i in range(len(columns[0]))]
