@@ -14,6 +14,7 @@ import math
 import os
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import time
@@ -27,7 +28,7 @@ from browser import CHROMIUM, Browser
 from campaigndata import add_run
 
 from viscorig.cli import main
-from viscorig.storage import CampaignFile, RunSettings, Segment
+from viscorig.storage import CampaignFile, RunSettings, Segment, writelock
 from viscorig.watch import WatchServer, page_html, read_snapshot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -117,7 +118,8 @@ def measuring_campaign(path: Path) -> Path:
 def test_the_snapshot_is_the_committed_state_in_json(tmp_path) -> None:
     path = measuring_campaign(tmp_path / "c.h5")
     before = path.read_bytes()
-    snapshot = read_snapshot(path)
+    with CampaignFile.open(path, "a", durable=False):  # a writer measuring into it
+        snapshot = read_snapshot(path)
     assert path.read_bytes() == before  # only read
     text = json.dumps(snapshot, allow_nan=False)  # no NaN reaches the page
     assert snapshot["state"] == "measuring" and snapshot["current"] == "soft-0"
@@ -134,6 +136,28 @@ def test_the_snapshot_is_the_committed_state_in_json(tmp_path) -> None:
     assert snapshot["time_left_s"] == pytest.approx(expected)
     assert [run["name"] for run in snapshot["to_come"]] == ["soft-10"]
     assert "nan" not in text.lower()
+
+
+def test_a_run_left_running_by_a_writer_that_is_gone_is_interrupted_not_measuring(
+        tmp_path) -> None:
+    # a crashed or killed writer leaves its run "running": the page said "measuring" for ever
+    # on a simulated rig (no stall clock there), and until the stall time on a real one
+    path = measuring_campaign(tmp_path / "c.h5")
+    snapshot = read_snapshot(path)
+    assert snapshot["state"] == "stopped"
+    assert snapshot["detail"] == ("run 'soft-0' was interrupted after 5 of 41 points and no "
+                                  "writer holds the file: continue with viscorig resume")
+    lock = writelock.lock_path(path)
+    lock.write_text(json.dumps({"command": "viscorig run", "pid": 4242, "host": "lab-pc",
+                                "since": "2024-05-01T12:00:00Z"}))
+    an_hour_ago = time.time() - 3600.0  # (an unreadable record this old would be stale)
+    os.utime(lock, (an_hour_ago, an_hour_ago))
+    assert read_snapshot(path)["state"] == "measuring"  # another host's writer: not checkable
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    lock.write_text(json.dumps({"command": "viscorig run", "pid": int(dead.stdout),
+                                "host": socket.gethostname(), "since": "2024-05-01T12:00:00Z"}))
+    assert read_snapshot(path)["state"] == "stopped"  # this host's, and its process is gone
 
 
 def test_the_server_serves_loopback_only_offline_and_answers_unchanged(tmp_path) -> None:

@@ -184,6 +184,15 @@ def read_holder(path: Path) -> Holder | None:
         os.close(descriptor)
 
 
+def writer_may_hold(path: Path) -> bool:
+    """Whether a writer may be writing campaign file ``path`` now, as its lock file's record
+    tells: a process of this host that still runs, or one of another host (which cannot be
+    checked). Reads the record only; the lock is never tried, so no writer is ever refused for
+    it."""
+    lock = lock_path(path)
+    return lock.exists() and not _stale(lock, read_holder(path))
+
+
 def _alive(holder: Holder) -> bool:
     """Whether the process of a record from this host still runs (True when unsure)."""
     if sys.platform == "win32":  # os.kill would terminate it; never guess there

@@ -35,7 +35,7 @@ from viscorig.sequences import (
     parse_station,
     time_left_s,
 )
-from viscorig.storage import CampaignFile, RunRecord
+from viscorig.storage import CampaignFile, RunRecord, writelock
 
 #: Readings of a changing file are at least this far apart, s.
 MIN_READ_INTERVAL_S = 0.5
@@ -198,6 +198,12 @@ def read_snapshot(path: Path) -> dict[str, Any]:
     simulated = bool(runs) and runs[-1]["simulated"]
     current = next((run for run in runs if run["status"] == "running"), None)
     state, detail = _campaign_state(runs, current, to_come)
+    if current is not None and not writelock.writer_may_hold(path):
+        # a run left "running" by a writer that is gone (killed, crashed, the power cut)
+        state, detail = "stopped", (
+            f"run '{current['name']}' was interrupted after {current['points']} of "
+            f"{current['planned']} points and no writer holds the file: continue with "
+            "viscorig resume")
     return {
         "file": path.name,
         "sequence": sequence.name if sequence is not None else "",
