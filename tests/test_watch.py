@@ -306,3 +306,10 @@ def test_watch_serves_until_ctrl_c(tmp_path) -> None:
             process.kill()
             out, err = process.communicate()
     assert process.returncode == 0 and "live view stopped" in out and err == ""
+
+
+def test_a_file_without_sweep_runs_is_not_said_to_have_completed_them(tmp_path) -> None:
+    path = tmp_path / "empty.h5"
+    CampaignFile.create(path, sequence_text="", durable=False).close()
+    snapshot = read_snapshot(path)
+    assert (snapshot["state"], snapshot["detail"]) == ("complete", "the file holds no sweep run")

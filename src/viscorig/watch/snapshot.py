@@ -237,6 +237,8 @@ def _campaign_state(runs: list[dict[str, Any]], current: dict[str, Any] | None,
     if to_come:
         return "between runs", (f"next: run '{to_come[0].run}' (at a prompt, probing, or "
                                 "identifying the table)")
+    if not runs:
+        return "complete", "the file holds no sweep run"
     return "complete", "every run of the sequence is complete"
 
 
