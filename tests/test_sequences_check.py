@@ -286,3 +286,26 @@ def test_run_names_the_first_problem_in_one_line_and_the_command_that_lists_all(
     [line] = result.stderr.splitlines()
     assert line == (f"viscorig: {path}:17: steps[1].specimin: unknown key; did you mean "
                     f"'specimen'? (and 1 more problem: 'viscorig check {path}' lists them all)")
+
+
+def test_a_problem_quotes_a_long_value_cut_not_whole(tmp_path, capsys) -> None:
+    # a list of 5,000 temperatures with one repeated was quoted whole: 25 KB on one line
+    temperatures = ", ".join(str(t) for t in [*range(-20, 80), -20,
+                                              *(round(100 + 0.03 * i, 2) for i in range(5000))])
+    path = write(tmp_path, f'name = "big"\n[[steps]]\ntype = "repeat"\n'
+                           f"temperatures_c = [{temperatures}]\n" + '''  [[steps.steps]]
+  type = "sweep"
+  run = "s_{temperature_c}"
+  specimen = "soft"
+  band_hz = [20.0, 120.0]
+  resolution_hz = 0.25
+  level = "1.4 m/s2"
+  settle_cycles = 100
+  integrate_cycles = 100
+  [[steps]]
+  type = "''' + "x" * 10_000 + '"\n')
+    assert main(["check", str(path)]) == 2
+    out = capsys.readouterr().out
+    assert "steps[0].temperatures_c: names -20 twice; each value once" in out
+    assert max(len(line) for line in out.splitlines()) < 400
+    assert "'xxxxxxxx" in out and "x" * 100 not in out

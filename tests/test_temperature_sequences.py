@@ -82,7 +82,7 @@ soak_minutes = 15
     ('[[steps]]\ntype = "temperature"\nset_point_c = 20.0\nsoak_band_k = 0.0\n', 18,
      "steps[1].soak_band_k: 0.0 is outside (0, 20] K"),
     ('[[steps]]\ntype = "repeat"\ntemperatures_c = [0.0, 0.0]\n  [[steps.steps]]\n'
-     '  type = "sweep"\n  run = "a{temperature_c}"\n', 17, "names a value twice"),
+     '  type = "sweep"\n  run = "a{temperature_c}"\n', 17, "temperatures_c: names 0 twice"),
 ])
 def test_repeat_and_temperature_problems_name_their_line(body: str, line: int,
                                                          message: str) -> None:

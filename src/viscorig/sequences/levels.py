@@ -15,6 +15,8 @@ import difflib
 import math
 import re
 
+from viscorig.sequences.problems import quoted
+
 STANDARD_GRAVITY_M_PER_S2 = 9.80665
 
 #: canonical unit -> metres per second squared
@@ -88,14 +90,14 @@ def parse_level(text: str) -> float:
     if not isinstance(text, str):
         shown = f"\"{text:g} m/s^2\"" if isinstance(text, int | float) and not isinstance(
             text, bool) else "\"1.4 m/s^2\""
-        raise ValueError(f"a level is text with its unit, e.g. {shown}, not {text!r}")
+        raise ValueError(f"a level is text with its unit, e.g. {shown}, not {quoted(text)}")
     match = _LEVEL.match(text)
     if match is None:
-        raise ValueError(f"{text!r} is not a number followed by a unit, e.g. \"1.4 m/s^2\"")
+        raise ValueError(f"{quoted(text)} is not a number followed by a unit, e.g. \"1.4 m/s^2\"")
     written = match["unit"].strip()
     if not written:
         raise ValueError(
-            f"{text!r} has no unit; write it out, e.g. \"{match['number']} m/s^2\" (peak) or "
+            f"{quoted(text)} has no unit; write it out, e.g. \"{match['number']} m/s^2\" (peak) or "
             f"\"{match['number']} g\""
         )
     unit = canonical_unit(written)
@@ -106,11 +108,12 @@ def parse_level(text: str) -> float:
             close = [written.lower()]
         hint = f"; did you mean \"{match['number']} {close[0]}\"?" if close else ""
         raise ValueError(
-            f"unit {written!r} of {text!r} is not one of {', '.join(UNIT_SPELLINGS)}{hint}"
+            f"unit {quoted(written)} of {quoted(text)} is not one of "
+            f"{', '.join(UNIT_SPELLINGS)}{hint}"
         )
     value = float(match["number"]) * ACCELERATION_UNITS[unit]
     if (match["kind"] or "").lower() == "rms":
         value *= math.sqrt(2.0)
     if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"level {text!r} must be positive and finite")
+        raise ValueError(f"level {quoted(text)} must be positive and finite")
     return value

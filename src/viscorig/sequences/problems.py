@@ -159,6 +159,17 @@ class Problem:
                 "message": self.message, "hint": self.hint}
 
 
+#: Characters of a value a problem quotes; a longer one is cut with "…" (a list of 5,000
+#: temperatures was quoted whole, 25 KB on one line).
+QUOTED_CHARACTERS = 60
+
+
+def quoted(value: object) -> str:
+    """``repr(value)``, cut to :data:`QUOTED_CHARACTERS` with "…"."""
+    text = repr(value)
+    return text if len(text) <= QUOTED_CHARACTERS else text[:QUOTED_CHARACTERS - 1] + "…"
+
+
 def did_you_mean(word: object, known: Iterable[str], cutoff: float = 0.6) -> str:
     """``"did you mean 'specimen'?"`` for the known name closest to ``word``, or ""."""
     if not isinstance(word, str):

@@ -20,7 +20,7 @@ from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.analyser import MAX_FREQUENCY_HZ as ANALYSER_MAX_FREQUENCY_HZ
 from viscorig.sequences import segments
 from viscorig.sequences.levels import parse_level
-from viscorig.sequences.problems import Path, Problems, did_you_mean
+from viscorig.sequences.problems import Path, Problems, did_you_mean, quoted
 from viscorig.storage import layout
 
 #: A field that must be given (in its table, or in ``[defaults]`` where allowed).
@@ -128,7 +128,7 @@ class Field:
 
     def _text(self, value: object) -> str:
         if not isinstance(value, str):
-            raise FieldError(f"expected text, got {kind_name(value)} {value!r}",
+            raise FieldError(f"expected text, got {kind_name(value)} {quoted(value)}",
                              f"write it in quotes, e.g. {self.name} = {self.example}")
         if not value.strip() and self.default != "":
             raise FieldError("must not be empty")
@@ -137,14 +137,14 @@ class Field:
     def _choice(self, value: object) -> str:
         text = self._text(value)
         if text not in self.choices:
-            raise FieldError(f"{text!r} is not one of {', '.join(self.choices)}",
+            raise FieldError(f"{quoted(text)} is not one of {', '.join(self.choices)}",
                              did_you_mean(text, self.choices, cutoff=0.5))
         return text
 
     def _name(self, value: object) -> str:
         text = self._text(value)
         if self.pattern is not None and not self.pattern.fullmatch(text):
-            raise FieldError(f"{text!r} is not {self.rule}")
+            raise FieldError(f"{quoted(text)} is not {self.rule}")
         return text
 
     def _number(self, value: object) -> float:
@@ -153,19 +153,19 @@ class Field:
             if isinstance(value, str):
                 hint = (f"write a number without quotes or unit (the unit is in the name), e.g. "
                         f"{self.name} = {self.example}")
-            raise FieldError(f"expected a number, got {kind_name(value)} {value!r}", hint)
+            raise FieldError(f"expected a number, got {kind_name(value)} {quoted(value)}", hint)
         number = float(value)
         below = self.low is not None and (number <= self.low if self.low_open
                                           else number < self.low)
         above = self.high is not None and number > self.high
         if not math.isfinite(number) or below or above:
-            raise FieldError(f"{number!r} is outside "
+            raise FieldError(f"{quoted(number)} is outside "
                              f"{_interval(self.low, self.high, self.low_open, self.unit)}")
         return number
 
     def _integer(self, value: object) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise FieldError(f"expected a whole number, got {kind_name(value)} {value!r}")
+            raise FieldError(f"expected a whole number, got {kind_name(value)} {quoted(value)}")
         if (self.low is not None and value < self.low) or (
                 self.high is not None and value > self.high):
             raise FieldError(f"{value} is outside [{self.low:g}, {self.high:g}]")
@@ -173,13 +173,13 @@ class Field:
 
     def _boolean(self, value: object) -> bool:
         if not isinstance(value, bool):
-            raise FieldError(f"expected true or false, got {kind_name(value)} {value!r}")
+            raise FieldError(f"expected true or false, got {kind_name(value)} {quoted(value)}")
         return value
 
     def _band(self, value: object) -> tuple[float, float]:
         if (not isinstance(value, list) or len(value) != 2
                 or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)):
-            raise FieldError(f"expected [low, high] in Hz, got {value!r}",
+            raise FieldError(f"expected [low, high] in Hz, got {quoted(value)}",
                              f"e.g. {self.name} = {self.example}")
         lo, hi = float(value[0]), float(value[1])
         high = MAX_FREQUENCY_HZ if self.high is None else self.high
@@ -201,16 +201,17 @@ class Field:
     def _targets(self, value: object) -> dict[str, float]:
         if not isinstance(value, Mapping) or not value:
             raise FieldError(f"expected a table of parameter names and relative uncertainties, "
-                             f"got {kind_name(value)} {value!r}", f"e.g. {self.name} = "
+                             f"got {kind_name(value)} {quoted(value)}", f"e.g. {self.name} = "
                              f"{self.example}")
         targets: dict[str, float] = {}
         for name, number in value.items():
             if isinstance(number, bool) or not isinstance(number, int | float):
-                raise FieldError(f"{name}: expected a number, got {kind_name(number)} {number!r}",
+                raise FieldError(f"{name}: expected a number, got {kind_name(number)} "
+                                 f"{quoted(number)}",
                                  f"e.g. {self.name} = {self.example}")
             number = float(number)
             if not (math.isfinite(number) and (self.low or 0.0) < number <= (self.high or 1.0)):
-                raise FieldError(f"{name}: {number!r} is outside "
+                raise FieldError(f"{name}: {quoted(number)} is outside "
                                  f"{_interval(self.low, self.high, True, '')}",
                                  "a relative standard uncertainty: 1e-3 is 0.1 %")
             targets[str(name)] = number
@@ -218,7 +219,7 @@ class Field:
 
     def _numbers(self, value: object) -> tuple[float, ...]:
         if not isinstance(value, list) or not value:
-            raise FieldError(f"expected a non-empty array of numbers, got {value!r}",
+            raise FieldError(f"expected a non-empty array of numbers, got {quoted(value)}",
                              f"e.g. {self.name} = {self.example}")
         numbers = []
         for index, item in enumerate(value):
@@ -226,13 +227,16 @@ class Field:
                 numbers.append(self._number(item))
             except FieldError as error:
                 raise FieldError(f"[{index}]: {error.message}", error.hint) from None
-        if len(set(numbers)) != len(numbers):
-            raise FieldError(f"{value!r} names a value twice", "each value once")
+        seen: set[float] = set()
+        for number in numbers:
+            if number in seen:
+                raise FieldError(f"names {number:g} twice", "each value once")
+            seen.add(number)
         return tuple(numbers)
 
     def _levels(self, value: object) -> tuple[tuple[float, str], ...]:
         if not isinstance(value, list) or not value:
-            raise FieldError(f"expected a non-empty array of levels, got {value!r}",
+            raise FieldError(f"expected a non-empty array of levels, got {quoted(value)}",
                              f"e.g. {self.name} = {self.example}")
         levels = []
         for index, item in enumerate(value):

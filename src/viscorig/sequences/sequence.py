@@ -35,7 +35,7 @@ from typing import Any
 
 from viscorig.errors import InputError
 from viscorig.sequences import schema, segments
-from viscorig.sequences.problems import Problems, did_you_mean, field_name
+from viscorig.sequences.problems import Problems, did_you_mean, field_name, quoted
 from viscorig.sequences.repeat import expand
 from viscorig.sequences.schema import (
     DEFAULTS,
@@ -146,7 +146,7 @@ def parse_sequence(text: str, source: str = "sequence") -> Sequence:
             continue
         if isinstance(step, SweepStep):
             if step.run in run_steps:
-                problems.add((*path, "run"), f"duplicate run name {step.run!r} (also "
+                problems.add((*path, "run"), f"duplicate run name {quoted(step.run)} (also "
                              f"{run_steps[step.run]})")
             run_steps.setdefault(step.run, field_name(path))
         steps.append(step)
@@ -191,7 +191,7 @@ def _parse_step(problems: Problems, path: tuple, raw: object, defaults: Mapping[
         elif not isinstance(kind, str):
             problems.add((*path, "type"), f"expected text, got {schema.kind_name(kind)}")
         else:
-            problems.add((*path, "type"), f"{kind!r} is not one of {', '.join(STEP_TYPES)}",
+            problems.add((*path, "type"), f"{quoted(kind)} is not one of {', '.join(STEP_TYPES)}",
                          did_you_mean(kind, STEP_TYPES, cutoff=0.5))
         return None
     step_schema = STEP_TYPES[kind]
@@ -321,7 +321,7 @@ def _adaptive(problems: Problems, path: tuple, fields: ReadTable) -> None:
         if name not in names:
             hint = did_you_mean(name, sorted(names)) or (
                 f"'{model.spec}' fits: {', '.join(sorted(names))}")
-            problems.add(fields.origin["target_uncertainty"], f"{name!r} is not a parameter "
+            problems.add(fields.origin["target_uncertainty"], f"{quoted(name)} is not a parameter "
                          f"'{model.spec}' fits", hint)
             fields.failed.add("target_uncertainty")
 
@@ -337,13 +337,13 @@ def _identify_table(problems: Problems, path: tuple, fields: ReadTable,
     sweep = next((step for step in sweeps if step.run == run), None)
     if sweep is None:
         bare = [step.run for step in sweeps if step.bare_table]
-        problems.add((*path, "run"), f"no earlier sweep step measures run {run!r}",
+        problems.add((*path, "run"), f"no earlier sweep step measures run {quoted(run)}",
                      did_you_mean(run, bare, cutoff=0.5)
                      or "identify_table follows the bare-table sweep it fits")
         return None
     if not sweep.bare_table:
-        problems.add((*path, "run"), f"run {run!r} has specimen {sweep.specimen!r}, not "
-                     "\"none\"")
+        problems.add((*path, "run"), f"run {quoted(run)} has specimen "
+                     f"{quoted(sweep.specimen)}, not \"none\"")
         return None
     band = fields.values.get("band_hz")
     if band is not None:
