@@ -318,3 +318,26 @@ def test_a_whole_band_candidate_is_not_dragged_by_outliers_far_below_the_model_w
         # thousands is a fit dragged elsewhere
         worst = min(findings, key=lambda f: f["delta_chi2"])
         assert worst["delta_chi2"] > -100, (worst["model"], worst["delta_chi2"])
+
+
+def test_a_run_with_the_table_frf_alone_is_identified_and_reported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run imported with ẍ_s/F_e only: identify refused it by default ('has no
+    accelerance_support') though its --frf help says "default: all available", and the report
+    of any campaign holding it stopped with the same error."""
+    soft = simulate_run("soft-0", seed=2)
+    soft.accelerance_support = np.full(soft.frequency_hz.size, np.nan + 0j)
+    path = tmp_path / "table-only.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        add_run(campaign, "table", simulate_run(rig_text(noise=DEFAULT_NOISE), seed=1), "none")
+        add_run(campaign, "soft-0", soft, "soft")
+    assert main(["identify", str(path), "--run", "soft-0", "--no-store"]) == 0
+    assert "FRFs table," in capsys.readouterr().out
+    assert main(["identify", str(path), "--run", "soft-0", "--frf", "both", "--no-store"]) == 2
+    assert "has no accelerance_support" in capsys.readouterr().err
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out), "--no-ladder"]) == 0
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "(diagnosed here, the table FRF alone)" in page
+    assert "no ẍ_v/F_v: K* from Eq. 5 not computed" in page

@@ -209,8 +209,10 @@ def _identify(
         return fit(model, data, frfs=frfs, band_hz=band_hz, weighting=weighting), None
     if model.modulus_term is not None and not model.modulus_term.has_disc:
         raise InputError("has a specimen; the 'table' model is for bare-table runs", run_name)
-    if data.support is None and (frfs is None or "support" in frfs):
-        raise InputError("has no accelerance_support (ẍ_v/F_v)", f"run '{run_name}'")
+    if data.support is None:
+        if frfs is not None and "support" in frfs:
+            raise InputError("has no accelerance_support (ẍ_v/F_v)", f"run '{run_name}'")
+        frfs = ("table",)  # every FRF available: the table's alone
     table = table or table_parameters(campaign)
     if table is None:
         chosen = frfs or model.frfs

@@ -240,9 +240,8 @@ def _residuals(run: RunRecord, curve: FitResult, band: tuple[float, float]) -> l
     order = np.argsort(data.frequency_hz, kind="stable")
     f = data.frequency_hz[order]
     predicted = curve.predict(data.frequency_hz, data.time_s, data.reference_amplitude)
-    frfs = [name for name in ("table", "support") if name in predicted
-            and data.frf(name) is not None and np.all(np.isfinite(data.frf(name)))
-            and np.all(data.frf(name) != 0)]
+    frfs = [name for name in data.available if name in predicted
+            and np.all(np.isfinite(data.frf(name))) and np.all(data.frf(name) != 0)]
     if not frfs:
         return []
     noise = estimate_noise(data, tuple(frfs))
@@ -342,8 +341,8 @@ def climb_from(steps: list, seconds: float = 0.0, climbed: bool = True) -> Climb
                           () if added else tuple(removed)))
     first, last = steps[0], steps[-1]
     source = "diagnosis ladder" if len(steps) > 1 else "diagnosed here"
-    final = replace(last.fit, source=f"{source}, both FRFs",
-                    noise_floor=float(last.noise_floor))
+    frfs = "both FRFs" if len(last.fit.frfs) > 1 else f"the {last.fit.frfs[0]} FRF alone"
+    final = replace(last.fit, source=f"{source}, {frfs}", noise_floor=float(last.noise_floor))
     return Climb(rungs, final, list(last.failures), [FindingSummary.of(f) for f in first.findings],
                  [FindingSummary.of(f) for f in last.significant], list(last.advice), seconds,
                  climbed)
@@ -496,6 +495,9 @@ def _complete(analysis: RunAnalysis, outcome: Climb | str | None,
     if analysis.shown is not None and run.points >= 10:
         analysis.residuals = _residuals(run, analysis.shown, band)
     if analysis.bare or run.points < 10:
+        return
+    if not np.any(np.isfinite(run.accelerance_support)):
+        analysis.notes.append("no ẍ_v/F_v: K* from Eq. 5 not computed")
         return
     shown = analysis.shown
     try:
