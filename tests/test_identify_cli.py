@@ -341,3 +341,12 @@ def test_a_run_with_the_table_frf_alone_is_identified_and_reported(
     page = (out / "index.html").read_text(encoding="utf-8")
     assert "(diagnosed here, the table FRF alone)" in page
     assert "no ẍ_v/F_v: K* from Eq. 5 not computed" in page
+
+
+def test_diagnose_names_a_band_that_misses_the_run_not_a_missing_frf(
+    stopped_campaign: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # it said "run 'soft-10': has no FRF to diagnose" of a run with both FRFs over 20-29 Hz
+    assert main(["diagnose", str(stopped_campaign), "--run", "soft-10", "--band", "50:100"]) == 2
+    assert capsys.readouterr().err == ("viscorig: run 'soft-10': the band 50:100 Hz holds none "
+                                       "of its points (it spans 20-29 Hz)\n")

@@ -344,6 +344,10 @@ def combine(
         raise InputError("no run to diagnose", "diagnosis")
     pieces = [(name, data.in_band(band_hz)) for name, data in runs]
     main = pieces[0][1]
+    whole = runs[0][1].frequency_hz
+    if band_hz is not None and main.frequency_hz.size == 0 and whole.size:
+        raise InputError(f"the band {band_hz[0]:g}:{band_hz[1]:g} Hz holds none of its points "
+                         f"(it spans {whole.min():g}-{whole.max():g} Hz)", main.name)
     if frfs is None:
         frfs = tuple(name for name in ("table", "support") if name in main.available)
         if exact is None:
