@@ -208,12 +208,12 @@ def _check_run_options(args: argparse.Namespace) -> None:
     that), NaN where an option is not given (unknown), before any file is read."""
     if not (math.isnan(args.level) or (math.isfinite(args.level) and args.level > 0)):
         raise InputError(f"{args.level} must be a positive number", "--level")
-    for option, field in (("--hardness", SWEEP.field("hardness_shore_a")),
-                          ("--preload-strain", SWEEP.field("preload_strain")),
-                          ("--temperature", TEMPERATURE.field("set_point_c"))):
-        value = getattr(args, option[2:].replace("-", "_"))
-        if math.isnan(value) and option == "--preload-strain":  # (0 when not given)
-            raise InputError("nan is not a number", option)
+    if math.isnan(args.preload_strain):  # (0 when not given)
+        raise InputError("nan is not a number", "--preload-strain")
+    for option, value, field in (
+            ("--hardness", args.hardness, SWEEP.field("hardness_shore_a")),
+            ("--preload-strain", args.preload_strain, SWEEP.field("preload_strain")),
+            ("--temperature", args.temperature, TEMPERATURE.field("set_point_c"))):
         if not math.isnan(value) and not field.low <= value <= field.high:
             unit = f" {field.unit}" if field.unit else ""
             raise InputError(f"{value:g} is outside {field.low:g}..{field.high:g}{unit}", option)

@@ -235,7 +235,7 @@ def _residuals(run: RunRecord, curve: FitResult, band: tuple[float, float]) -> l
     """The shown model's residual of each FRF, beside the local σ of the run's noise model
     (estimated on the same points as a fit of the band estimates it)."""
     data = run_data(run).in_band(band)
-    if data.frequency_hz.size < 10:
+    if data.frequency_hz.size < MIN_POINTS:
         return []
     order = np.argsort(data.frequency_hz, kind="stable")
     f = data.frequency_hz[order]
@@ -458,7 +458,7 @@ def _first_look(campaign: CampaignFile, analysis: RunAnalysis, table: TableSourc
     """Show the run's latest stored fit; the spec its diagnosis starts from, or ``None`` when
     it is not diagnosed (too few points, the bare table, no table values, no diagnosis)."""
     run = analysis.run
-    if run.points < 10:
+    if run.points < MIN_POINTS:
         return None
     stored = campaign.fits(run.name)
     if stored:
@@ -492,9 +492,9 @@ def _complete(analysis: RunAnalysis, outcome: Climb | str | None,
         frfs = "X_s/F_e" if not analysis.bare else "the bare table"
         analysis.shown = replace(analysis.summary.fit, source=f"fitted here to {frfs}")
     run, band = analysis.run, analysis.band_hz
-    if analysis.shown is not None and run.points >= 10:
+    if analysis.shown is not None and run.points >= MIN_POINTS:
         analysis.residuals = _residuals(run, analysis.shown, band)
-    if analysis.bare or run.points < 10:
+    if analysis.bare or run.points < MIN_POINTS:
         return
     if not np.any(np.isfinite(run.accelerance_support)):
         analysis.notes.append("no ẍ_v/F_v: K* from Eq. 5 not computed")
@@ -535,7 +535,7 @@ def rubbers(analysis: CampaignAnalysis) -> dict[str, list[RunAnalysis]]:
 def preload_pairs(analysis: CampaignAnalysis) -> list[tuple[RunAnalysis, RunAnalysis]]:
     """``(without, with preload)`` runs of the report (:func:`viscorig.identify.preload_pairs`,
     specimen runs of ten points or more)."""
-    specimens = [run for run in analysis.runs if not run.bare and run.run.points >= 10]
+    specimens = [run for run in analysis.runs if not run.bare and run.run.points >= MIN_POINTS]
     return pair_preloaded(specimens, lambda r: (
         str(r.run.metadata.specimen), float(r.run.metadata.hardness_shore_a),
         str(r.run.metadata.direction), float(r.run.metadata.preload_strain),
