@@ -36,7 +36,7 @@ model far from the noise cannot drag the table to soak up its misfit.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,7 +48,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, linear_start
 from viscorig.fitting.jacobian import predict_many
-from viscorig.models import Model
+from viscorig.models import Context, Model
 
 #: Whitened residuals beyond this many standard deviations count linearly (Huber loss).
 HUBER_SCALE = 3.0
@@ -185,6 +185,26 @@ def _coordinates(
     return log, lower, np.maximum(upper, lower + 1e-12)
 
 
+def ratio_derivatives(
+    model: Model,
+    ctx: Context,
+    values: Mapping[str, float],
+    free: Sequence[str],
+    log: NDArray[np.bool_],
+    inverse: Mapping[str, NDArray[np.complex128]],
+) -> dict[str, NDArray[np.complex128]] | None:
+    """``∂(H/H_measured)/∂x`` per FRF of ``inverse`` (``1/H_measured``; points × ``free``),
+    ``x`` the fitted coordinates (``log p`` where ``log``), from the model's analytic
+    derivatives (:meth:`~viscorig.models.Model.derivatives`); ``None`` where it has none."""
+    derivatives = model.derivatives(ctx, values, free)
+    if derivatives is None:
+        return None
+    by_x = np.array([values[name] if is_log else 1.0
+                     for name, is_log in zip(free, log, strict=True)])
+    with np.errstate(all="ignore"):
+        return {frf: derivatives[frf] * (h[:, None] * by_x) for frf, h in inverse.items()}
+
+
 class _Objective:
     """The robust whitened residual of a model's fit and its Jacobian, as the solver asks for
     them, over the fitted coordinates ``x`` (logarithms of positive parameters)."""
@@ -243,21 +263,23 @@ class _Objective:
         return np.where(np.isfinite(e), e, 1e6)
 
     def jacobian(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        # Forward differences of the raw residual, every column in one evaluation of the model
-        # (predict_many), whitened once for all columns.
+        # The raw residual's derivatives, whitened once for all columns.
         base = self._cached_ratio(x)
-        steps = _STEP * np.maximum(1.0, np.abs(x))
-        steps = np.where(x + steps > self.upper, -steps, steps)
-        moved = x[None, :] + np.diag(steps)
-        shifted = predict_many(self.model, self.ctx, self.values, self.free,
-                               self.to_values(moved))
-        columns = {}
-        with np.errstate(all="ignore"):
-            for frf in base:
-                change = shifted[frf] * self.inverse[frf]
-                change -= 1.0 + base[frf]
-                change /= steps[:, None]
-                columns[frf] = change.T
+        columns = ratio_derivatives(self.model, self.ctx, self.current(x), self.free, self.log,
+                                    self.inverse)
+        if columns is None:  # forward differences, every column in one evaluation
+            steps = _STEP * np.maximum(1.0, np.abs(x))
+            steps = np.where(x + steps > self.upper, -steps, steps)
+            moved = x[None, :] + np.diag(steps)
+            shifted = predict_many(self.model, self.ctx, self.values, self.free,
+                                   self.to_values(moved))
+            columns = {}
+            with np.errstate(all="ignore"):
+                for frf in base:
+                    change = shifted[frf] * self.inverse[frf]
+                    change -= 1.0 + base[frf]
+                    change /= steps[:, None]
+                    columns[frf] = change.T
         matrix = self.data.whiten(columns)
         if self.robust_here:  # d(sign(e)√ρ(e))/de: 1 within the Huber scale, c/√ρ(e) beyond
             e = np.abs(self._cached_whitened(x))
@@ -372,16 +394,21 @@ def evaluate(model: Model, data: DiagnosisData, values: Mapping[str, float]) -> 
 
     residuals = ratio(values)
     whitened = data.whiten(residuals)
-    current = np.array([values[name] for name in free], dtype=float)
-    steps = np.array([1e-6 if is_log else 1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
-                      for name, is_log, value in zip(free, log, current, strict=True)])
-    moved = np.where(log, current * np.exp(steps), current + steps)
-    rows = np.where(np.eye(len(free), dtype=bool), moved[None, :], current[None, :])
-    shifted = predict_many(model, ctx, values, free, rows) if free else {}
     with np.errstate(all="ignore"):
-        columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - residuals[frf]).T / steps
-                   for frf in data.frfs}
-    jacobian = data.whiten(columns) if free else np.zeros((whitened.size, 0))
+        inverse = {frf: 1.0 / measured[frf] for frf in data.frfs}
+    columns = ratio_derivatives(model, ctx, values, free, log, inverse) if free else None
+    if free and columns is None:
+        current = np.array([values[name] for name in free], dtype=float)
+        steps = np.array([1e-6 if is_log else
+                          1e-6 * max(abs(value), model.by_name[name].upper * 1e-6)
+                          for name, is_log, value in zip(free, log, current, strict=True)])
+        moved = np.where(log, current * np.exp(steps), current + steps)
+        rows = np.where(np.eye(len(free), dtype=bool), moved[None, :], current[None, :])
+        shifted = predict_many(model, ctx, values, free, rows)
+        with np.errstate(all="ignore"):
+            columns = {frf: ((shifted[frf] / measured[frf] - 1.0) - residuals[frf]).T / steps
+                       for frf in data.frfs}
+    jacobian = data.whiten(columns) if columns is not None else np.zeros((whitened.size, 0))
     jacobian = np.where(np.isfinite(jacobian), jacobian, 0.0)
     weight = np.sqrt(np.minimum(1.0, HUBER_SCALE / np.maximum(np.abs(whitened), 1e-300)))
     prior = data.prior_residual(values)

@@ -39,7 +39,7 @@ from viscorig.fitting.arms import (
     reduced_start,
 )
 from viscorig.fitting.data import FrfData
-from viscorig.fitting.jacobian import predict_many, stiffness_derivatives
+from viscorig.fitting.jacobian import predict_many
 from viscorig.fitting.noise import NoiseModel
 from viscorig.fitting.noise_estimation import estimate_noise
 from viscorig.fitting.result import FitResult
@@ -362,7 +362,6 @@ def _fit_concrete(
     coordinates = _Coordinates(model, free)
     ctx = data.context()
     measured = [data.frf(name) for name in frfs]
-    omega_squared = ctx.omega**2
     current = dict(values)
     last: list[tuple[NDArray[np.float64], dict[str, NDArray[np.complex128]]]] = []
 
@@ -380,14 +379,11 @@ def _fit_concrete(
         return np.concatenate([ratio.real, ratio.imag])
 
     def jacobian(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
-        # r = H/H_measured − 1 with H = −ω²/D: ∂r/∂p = H²/(ω² H_measured) ∂D/∂p.
-        predicted = predict(x)
-        derivatives = stiffness_derivatives(model, ctx, current, free)
+        # r = H/H_measured − 1: ∂r/∂p = (∂H/∂p)/H_measured.
+        predict(x)  # (current holds x's values)
+        derivatives = model.derivatives(ctx, current, free)
         assert derivatives is not None
-        blocks = [
-            (predicted[n] ** 2 / (omega_squared * h))[:, None] * derivatives[n]
-            for n, h in zip(frfs, measured, strict=True)
-        ]
+        blocks = [derivatives[n] / h[:, None] for n, h in zip(frfs, measured, strict=True)]
         complex_jacobian = np.concatenate(blocks) * coordinates.derivative(
             np.array([current[name] for name in free])
         )
@@ -411,7 +407,7 @@ def _fit_concrete(
         moved = np.concatenate([ratio.real, ratio.imag], axis=1)
         return ((moved - base[None, :]) / steps[:, None]).T
 
-    analytic = stiffness_derivatives(model, ctx, values, free) is not None
+    analytic = model.derivatives(ctx, values, free) is not None
 
     x0 = coordinates.to_x(np.array([values[name] for name in free]))
     lower, upper = coordinates.bounds()

@@ -58,7 +58,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from viscorig.fitting.jacobian import stiffness_derivatives
 from viscorig.fitting.noise import NoiseModel
 from viscorig.models import Context, Model
 
@@ -134,21 +133,16 @@ def si_jacobian(
 ) -> NDArray[np.float64]:
     """``∂r/∂p`` in SI units for the parameters ``names``, stacked real then imaginary.
 
-    Analytic where the model gives derivatives (:mod:`viscorig.fitting.jacobian`), else central
-    differences with a relative step of 1e-6.
+    Analytic where the model gives derivatives (:meth:`~viscorig.models.Model.derivatives`),
+    else central differences with a relative step of 1e-6.
     """
     names = tuple(names)
     if not names:
         return np.zeros((2 * sum(h.size for h in measured), 0))
-    predicted = model.predict(ctx, values)
-    derivatives = stiffness_derivatives(model, ctx, values, names)
+    derivatives = model.derivatives(ctx, values, names)
     if derivatives is not None:
-        omega_squared = ctx.omega**2
-        blocks = [
-            (predicted[n] ** 2 / (omega_squared * h))[:, None] * derivatives[n]
-            for n, h in zip(frfs, measured, strict=True)
-        ]
-        jac = np.concatenate(blocks)
+        jac = np.concatenate([derivatives[n] / h[:, None]
+                              for n, h in zip(frfs, measured, strict=True)])
         return np.concatenate([jac.real, jac.imag])
     columns = []
     for name in names:

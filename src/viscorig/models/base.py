@@ -257,6 +257,35 @@ class Term:
         ``None`` when the term's coupling is not a spring."""
         return None
 
+    # -- derivatives (optional: a model whose terms all give them is fitted with an analytic
+    # Jacobian, Model.derivatives; a term that gives none makes the fitter take differences) --
+    def disc_stiffness_derivatives(
+        self, ctx: Context, p: Mapping[str, float]
+    ) -> dict[str, NDArray[np.complex128]] | None:
+        """Stage 3's ``∂ΔD_v/∂p`` (N/m per unit of ``p``) for every local parameter name;
+        ``None`` (the default): unknown."""
+        return None
+
+    def couple_derivatives(
+        self,
+        ctx: Context,
+        p: Mapping[str, float],
+        d_table: NDArray[np.complex128],
+        d_disc: NDArray[np.complex128],
+    ) -> dict[str, dict[str, NDArray[np.complex128]]] | None:
+        """Stage 4's derivatives of each receptance: per FRF, ``∂X/∂D_t`` (key ``"d_table"``),
+        ``∂X/∂D_v`` (key ``"d_disc"``) and ``∂X/∂p`` for every local parameter name; ``None``
+        (the default): unknown."""
+        return None
+
+    def measure_derivatives(
+        self, ctx: Context, p: Mapping[str, float], frfs: Mapping[str, NDArray[np.complex128]]
+    ) -> dict[str, tuple[NDArray[np.complex128], dict[str, NDArray[np.complex128]]]] | None:
+        """Stage 5's derivatives, for a term that multiplies each FRF it changes by a factor
+        ``s``: per FRF changed, ``(s, {local name: ∂(s H)/∂p})`` at the accelerances ``frfs``
+        the stage receives; ``None`` (the default): unknown."""
+        return None
+
     def takes_part_in(self, stage: str) -> bool:
         """The term overrides the stage method ``stage``."""
         return getattr(type(self), stage) is not getattr(Term, stage)
@@ -499,6 +528,91 @@ class Model:
         for term in self._stage_terms["measure"]:
             frfs = term.measure(ctx, self.local_values(term, values), frfs)
         return frfs
+
+    def derivatives(
+        self, ctx: Context, values: Mapping[str, float], names: Sequence[str]
+    ) -> dict[str, NDArray[np.complex128]] | None:
+        """``∂H/∂p`` of each predicted accelerance (points × ``len(names)``, m/s²/N per unit of
+        each parameter of ``names``, global names), through the stages of :meth:`predict`;
+        ``None`` where a term gives no derivatives of its stage (the frame, the modifiers of
+        ``K*``, a term without them): a fitter then takes finite differences."""
+        if (self.is_open or self._frame is not None or self._stage_terms["modify_modulus"]
+                or self.modulus_term is None):
+            return None
+        w = ctx.omega
+        term = self.modulus_term
+        own = term.modulus_derivatives(ctx, self.local_values(term, values))
+        if own is None:
+            return None
+        by_disc: dict[str, NDArray[Any] | complex] = self._global(term, own)
+        if term.has_disc:
+            by_disc["M_v"] = -(w**2)
+        for effect in self._stage_terms["disc_stiffness"]:
+            own = effect.disc_stiffness_derivatives(ctx, self.local_values(effect, values))
+            if own is None:
+                return None
+            by_disc.update(self._global(effect, own))
+        by_table: dict[str, NDArray[Any] | complex] = {
+            "M_s": -(w**2), "K_s": 1.0, "C_s": 1j * w}
+        d_disc = self.disc_dynamic_stiffness(ctx, values)
+        d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+        if self._coupler is None:
+            table = 1.0 / (d_table + d_disc)
+            chain = {"table": {"d_table": -(table**2), "d_disc": -(table**2)}}
+            receptance = {"table": table}
+            if "support" in self.frfs:
+                receptance["support"] = 1.0 / d_disc
+                chain["support"] = {"d_table": np.zeros_like(table),
+                                    "d_disc": -(receptance["support"] ** 2)}
+        else:
+            local = self.local_values(self._coupler, values)
+            coupled = self._coupler.couple_derivatives(ctx, local, d_table, d_disc)
+            if coupled is None:
+                return None
+            receptance = self._coupler.couple(ctx, local, d_table, d_disc)
+            chain = {frf: {key: d for key, d in by.items() if key in ("d_table", "d_disc")}
+                     | self._global(self._coupler, {key: d for key, d in by.items()
+                                                    if key not in ("d_table", "d_disc")})
+                     for frf, by in coupled.items()}
+        frfs = {frf: -(w**2) * receptance[frf] for frf in self.frfs}
+        # rows: one parameter each (contiguous), turned to points × parameters at the end
+        column = {name: j for j, name in enumerate(names)}
+        rows_table, rows_disc = (self._rows(by, column, w.size) for by in (by_table, by_disc))
+        out = {}
+        for frf in self.frfs:
+            by = chain[frf]
+            rows = by["d_table"] * rows_table
+            rows += by["d_disc"] * rows_disc
+            for name, d in by.items():
+                if name in column:
+                    rows[column[name]] += d
+            rows *= -(w**2)
+            out[frf] = rows
+        for effect in self._stage_terms["measure"]:
+            measured = effect.measure_derivatives(ctx, self.local_values(effect, values), frfs)
+            if measured is None:
+                return None
+            for frf, (factor, own) in measured.items():
+                out[frf] *= factor
+                for name, d in self._global(effect, own).items():
+                    if name in column:
+                        out[frf][column[name]] += d
+                frfs[frf] = factor * frfs[frf]
+        return {frf: rows.T for frf, rows in out.items()}
+
+    @staticmethod
+    def _rows(by_name: Mapping[str, Any], column: Mapping[str, int], points: int
+              ) -> NDArray[np.complex128]:
+        rows = np.zeros((len(column), points), dtype=complex)
+        for name, d in by_name.items():
+            if name in column:
+                rows[column[name]] = d
+        return rows
+
+    def _global(self, term: Term, by_local: Mapping[str, Any]) -> dict[str, Any]:
+        """``by_local`` keyed by the term's global parameter names."""
+        names = self._names[id(term)]
+        return {names[local]: value for local, value in by_local.items()}
 
     def _on_frame(
         self,

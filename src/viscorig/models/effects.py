@@ -78,6 +78,20 @@ class LoadCell(Term):
         series = d_disc / (1.0 + d_disc / k_c)
         return {"table": 1.0 / (d_table + series), "support": 1.0 / d_disc}
 
+    def couple_derivatives(self, ctx, p, d_table, d_disc):
+        # With q = 1/(1 + D_v/K_c) the series stiffness is D_v q:
+        # ∂/∂D_v = q², ∂/∂K_c = (D_v q/K_c)².
+        k_c = p["K_c"]
+        q = 1.0 / (1.0 + d_disc / k_c)
+        table = 1.0 / (d_table + d_disc * q)
+        support = 1.0 / d_disc
+        return {
+            "table": {"d_table": -(table**2), "d_disc": -((table * q) ** 2),
+                      "K_c": -((table * d_disc * q / k_c) ** 2)},
+            "support": {"d_table": np.zeros_like(support), "d_disc": -(support**2),
+                        "K_c": np.zeros_like(support)},
+        }
+
     def start_from_data(
         self,
         model: Model,
@@ -163,6 +177,21 @@ class Fixture(Term):
         detuned = a - c
         scale = -c / (detuned * detuned + b * b)
         return scale * (a * detuned + b * b) - 1j * (scale * b * c)
+
+    def disc_stiffness_derivatives(self, ctx, p):
+        # ΔD = −c u/(u − c), u = a + ib: ∂ΔD/∂u = c²/(u − c)², and ΔD is linear in m.
+        w_n = 2 * np.pi * p["f_n"]
+        m = p["m"]
+        w = ctx.omega
+        u = m * w_n**2 + 2j * p["zeta"] * m * w_n * w
+        c = w**2 * m
+        ratio = c / (u - c)
+        by_u = ratio**2
+        return {
+            "f_n": by_u * (2 * np.pi) * (2 * m * w_n + 2j * p["zeta"] * m * w),
+            "zeta": by_u * (2j * m * w_n * w),
+            "m": -ratio * u / m,
+        }
 
     def start_from_data(self, model, ctx, values, measured) -> dict[str, float]:
         """Put the mode at the largest narrow peak of the residual of the rest of the model."""

@@ -29,6 +29,7 @@ the shared ``delay`` keeps ``tau_d``.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import ClassVar
 
 import numpy as np
@@ -142,14 +143,38 @@ class ChannelTerm(Term):
         """``s(ω)`` of the channel for a parameter value."""
         raise NotImplementedError
 
+    def transfer_derivative(
+        self, omega: NDArray[np.float64], value: float
+    ) -> NDArray[np.complex128] | None:
+        """``∂s/∂value``; ``None`` (the default): unknown."""
+        return None
+
+    def factors(self, omega: NDArray[np.float64], value: float, frfs: Iterable[str]
+                ) -> dict[str, tuple[NDArray[np.complex128], NDArray[np.complex128] | None]]:
+        """Per FRF of ``frfs`` the channel enters: the factor it multiplies the FRF by (``s``
+        for a response channel, ``1/s`` for a force channel) and that factor's derivative by
+        the parameter (``None`` if unknown)."""
+        if self.channel.frf not in frfs:
+            return {}
+        s = self.transfer(omega, value)
+        ds = self.transfer_derivative(omega, value)
+        if self.channel.power > 0:
+            return {self.channel.frf: (s, ds)}
+        return {self.channel.frf: (1.0 / s, None if ds is None else -ds / s**2)}
+
     def measure(self, ctx, p, frfs):
-        frf = self.channel.frf
-        if frf not in frfs:
-            return frfs
         changed = dict(frfs)
-        s = self.transfer(ctx.omega, p[self.name])
-        changed[frf] = frfs[frf] * s if self.channel.power > 0 else frfs[frf] / s
+        for frf, (factor, _) in self.factors(ctx.omega, p[self.name], frfs).items():
+            changed[frf] = frfs[frf] * factor
         return changed
+
+    def measure_derivatives(self, ctx, p, frfs):
+        out = {}
+        for frf, (factor, derivative) in self.factors(ctx.omega, p[self.name], frfs).items():
+            if derivative is None:
+                return None
+            out[frf] = (factor, {self.name: frfs[frf] * derivative})
+        return out
 
 
 @register_term
@@ -188,11 +213,15 @@ class Delay(ChannelTerm):
     def transfer(self, omega, value):
         return np.exp(-1j * omega * value)
 
-    def measure(self, ctx, p, frfs):
+    def transfer_derivative(self, omega, value):
+        return -1j * omega * np.exp(-1j * omega * value)
+
+    def factors(self, omega, value, frfs):
         if self.channel is not None:
-            return super().measure(ctx, p, frfs)
-        shift = self.transfer(ctx.omega, p["tau_d"])
-        return {name: h * shift for name, h in frfs.items()}
+            return super().factors(omega, value, frfs)
+        shift = self.transfer(omega, value)
+        derivative = self.transfer_derivative(omega, value)
+        return {name: (shift, derivative) for name in frfs}
 
 
 @register_term
@@ -211,6 +240,9 @@ class Gain(ChannelTerm):
 
     def transfer(self, omega, value):
         return np.ones(omega.shape, dtype=complex) * value
+
+    def transfer_derivative(self, omega, value):
+        return np.ones(omega.shape, dtype=complex)
 
 
 @register_term
@@ -231,6 +263,10 @@ class Highpass(ChannelTerm):
         s = 1j * omega
         return s / (s + 2 * np.pi * value)
 
+    def transfer_derivative(self, omega, value):
+        s = 1j * omega
+        return -2 * np.pi * s / (s + 2 * np.pi * value) ** 2
+
 
 @register_term
 class Lowpass(ChannelTerm):
@@ -250,4 +286,8 @@ class Lowpass(ChannelTerm):
     def transfer(self, omega, value):
         corner = 2 * np.pi * value
         return corner / (1j * omega + corner)
+
+    def transfer_derivative(self, omega, value):
+        s = 1j * omega
+        return 2 * np.pi * s / (s + 2 * np.pi * value) ** 2
 
