@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator, Mapping
 
 import numpy as np
@@ -66,10 +67,21 @@ def test_parameter_names_follow_the_design(spec: str, names: tuple[str, ...]) ->
         ("maxwell(2.5)", "whole number"),
         ("maxwell(x)", "needs a number"),
         ("voigt(3)", "takes no argument"),
+        ("voigt+delay+delay", "'delay' is given more than once"),
+        ("fractional+gain(x_v)+load_cell+gain(x_v)", "'gain(x_v)' is given more than once"),
+        ("voigt+amplitude+amplitude", "'amplitude' is given more than once"),
     ],
 )
 def test_bad_specs_name_what_is_wrong(spec: str, words: str) -> None:
-    with pytest.raises(InputError, match=words.replace("*", r"\*").replace("(", r"\(")):
+    with pytest.raises(InputError, match=re.escape(words)):
+        parse_spec(spec)
+
+
+def test_the_same_effect_twice_is_refused_but_two_modes_or_two_channels_are_not() -> None:
+    """Two copies of one delay, gain or amplitude term add into one value (τ₁ + τ₂): a fit of
+    them is exactly degenerate. Two local modes, or delays of different channels, are not."""
+    for spec in ("voigt+fixture+fixture", "voigt+fixture(58)+fixture(58)",
+                 "voigt+delay+delay(x_v)", "voigt+gain(x_v)+gain(x_s)"):
         parse_spec(spec)
 
 

@@ -154,11 +154,16 @@ class Term:
         ``"modulus"`` for a ``K*`` term (exactly one per model), ``"effect"`` otherwise.
     requires
         Context fields the term needs (``"time_s"``, ``"reference_amplitude"``).
+    repeatable
+        The same term (keyword and argument) may appear more than once in a model, each a
+        distinct effect (two local modes); otherwise the copies would add into one effect that
+        no data can split between them, and the model is refused.
     """
 
     keyword: ClassVar[str] = ""
     kind: ClassVar[str] = "effect"
     requires: ClassVar[tuple[str, ...]] = ()
+    repeatable: ClassVar[bool] = False
 
     def __init__(self, argument: float | None = None) -> None:
         if argument is not None:
@@ -381,6 +386,12 @@ class Model:
                 key=lambda term: (order.get(term.keyword, len(order)), term.sort_key()),
             )
         )
+        specs = [term.spec for term in self.effects if not term.repeatable]
+        repeated = sorted({spec for spec in specs if specs.count(spec) > 1})
+        if repeated:
+            raise InputError(
+                f"'{repeated[0]}' is given more than once: the copies would add "
+                "into one effect the data cannot split between them; give it once", "model spec")
         couplers = [term for term in self.effects if term.takes_part_in("couple")]
         if len(couplers) > 1:
             raise InputError("a model has at most one coupling term (load_cell)", "model spec")

@@ -146,6 +146,7 @@ class Fixture(Term):
     """
 
     keyword = "fixture"
+    repeatable = True
 
     def __init__(self, argument: float | None = None) -> None:
         if argument is not None and not (np.isfinite(argument) and 0.1 <= argument <= 1e5):
