@@ -302,6 +302,20 @@ def test_a_few_outlier_points_are_not_the_floor_a_model_is_judged_against(
                      second), second
 
 
+def test_glitches_of_two_points_are_left_out_where_they_are(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ten glitches of two points side by side: each pair showed on its two outer neighbours,
+    which were left out in its place."""
+    path = with_outliers(tmp_path / "pairs.h5",
+                         lambda size: (np.arange(30, size - 30, (size - 60) // 10)[:10, None]
+                                       + np.arange(2)).ravel())
+    model = "fractional+load_cell+fixture(38)+fixture(58)+fixture(92)"
+    assert main(["diagnose", str(path), "--run", "soft-0", "--model", model, "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["outlier_points"] == 20
+
+
 def test_a_whole_band_candidate_is_not_dragged_by_outliers_far_below_the_model_without_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

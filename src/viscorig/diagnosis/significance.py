@@ -37,7 +37,7 @@ from scipy.special import chdtrc, chdtri
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.weighted import Likelihood
-from viscorig.fitting.noise_estimation import OUTLIER_LEVEL
+from viscorig.fitting.outliers import OUTLIER_LEVEL
 from viscorig.models import Model
 
 #: False-finding probability allowed to one diagnosis step, all its tests together.

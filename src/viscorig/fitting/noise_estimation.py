@@ -20,8 +20,8 @@ index (the grid is uniform or smoothly graded), and keeps of the noise
    at ``m = 3``, ``n/3.2`` at ``m = 6``.) ``|d|²`` of complex Gaussian noise is exponential,
    whose median is ``ln 2`` times its mean: the running median of ``e_i`` over
    :data:`WHITE_WINDOW` points, divided by ``ln 2``, is the local ``w_i``. The median ignores a
-   local mode a few points wide. Outlier points (heavy-tailed noise) are found first, by the
-   sixth difference centred on each point (:func:`outlier_points`), and every difference they
+   local mode a few points wide. Outlier points (heavy-tailed noise, glitches of one to three
+   points) are found first (:mod:`~viscorig.fitting.outliers`), and every difference they
    enter is left out of every statistic: they neither inflate nor collapse the estimate.
    Where the file has the analyser's normalized variance ``v_i`` (the sum of both channels'),
    it gives the shape along the band, point by point, and the differences its scale:
@@ -74,20 +74,19 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import median_filter
 
 from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.fitting.data import MIN_POINTS
 from viscorig.fitting.noise import FrfNoise, NoiseModel
+from viscorig.fitting.outliers import outlier_points, outlier_power, running_median
 
 #: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
 WHITE_ORDER = 3
-#: Order of the lag-1 difference that finds outlier points (centred on the point).
-OUTLIER_ORDER = 6
+#: Order of the lag-1 difference that estimates it without the frequency (``Z`` then the inverse
+#: accelerance: smooth, but no polynomial of low degree).
+NO_FREQUENCY_ORDER = 6
 #: Points of the running median of the white part.
 WHITE_WINDOW = 41
-#: A point whose centred lag-1 difference is this many times its expectation is an outlier.
-OUTLIER_LEVEL = 30.0
 #: Order of the differences at several lags that estimate the correlated part.
 LAG_ORDER = 3
 #: Lags (points) of the correlated part's differences (those with enough points are used).
@@ -139,61 +138,12 @@ def _lagged(values: NDArray, weights: NDArray[np.float64], lag: int) -> NDArray:
     return total
 
 
-def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
-    """Median over ``window`` points centred on each point (the band's ends mirrored)."""
-    size = min(window, values.size)
-    return median_filter(values, size=size | 1, mode="mirror")
-
-
 def _centred(values: NDArray[np.float64], size: int, order: int) -> NDArray[np.float64]:
     """Values of the lag-1 differences put on the point at each window's centre."""
     pad = order // 2
     return np.concatenate(
         [np.full(pad, values[0]), values, np.full(size - values.size - pad, values[-1])]
     )
-
-
-def _outlier_statistic(
-    z: NDArray[np.complex128], white: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centred sixth differences: their ratio to the white expectation, and the power of the
-    centre point's own error they imply, ``(|d|² − Σ_{k≠c} b_k² |Z_k|² w_k) / (b_c² |Z_c|²)``,
-    both put on the centre points (zero at the ends)."""
-    weights = _binomial(OUTLIER_ORDER)
-    modulus2 = z.real**2 + z.imag**2
-    d = _lagged(z, weights, 1)
-    difference = d.real**2 + d.imag**2
-    expected = _lagged(modulus2 * white, weights**2, 1)
-    centre = OUTLIER_ORDER // 2
-    count = difference.size
-    centre_power = (modulus2 * white)[centre : centre + count]
-    others = expected - weights[centre] ** 2 * centre_power
-    own = (difference - others) / (weights[centre] ** 2 * modulus2[centre : centre + count])
-    ratio, own_power = np.zeros(z.size), np.zeros(z.size)
-    ratio[centre : centre + count] = difference / expected
-    own_power[centre : centre + count] = own
-    return ratio, own_power
-
-
-def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Points that stand alone far outside the noise (heavy-tailed noise, a glitch).
-
-    The lag-1 sixth difference centred on a point weighs it by 20 and its neighbours by at most
-    15: a point whose centred difference exceeds :data:`OUTLIER_LEVEL` times its expectation
-    (``|d|²`` of noise is exponential: a chance of ``e^{−30}``; the expectation from the white
-    part, or the local median level of the differences when that is higher) and exceeds those
-    centred on both neighbours is an outlier. A feature several points wide (a mode) is not: its
-    neighbours' differences are as large.
-    """
-    centred, _ = _outlier_statistic(z, white)
-    # Against the statistic's own local level, so that roughness the white part does not hold
-    # (a drift's) does not make ordinary points stand out.
-    centred = centred / np.maximum(running_median(centred, WHITE_WINDOW) / math.log(2.0), 1.0)
-    peak = np.zeros(z.size, dtype=bool)
-    peak[1:-1] = (centred[1:-1] > centred[:-2]) & (centred[1:-1] > centred[2:])
-    return peak & (centred > OUTLIER_LEVEL)
-
-
 
 
 def white_power(
@@ -210,7 +160,7 @@ def white_power(
     accelerance, smooth but not a polynomial) the sixth difference is used. Returns the power
     and its source (``"differences"`` or ``"analyser variance"``).
     """
-    order = WHITE_ORDER if frequency_known else OUTLIER_ORDER
+    order = WHITE_ORDER if frequency_known else NO_FREQUENCY_ORDER
     weights = _binomial(order)
     modulus2 = z.real**2 + z.imag**2
     d = _lagged(z, weights, 1)
@@ -446,7 +396,7 @@ def estimate_frf_noise(
         return FrfNoise(name, white, axis=axis, axis_unit=unit, source="analyser variance",
                         outliers=np.zeros(frf.size, dtype=bool))
     white_sorted, source = white_power(z, var, window, None, known)
-    skip = outlier_points(z, white_sorted)
+    skip = outlier_points(z, white_sorted, WHITE_WINDOW)
     if np.any(skip):
         white_sorted, source = white_power(z, var, window, skip, known)
     axis_unit = "point"
@@ -464,7 +414,7 @@ def estimate_frf_noise(
             white_sorted = _without_leak(white_sorted, powers[0] + powers[1], tau, axis_sorted)
     if np.any(skip):
         # An outlier carries its own error: the floor a perfect model reaches includes it.
-        _, own = _outlier_statistic(z, white_sorted)
+        own = outlier_power(z, white_sorted, skip)
         white_sorted = np.where(skip, np.maximum(white_sorted, own), white_sorted)
     if irregular:
         source += " (irregular grid)"

@@ -386,8 +386,8 @@ class Model:
                 key=lambda term: (order.get(term.keyword, len(order)), term.sort_key()),
             )
         )
-        specs = [term.spec for term in self.effects if not term.repeatable]
-        repeated = sorted({spec for spec in specs if specs.count(spec) > 1})
+        given = [term.spec for term in self.effects if not term.repeatable]
+        repeated = sorted({spec for spec in given if given.count(spec) > 1})
         if repeated:
             raise InputError(
                 f"'{repeated[0]}' is given more than once: the copies would add "

@@ -1,0 +1,220 @@
+"""Outlier points of an FRF: glitches of one to three points far outside the noise.
+
+On the dynamic stiffness ``Z = −ω²/H`` (smooth where ``H`` is not, see
+:mod:`~viscorig.fitting.noise_estimation`), the polynomial of degree 5 through the
+:data:`NEIGHBOURS` points on each side of a point predicts it; the centred sixth difference is
+its departure from that prediction times the centre weight 20. Its power over its expectation
+(``|d|²`` of noise is exponential: :data:`OUTLIER_LEVEL` is a chance of ``e^{−30}``), read
+against its local level (the running median over a window, over ``ln 2``, at least 1, so that
+roughness the white part does not hold, a drift's, does not make ordinary points stand out),
+flags a point where it is also larger than on both neighbours: a feature several points wide
+(a mode) does not stand out from its neighbours.
+
+A glitch of two points hides itself from that test: each point's difference holds its twin's
+error with weight 15 against its own 20, and the pair shows on its two outer neighbours instead
+(weights 15 and 6), which the test flags in its place; two glitches a point apart show on the
+good point between them, or on the points just outside them. So each cluster of flagged points
+(within ``2 SHIFT`` of each other) is explained anew: the fewest points near it that, left out,
+leave its window on one polynomial within the noise are taken in its place. Where no such
+choice exists (a sharp mode, or more glitches than :data:`GLITCH_POINTS`), the flagged points
+stand.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import median_filter
+
+#: Points on each side a point is predicted from (a polynomial of degree ``2·NEIGHBOURS − 1``).
+NEIGHBOURS = 3
+#: Most points taken for a cluster of flagged points (side by side, or a point apart), unless it
+#: has more flagged points. (A mode narrower than the sweep's step looks the same: no sweep
+#: resolves it, and the diagnosis does not fit one.)
+GLITCH_POINTS = 3
+#: Points either side of a cluster where the points that explain it are looked for.
+SHIFT = 2
+#: A point whose centred sixth difference is this many times its expectation is an outlier.
+OUTLIER_LEVEL = 30.0
+#: Largest ``−log P`` of the deviance a window keeps without its glitch (a chance of 1 in
+#: 10,000 that a glitch is taken for a feature).
+SMOOTH_LEVEL = 9.2
+#: Or, on a feature's flank, the largest share of the window's deviance a glitch leaves.
+SMOOTH_SHARE = 0.01
+
+
+def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
+    """Median over ``window`` points centred on each point (the band's ends mirrored)."""
+    size = min(window, values.size)
+    return median_filter(values, size=size | 1, mode="mirror")
+
+
+def _weights(run: NDArray[np.int_], sides: NDArray[np.int_]) -> NDArray[np.float64]:
+    """Lagrange weights (run × sides) of the polynomial through the sides' positions, at the
+    run's positions."""
+    x, t = sides.astype(float), run.astype(float)
+    apart = x[:, None] - x[None, :]
+    np.fill_diagonal(apart, 1.0)
+    to = t[:, None] - x[None, :]
+    return np.prod(to, axis=1)[:, None] / to / np.prod(apart, axis=1)[None, :]
+
+
+def _tail(t: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """``−log P(T > t)`` for ``T`` a sum of ``k`` unit exponentials."""
+    t = np.maximum(t, 0.0)
+    series = sum(t**j / math.factorial(j) for j in range(k))
+    return t - np.log(series)
+
+
+def _departure(z: NDArray[np.complex128], v: NDArray[np.float64], run: NDArray[np.int_],
+               sides: NDArray[np.int_]) -> tuple[NDArray, NDArray, NDArray]:
+    """For runs of points (rows of ``run``) and their sides (rows of ``sides``, in the same
+    relative layout for every row): the departure ``r`` from the sides' polynomial, the sides'
+    part of its covariance, and its covariance ``C``."""
+    a = _weights(run[0] - run[0, 0], sides[0] - run[0, 0])
+    r = z[run] - np.einsum("sj,kj->sk", z[sides], a)
+    from_sides = np.einsum("kj,sj,lj->skl", a, v[sides], a)
+    covariance = from_sides + v[run][:, :, None] * np.eye(run.shape[1])[None]
+    return r, from_sides, covariance
+
+
+def _sides(start: int, k: int, taken: NDArray[np.bool_], each: int = NEIGHBOURS
+           ) -> NDArray[np.int_] | None:
+    """The ``each`` nearest points not taken on each side of a run; ``None`` where a side has
+    fewer."""
+    left = np.flatnonzero(~taken[:start])[-each:]
+    right = start + k + np.flatnonzero(~taken[start + k:])[:each]
+    if left.size < each or right.size < each:
+        return None
+    return np.concatenate([left, right])
+
+
+def _one_point(z: NDArray[np.complex128], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each point's centred sixth difference, its power over its expectation (0 where the band
+    leaves no side)."""
+    n = z.size
+    out = np.zeros(n)
+    points = np.arange(NEIGHBOURS, n - NEIGHBOURS)
+    if points.size == 0:
+        return out
+    sides = np.concatenate([np.arange(-NEIGHBOURS, 0), np.arange(1, 1 + NEIGHBOURS)])
+    r, _, covariance = _departure(z, v, points[:, None], points[:, None] + sides)
+    with np.errstate(all="ignore"):
+        out[points] = (r[:, 0].real ** 2 + r[:, 0].imag ** 2) / covariance[:, 0, 0]
+    return out
+
+
+def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64],
+                   window: int) -> NDArray[np.bool_]:
+    """Points of glitches far outside the noise (see the module text); ``z`` the dynamic
+    stiffness in frequency order, ``white`` each point's white power, ``window`` the points of
+    the local level's running median."""
+    n = z.size
+    flagged = np.zeros(n, dtype=bool)
+    if n < 2 * NEIGHBOURS + 1:
+        return flagged
+    with np.errstate(all="ignore"):  # a value no measurement gives is no outlier's evidence
+        v = (z.real**2 + z.imag**2) * white
+        ratio = _one_point(z, v)
+        ratio = ratio / np.maximum(running_median(ratio, window) / math.log(2.0), 1.0)
+        flagged[1:-1] = (ratio[1:-1] > ratio[:-2]) & (ratio[1:-1] > ratio[2:])
+        flagged &= ratio > OUTLIER_LEVEL
+        out = flagged.copy()
+        for cluster in _clusters(np.flatnonzero(flagged)):
+            points = _glitch(z, v, cluster, flagged)
+            if points is not None:
+                out[cluster] = False
+                out[points] = True
+    return out
+
+
+def _clusters(points: NDArray[np.int_]) -> list[list[int]]:
+    """Points grouped where they are within ``2 SHIFT`` of each other: the two points a pair of
+    glitches a point apart shows on are four apart."""
+    clusters: list[list[int]] = []
+    for point in points.tolist():
+        if clusters and point - clusters[-1][-1] <= 2 * SHIFT:
+            clusters[-1].append(point)
+        else:
+            clusters.append([point])
+    return clusters
+
+
+def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int],
+            flagged: NDArray[np.bool_]) -> list[int] | None:
+    """The points that explain a cluster of flagged points: the fewest (up to
+    :data:`GLITCH_POINTS`) within :data:`SHIFT` points of it (or of the band's end, where the
+    end is within ``NEIGHBOURS`` of them) that, left out, leave the window
+    (the candidates' span and ``NEIGHBOURS + 1`` points each side not flagged elsewhere)
+    smooth: the rest on one polynomial of degree ``2·NEIGHBOURS − 1`` within the noise
+    (``−log P`` of its deviance below :data:`SMOOTH_LEVEL`), or, on a feature's flank, with
+    less than :data:`SMOOTH_SHARE` of the window's deviance left. ``None`` where none does
+    (a feature, or more glitches than that): the flagged points stand."""
+    n = z.size
+    low, high = max(cluster[0] - SHIFT, 0), min(cluster[-1] + SHIFT, n - 1)
+    # within a difference's reach of an end, the glitch may sit on the points it cannot centre
+    low = 0 if low <= NEIGHBOURS else low
+    high = n - 1 if high >= n - 1 - NEIGHBOURS else high
+    candidates = list(range(low, high + 1))
+    elsewhere = flagged.copy()
+    elsewhere[low:high + 1] = True
+    left = np.flatnonzero(~elsewhere[:low])[-(NEIGHBOURS + 1):]
+    right = high + 1 + np.flatnonzero(~elsewhere[high + 1:])[:NEIGHBOURS + 1]
+    window = np.concatenate([left, candidates, right]).astype(int)
+    whole = _deviance(z, v, window)
+    for size in range(1, max(GLITCH_POINTS, len(cluster)) + 1):
+        best: tuple[float, list[int]] | None = None
+        for left_out in itertools.combinations(candidates, size):
+            kept = np.setdiff1d(window, left_out)
+            if kept.size <= 2 * NEIGHBOURS:
+                break
+            deviance = _deviance(z, v, kept)
+            smooth = (_tail(np.array([deviance]), kept.size - 2 * NEIGHBOURS)[0] < SMOOTH_LEVEL
+                      or deviance < SMOOTH_SHARE * whole)
+            if smooth and (best is None or deviance < best[0]):
+                best = (deviance, list(left_out))
+        if best is not None:
+            return best[1]
+    return None
+
+
+def _deviance(z: NDArray[np.complex128], v: NDArray[np.float64], points: NDArray[np.int_]
+              ) -> float:
+    """Weighted residual power of the best polynomial of degree ``2·NEIGHBOURS − 1`` through
+    the points."""
+    x = points.astype(float)
+    x = (x - x.mean()) / max(np.ptp(x), 1.0)
+    weight = 1.0 / np.sqrt(v[points])
+    design = np.vander(x, 2 * NEIGHBOURS) * weight[:, None]
+    target = z[points] * weight
+    if not (np.isfinite(design).all() and np.isfinite(target).all()):
+        return math.inf
+    solution, *_ = np.linalg.lstsq(design, target, rcond=None)
+    residual = target - design @ solution
+    return float(np.sum(residual.real**2 + residual.imag**2))
+
+
+def outlier_power(z: NDArray[np.complex128], white: NDArray[np.float64],
+                  outliers: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Each outlier point's own error power, relative as ``white`` (0 elsewhere): what its
+    departure from the prediction of its run's sides holds beyond the sides' noise,
+    ``(|r_j|² − (A V_sides Aᵀ)_jj) / |Z_j|²``."""
+    own = np.zeros(z.size)
+    if not outliers.any():
+        return own
+    with np.errstate(all="ignore"):
+        v = (z.real**2 + z.imag**2) * white
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], outliers.astype(np.int8), [0]])))
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        sides = _sides(int(start), int(stop - start), outliers)
+        if sides is None:
+            continue
+        run = np.arange(start, stop)
+        with np.errstate(all="ignore"):
+            r, from_sides, _ = _departure(z, v, run[None], sides[None])
+            power = np.abs(r[0]) ** 2 - np.diagonal(from_sides[0])
+            own[run] = power / (z[run].real ** 2 + z[run].imag ** 2)
+    return own

@@ -1,0 +1,111 @@
+"""Outlier points: glitches of one to three points found where they are, on hand-made data.
+
+The dynamic stiffness of a Voigt disc on the table, written here as a polynomial in ω with
+complex Gaussian noise of known power; glitches are planted at known points, at 60 to 200
+times the noise, with a random phase.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viscorig.fitting.outliers import outlier_points, outlier_power
+
+FREQUENCY = np.arange(20.0, 120.0 + 1e-9, 0.25)
+OMEGA = 2 * np.pi * FREQUENCY
+STIFFNESS = 2.5e5 - OMEGA**2 * 3.7 + 1j * OMEGA * 125.0
+RMS = 1e-3
+WHITE = np.full(FREQUENCY.size, RMS**2)
+WINDOW = 41
+
+
+def noisy(rng: np.random.Generator, stiffness: np.ndarray = STIFFNESS) -> np.ndarray:
+    size = FREQUENCY.size
+    eps = RMS / np.sqrt(2) * (rng.normal(size=size) + 1j * rng.normal(size=size))
+    return stiffness * (1 + eps)
+
+
+def glitched(rng: np.random.Generator, points: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Noisy data with each of ``points`` off by 60 to 200 times the noise; and the planted
+    relative errors."""
+    z = noisy(rng)
+    error = np.zeros(z.size, dtype=complex)
+    size = rng.uniform(60, 200, len(points)) * RMS
+    error[points] = size * np.exp(2j * np.pi * rng.random(len(points)))
+    return z * (1 + error), error
+
+
+@pytest.mark.parametrize(
+    "offsets",
+    [[0], [0, 1], [0, 2], [0, 1, 9], [0, 2, 20, 21], [0, 1, 2]],
+    ids=["one", "side by side", "a point apart", "a pair and one", "both kinds",
+         "three in a row"],
+)
+def test_glitches_of_one_to_three_points_are_found_where_they_are(offsets: list[int]) -> None:
+    """A pair side by side showed on its two outer neighbours, and a pair a point apart on the
+    good point between: the one-point test flagged good points and kept the glitch."""
+    rng = np.random.default_rng(len(offsets))
+    for _ in range(20):
+        start = int(rng.integers(10, FREQUENCY.size - 40))
+        points = [start + offset for offset in offsets]
+        z, _ = glitched(rng, points)
+        assert np.flatnonzero(outlier_points(z, WHITE, WINDOW)).tolist() == points
+
+
+def test_pure_noise_has_no_outlier_points() -> None:
+    rng = np.random.default_rng(7)
+    found = sum(int(outlier_points(noisy(rng), WHITE, WINDOW).sum()) for _ in range(200))
+    assert found == 0
+
+
+def test_a_sharp_mode_is_not_taken_for_glitches() -> None:
+    """A local mode as narrow as the sweep resolves (half-power band of 0.35 to 2.3 Hz, 1.4 to
+    9 points), 30 to 300 times the noise at its peak: at most its top point, as before."""
+    rng = np.random.default_rng(11)
+    w_n = 2 * np.pi * 58.0
+    for zeta in (0.02, 0.01, 0.005, 0.003):
+        for mass in (5e-3, 5e-4):
+            u = mass * w_n**2 + 2j * zeta * mass * w_n * OMEGA
+            mode = -(OMEGA**2) * mass * u / (u - OMEGA**2 * mass)
+            z = noisy(rng, STIFFNESS + mode)
+            assert outlier_points(z, WHITE, WINDOW).sum() <= 1, (zeta, mass)
+
+
+def test_each_glitch_point_is_given_its_own_error() -> None:
+    """A pair's points each carry their own error, ``|ε|²`` with ``ε`` the relative error of
+    the accelerance (``Z(1 + e)`` is ``H/(1 + e)``): the power the noise floor must hold."""
+    rng = np.random.default_rng(5)
+    ratios = []
+    for _ in range(20):
+        start = int(rng.integers(10, FREQUENCY.size - 20))
+        points = [start, start + 1]
+        z, error = glitched(rng, points)
+        found = outlier_points(z, WHITE, WINDOW)
+        own = outlier_power(z, WHITE, found)
+        relative = error[points] / (1 + error[points])
+        ratios += list(own[points] / np.abs(relative) ** 2)
+    assert np.median(ratios) == pytest.approx(1.0, abs=0.1)
+    assert min(ratios) > 0.5
+
+
+def test_values_no_measurement_gives_are_refused_quietly() -> None:
+    """NaN, infinite or zero values and powers: no exception, no outlier from nothing."""
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        z, white = noisy(rng), WHITE.copy()
+        where = rng.integers(0, z.size, 3)
+        kind = trial % 5
+        if kind == 0:
+            z[where] = np.nan
+        elif kind == 1:
+            z[where] = np.inf
+        elif kind == 2:
+            white[:] = 0.0
+        elif kind == 3:
+            z[:] = 0.0
+        else:
+            white[where] = np.nan
+        found = outlier_points(z, white, WINDOW)
+        assert outlier_power(z, white, found).shape == z.shape
+    assert not outlier_points(np.zeros(5, dtype=complex), np.ones(5), WINDOW).any()
