@@ -81,11 +81,13 @@ def handler(args: argparse.Namespace) -> int:
     return 0
 
 
-def next_command(file: str, run: str, spec: str, band: tuple[float, float] | None) -> str:
+def next_command(file: str, run: str, spec: str, band: tuple[float, float] | None,
+                 weights: str = "uniform") -> str:
     """The ``identify`` command line that fits ``spec`` as the diagnosis reported it: weighting
     every point alike, the fit whose ``rms_error`` the ladder shows (``identify``'s default
-    weighs by the noise and ends a few percent higher on that measure)."""
-    words = ["viscorig", "identify", file, "--run", run, "--model", spec, "--weights", "uniform"]
+    weighs by the noise and ends a few percent higher on that measure); ``weights="noise"``
+    where outliers pull that fit off (``DiagnosisResult.pulled_by_outliers``)."""
+    words = ["viscorig", "identify", file, "--run", run, "--model", spec, "--weights", weights]
     if band is not None:
         words += ["--band", f"{band[0]:g}:{band[1]:g}"]
     return shlex.join(words)
@@ -122,7 +124,8 @@ def diagnosis_text(
         yield rung_line(step)
         last = step
     if last is not None and last is not d:
-        yield "next: " + next_command(file, d.data.run, last.model, band_hz)
+        yield "next: " + next_command(file, d.data.run, last.model, band_hz,
+                                      "noise" if last.pulled_by_outliers else "uniform")
 
 
 #: The ratio to the floor without the outlier points is shown beside the whole one when the two
@@ -145,7 +148,8 @@ def floor_ratio(d: DiagnosisResult) -> str:
 
 def rung_line(step: DiagnosisResult) -> str:
     """One rung of the ladder: model, rms error, its ratio to the noise floor."""
-    mark = "  at the noise floor" if step.at_noise_floor else ""
+    mark = ("  at the noise floor" if step.at_noise_floor
+            else "  at the noise floor weighed by its noise" if step.pulled_by_outliers else "")
     return f"  {step.model:<44} {step.rms_error:.3e}  ({floor_ratio(step)}){mark}"
 
 
@@ -160,6 +164,14 @@ def diagnosis_lines(
         + (", at the noise floor)" if d.at_noise_floor else ")"),
         "noise: " + "; ".join(d.data.noise.describe()),
     ]
+    if d.pulled_by_outliers:
+        floor = d.noise_floor_without_outliers
+        lines.append(
+            f"outliers: its {d.outlier_points} outlier points pull the uniform fit (the paper's) "
+            f"off the other points ({d.rms_error_without_outliers / floor:.2f} x their noise); "
+            f"weighed by its noise, the model leaves "
+            f"{d.likelihood_rms_error_without_outliers / floor:.2f} x: "
+            + next_command(file, d.data.run, d.model, band_hz, "noise"))
     prior = d.data.table_prior
     if prior is not None and d.data.nuisance:
         lines.append(f"table: {', '.join(d.data.nuisance)} from {prior.source or 'elsewhere'}, "
@@ -199,12 +211,15 @@ def diagnosis_lines(
         lines.append(
             "nothing significant is missing: what is left is noise."
             if d.at_noise_floor
+            else "nothing significant is missing: weighed by its noise, what is left is noise."
+            if d.pulled_by_outliers
             else "no candidate effect explains what is left beyond noise."
         )
     else:
         lines.append(f"most likely missing: {best.effect}")
         lines.append(f"  {best.explanation}")
-        lines.append("next: " + next_command(file, d.data.run, best.model, band_hz))
+        lines.append("next: " + next_command(file, d.data.run, best.model, band_hz,
+                                             "noise" if d.pulled_by_outliers else "uniform"))
     for text in d.advice:
         lines.append(f"to tell them apart: {text}")
     return lines

@@ -121,8 +121,26 @@ class DiagnosisResult:
     @property
     def rms_error_without_outliers(self) -> float:
         """``rms_error`` over every point but the outliers: what the noise floor describes."""
+        return self._without_outliers(self.fit.residuals)
+
+    @property
+    def likelihood_rms_error_without_outliers(self) -> float:
+        """:attr:`rms_error_without_outliers` at the likelihood fit's values (each point weighed
+        by its noise, an outlier by its own error): what the model reaches on the other points
+        where the outliers pull the uniform fit off them (:attr:`pulled_by_outliers`)."""
+        return self._without_outliers(self.likelihood.residuals)
+
+    @property
+    def pulled_by_outliers(self) -> bool:
+        """The uniform fit misses the noise floor of the points that are not outliers, where the
+        likelihood fit reaches it: the outliers keep the fit off, not the model."""
+        return bool(self.outlier_points and not self.at_noise_floor
+                    and self.likelihood_rms_error_without_outliers
+                    <= AT_FLOOR_RATIO * self.noise_floor_without_outliers)
+
+    def _without_outliers(self, residuals: dict[str, np.ndarray]) -> float:
         masks = self.outliers()
-        kept = np.concatenate([np.abs(self.fit.residuals[frf][~masks[frf]]) ** 2
+        kept = np.concatenate([np.abs(residuals[frf][~masks[frf]]) ** 2
                                for frf in self.fit.frfs])
         return float(np.sqrt(np.mean(kept))) if kept.size else self.rms_error
 
@@ -255,8 +273,9 @@ class DiagnosisResult:
 
     def to_json(self, ladder: Sequence[DiagnosisResult] | None = None) -> dict[str, object]:
         """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
-        ``outlier_points``, ``rms_error_without_outliers``, ``noise_floor_without_outliers``
-        and ``scan``: what the thresholds and the noise-floor verdict rest on)."""
+        ``outlier_points``, ``rms_error_without_outliers``, ``noise_floor_without_outliers``,
+        ``likelihood_rms_error_without_outliers``, ``pulled_by_outliers`` and ``scan``: what
+        the thresholds and the noise-floor verdict rest on)."""
         document: dict[str, object] = {
             "run": self.data.run,
             "runs": list(self.data.runs),
@@ -267,6 +286,9 @@ class DiagnosisResult:
             "rms_error_without_outliers": float(self.rms_error_without_outliers),
             "noise_floor_without_outliers": float(self.noise_floor_without_outliers),
             "outlier_points": self.outlier_points,
+            "likelihood_rms_error_without_outliers": float(
+                self.likelihood_rms_error_without_outliers),
+            "pulled_by_outliers": self.pulled_by_outliers,
             "noise": self.data.noise.describe(),
             "scan": None if self.scan is None else {
                 "templates": self.scan.templates,
