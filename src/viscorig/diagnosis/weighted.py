@@ -192,11 +192,13 @@ def ratio_derivatives(
     free: Sequence[str],
     log: NDArray[np.bool_],
     inverse: Mapping[str, NDArray[np.complex128]],
+    predicted: Mapping[str, NDArray[np.complex128]] | None = None,
 ) -> dict[str, NDArray[np.complex128]] | None:
     """``∂(H/H_measured)/∂x`` per FRF of ``inverse`` (``1/H_measured``; points × ``free``),
     ``x`` the fitted coordinates (``log p`` where ``log``), from the model's analytic
-    derivatives (:meth:`~viscorig.models.Model.derivatives`); ``None`` where it has none."""
-    derivatives = model.derivatives(ctx, values, free)
+    derivatives (:meth:`~viscorig.models.Model.derivatives`; ``predicted``: the model's
+    prediction at ``values``, when at hand); ``None`` where it has none."""
+    derivatives = model.derivatives(ctx, values, free, predicted)
     if derivatives is None:
         return None
     by_x = np.array([values[name] if is_log else 1.0
@@ -238,15 +240,19 @@ class _Objective:
     def ratio(self, x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
         """``H_model/H_measured − 1`` per FRF at ``x``."""
         with np.errstate(all="ignore"):
-            predicted = self.model.predict(self.ctx, self.current(x))
-            return {name: predicted[name] * self.inverse[name] - 1.0
-                    for name in self.data.frfs}
+            return self._ratio(self.model.predict(self.ctx, self.current(x)))
+
+    def _ratio(self, predicted: dict[str, NDArray[np.complex128]]
+               ) -> dict[str, NDArray[np.complex128]]:
+        return {name: predicted[name] * self.inverse[name] - 1.0 for name in self.data.frfs}
 
     def _cached_ratio(self, x: NDArray[np.float64]) -> dict[str, NDArray[np.complex128]]:
         last = self.last
         if "x" not in last or not np.array_equal(last["x"], x):
             last.clear()
-            last.update(x=x.copy(), ratio=self.ratio(x))
+            with np.errstate(all="ignore"):
+                predicted = self.model.predict(self.ctx, self.current(x))
+                last.update(x=x.copy(), predicted=predicted, ratio=self._ratio(predicted))
         return last["ratio"]
 
     def _cached_whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -266,7 +272,7 @@ class _Objective:
         # The raw residual's derivatives, whitened once for all columns.
         base = self._cached_ratio(x)
         columns = ratio_derivatives(self.model, self.ctx, self.current(x), self.free, self.log,
-                                    self.inverse)
+                                    self.inverse, self.last["predicted"])
         if columns is None:  # forward differences, every column in one evaluation
             steps = _STEP * np.maximum(1.0, np.abs(x))
             steps = np.where(x + steps > self.upper, -steps, steps)

@@ -380,8 +380,8 @@ def _fit_concrete(
 
     def jacobian(x: NDArray[np.float64], *_: object) -> NDArray[np.float64]:
         # r = H/H_measured − 1: ∂r/∂p = (∂H/∂p)/H_measured.
-        predict(x)  # (current holds x's values)
-        derivatives = model.derivatives(ctx, current, free)
+        predicted = predict(x)  # current now holds x's values
+        derivatives = model.derivatives(ctx, current, free, predicted)
         assert derivatives is not None
         blocks = [derivatives[n] / h[:, None] for n, h in zip(frfs, measured, strict=True)]
         complex_jacobian = np.concatenate(blocks) * coordinates.derivative(

@@ -541,41 +541,52 @@ class Model:
         return frfs
 
     def derivatives(
-        self, ctx: Context, values: Mapping[str, float], names: Sequence[str]
+        self,
+        ctx: Context,
+        values: Mapping[str, float],
+        names: Sequence[str],
+        predicted: Mapping[str, NDArray[np.complex128]] | None = None,
     ) -> dict[str, NDArray[np.complex128]] | None:
         """``∂H/∂p`` of each predicted accelerance (points × ``len(names)``, m/s²/N per unit of
         each parameter of ``names``, global names), through the stages of :meth:`predict`;
         ``None`` where a term gives no derivatives of its stage (the frame, the modifiers of
-        ``K*``, a term without them): a fitter then takes finite differences."""
+        ``K*``, a term without them): a fitter then takes finite differences. ``predicted``:
+        :meth:`predict` at ``values``, when at hand (with a rigid link and no measuring term, the
+        receptances are read from it, not evaluated again)."""
         if (self.is_open or self._frame is not None or self._stage_terms["modify_modulus"]
                 or self.modulus_term is None):
             return None
         w = ctx.omega
+        w2 = w * w
         term = self.modulus_term
         own = term.modulus_derivatives(ctx, self.local_values(term, values))
         if own is None:
             return None
         by_disc: dict[str, NDArray[Any] | complex] = self._global(term, own)
         if term.has_disc:
-            by_disc["M_v"] = -(w**2)
+            by_disc["M_v"] = -w2
         for effect in self._stage_terms["disc_stiffness"]:
             own = effect.disc_stiffness_derivatives(ctx, self.local_values(effect, values))
             if own is None:
                 return None
             by_disc.update(self._global(effect, own))
-        by_table: dict[str, NDArray[Any] | complex] = {
-            "M_s": -(w**2), "K_s": 1.0, "C_s": 1j * w}
-        d_disc = self.disc_dynamic_stiffness(ctx, values)
-        d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+        by_table: dict[str, NDArray[Any] | complex] = {"M_s": -w2, "K_s": 1.0, "C_s": 1j * w}
         if self._coupler is None:
-            table = 1.0 / (d_table + d_disc)
-            chain = {"table": {"d_table": -(table**2), "d_disc": -(table**2)}}
-            receptance = {"table": table}
+            if predicted is not None and not self._stage_terms["measure"]:
+                receptance = {frf: predicted[frf] / -w2 for frf in self.frfs}
+            else:
+                d_disc = self.disc_dynamic_stiffness(ctx, values)
+                d_table = values["K_s"] - w2 * values["M_s"] + 1j * w * values["C_s"]
+                receptance = {"table": 1.0 / (d_table + d_disc)}
+                if "support" in self.frfs:
+                    receptance["support"] = 1.0 / d_disc
+            chain = {"table": {"d_table": -(receptance["table"] ** 2),
+                               "d_disc": -(receptance["table"] ** 2)}}
             if "support" in self.frfs:
-                receptance["support"] = 1.0 / d_disc
-                chain["support"] = {"d_table": np.zeros_like(table),
-                                    "d_disc": -(receptance["support"] ** 2)}
+                chain["support"] = {"d_disc": -(receptance["support"] ** 2)}
         else:
+            d_disc = self.disc_dynamic_stiffness(ctx, values)
+            d_table = values["K_s"] - w2 * values["M_s"] + 1j * w * values["C_s"]
             local = self.local_values(self._coupler, values)
             coupled = self._coupler.couple_derivatives(ctx, local, d_table, d_disc)
             if coupled is None:
@@ -585,20 +596,23 @@ class Model:
                      | self._global(self._coupler, {key: d for key, d in by.items()
                                                     if key not in ("d_table", "d_disc")})
                      for frf, by in coupled.items()}
-        frfs = {frf: -(w**2) * receptance[frf] for frf in self.frfs}
         # rows: one parameter each (contiguous), turned to points × parameters at the end
         column = {name: j for j, name in enumerate(names)}
-        rows_table, rows_disc = (self._rows(by, column, w.size) for by in (by_table, by_disc))
+        stages = {"d_table": self._rows(by_table, column, w.size),
+                  "d_disc": self._rows(by_disc, column, w.size)}
         out = {}
         for frf in self.frfs:
-            by = chain[frf]
-            rows = by["d_table"] * rows_table
-            rows += by["d_disc"] * rows_disc
-            for name, d in by.items():
-                if name in column:
-                    rows[column[name]] += d
-            rows *= -(w**2)
+            rows = np.zeros((len(column), w.size), dtype=complex)
+            for key, d in chain[frf].items():
+                if key in stages:
+                    stage = stages[key]
+                    if stage is not None:
+                        rows += (d * -w2) * stage
+                elif key in column:
+                    rows[column[key]] += d * -w2
             out[frf] = rows
+        if self._stage_terms["measure"]:
+            frfs = {frf: -w2 * receptance[frf] for frf in self.frfs}
         for effect in self._stage_terms["measure"]:
             measured = effect.measure_derivatives(ctx, self.local_values(effect, values), frfs)
             if measured is None:
@@ -613,11 +627,15 @@ class Model:
 
     @staticmethod
     def _rows(by_name: Mapping[str, Any], column: Mapping[str, int], points: int
-              ) -> NDArray[np.complex128]:
+              ) -> NDArray[np.complex128] | None:
+        """``by_name``'s derivatives as rows in ``column``'s order (zero elsewhere); ``None``
+        where none of them is asked for."""
+        asked = [name for name in by_name if name in column]
+        if not asked:
+            return None
         rows = np.zeros((len(column), points), dtype=complex)
-        for name, d in by_name.items():
-            if name in column:
-                rows[column[name]] = d
+        for name in asked:
+            rows[column[name]] = by_name[name]
         return rows
 
     def _global(self, term: Term, by_local: Mapping[str, Any]) -> dict[str, Any]:
