@@ -70,10 +70,21 @@ def test_parameter_names_follow_the_design(spec: str, names: tuple[str, ...]) ->
         ("voigt+delay+delay", "'delay' is given more than once"),
         ("fractional+gain(x_v)+load_cell+gain(x_v)", "'gain(x_v)' is given more than once"),
         ("voigt+amplitude+amplitude", "'amplitude' is given more than once"),
+        ("table+load_cell", "'load_cell' acts on the specimens"),
+        ("table+drift", "'drift' acts on the specimens"),
+        ("table+kraus", "'table' has none"),
     ],
 )
 def test_bad_specs_name_what_is_wrong(spec: str, words: str) -> None:
     with pytest.raises(InputError, match=re.escape(words)):
+        parse_spec(spec)
+
+
+def test_the_bare_table_takes_the_terms_of_its_own_chain() -> None:
+    """A K* modifier or a load cell on the bare table has nothing to act on: its parameters
+    were fitted as 'rank deficient' values (K_c = 1e9 with no ±). A frame under the table, a
+    local mode on it and its channels' terms act on the table itself."""
+    for spec in ("table+frame(2000)", "table+fixture", "table+delay", "table+gain(x_s)"):
         parse_spec(spec)
 
 

@@ -392,6 +392,14 @@ class Model:
             raise InputError(
                 f"'{repeated[0]}' is given more than once: the copies would add "
                 "into one effect the data cannot split between them; give it once", "model spec")
+        if self.modulus_term is not None and not self.modulus_term.has_disc:
+            specimen = [term.spec for term in self.effects
+                        if term.takes_part_in("modify_modulus") or term.takes_part_in("couple")]
+            if specimen:
+                raise InputError(
+                    f"'{specimen[0]}' acts on the specimens (their K* or their link to the "
+                    f"table) and '{self.modulus_term.spec}' has none: give it with a "
+                    f"specimen's K* term, e.g. 'voigt+{specimen[0]}'", "model spec")
         couplers = [term for term in self.effects if term.takes_part_in("couple")]
         if len(couplers) > 1:
             raise InputError("a model has at most one coupling term (load_cell)", "model spec")
