@@ -176,12 +176,7 @@ class DiagnosisData:
     @property
     def outliers(self) -> dict[str, NDArray[np.bool_]]:
         """FRF name -> points the noise model found far outside the noise (heavy tails)."""
-        out = {}
-        for frf in self.frfs:
-            parts = [np.zeros(b.size, bool) if b.outliers is None else np.asarray(b.outliers)
-                     for b in self.noise.blocks[frf]]
-            out[frf] = np.concatenate(parts)
-        return out
+        return {frf: self.noise.outliers(frf) for frf in self.frfs}
 
     @property
     def residual_count(self) -> int:

@@ -455,6 +455,11 @@ class NoiseModel:
         """``E|ε_i|²`` at every point of one FRF (white plus correlated): the local ``σ_i²``."""
         return np.concatenate([block.power() for block in self.blocks[frf]])
 
+    def outliers(self, frf: str) -> NDArray[np.bool_]:
+        """The points of one FRF found far outside the noise (glitches)."""
+        return np.concatenate([np.zeros(block.size, dtype=bool) if block.outliers is None
+                               else np.asarray(block.outliers) for block in self.blocks[frf]])
+
     def scale(self, frf: str) -> NDArray[np.float64]:
         """``σ_i``: the rms relative error of each point of one FRF."""
         return np.sqrt(self.power(frf))

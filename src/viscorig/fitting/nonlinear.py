@@ -455,6 +455,28 @@ def _start_values(model: Model, data: FrfData, frfs: tuple[str, ...],
     return values
 
 
+#: Share of a uniform fit's squared error its outlier points may hold before they are said to
+#: pull it off the other points.
+OUTLIER_PULL = 0.1
+
+
+def _outlier_pull(residual: NDArray[np.complex128], outliers: NDArray[np.bool_]) -> list[str]:
+    """A warning where the noise model's outlier points hold more than :data:`OUTLIER_PULL` of
+    what a fit weighing every point alike minimises: they pull its values off the others."""
+    power = residual.real**2 + residual.imag**2
+    total = float(np.sum(power))
+    if not outliers.any() or not total > 0:
+        return []
+    share = float(np.sum(power[outliers])) / total
+    if share <= OUTLIER_PULL:
+        return []
+    count = int(np.count_nonzero(outliers))
+    return [f"{count} outlier point{'s' if count > 1 else ''} (far outside the noise) hold "
+            f"{share:.0%} of the error this fit minimises, every point weighted the same: they "
+            "pull its values off the other points; weighted by its noise (identify's default), "
+            "each counts as its own error allows"]
+
+
 def _result(model: Model, data: FrfData, frfs: tuple[str, ...], values: dict[str, float],
             free: tuple[str, ...], coordinates: _Coordinates, solution: OptimizeResult,
             bounds: tuple[NDArray[np.float64], NDArray[np.float64]], r: NDArray[np.float64],
@@ -489,6 +511,9 @@ def _result(model: Model, data: FrfData, frfs: tuple[str, ...], values: dict[str
     for name, x, lo, hi in zip(free, solution.x, lower, upper, strict=True):
         if min(x - lo, hi - x) < 1e-6 * (hi - lo):
             warnings.append(f"{name} is at a bound; its standard error is not meaningful")
+    if not weighted:
+        warnings += _outlier_pull(complex_residual, np.concatenate(
+            [noise.outliers(name) for name in frfs]))
     points = data.frequency_hz.size
     return FitResult(
         model=model,
