@@ -73,6 +73,10 @@ def test_parameter_names_follow_the_design(spec: str, names: tuple[str, ...]) ->
         ("table+load_cell", "'load_cell' acts on the specimens"),
         ("table+drift", "'drift' acts on the specimens"),
         ("table+kraus", "'table' has none"),
+        ("voigt+gain(F_e)+gain(x_s)", "through 1 combination only"),
+        ("voigt+delay(F_v)+delay(x_v)", "through 1 combination only"),
+        ("voigt+delay+delay(x_s)+delay(x_v)", "through 2 combinations only"),
+        ("table+delay(x_v)", "'delay(x_v)' acts on no FRF the model predicts (x_s/F_e)"),
     ],
 )
 def test_bad_specs_name_what_is_wrong(spec: str, words: str) -> None:
@@ -92,8 +96,10 @@ def test_the_same_effect_twice_is_refused_but_two_modes_or_two_channels_are_not(
     """Two copies of one delay, gain or amplitude term add into one value (τ₁ + τ₂): a fit of
     them is exactly degenerate. Two local modes, or delays of different channels, are not."""
     for spec in ("voigt+fixture+fixture", "voigt+fixture(58)+fixture(58)",
-                 "voigt+delay+delay(x_v)", "voigt+gain(x_v)+gain(x_s)"):
+                 "voigt+delay+delay(x_v)", "voigt+gain(x_v)+gain(x_s)",
+                 "voigt+delay(x_s)+delay(F_v)", "voigt+highpass(F_e)+highpass(x_s)"):
         parse_spec(spec)
+
 
 
 def test_every_parameter_has_unit_bounds_and_a_feasible_default() -> None:

@@ -160,6 +160,13 @@ class Term:
         no data can split between them, and the model is refused.
     """
 
+    def frf_weights(self, frfs: Sequence[str]) -> dict[str, float] | None:
+        """For a term whose effect has the same shape on every FRF it enters (a gain, a delay):
+        its weight on each of ``frfs`` (``+1`` where it multiplies, ``−1`` where it divides),
+        so that terms of one keyword whose weights are linearly dependent are refused: the
+        data see only their combinations. ``None`` (the default): not such a term."""
+        return None
+
     keyword: ClassVar[str] = ""
     kind: ClassVar[str] = "effect"
     requires: ClassVar[tuple[str, ...]] = ()
@@ -353,6 +360,9 @@ def register_term(cls: type[Term]) -> type[Term]:
     return cls
 
 
+#: The FRFs as the analyser's channels make them.
+FRF_LABELS = {"table": "x_s/F_e", "support": "x_v/F_v"}
+
 #: The table suspension, part of every model; fixed when a specimen run is identified.
 TABLE_PARAMETERS = (
     Parameter("M_s", "kg", 1e-3, 1e4, 3.4, description="moving mass of the table"),
@@ -400,6 +410,7 @@ class Model:
                     f"'{specimen[0]}' acts on the specimens (their K* or their link to the "
                     f"table) and '{self.modulus_term.spec}' has none: give it with a "
                     f"specimen's K* term, e.g. 'voigt+{specimen[0]}'", "model spec")
+        self._check_combinations()
         couplers = [term for term in self.effects if term.takes_part_in("couple")]
         if len(couplers) > 1:
             raise InputError("a model has at most one coupling term (load_cell)", "model spec")
@@ -436,6 +447,33 @@ class Model:
     def __reduce__(self) -> tuple[type[Model], tuple[tuple[Term, ...]]]:
         # rebuilt from its terms: the names are keyed by the terms' identities
         return type(self), (self.terms,)
+
+    def _check_combinations(self) -> None:
+        """Refuse terms of one keyword that the FRFs see only in fewer combinations than there
+        are terms (:meth:`Term.frf_weights`): ``gain(F_e)+gain(x_s)`` act on ``x_s/F_e`` only
+        through their ratio."""
+        frfs = self.frfs
+        by_keyword: dict[str, list[tuple[Term, dict[str, float]]]] = {}
+        for term in self.effects:
+            weights = term.frf_weights(frfs)
+            if weights is not None:
+                by_keyword.setdefault(term.keyword, []).append((term, weights))
+        for terms in by_keyword.values():
+            matrix = np.array([[weights.get(frf, 0.0) for frf in frfs] for _, weights in terms])
+            rank = int(np.linalg.matrix_rank(matrix))
+            if rank == len(terms):
+                continue
+            seen = ", ".join(FRF_LABELS.get(frf, frf) for frf in frfs)
+            idle = [term.spec for term, weights in terms
+                    if not any(weights.get(frf, 0.0) for frf in frfs)]
+            if idle:
+                raise InputError(f"'{idle[0]}' acts on no FRF the model predicts ({seen})",
+                                 "model spec")
+            specs = " and ".join(f"'{term.spec}'" for term, _ in terms)
+            raise InputError(
+                f"{specs} act on the FRFs ({seen}) through {rank} combination"
+                f"{'s' if rank > 1 else ''} only, which no data can split: give {rank} of them",
+                "model spec")
 
     def _claim(self, term: Term, suffix: str) -> list[Parameter]:
         local = term.parameters()

@@ -29,7 +29,7 @@ the shared ``delay`` keeps ``tau_d``.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -149,6 +149,14 @@ class ChannelTerm(Term):
         """``∂s/∂value``; ``None`` (the default): unknown."""
         return None
 
+    #: ``s`` has one shape on every channel (a gain, a delay): see :meth:`Term.frf_weights`.
+    same_shape: ClassVar[bool] = False
+
+    def frf_weights(self, frfs: Sequence[str]) -> dict[str, float] | None:
+        if not self.same_shape:
+            return None
+        return {self.channel.frf: 1.0 if self.channel.power > 0 else -1.0}
+
     def factors(self, omega: NDArray[np.float64], value: float, frfs: Iterable[str]
                 ) -> dict[str, tuple[NDArray[np.complex128], NDArray[np.complex128] | None]]:
         """Per FRF of ``frfs`` the channel enters: the factor it multiplies the FRF by (``s``
@@ -213,8 +221,15 @@ class Delay(ChannelTerm):
     def transfer(self, omega, value):
         return np.exp(-1j * omega * value)
 
+    same_shape = True
+
     def transfer_derivative(self, omega, value):
         return -1j * omega * np.exp(-1j * omega * value)
+
+    def frf_weights(self, frfs):
+        if self.channel is not None:
+            return super().frf_weights(frfs)
+        return dict.fromkeys(frfs, 1.0)
 
     def factors(self, omega, value, frfs):
         if self.channel is not None:
@@ -240,6 +255,8 @@ class Gain(ChannelTerm):
 
     def transfer(self, omega, value):
         return np.ones(omega.shape, dtype=complex) * value
+
+    same_shape = True
 
     def transfer_derivative(self, omega, value):
         return np.ones(omega.shape, dtype=complex)
