@@ -10,7 +10,7 @@ import threading
 import time
 
 import pytest
-from rigsim.server import ServiceLimits, SimulatedAnalyserServer
+from rigsim.server import SLOT_WAIT_S, ServiceLimits, SimulatedAnalyserServer
 from simserve import rss_kib, sim_serve
 
 
@@ -103,6 +103,35 @@ def test_connections_are_bounded_and_a_new_one_takes_the_idlest_slot() -> None:
         for sock in (kept[0], kept[2]):
             assert b"35670A" in ask(sock, b"*IDN?")
         for sock in (*kept, extra):
+            sock.close()
+
+
+def test_a_new_client_waits_for_a_slot_that_ends_its_message_before_it_is_refused() -> None:
+    """Every slot executing a message when a client arrives (clients flooding short queries
+    are each inside one most of the time): the newcomer was refused at once, a connection reset
+    on a loaded machine. It now takes the first slot that ends its message within SLOT_WAIT_S,
+    and is refused only when none does."""
+    limits = ServiceLimits(max_connections=2)
+    with SimulatedAnalyserServer("table", limits=limits) as server:
+        host, port = server.socket_resource.split("::")[1:3]
+        held = [connect(host, int(port)) for _ in range(2)]
+        for sock in held:
+            assert b"35670A" in ask(sock, b"*IDN?")
+        slots = list(server._connections.values())
+        for slot in slots:
+            slot.busy += 1  # each one inside a message
+        ending = threading.Timer(0.2 * SLOT_WAIT_S, lambda: setattr(slots[0], "busy", 0))
+        ending.start()
+        newcomer = connect(host, int(port))
+        assert b"35670A" in ask(newcomer, b"*IDN?")
+        ending.join()
+        assert (server.evicted, server.refused) == (1, 0)
+        for slot in server._connections.values():  # the other held slot and the newcomer's
+            slot.busy += 1
+        late = connect(host, int(port))
+        assert closed_by_peer(late, 2.0 + SLOT_WAIT_S)
+        assert server.refused == 1
+        for sock in (*held, newcomer, late):
             sock.close()
 
 

@@ -23,11 +23,12 @@ the connection is closed; a message begun and not ended within ``message_timeout
 connection (a client dripping bytes cannot hold it); at most ``max_connections`` clients at once:
 when every slot is held, a new client takes the slot of the one that has gone longest without a
 message handled (idle, not reading its replies, or stuck in a partial message), and is refused
-only while every slot is executing a message; a connection silent for ``idle_timeout_s`` is
-closed; a client that does not read its replies for ``send_timeout_s`` is dropped; behind the
-Prologix adapter, messages wait in a bounded queue and the adapter stops reading the socket
-while it is full (as GPIB's handshake holds a talker), so no flood, crowd or slow client makes
-the server's memory grow or keeps a new client from being answered.
+only while every slot executes a message for longer than ``SLOT_WAIT_S``; a connection silent
+for ``idle_timeout_s`` is closed; a client that does not read its replies for
+``send_timeout_s`` is dropped; behind the Prologix adapter, messages wait in a bounded queue and
+the adapter stops reading the socket while it is full (as GPIB's handshake holds a talker), so
+no flood, crowd or slow client makes the server's memory grow or keeps a new client from being
+answered.
 
 Everything binds 127.0.0.1 unless a host is given.
 """
@@ -63,6 +64,9 @@ __all__ = ["READ_TIMEOUT_FLOOR_S", "ServiceLimits", "SimulatedAnalyserServer"]
 #: Connections the kernel completes while the accept loop is busy (a crowd arriving at once
 #: would otherwise wait a second per SYN retransmission).
 LISTEN_BACKLOG = 128
+#: How long a new connection waits for a slot to finish the message it executes, when every
+#: slot is executing one: clients flooding short queries are each inside one most of the time.
+SLOT_WAIT_S = 0.5
 
 
 @dataclass
@@ -405,15 +409,19 @@ class SimulatedAnalyserServer:
                 return
             _configure(conn)
             slot = _Slot(conn, time.monotonic())
-            with self._lock:
-                victim = self._victim() if len(self._connections) >= \
-                    self.limits.max_connections else None
-                admitted = len(self._connections) < self.limits.max_connections or \
-                    victim is not None
-                if victim is not None:
-                    del self._connections[victim.conn]
-                if admitted:
-                    self._connections[conn] = slot
+            waited_until = time.monotonic() + SLOT_WAIT_S
+            while True:
+                with self._lock:
+                    full = len(self._connections) >= self.limits.max_connections
+                    victim = self._victim() if full else None
+                    admitted = not full or victim is not None
+                    if victim is not None:
+                        del self._connections[victim.conn]
+                    if admitted:
+                        self._connections[conn] = slot
+                if admitted or time.monotonic() > waited_until or self._stop.is_set():
+                    break
+                time.sleep(0.005)
             if victim is not None:
                 self.evicted += 1
                 with contextlib.suppress(OSError):  # its thread ends: recv or send fails
