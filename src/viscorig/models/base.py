@@ -160,13 +160,6 @@ class Term:
         no data can split between them, and the model is refused.
     """
 
-    def frf_weights(self, frfs: Sequence[str]) -> dict[str, float] | None:
-        """For a term whose effect has the same shape on every FRF it enters (a gain, a delay):
-        its weight on each of ``frfs`` (``+1`` where it multiplies, ``−1`` where it divides),
-        so that terms of one keyword whose weights are linearly dependent are refused: the
-        data see only their combinations. ``None`` (the default): not such a term."""
-        return None
-
     keyword: ClassVar[str] = ""
     kind: ClassVar[str] = "effect"
     requires: ClassVar[tuple[str, ...]] = ()
@@ -298,6 +291,13 @@ class Term:
         the stage receives; ``None`` (the default): unknown."""
         return None
 
+    def frf_weights(self, frfs: Sequence[str]) -> dict[str, float] | None:
+        """For a term whose effect has the same shape on every FRF it enters (a gain, a delay):
+        its weight on each of ``frfs`` (``+1`` where it multiplies, ``−1`` where it divides),
+        so that terms of one keyword whose weights are linearly dependent are refused: the
+        data see only their combinations. ``None`` (the default): not such a term."""
+        return None
+
     def takes_part_in(self, stage: str) -> bool:
         """The term overrides the stage method ``stage``."""
         return getattr(type(self), stage) is not getattr(Term, stage)
@@ -396,21 +396,7 @@ class Model:
                 key=lambda term: (order.get(term.keyword, len(order)), term.sort_key()),
             )
         )
-        given = [term.spec for term in self.effects if not term.repeatable]
-        repeated = sorted({spec for spec in given if given.count(spec) > 1})
-        if repeated:
-            raise InputError(
-                f"'{repeated[0]}' is given more than once: the copies would add "
-                "into one effect the data cannot split between them; give it once", "model spec")
-        if self.modulus_term is not None and not self.modulus_term.has_disc:
-            specimen = [term.spec for term in self.effects
-                        if term.takes_part_in("modify_modulus") or term.takes_part_in("couple")]
-            if specimen:
-                raise InputError(
-                    f"'{specimen[0]}' acts on the specimens (their K* or their link to the "
-                    f"table) and '{self.modulus_term.spec}' has none: give it with a "
-                    f"specimen's K* term, e.g. 'voigt+{specimen[0]}'", "model spec")
-        self._check_combinations()
+        self._check_effects()
         couplers = [term for term in self.effects if term.takes_part_in("couple")]
         if len(couplers) > 1:
             raise InputError("a model has at most one coupling term (load_cell)", "model spec")
@@ -448,10 +434,26 @@ class Model:
         # rebuilt from its terms: the names are keyed by the terms' identities
         return type(self), (self.terms,)
 
-    def _check_combinations(self) -> None:
-        """Refuse terms of one keyword that the FRFs see only in fewer combinations than there
-        are terms (:meth:`Term.frf_weights`): ``gain(F_e)+gain(x_s)`` act on ``x_s/F_e`` only
-        through their ratio."""
+    def _check_effects(self) -> None:
+        """Refuse effects whose parameters no data can fit: the same term twice (unless
+        :attr:`Term.repeatable`), a specimen's term on the bare table, and terms of one keyword
+        that the FRFs see in fewer combinations than there are terms
+        (:meth:`Term.frf_weights`: ``gain(F_e)+gain(x_s)`` act on ``x_s/F_e`` through their
+        ratio alone)."""
+        given = [term.spec for term in self.effects if not term.repeatable]
+        repeated = sorted({spec for spec in given if given.count(spec) > 1})
+        if repeated:
+            raise InputError(
+                f"'{repeated[0]}' is given more than once: the copies would add "
+                "into one effect the data cannot split between them; give it once", "model spec")
+        if self.modulus_term is not None and not self.modulus_term.has_disc:
+            specimen = [term.spec for term in self.effects
+                        if term.takes_part_in("modify_modulus") or term.takes_part_in("couple")]
+            if specimen:
+                raise InputError(
+                    f"'{specimen[0]}' acts on the specimens (their K* or their link to the "
+                    f"table) and '{self.modulus_term.spec}' has none: give it with a "
+                    f"specimen's K* term, e.g. 'voigt+{specimen[0]}'", "model spec")
         frfs = self.frfs
         by_keyword: dict[str, list[tuple[Term, dict[str, float]]]] = {}
         for term in self.effects:
@@ -559,6 +561,13 @@ class Model:
             d_disc = d_disc + term.disc_stiffness(ctx, self.local_values(term, values))
         return d_disc
 
+    def table_dynamic_stiffness(
+        self, ctx: Context, values: Mapping[str, float]
+    ) -> NDArray[np.complex128]:
+        """``D_t = K_s − ω² M_s + iω C_s``, N/m."""
+        w = ctx.omega
+        return values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+
     def predict(
         self, ctx: Context, values: Mapping[str, float]
     ) -> dict[str, NDArray[np.complex128]]:
@@ -570,7 +579,7 @@ class Model:
             raise InputError(f"'{self.spec}' leaves a choice open; fit it first", "model spec")
         w = ctx.omega
         d_disc = self.disc_dynamic_stiffness(ctx, values)
-        d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
+        d_table = self.table_dynamic_stiffness(ctx, values)
         if self._frame is not None:
             receptance = self._on_frame(ctx, values, d_table, d_disc)
         elif self._coupler is not None:
@@ -622,7 +631,7 @@ class Model:
                 receptance = {frf: predicted[frf] / -w2 for frf in self.frfs}
             else:
                 d_disc = self.disc_dynamic_stiffness(ctx, values)
-                d_table = values["K_s"] - w2 * values["M_s"] + 1j * w * values["C_s"]
+                d_table = self.table_dynamic_stiffness(ctx, values)
                 receptance = {"table": 1.0 / (d_table + d_disc)}
                 if "support" in self.frfs:
                     receptance["support"] = 1.0 / d_disc
@@ -632,15 +641,14 @@ class Model:
                 chain["support"] = {"d_disc": -(receptance["support"] ** 2)}
         else:
             d_disc = self.disc_dynamic_stiffness(ctx, values)
-            d_table = values["K_s"] - w2 * values["M_s"] + 1j * w * values["C_s"]
+            d_table = self.table_dynamic_stiffness(ctx, values)
             local = self.local_values(self._coupler, values)
             coupled = self._coupler.couple_derivatives(ctx, local, d_table, d_disc)
             if coupled is None:
                 return None
             receptance = self._coupler.couple(ctx, local, d_table, d_disc)
-            chain = {frf: {key: d for key, d in by.items() if key in ("d_table", "d_disc")}
-                     | self._global(self._coupler, {key: d for key, d in by.items()
-                                                    if key not in ("d_table", "d_disc")})
+            names_of = self._names[id(self._coupler)]  # "d_table", "d_disc" are kept as they are
+            chain = {frf: {names_of.get(key, key): d for key, d in by.items()}
                      for frf, by in coupled.items()}
         # rows: one parameter each (contiguous), turned to points × parameters at the end
         column = {name: j for j, name in enumerate(names)}
