@@ -31,9 +31,9 @@ from scipy.ndimage import median_filter
 
 #: Points on each side a point is predicted from (a polynomial of degree ``2·NEIGHBOURS − 1``).
 NEIGHBOURS = 3
-#: Most points taken for a cluster of flagged points (side by side, or a point apart), unless it
-#: has more flagged points. (A mode narrower than the sweep's step looks the same: no sweep
-#: resolves it, and the diagnosis does not fit one.)
+#: Most points taken for a cluster of flagged points (side by side, or a point apart); a cluster
+#: of more flagged points keeps them. (A mode narrower than the sweep's step looks the same: no
+#: sweep resolves it, and the diagnosis does not fit one.)
 GLITCH_POINTS = 3
 #: Points either side of a cluster where the points that explain it are looked for.
 SHIFT = 2
@@ -81,13 +81,12 @@ def _departure(z: NDArray[np.complex128], v: NDArray[np.float64], run: NDArray[n
     return r, from_sides, covariance
 
 
-def _sides(start: int, k: int, taken: NDArray[np.bool_], each: int = NEIGHBOURS
-           ) -> NDArray[np.int_] | None:
-    """The ``each`` nearest points not taken on each side of a run; ``None`` where a side has
-    fewer."""
-    left = np.flatnonzero(~taken[:start])[-each:]
-    right = start + k + np.flatnonzero(~taken[start + k:])[:each]
-    if left.size < each or right.size < each:
+def _sides(start: int, k: int, taken: NDArray[np.bool_]) -> NDArray[np.int_] | None:
+    """The :data:`NEIGHBOURS` nearest points not taken on each side of a run; ``None`` where a
+    side has fewer."""
+    left = np.flatnonzero(~taken[:start])[-NEIGHBOURS:]
+    right = start + k + np.flatnonzero(~taken[start + k:])[:NEIGHBOURS]
+    if left.size < NEIGHBOURS or right.size < NEIGHBOURS:
         return None
     return np.concatenate([left, right])
 
@@ -153,6 +152,8 @@ def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int
     (``−log P`` of its deviance below :data:`SMOOTH_LEVEL`), or, on a feature's flank, with
     less than :data:`SMOOTH_SHARE` of the window's deviance left. ``None`` where none does
     (a feature, or more glitches than that): the flagged points stand."""
+    if len(cluster) > GLITCH_POINTS:
+        return None
     n = z.size
     low, high = max(cluster[0] - SHIFT, 0), min(cluster[-1] + SHIFT, n - 1)
     # within a difference's reach of an end, the glitch may sit on the points it cannot centre
@@ -165,7 +166,7 @@ def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int
     right = high + 1 + np.flatnonzero(~elsewhere[high + 1:])[:NEIGHBOURS + 1]
     window = np.concatenate([left, candidates, right]).astype(int)
     whole = _deviance(z, v, window)
-    for size in range(1, max(GLITCH_POINTS, len(cluster)) + 1):
+    for size in range(1, GLITCH_POINTS + 1):
         best: tuple[float, list[int]] | None = None
         for left_out in itertools.combinations(candidates, size):
             kept = np.setdiff1d(window, left_out)
