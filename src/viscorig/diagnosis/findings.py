@@ -47,6 +47,7 @@ from viscorig.diagnosis.workers import fit_all, fit_all_later
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.fitting.arms import extended_start, maxwell_order
+from viscorig.fitting.nonlinear import pulled_by_outliers
 from viscorig.models import TERMS, Fixture, Model, Term, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
 from viscorig.numbers import Estimate
@@ -285,11 +286,12 @@ def fit_term(
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
         result = ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
-        if result.chi2 <= current.chi2:
+        if result.chi2 <= current.chi2 and not pulled_by_outliers(first):
             return result
         # That start minimises every point's error alike: a few outlier points can drag it
-        # where the likelihood ends worse than the model without the term. Start from that
-        # model as well, and keep the better.
+        # where the likelihood ends worse than the model without the term, or in a valley far
+        # from the best (a load cell's Δχ² 8,111 where it is 28,240 without the glitches).
+        # Start from that model as well, and keep the better.
         other = ml_fit(model, data, _warm_start(current, model, term_text, start), only=only,
                        tolerance=tolerance)
         return other if other.chi2 < result.chi2 else result

@@ -460,14 +460,30 @@ def _start_values(model: Model, data: FrfData, frfs: tuple[str, ...],
 OUTLIER_PULL = 0.1
 
 
-def _outlier_pull(residual: NDArray[np.complex128], outliers: NDArray[np.bool_]) -> list[str]:
-    """A warning where the noise model's outlier points hold more than :data:`OUTLIER_PULL` of
-    what a fit weighing every point alike minimises: they pull its values off the others."""
+def outlier_share(residual: NDArray[np.complex128], outliers: NDArray[np.bool_]) -> float:
+    """The share of ``Σ|r|²`` the outlier points hold (0 without any)."""
     power = residual.real**2 + residual.imag**2
     total = float(np.sum(power))
     if not outliers.any() or not total > 0:
-        return []
-    share = float(np.sum(power[outliers])) / total
+        return 0.0
+    return float(np.sum(power[outliers])) / total
+
+
+def pulled_by_outliers(result: FitResult) -> bool:
+    """A fit weighing every point alike whose noise model's outlier points hold more than
+    :data:`OUTLIER_PULL` of what it minimises: they pull its values off the other points."""
+    frfs, noise = result.frfs, result.noise
+    if noise is None:
+        return False
+    return outlier_share(np.concatenate([result.residuals[name] for name in frfs]),
+                         np.concatenate([noise.outliers(name) for name in frfs])
+                         ) > OUTLIER_PULL
+
+
+def _outlier_pull(residual: NDArray[np.complex128], outliers: NDArray[np.bool_]) -> list[str]:
+    """A warning where the noise model's outlier points hold more than :data:`OUTLIER_PULL` of
+    what a fit weighing every point alike minimises: they pull its values off the others."""
+    share = outlier_share(residual, outliers)
     if share <= OUTLIER_PULL:
         return []
     count = int(np.count_nonzero(outliers))
