@@ -47,7 +47,7 @@ from viscorig.diagnosis.workers import fit_all, fit_all_later
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.fitting.arms import extended_start, maxwell_order
-from viscorig.fitting.nonlinear import pulled_by_outliers
+from viscorig.fitting.nonlinear import outlier_heavy
 from viscorig.models import TERMS, Fixture, Model, Term, parse_spec
 from viscorig.models.sensors import CHANNELS, Delay
 from viscorig.numbers import Estimate
@@ -286,7 +286,7 @@ def fit_term(
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
         first = fit_with(current, data, term_text, start)
         result = ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
-        if result.chi2 <= current.chi2 and not pulled_by_outliers(first):
+        if result.chi2 <= current.chi2 and not outlier_heavy(first):
             return result
         # That start minimises every point's error alike: a few outlier points can drag it
         # where the likelihood ends worse than the model without the term, or in a valley far

@@ -469,7 +469,7 @@ def outlier_share(residual: NDArray[np.complex128], outliers: NDArray[np.bool_])
     return float(np.sum(power[outliers])) / total
 
 
-def pulled_by_outliers(result: FitResult) -> bool:
+def outlier_heavy(result: FitResult) -> bool:
     """A fit weighing every point alike whose noise model's outlier points hold more than
     :data:`OUTLIER_PULL` of what it minimises: they pull its values off the other points."""
     frfs, noise = result.frfs, result.noise
