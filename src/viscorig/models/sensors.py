@@ -157,15 +157,16 @@ class ChannelTerm(Term):
             return None
         return {self.channel.frf: 1.0 if self.channel.power > 0 else -1.0}
 
-    def factors(self, omega: NDArray[np.float64], value: float, frfs: Iterable[str]
+    def factors(self, omega: NDArray[np.float64], value: float, frfs: Iterable[str],
+                derivative: bool = False
                 ) -> dict[str, tuple[NDArray[np.complex128], NDArray[np.complex128] | None]]:
         """Per FRF of ``frfs`` the channel enters: the factor it multiplies the FRF by (``s``
-        for a response channel, ``1/s`` for a force channel) and that factor's derivative by
-        the parameter (``None`` if unknown)."""
+        for a response channel, ``1/s`` for a force channel) and, with ``derivative``, that
+        factor's derivative by the parameter (``None`` if unknown or not asked for)."""
         if self.channel.frf not in frfs:
             return {}
         s = self.transfer(omega, value)
-        ds = self.transfer_derivative(omega, value)
+        ds = self.transfer_derivative(omega, value) if derivative else None
         if self.channel.power > 0:
             return {self.channel.frf: (s, ds)}
         return {self.channel.frf: (1.0 / s, None if ds is None else -ds / s**2)}
@@ -178,7 +179,8 @@ class ChannelTerm(Term):
 
     def measure_derivatives(self, ctx, p, frfs):
         out = {}
-        for frf, (factor, derivative) in self.factors(ctx.omega, p[self.name], frfs).items():
+        for frf, (factor, derivative) in self.factors(ctx.omega, p[self.name], frfs,
+                                                       derivative=True).items():
             if derivative is None:
                 return None
             out[frf] = (factor, {self.name: frfs[frf] * derivative})
@@ -231,12 +233,12 @@ class Delay(ChannelTerm):
             return super().frf_weights(frfs)
         return dict.fromkeys(frfs, 1.0)
 
-    def factors(self, omega, value, frfs):
+    def factors(self, omega, value, frfs, derivative=False):
         if self.channel is not None:
-            return super().factors(omega, value, frfs)
+            return super().factors(omega, value, frfs, derivative)
         shift = self.transfer(omega, value)
-        derivative = self.transfer_derivative(omega, value)
-        return {name: (shift, derivative) for name in frfs}
+        slope = -1j * omega * shift if derivative else None
+        return {name: (shift, slope) for name in frfs}
 
 
 @register_term
