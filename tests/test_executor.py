@@ -28,6 +28,14 @@ def test_local_unordered_gives_every_result_once():
         assert sorted(pool.unordered(abs, range(-5, 5))) == sorted(abs(i) for i in range(-5, 5))
 
 
+def test_a_single_piece_started_goes_to_a_worker_and_a_single_mapped_one_stays():
+    """This process does other work while a started piece runs (a diagnosis step's frame
+    screening during its scan); a piece mapped alone is waited for, so it is made here."""
+    with LocalExecutor(2) as pool:
+        assert pool.start(pid_of, [(1,)])() != [os.getpid()]
+        assert pool.map(pid_of, [(1,)]) == [os.getpid()]
+
+
 def test_one_job_runs_in_this_process():
     with LocalExecutor(1) as pool:
         assert set(pool.map(pid_of, [(1,), (2,)])) == {os.getpid()}

@@ -67,8 +67,10 @@ class LocalExecutor:
         """Processes working at once."""
         return self.jobs
 
-    def _started(self, pieces: int) -> ProcessPoolExecutor | None:
-        if self.jobs <= 1 or pieces <= 1:
+    def _started(self, pieces: int, fewest: int = 2) -> ProcessPoolExecutor | None:
+        """The pool, started if need be; ``None`` (work done here) for fewer pieces than
+        ``fewest`` or with one job."""
+        if self.jobs <= 1 or pieces < fewest:
             return None
         if self._pool is None:
             method = "fork" if "fork" in get_all_start_methods() else "spawn"
@@ -77,10 +79,11 @@ class LocalExecutor:
 
     def start(self, function: Callable[..., Result],
               arguments: Sequence[tuple[Any, ...]]) -> Callable[[], list[Result]]:
-        """Hand ``[function(*a) for a in arguments]`` to the workers now, and return what waits
-        for the results, in order (with one job, it computes them when called)."""
+        """Hand ``[function(*a) for a in arguments]`` to the workers now (a single piece too:
+        the caller does other work meanwhile), and return what waits for the results, in order
+        (with one job, it computes them when called)."""
         arguments = list(arguments)
-        pool = self._started(len(arguments))
+        pool = self._started(len(arguments), fewest=1)
         if pool is None:
             return lambda: [function(*a) for a in arguments]
         futures = [pool.submit(function, *a) for a in arguments]
@@ -88,7 +91,10 @@ class LocalExecutor:
 
     def map(self, function: Callable[..., Result],
             arguments: Sequence[tuple[Any, ...]]) -> list[Result]:
-        """``[function(*a) for a in arguments]``, in order."""
+        """``[function(*a) for a in arguments]``, in order (one piece made here)."""
+        arguments = list(arguments)
+        if self._started(len(arguments)) is None:
+            return [function(*a) for a in arguments]
         return self.start(function, arguments)()
 
     def unordered(self, function: Callable[[Any], Result], items: Iterable[Any]

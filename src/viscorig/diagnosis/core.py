@@ -29,9 +29,10 @@ from viscorig.diagnosis.findings import (
 )
 from viscorig.diagnosis.residuals import FailureBand, FrfResidual, failure_bands, residuals
 from viscorig.diagnosis.scan import Residual, ScanResult, scan
-from viscorig.diagnosis.screening import screen, screen_by_scan
+from viscorig.diagnosis.screening import screen, screen_family_frame, screen_fixtures
 from viscorig.diagnosis.significance import dispersion
 from viscorig.diagnosis.weighted import Likelihood, huber, ml_refit
+from viscorig.diagnosis.workers import fit_all_later
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, FrfData, Known, fit
 from viscorig.models import Fixture, parse_spec
@@ -373,10 +374,12 @@ def analyse(
     current = ml_refit(start, data) if likelihood is None else likelihood
     residual = Residual(current, data)
     candidates = screen(current, data, residual)
-    early = candidate_fits(current, data, candidates)  # on the workers during the scans
+    # on the workers while this process scans
+    frame = fit_all_later(screen_family_frame, [(current, data, residual)], fewest=1)
+    early = candidate_fits(current, data, candidates)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
     peaks = scan(current, data, existing)
-    scanned = screen_by_scan(current, data, residual, peaks)
+    scanned = [*frame()[0], *screen_fixtures(peaks)]
     late = candidate_fits(current, data, scanned)
     findings, together = confirm(current, data, candidates + scanned, early() + late())
     best = next((finding for finding in findings if finding.significant), None)

@@ -474,11 +474,10 @@ def screen(current: Likelihood, data: DiagnosisData, residual: Residual) -> list
     return candidates + screen_sensors(current, data, residual, alpha)
 
 
-def screen_by_scan(
-    current: Likelihood, data: DiagnosisData, residual: Residual, scan: ScanResult
-) -> list[Candidate]:
-    """The candidates found by scanning a family of shapes: the frame's mode (its
-    look-elsewhere length) and the local modes of the scan (:func:`screen_fixtures`). A step
-    screens them while the others' fits run."""
+def screen_family_frame(current: Likelihood, data: DiagnosisData, residual: Residual
+                        ) -> list[Candidate]:
+    """The frame's candidate of a step (none or one), at the step's ``α``: screened over a
+    family of shapes, its look-elsewhere length (:func:`screen_frame`), as the local modes are
+    by the scan (:func:`screen_fixtures`). A step hands it to a worker while it scans."""
     frame = screen_frame(current, data, residual, alpha_of(current.model, data))
-    return ([] if frame is None else [frame]) + screen_fixtures(scan)
+    return [] if frame is None else [frame]

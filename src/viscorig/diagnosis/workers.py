@@ -7,8 +7,8 @@ the last rung of a ladder refits its model once without each effect term
 local processes or a Dask cluster); outside, or with fewer than two fits, they run here, one
 after the other. Either way the results are the same numbers, in the same order: each fit gets
 the same inputs and does the same arithmetic. :func:`fit_all_later` hands fits out before this
-process does other work (a step's scans, the frame's look-elsewhere length and the local modes,
-while the other candidates are fitted)::
+process does other work (a step's scan for local modes, while the other candidates are fitted and
+a worker screens the frame's mode over its family of shapes)::
 
     with executor(jobs=2) as run, fitting_on(run):
         ladder = diagnose(data, "voigt").auto()
@@ -62,14 +62,17 @@ def fit_all(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]
     return fit_all_later(function, arguments)()
 
 
-def fit_all_later(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]]
-                  ) -> Callable[[], list[Result]]:
+def fit_all_later(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]],
+                  *, fewest: int = 2) -> Callable[[], list[Result]]:
     """:func:`fit_all`, with the fits handed to the executor now and what returns their results
     (waiting for them) given back, so that this process can do other work meanwhile. Without an
-    executor the fits are made when the results are asked for: the same numbers either way."""
+    executor the fits are made when the results are asked for: the same numbers either way.
+
+    ``fewest``: fewer pieces of work than this are made here (when their results are asked
+    for); one piece is worth a worker only when this process has other work meanwhile."""
     executor = _EXECUTOR.get()
     arguments = list(arguments)
-    if executor is None or len(arguments) < 2:
+    if executor is None or len(arguments) < fewest:
         return lambda: [function(*a) for a in arguments]
     try:
         pending = executor.start(function, arguments)
