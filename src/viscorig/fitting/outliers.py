@@ -18,6 +18,11 @@ good point between them, or on the points just outside them. So each cluster of 
 leave its window on one polynomial within the noise are taken in its place. Where no such
 choice exists (a sharp mode, or more glitches than :data:`GLITCH_POINTS`), the flagged points
 stand.
+
+The band's end points have no centred difference; the next two are reached through their
+neighbours' (weights 6 and 15 against a centre's 20), the end point is not (weight 1). A glitch
+there is found on the end's window as a whole: the window is far off one polynomial, and
+leaving out the end point brings it back within the noise.
 """
 
 from __future__ import annotations
@@ -44,6 +49,8 @@ OUTLIER_LEVEL = 30.0
 SMOOTH_LEVEL = 9.2
 #: Or, on a feature's flank, the largest share of the window's deviance a glitch leaves.
 SMOOTH_SHARE = 0.01
+#: Points next to each end of the band on which the end point is judged.
+END_POINTS = 4 * NEIGHBOURS
 
 
 def running_median(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
@@ -127,7 +134,30 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64],
             if points is not None:
                 out[cluster] = False
                 out[points] = True
+        level = np.maximum(running_median(ratio, window) / math.log(2.0), 1.0)
+        for end in (np.arange(n), np.arange(n)[::-1]):
+            if _end_glitch(z[end], v[end], out[end], level[end]):
+                out[end[0]] = True
     return out
+
+
+def _end_glitch(z: NDArray[np.complex128], v: NDArray[np.float64], out: NDArray[np.bool_],
+                level: NDArray[np.float64]) -> bool:
+    """The band's end point is a glitch, which no centred difference reaches (one there
+    weighs it by 1 against a centre's 20): with the next :data:`END_POINTS` points not taken
+    (``out``), it is not on one polynomial of degree ``2·NEIGHBOURS − 1`` (``−log P`` of their
+    deviance, over the local ``level``, above :data:`OUTLIER_LEVEL`), and they are without it
+    (below :data:`SMOOTH_LEVEL`)."""
+    if out[0]:
+        return False
+    window = np.flatnonzero(~out)[:END_POINTS + 1]
+    if window.size <= END_POINTS:
+        return False
+    scale = float(level[window[NEIGHBOURS]])
+    whole = _deviance(z, v, window) / scale
+    rest = _deviance(z, v, window[1:]) / scale
+    return bool(_tail(np.array([whole]), window.size - 2 * NEIGHBOURS)[0] > OUTLIER_LEVEL
+                and _tail(np.array([rest]), END_POINTS - 2 * NEIGHBOURS)[0] < SMOOTH_LEVEL)
 
 
 def _clusters(points: NDArray[np.int_]) -> list[list[int]]:
