@@ -87,6 +87,23 @@ def test_a_long_block_with_line_feeds_inside_is_one_message() -> None:
         sock.close()
 
 
+def test_a_line_feed_ends_a_message_whose_quote_is_not_closed() -> None:
+    """A client that lost a closing quote: its next query waited for the string's end until
+    the client's time-out. The line feed now ends the message, which is refused as -151."""
+    with SimulatedAnalyserServer("table") as server:
+        host, port = server.socket_resource.split("::")[1:3]
+        sock = connect(host, int(port), timeout=2.0)
+        sock.sendall(b"CALC1:FEED 'XFR:POW:LIN 1\n")
+        start = time.perf_counter()
+        assert b"35670A" in ask(sock, b"*IDN?")
+        assert time.perf_counter() - start < 1.0
+        error = ask(sock, b"SYST:ERR?")
+        assert error.startswith(b"-151,") and b"unterminated" in error
+        assert ask(sock, b"SYST:ERR?") == b'+0,"No error"'
+        assert ask(sock, b"CALC1:FEED?") == b'"XFR:POW 1"'  # the feed was not changed
+        sock.close()
+
+
 def test_connections_are_bounded_and_a_new_one_takes_the_idlest_slot() -> None:
     limits = ServiceLimits(max_connections=3)
     with SimulatedAnalyserServer("table", limits=limits) as server:

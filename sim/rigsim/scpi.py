@@ -98,13 +98,17 @@ class MessageTooLong(Exception):  # noqa: N818 - a signal to the transport, not 
 
 
 class MessageFramer:
-    """Cuts a byte stream into program messages at line feeds outside strings and blocks.
+    """Cuts a byte stream into program messages at line feeds outside blocks.
 
-    A line feed inside a quoted string or inside a definite-length block
-    (``#<n><length><bytes>``) does not end the message; an indefinite block (``#0``) runs to the
-    next line feed. At most ``max_bytes`` of one message are held: past that,
-    :meth:`feed` raises :class:`MessageTooLong` (the transport answers with an error and drops
-    the connection), so a peer that never sends a terminator cannot fill the memory.
+    A line feed inside a definite-length block (``#<n><length><bytes>``) does not end the
+    message; an indefinite block (``#0``) runs to the next line feed. A line feed inside a
+    quoted string ends the message too (the parser then reports the string unterminated,
+    -151): a stream has no END signal to tell a string's line feed from a terminator, and a
+    client that lost a quote must not wait for a reply until its time-out.
+
+    At most ``max_bytes`` of one message are held: past that, :meth:`feed` raises
+    :class:`MessageTooLong` (the transport answers with an error and drops the connection), so
+    a peer that never sends a terminator cannot fill the memory.
 
     Parameters
     ----------
@@ -138,7 +142,7 @@ class MessageFramer:
                 i += step
                 continue
             byte = buf[i]
-            if self._quote:
+            if self._quote and byte != 0x0A:
                 if byte == self._quote:
                     self._quote = 0
                 i += 1
@@ -156,6 +160,7 @@ class MessageFramer:
                     break
                 messages.append(bytes(buf[start:i]))
                 start = i + 1
+                self._quote = 0
             i += 1
         del buf[:start]
         self._scan = i - start
