@@ -308,7 +308,8 @@ def test_glitches_of_two_points_are_left_out_where_they_are(
     """Ten glitches of two points side by side: each pair showed on its two outer neighbours,
     which were left out in its place. The model the clean run reaches was then called 14.6
     times the noise of the other points with nothing missing: its uniform fit, pulled off them
-    by the glitches, where the likelihood fit leaves noise."""
+    by the glitches, where the likelihood fit leaves noise; and where it fails was read off
+    that uniform fit."""
     path = with_outliers(tmp_path / "pairs.h5",
                          lambda size: (np.arange(30, size - 30, (size - 60) // 10)[:10, None]
                                        + np.arange(2)).ravel())
@@ -320,8 +321,11 @@ def test_glitches_of_two_points_are_left_out_where_they_are(
     assert document["rms_error_without_outliers"] > 5 * floor
     assert document["likelihood_rms_error_without_outliers"] < 1.25 * floor
     assert document["pulled_by_outliers"] is True
+    # where it fails is read off the likelihood fit: the uniform fit's bands are the glitches'
+    assert document["failures"] == []
     assert main(["diagnose", str(path), "--run", "soft-0", "--model", model]) == 0
     text = capsys.readouterr().out
+    assert "where it fails (weighed by its noise): nowhere" in text
     assert "outliers: its 20 outlier points pull the uniform fit" in text
     assert "--weights noise" in text
     assert "nothing significant is missing: weighed by its noise, what is left is noise." in text

@@ -176,12 +176,13 @@ def diagnosis_lines(
     if prior is not None and d.data.nuisance:
         lines.append(f"table: {', '.join(d.data.nuisance)} from {prior.source or 'elsewhere'}, "
                      "fitted within their uncertainty in every test")
+    weighed = " (weighed by its noise)" if d.pulled_by_outliers else ""
     if not d.failures:
-        lines.append("where it fails: nowhere"
+        lines.append(f"where it fails{weighed}: nowhere"
                      + (" (at the noise floor: what is left is noise)" if d.at_noise_floor
                         else ": no band stands out of the noise"))
     else:
-        lines.append("where it fails:")
+        lines.append(f"where it fails{weighed}:")
         for band in d.failures[:6]:
             run = f" [{band.run}]" if band.run != d.data.run else ""
             lines.append(

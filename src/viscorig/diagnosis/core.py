@@ -70,7 +70,9 @@ class DiagnosisResult:
     findings
         Candidate effects, fitted and tested, lowest ΔBIC first.
     failures
-        Bands where the model stands clearly above the noise, worst first.
+        Bands where the model stands clearly above the noise, worst first: of :attr:`fit`, or
+        of :attr:`likelihood` where outliers pull :attr:`fit` off the other points
+        (:attr:`pulled_by_outliers`).
     advice
         Extra runs that would separate candidates these data cannot tell apart.
     """
@@ -394,8 +396,10 @@ def analyse(
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    return DiagnosisResult(data, result, current, peaks, findings, failure_bands(result, data),
-                           advice, together)
+    diagnosis = DiagnosisResult(data, result, current, peaks, findings, [], advice, together)
+    # where outliers pull the uniform fit off the other points, its bands are theirs
+    diagnosis.failures = failure_bands(current if diagnosis.pulled_by_outliers else result, data)
+    return diagnosis
 
 
 def diagnose(

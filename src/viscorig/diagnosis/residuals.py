@@ -22,6 +22,7 @@ from scipy.special import ndtri
 
 from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
+from viscorig.diagnosis.weighted import Likelihood
 from viscorig.fitting import FitResult
 from viscorig.models.effects import edge_held_median
 from viscorig.numbers import significant
@@ -91,12 +92,13 @@ class FailureBand:
         }
 
 
-def residuals(fit: FitResult, data: DiagnosisData) -> list[FrfResidual]:
-    """The residual of every FRF of every run of a fit, in frequency order."""
+def residuals(fit: FitResult | Likelihood, data: DiagnosisData) -> list[FrfResidual]:
+    """The residual of every FRF of every run of a fit on ``data`` (its uniform fit or its
+    likelihood fit), in frequency order."""
     out = []
     d = data.data
     kstar = np.abs(fit.model.kstar(d.context(), fit.values))
-    for frf in fit.frfs:
+    for frf in data.frfs:
         error = fit.residuals[frf]
         sigma = np.sqrt(data.noise_power[frf])
         z_measured = -((2 * np.pi * d.frequency_hz) ** 2) / d.frf(frf)
@@ -201,7 +203,7 @@ def stands_out(residual: FrfResidual, part: slice, candidates: int = 1) -> bool:
 
 
 def failure_bands(
-    fit: FitResult, data: DiagnosisData, level: float = FAILURE_LEVEL
+    fit: FitResult | Likelihood, data: DiagnosisData, level: float = FAILURE_LEVEL
 ) -> list[FailureBand]:
     """Frequency ranges where the residual stands clearly above the noise and out of it,
     worst first: what a report lists as where the model still fails.
