@@ -156,6 +156,20 @@ def test_a_sensor_effect_is_named_with_its_channel_and_its_value(
     assert_at_floor_after(diagnosis)
 
 
+def test_a_gain_below_what_a_calibration_resolves_is_not_sent_to_the_sensors() -> None:
+    """A gain of 0.05 % is significant on quiet data, but no calibration resolves it. The
+    advice to check both sensitivities sent a technician after 38 ppm on a campaign swept from
+    15 Hz on a rig standing on a frame (none on the same campaign without the frame)."""
+    gain = "[sensors.device_force]\ngain = 1.0005\n"
+    diagnosis = single(rig_text(VOIGT, noise=QUIET, extra=gain))
+    best = diagnosis.significant[0]
+    assert best.term == "gain(x_v)"
+    estimate = best.parameters()["gain_x_v"]
+    assert estimate["value"] == pytest.approx(1 / 1.0005, abs=4 * estimate["stderr"])
+    assert "below what any transducer calibration resolves" in best.explanation
+    assert "Check both sensitivities" not in best.explanation
+
+
 #: What screening proposes at most one term of: both FRFs' delay, each FRF's delay, high-pass
 #: and gain (the channel named by the sign of its linear estimate), amplitude and drift.
 SCREENED_FAMILIES = (

@@ -31,6 +31,11 @@ def _channel_of(term: str):
     return CHANNELS.get(inside)
 
 
+#: A sensor gain smaller than this (per cent) is below what a transducer's calibration
+#: resolves: no sensor is to be checked for it.
+CALIBRATION_RESOLUTION_PERCENT = 0.1
+
+
 def _sensor(finding: Finding) -> str:
     effect, why, term = finding.effect, finding.evidence, finding.term
     channel = _channel_of(term)
@@ -74,12 +79,19 @@ def _sensor(finding: Finding) -> str:
         change = (gain - 1) * 100
         direction = "high" if change > 0 else "low"
         opposite = "low" if change > 0 else "high"
-        return (
-            f"The {channel.label} ({channel.quantity}) reads {_pm(abs(change), se * 100)} % "
-            f"{direction} against the {partner.label} ({partner.quantity}), or that one reads "
-            f"{opposite}: {why}. Check both sensitivities (calibration, the analyser's "
-            f"engineering units), or add `{term}` to the model."
-        )
+        reads = (f"The {channel.label} ({channel.quantity}) reads {_pm(abs(change), se * 100)} "
+                 f"% {direction} against the {partner.label} ({partner.quantity}), or that one "
+                 f"reads {opposite}: {why}.")
+        if abs(change) < CALIBRATION_RESOLUTION_PERCENT:
+            return (
+                f"{reads} So small a gain is below what any transducer calibration resolves "
+                f"(primary calibrations are good to about {CALIBRATION_RESOLUTION_PERCENT:g} "
+                "%): it more likely stands for a small misfit elsewhere (the table's inherited "
+                f"values, an effect the model lacks) than for a sensor to recalibrate. `{term}` "
+                "in the model takes it up."
+            )
+        return (f"{reads} Check both sensitivities (calibration, the analyser's engineering "
+                f"units), or add `{term}` to the model.")
     return why
 
 
