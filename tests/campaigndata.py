@@ -27,11 +27,13 @@ PAPER_RUNS = {
 
 
 def add_run(campaign: CampaignFile, name: str, *, step_hz: float = 0.25, segments: int = 4,
-            finish: bool = True, points: int | None = None, level: float = 1.4) -> None:
-    """Sweep preset ``name`` and store it as run ``name`` in a few segments."""
+            finish: bool = True, points: int | None = None, level: float = 1.4,
+            band_hz: tuple[float, float] = (20.0, 120.0)) -> None:
+    """Sweep preset ``name`` and store it as run ``name`` in a few segments (a specimen run
+    over ``band_hz``)."""
     specimen, hardness, preload = PAPER_RUNS[name]
     bare = specimen == "none"
-    band = (12.0, 28.0) if bare else (20.0, 120.0)
+    band = (12.0, 28.0) if bare else band_hz
     step = 0.125 if bare else step_hz
     swept = simulate_run(name, start_hz=band[0], stop_hz=band[1], step_hz=step,
                          settle_cycles=200 if bare else 100, level_m_per_s2=level, seed=len(name))

@@ -483,3 +483,21 @@ def test_the_report_ends_with_the_bench_journal_escaped(campaign_file: Path, tmp
     assert main(["report", str(campaign_file), "--out", str(tmp_path / "plain"),
                  "--no-diagnosis"]) == 0
     assert 'id="journal"' not in (tmp_path / "plain" / "index.html").read_text(encoding="utf-8")
+
+
+def test_runs_measured_beyond_the_band_are_said_so_with_the_command_for_all_of_it(
+    tmp_path: Path,
+) -> None:
+    """A campaign swept 15-200 Hz was reported over the paper's 20-120 Hz without a word but
+    the band's: the page now says what was measured and how to analyse all of it."""
+    wide = paper_campaign(tmp_path / "wide.h5", runs=("table", "soft-0"), step_hz=1.0,
+                          band_hz=(15.0, 200.0))
+    notes = analyse_campaign(CampaignFile.open(wide), diagnosis=False, jobs=1).notes
+    said = [note for note in notes if "measured over 15–200 Hz" in note]
+    assert len(said) == 1 and "report wide.h5 --band 15:200" in said[0]
+    assert not [note for note in analyse_campaign(CampaignFile.open(wide), (15.0, 200.0),
+                                                  diagnosis=False, jobs=1).notes
+                if "measured over" in note]
+    paper = paper_campaign(tmp_path / "paper.h5", runs=("table", "soft-0"), step_hz=1.0)
+    assert not [note for note in analyse_campaign(CampaignFile.open(paper), diagnosis=False,
+                                                  jobs=1).notes if "measured over" in note]

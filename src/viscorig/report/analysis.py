@@ -421,6 +421,7 @@ def analyse_campaign(
         spec = _first_look(campaign, analysis, table, use_diagnosis)
         if spec is not None:
             requests.append((run.name, analysis.band_hz, spec))
+    notes += _beyond_band(analyses, band_hz, Path(str(campaign.path)).name)
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     climbs, workers = ({}, 1) if not requests else _climb_all(
         str(campaign.path), requests, ladder, jobs, scheduler)
@@ -441,6 +442,25 @@ def analyse_campaign(
                             use_diagnosis, ladder and use_diagnosis, notes,
                             time.perf_counter() - started, spent,
                             min(workers, max(1, len(requests))), entries)
+
+
+def _beyond_band(analyses: list[RunAnalysis], band_hz: tuple[float, float],
+                 file: str) -> list[str]:
+    """A note when the specimen runs were measured well beyond the band analysed (more than a
+    frequency step past either end), with the command that analyses all of it."""
+    measured = [analysis.run.frequency_hz for analysis in analyses
+                if not analysis.bare and analysis.run.points]
+    if not measured:
+        return []
+    lo = min(float(f.min()) for f in measured)
+    hi = max(float(f.max()) for f in measured)
+    steps = np.concatenate([np.diff(np.unique(f)) for f in measured])
+    step = float(np.median(steps)) if steps.size else 0.0
+    if lo >= band_hz[0] - step and hi <= band_hz[1] + step:
+        return []
+    return [f"the specimen runs were measured over {lo:g}–{hi:g} Hz and are analysed over "
+            f"{band_hz[0]:g}–{band_hz[1]:g} Hz (the paper's band unless --band is given): "
+            f"viscorig report {file} --band {lo:g}:{hi:g} analyses all of it"]
 
 
 def _run_band(run: RunRecord, band_hz: tuple[float, float]) -> tuple[float, float]:
