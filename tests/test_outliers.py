@@ -66,16 +66,25 @@ def test_a_glitch_on_the_band_end_point_is_found(end: str) -> None:
         assert np.flatnonzero(outlier_points(z, WHITE, WINDOW)).tolist() == [point]
 
 
+def test_an_end_glitch_among_others_near_the_end_is_found() -> None:
+    """Four more glitches among the first 22 points: read through the running median, the
+    local level at the end was theirs, and it hid the end point's glitch (none of 20 found)."""
+    rng = np.random.default_rng(29)
+    for _ in range(20):
+        z, _ = glitched(rng, [0, 8, 17, 19, 21])
+        assert outlier_points(z, WHITE, WINDOW)[0]
+
+
 def test_a_pair_of_glitches_at_the_band_end_is_mostly_found() -> None:
     """An end point's glitch next to another: the cluster's own short window let a polynomial
-    follow the end point (none of 20 pairs on points 0 and 1 found). Two glitches a point from
-    the end leave it three steps from the rest, which the data cannot always tell."""
+    follow the end point (none of 20 pairs on points 0 and 1 found). The end point's glitch is
+    judged two steps from the rest then, which the data cannot always tell."""
     rng = np.random.default_rng(19)
     found = 0
-    for _ in range(20):
+    for _ in range(40):
         z, _ = glitched(rng, [0, 1])
         found += np.flatnonzero(outlier_points(z, WHITE, WINDOW)).tolist() == [0, 1]
-    assert found >= 14
+    assert found >= 20  # about 70 % over 600 draws
 
 
 def test_a_mode_near_the_band_end_seldom_costs_it_its_end_point() -> None:
