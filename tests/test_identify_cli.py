@@ -422,3 +422,27 @@ def test_diagnose_names_a_band_that_misses_the_run_not_a_missing_frf(
     assert main(["diagnose", str(stopped_campaign), "--run", "soft-10", "--band", "50:100"]) == 2
     assert capsys.readouterr().err == ("viscorig: run 'soft-10': the band 50:100 Hz holds none "
                                        "of its points (it spans 20-29 Hz)\n")
+
+
+@pytest.mark.parametrize(("field", "model"), [("time_s", "voigt+drift"),
+                                               ("reference_amplitude", "voigt+amplitude")])
+def test_a_term_that_needs_what_some_points_lack_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], field: str, model: str
+) -> None:
+    """Four points without a time (or a level), as a file written elsewhere may hold them:
+    a drift fit ended in a traceback ('Residuals are not finite in the initial point'), and the
+    diagnosis fitted drift and amplitude candidates to NaN, printing numpy's warnings."""
+    path = with_outliers(tmp_path / "holes.h5", lambda size: np.arange(0))
+    with h5py.File(path, "r+") as h5:
+        values = h5[f"runs/soft-0/{field}"][()]
+        values[5:9] = np.nan
+        h5[f"runs/soft-0/{field}"][...] = values
+    assert main(["identify", str(path), "--run", "soft-0", "--model", model, "--no-store"]) == 2
+    error = capsys.readouterr().err
+    assert f"needs {field}, which the run lacks at 4 of its points" in error
+    assert "Traceback" not in error
+    assert main(["diagnose", str(path), "--run", "soft-0", "--json"]) == 0
+    out, error = capsys.readouterr()
+    assert "Warning" not in error
+    needing = model.split("+")[1]
+    assert [f["model"] for f in json.loads(out)["findings"] if needing in f["model"]] == []

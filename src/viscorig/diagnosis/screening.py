@@ -350,7 +350,7 @@ def _weighted_lstsq(columns, target, weight):
 
 def screen_levels(current: Likelihood, data: DiagnosisData, alpha: float) -> Candidate | None:
     """Runs at two levels disagree."""
-    if _has(current.model, "amplitude") or data.data.reference_amplitude is None:
+    if _has(current.model, "amplitude") or not data.data.has("reference_amplitude"):
         return None
     levels = data.levels
     if len(levels) < 2:
@@ -388,9 +388,10 @@ def screen_recorded_temperature(current: Likelihood, data: DiagnosisData,
     """The specimen's recorded temperature moved during the run: ``temperature(T_ref)``, the
     modulus scaled by it, with a drift in time as its alternative."""
     d = data.data
-    if d.temperature_c is None or float(np.ptp(d.temperature_c)) < RECORDED_DRIFT_K:
-        return None
     temperature = d.temperature_c
+    if temperature is None or not d.has("temperature_c") or (
+            float(np.ptp(temperature)) < RECORDED_DRIFT_K):
+        return None
     reference = round(float(np.median(temperature)), 1)
     u = np.log(d.frequency_hz / np.sqrt(d.frequency_hz.min() * d.frequency_hz.max()))
     columns = np.stack([np.ones_like(u), u, u**2], axis=1)
@@ -402,7 +403,7 @@ def screen_recorded_temperature(current: Likelihood, data: DiagnosisData,
         evidence += (" in step with the frequency, so its effect looks like frequency "
                      "dependence")
     return Candidate("thermal_drift", f"temperature({reference:g})", evidence,
-                     threshold(1, alpha), alternatives=() if d.time_s is None else ("drift",),
+                     threshold(1, alpha), alternatives=("drift",) if d.has("time_s") else (),
                      identifiable=apart >= TEMPERATURE_APART_K)
 
 
@@ -413,7 +414,8 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
     if _has(current.model, "drift") or _has(current.model, "temperature"):
         return None
     recorded = screen_recorded_temperature(current, data, alpha)
-    if recorded is not None or d.time_s is None:
+    time = d.time_s
+    if recorded is not None or time is None or not d.has("time_s"):
         return recorded
     if len(data.segments) == 1 or (len(data.directions) == 1 and len(data.levels) == 1):
         evidence = (
@@ -424,8 +426,8 @@ def screen_drift(current: Likelihood, data: DiagnosisData, alpha: float) -> Cand
                          identifiable=False)
     f = d.frequency_hz
     u = np.log(f / np.sqrt(f.min() * f.max()))
-    span = max(float(np.ptp(d.time_s)), 1.0)
-    t = d.time_s / span
+    span = max(float(np.ptp(time)), 1.0)
+    t = time / span
     e, sigma = _log_errors(current, data, data.frfs[0])
     columns = np.stack([np.ones_like(u), u, u**2, t], axis=1)
     coefficients, _ = _weighted_lstsq(columns, e.real, 1.0 / sigma)

@@ -213,8 +213,8 @@ def family_size(model: Model, data: DiagnosisData) -> int:
         True,  # the scan for local modes (its threshold holds its own look-elsewhere)
         model.modulus_term is not None and model.modulus_term.keyword != "fractional",
         both and data.table is not None and not _has_term(model, "load_cell"),
-        d.reference_amplitude is not None and not _has_term(model, "amplitude"),
-        d.time_s is not None and not _has_term(model, "drift"),
+        d.has("reference_amplitude") and not _has_term(model, "amplitude"),
+        d.has("time_s") and not _has_term(model, "drift"),
         "table" in data.frfs and data.table is not None and not _has_term(model, "frame"),
         both and not _has_term(model, "delay"),
     ]

@@ -84,6 +84,23 @@ class FrfData:
         if np.any(~np.isfinite(frequency)) or np.any(frequency <= 0):
             raise InputError("frequency_hz must be finite and positive", self.name)
 
+    def has(self, field: str) -> bool:
+        """``field`` (``time_s``, ``reference_amplitude``, ``temperature_c``) is known at every
+        point: a term that needs it can be evaluated."""
+        value = getattr(self, field)
+        return value is not None and bool(np.all(np.isfinite(value)))
+
+    def lacks(self, field: str) -> str | None:
+        """Why ``field`` cannot serve a term (:meth:`has`), in words; ``None`` when it can."""
+        value = getattr(self, field)
+        if value is None:
+            return "the run lacks"
+        missing = ~np.isfinite(value)
+        if not missing.any():
+            return None
+        return (f"the run lacks at {int(missing.sum())} of its points (the first at "
+                f"{self.frequency_hz[np.argmax(missing)]:.6g} Hz)")
+
     @property
     def available(self) -> tuple[str, ...]:
         """Names of the FRFs present (``"table"``, ``"support"``)."""

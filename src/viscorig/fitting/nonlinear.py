@@ -151,11 +151,12 @@ def fit(
     if weighting not in WEIGHTINGS:
         raise ValueError(f"weighting must be one of {WEIGHTINGS}, not {weighting!r}")
     model = parse_spec(model) if isinstance(model, str) else model
-    for needed in model.requires:
-        if getattr(data, needed) is None:
-            raise InputError(f"model '{model.spec}' needs {needed}, which the run lacks", data.name)
     chosen = resolve_frfs(model, data, frfs)
     band = data.checked(chosen, band_hz)
+    for needed in model.requires:
+        reason = band.lacks(needed)
+        if reason is not None:
+            raise InputError(f"model '{model.spec}' needs {needed}, which {reason}", data.name)
     fixed = dict(fixed or {})
     if known is not None:
         fixed = {**known.values, **fixed}
