@@ -251,6 +251,29 @@ def test_a_value_no_analyser_can_measure_is_named_not_fitted(
     assert "ẍ_v/F_v" in err and "1 value(s)" in err and f"at {frequency:g} Hz" in err
 
 
+@pytest.mark.parametrize("scale", [1e300, 1e-300])
+def test_an_frf_scaled_out_of_any_unit_is_named_not_fitted(
+        good_campaign: bytes, tmp_path: Path, scale: float) -> None:
+    """Every value of an FRF 1e300 times too large (or small): the median-relative test saw
+    nothing, and the fit ended in a traceback (scipy: residuals not finite), the summary and
+    the report too."""
+    path = tmp_path / "campaign.h5"
+    path.write_bytes(good_campaign)
+    with h5py.File(path, "r+") as h5:
+        frf = h5["runs/soft-0/accelerance_support"]
+        frf[...] = frf[()] * scale
+    for command in (["identify", "--model", "voigt"], ["diagnose"]):
+        status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
+        assert_clean_outcome(status, err)
+        assert status == 2 and "not a measurement in SI units" in err
+    for command in (["summary", str(path)],
+                    ["report", str(path), "--out", str(tmp_path / "report"), "--no-ladder",
+                     "--jobs", "1"]):
+        status, _, err = run_cli(command)
+        assert_clean_outcome(status, err)
+        assert err == ""
+
+
 @pytest.mark.parametrize("frequency_hz", [1.043e-309, 2.37e305])
 def test_a_frequency_no_analyser_measures_is_named_not_fitted(
         good_campaign: bytes, tmp_path: Path, frequency_hz: float) -> None:

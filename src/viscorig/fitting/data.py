@@ -18,6 +18,10 @@ MIN_POINTS = 10
 #: An FRF value this many times above or below the band's median magnitude is no measurement:
 #: the analyser's dynamic range is about 90 dB (3e4), a rig's FRF over a band a few decades.
 ABSURD_RATIO = 1e8
+#: Accelerances (m/s² per N) outside this range are no measurement in SI units: a kilogram
+#: moves at 1 m/s² per N, and a rig of a gram to ten tonnes, stiffness-controlled down to
+#: 0.01 Hz, stays decades inside it (beyond it, squares of dynamic stiffness overflow).
+ACCELERANCE_RANGE = (1e-15, 1e15)
 #: Optional real per-point fields.
 _REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support",
                 "temperature_c")
@@ -166,6 +170,14 @@ class FrfData:
                 raise InputError(f"{FRF_NAMES[name]} has {bad} NaN or zero values", where)
             magnitude = np.abs(values)
             median = float(np.median(magnitude))
+            low, high = ACCELERANCE_RANGE
+            beyond = np.flatnonzero((magnitude < low) | (magnitude > high))
+            if beyond.size:
+                first = int(beyond[0])
+                raise InputError(
+                    f"{FRF_NAMES[name]} has {beyond.size} value(s) outside {low:g} to {high:g} "
+                    f"m/s² per N (first: {magnitude[first]:.3g} at {data.frequency_hz[first]:g} "
+                    "Hz), not a measurement in SI units", where)
             absurd = np.flatnonzero((magnitude > median * ABSURD_RATIO)
                                     | (magnitude < median / ABSURD_RATIO))
             if absurd.size:

@@ -240,8 +240,14 @@ def _residuals(run: RunRecord, curve: FitResult, band: tuple[float, float]) -> l
     order = np.argsort(data.frequency_hz, kind="stable")
     f = data.frequency_hz[order]
     predicted = curve.predict(data.frequency_hz, data.time_s, data.reference_amplitude)
-    frfs = [name for name in data.available if name in predicted
-            and np.all(np.isfinite(data.frf(name))) and np.all(data.frf(name) != 0)]
+    frfs = []
+    for name in data.available:
+        try:
+            if name in predicted:
+                data.checked((name,), None)  # what a fit would refuse has no noise model
+                frfs.append(name)
+        except InputError:
+            continue
     if not frfs:
         return []
     noise = estimate_noise(data, tuple(frfs))
