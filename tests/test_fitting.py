@@ -162,6 +162,21 @@ def test_geometry_factor_arrangements_differ_as_documented() -> None:
         geometry_factor(0.02, 0.012, 2, "diagonal")
 
 
+def test_a_geometry_no_specimen_has_is_refused_by_name() -> None:
+    """A diameter of 1e300 m ended the report in an OverflowError; a negative θ given outright
+    turned every E' negative; a count of 0 was read as 2."""
+    with pytest.raises(InputError, match="between 1e-06 and 10 m"):
+        _ = RigDescription(specimen_diameter_m=1e300, specimen_height_m=0.012).theta
+    with pytest.raises(InputError, match="must be > 0"):
+        _ = RigDescription(geometry_factor_m=-0.01).theta
+    rig = RigDescription.from_attributes({"specimen_count": 0, "specimen_diameter_m": 0.02,
+                                          "specimen_height_m": 0.012})
+    assert rig.specimen_count == 0
+    with pytest.raises(InputError, match="at least 1"):
+        geometry_factor(0.02, 0.012, rig.specimen_count, "parallel")
+    assert RigDescription.from_attributes({"specimen_count": float("nan")}).specimen_count == 2
+
+
 def test_moduli_and_equivalent_damping_follow_eq_7_8_12() -> None:
     kstar = np.array([2.0e5 + 3.0e4j])
     assert storage_modulus(kstar, 0.5) == pytest.approx([4.0e5])

@@ -27,6 +27,10 @@ ARRANGEMENTS: dict[str, str] = {
 }
 
 
+#: Sizes a specimen's diameter and height can have (m): a micrometre to ten metres.
+SPECIMEN_SIZE_RANGE_M = (1e-6, 10.0)
+
+
 def geometry_factor(
     diameter_m: float, height_m: float, count: int = 2, arrangement: str = "paper"
 ) -> float:
@@ -44,6 +48,10 @@ def geometry_factor(
     """
     if not (diameter_m > 0 and height_m > 0):
         raise InputError(f"specimen diameter {diameter_m} m and height {height_m} m must be > 0")
+    low, high = SPECIMEN_SIZE_RANGE_M
+    if not (low <= diameter_m <= high and low <= height_m <= high):
+        raise InputError(f"specimen diameter {diameter_m:g} m and height {height_m:g} m must lie "
+                         f"between {low:g} and {high:g} m")
     single = math.pi * diameter_m**2 / (4.0 * height_m)
     if arrangement == "paper":
         return single / 2.0
@@ -100,7 +108,7 @@ class RigDescription:
             table_damping_ns_per_m=number("table_damping_ns_per_m"),
             specimen_diameter_m=number("specimen_diameter_m"),
             specimen_height_m=number("specimen_height_m"),
-            specimen_count=int(attributes.get("specimen_count", 2) or 2),
+            specimen_count=_count(attributes.get("specimen_count")),
             geometry_factor_m=number("geometry_factor_m"),
             table_mass_stderr_kg=number("table_mass_stderr_kg"),
             table_stiffness_stderr_n_per_m=number("table_stiffness_stderr_n_per_m"),
@@ -131,9 +139,21 @@ class RigDescription:
     def theta(self) -> float | None:
         """Geometry factor θ in metres, or ``None`` when neither θ nor the geometry is known."""
         if self.geometry_factor_m is not None:
+            if not self.geometry_factor_m > 0:
+                raise InputError(f"geometry factor {self.geometry_factor_m:g} m must be > 0",
+                                 "/rig")
             return self.geometry_factor_m
         if self.specimen_diameter_m is None or self.specimen_height_m is None:
             return None
         return geometry_factor(
             self.specimen_diameter_m, self.specimen_height_m, self.specimen_count, self.arrangement
         )
+
+
+def _count(value: object) -> int:
+    """``/rig`` ``specimen_count``: 2 (the paper's device) when absent or NaN; as given
+    otherwise (a count below one is refused where the count matters)."""
+    if value is None:
+        return 2
+    number = float(value)  # type: ignore[arg-type]
+    return int(number) if math.isfinite(number) else 2
