@@ -87,6 +87,15 @@ def test_a_corrupted_point_is_named_by_the_kramers_kronig_check():
     assert flagged[0]["frequency_hz"] == pytest.approx(100.0)
 
 
+def test_a_temperature_no_specimen_is_measured_at_is_refused_by_point():
+    """A rig run's per-point temperature 10⁶ °C too high (a corrupt dataset) was shifted
+    like any other sweep."""
+    data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=3)
+    data["temperature_c"][13] += 1e6
+    with pytest.raises(InputError, match=r"at most 1500 °C.*\(point 14\)"):
+        ModulusTable(**data, source="corrupted").check("rig runs")
+
+
 def test_a_material_that_is_not_thermorheologically_simple_is_told():
     data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=4)
     # the loss of the warm sweeps grows by a third: the shape changes with temperature

@@ -54,7 +54,7 @@ from viscorig.exchange.units import (
     factor,
     normalised,
 )
-from viscorig.materials.table import ModulusTable
+from viscorig.materials.table import TEMPERATURE_RANGE_C, ModulusTable
 from viscorig.materials.trios import is_trios_export, trios_steps
 
 #: Largest file read (a DMA table of 100 000 points is under 10 MB).
@@ -445,10 +445,13 @@ def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], wh
     checks = (
         ("frequency" if "frequency" in columns else "angular", table.frequency_hz,
          "frequency must be a positive finite number"),
-        ("temperature", table.temperature_c + 273.15, "temperature must be above absolute zero"),
+        ("temperature", table.temperature_c + 273.15, "temperature must be above absolute zero "
+         f"and at most {TEMPERATURE_RANGE_C[1]:g} °C"),
     )
     for role, value, what in checks:
         good = np.isfinite(value) & (value > 0)
+        if role == "temperature":
+            good &= table.temperature_c <= TEMPERATURE_RANGE_C[1]
         bad = np.flatnonzero(~good)
         if bad.size:
             row_number = body[int(bad[0])][0]

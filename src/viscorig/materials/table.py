@@ -15,6 +15,10 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 
+#: Temperatures a specimen's modulus is measured at (°C): above absolute zero, and at most
+#: where any material has long melted or burnt (a DMA oven reaches 600 °C, a furnace 1500 °C).
+TEMPERATURE_RANGE_C = (-273.15, 1500.0)
+
 #: What the modulus is: tensile/Young's ("E") or shear ("G").
 MODULUS_KINDS = ("E", "G")
 
@@ -83,8 +87,11 @@ class ModulusTable:
         """
         checks = (
             ("frequency_hz", self.frequency_hz > 0, "frequency must be a positive number"),
-            ("temperature_c", np.isfinite(self.temperature_c) & (self.temperature_c > -273.15),
-             "temperature must be a number above -273.15 °C"),
+            ("temperature_c", np.isfinite(self.temperature_c)
+             & (self.temperature_c > TEMPERATURE_RANGE_C[0])
+             & (self.temperature_c <= TEMPERATURE_RANGE_C[1]),
+             f"temperature must be a number above {TEMPERATURE_RANGE_C[0]:g} °C and at most "
+             f"{TEMPERATURE_RANGE_C[1]:g} °C"),
         )
         for name, good, what in checks:
             good = np.asarray(good) & np.isfinite(getattr(self, name))
