@@ -115,6 +115,10 @@ def test_bad_values_name_file_and_key(old: str, new: str, expected: str) -> None
     assert str(info.value).startswith(expected)
 
 
+def test_a_rig_file_saved_with_a_byte_order_mark_reads_as_without() -> None:
+    assert parse_rig("\ufeff" + GOOD, source="x") == parse_rig(GOOD, source="x")
+
+
 def test_maxwell_arms_are_checked() -> None:
     text = """
 [table]

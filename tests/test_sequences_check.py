@@ -66,6 +66,24 @@ def test_three_mistakes_are_reported_at_once_each_with_line_field_and_fix(tmp_pa
     assert "(and 1 more problem" in str(caught.value) and "\n" not in str(caught.value)
 
 
+def test_files_saved_with_a_byte_order_mark_read_as_without(tmp_path, capsys) -> None:
+    """Windows Notepad saves UTF-8 with a byte-order mark: such a sequence was 'not valid TOML:
+    Invalid statement (at line 1, column 1)', a station file too; the lines of its problems
+    stay where they are."""
+    sequence = tmp_path / "paper.toml"
+    sequence.write_text("\ufeff" + PAPER.read_text(encoding="utf-8"), encoding="utf-8")
+    station = tmp_path / "station.toml"
+    station.write_text("\ufeff" + (ROOT / "sequences" / "station-example.toml").read_text(
+        encoding="utf-8"), encoding="utf-8")
+    assert main(["check", str(sequence), "--station", str(station)]) == 0
+    assert "OK, 15 steps, 7 runs" in capsys.readouterr().out
+    assert load_sequence(sequence).steps == load_sequence(PAPER).steps
+    mistaken = write(tmp_path, "\ufeff" + THREE_MISTAKES)
+    with pytest.raises(FileCheckError) as caught:
+        load_sequence(mistaken)
+    assert str(caught.value.problems[0]).startswith(f"{mistaken}:17: steps[1].specimin")
+
+
 def test_check_prints_every_problem_and_exits_2(tmp_path, capsys) -> None:
     path = write(tmp_path, THREE_MISTAKES.replace('"up"', '"upp"') + 'direction = "upp"\n')
     assert main(["check", str(path)]) == 2

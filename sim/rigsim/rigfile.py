@@ -754,7 +754,7 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
         message names ``source`` and the key path.
     """
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(text.removeprefix("\ufeff"))  # a BOM (Notepad's UTF-8) is no text
     except tomllib.TOMLDecodeError as exc:
         raise RigFileError(f"{source}: not valid TOML: {exc}") from None
     top = _Section(data, "", source)

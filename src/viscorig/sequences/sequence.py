@@ -99,11 +99,12 @@ STATION_MARKS = ("resource", "adapter", "channels", "sensitivity")
 
 
 def parse_toml(text: str, source: str) -> dict[str, Any]:
-    """TOML text as a dict; syntax errors become InputErrors naming the file and line."""
+    """TOML text as a dict; syntax errors become InputErrors naming the file and line. A
+    byte-order mark before the text (Windows Notepad saves UTF-8 with one) is no part of it."""
     if not isinstance(text, str):
         raise InputError("expected TOML text", source)
     try:
-        return tomllib.loads(text)
+        return tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as error:
         raise InputError(f"not valid TOML: {error}", source) from None
 
