@@ -91,8 +91,7 @@ class FrfData:
     def has(self, field: str) -> bool:
         """``field`` (``time_s``, ``reference_amplitude``, ``temperature_c``) is known at every
         point: a term that needs it can be evaluated."""
-        value = getattr(self, field)
-        return value is not None and bool(np.all(np.isfinite(value)))
+        return self.lacks(field) is None
 
     def lacks(self, field: str) -> str | None:
         """Why ``field`` cannot serve a term (:meth:`has`), in words; ``None`` when it can."""

@@ -36,7 +36,7 @@ from viscorig.errors import InputError
 from viscorig.estimates import ModulusBand, kstar_from_support, modulus_band
 from viscorig.executor import default_jobs, executor
 from viscorig.fitting import FitResult, estimate_noise, fit
-from viscorig.fitting.data import MIN_POINTS
+from viscorig.fitting.data import MIN_POINTS, FrfData
 from viscorig.identify import (
     PAPER_BAND_HZ,
     RunSummary,
@@ -240,19 +240,21 @@ def _residuals(run: RunRecord, curve: FitResult, band: tuple[float, float]) -> l
     order = np.argsort(data.frequency_hz, kind="stable")
     f = data.frequency_hz[order]
     predicted = curve.predict(data.frequency_hz, data.time_s, data.reference_amplitude)
-    frfs = []
-    for name in data.available:
-        try:
-            if name in predicted:
-                data.checked((name,), None)  # what a fit would refuse has no noise model
-                frfs.append(name)
-        except InputError:
-            continue
+    frfs = [name for name in data.available if name in predicted and _fittable(data, name)]
     if not frfs:
         return []
     noise = estimate_noise(data, tuple(frfs))
     return [ShownResidual(name, f, np.abs(predicted[name] / data.frf(name) - 1.0)[order],
                         noise.scale(name)[order], noise.floor_of((name,))) for name in frfs]
+
+
+def _fittable(data: FrfData, frf: str) -> bool:
+    """A fit would take this FRF of ``data`` (what it refuses has no noise model)."""
+    try:
+        data.checked((frf,), None)
+    except InputError:
+        return False
+    return True
 
 
 def _modulus(run: RunRecord, curve: FitResult, band: tuple[float, float], source: str
