@@ -64,7 +64,7 @@ def test_an_adaptive_step_reads_its_model_targets_and_bounds() -> None:
     ('plan = "adaptive"\ntarget_uncertainty = { K_v = 1e-3 }',
      r"model: missing for plan = \"adaptive\""),
     ('plan = "adaptive"\nmodel = "voigt"\ntarget_uncertainty = { K_v = 2.0 }',
-     r"K_v: 2.0 is outside \(0, 1\]"),
+     r"K_v: 2.0 is outside \(1e-09, 1\]"),
     ('plan = "adptive"', r"'adptive' is not one of full, adaptive; did you mean 'adaptive'\?"),
     # a full plan: the grid is required, the adaptive fields are not its own
     ('resolution_hz = 0.25\nsettle_cycles = 10\nintegrate_cycles = 10\n'

@@ -327,3 +327,14 @@ def test_a_problem_quotes_a_long_value_cut_not_whole(tmp_path, capsys) -> None:
     assert "steps[0].temperatures_c: names -20 twice; each value once" in out
     assert max(len(line) for line in out.splitlines()) < 400
     assert "'xxxxxxxx" in out and "x" * 100 not in out
+
+
+def test_a_target_uncertainty_no_sweep_reaches_is_refused_at_its_line(tmp_path) -> None:
+    """A target of 1e-300 passed the check, and the plan's design then found 'no information
+    about the targets' in a traceback."""
+    text = (ROOT / "sequences" / "adaptive.toml").read_text(encoding="utf-8").replace(
+        "target_uncertainty = { K_v = 2e-3, C_v = 2e-3 }", "target_uncertainty = { K_v = 1e-300 }")
+    path = write(tmp_path, text)
+    with pytest.raises(FileCheckError) as caught:
+        load_sequence(path)
+    assert "K_v: 1e-300 is outside (1e-09, 1]" in str(caught.value.problems[0])

@@ -55,6 +55,11 @@ def kind_name(value: object) -> str:
     }.get(type(value), type(value).__name__)
 
 
+#: Smallest relative uncertainty a plan may aim at: one part in 10⁹, far finer than any sweep
+#: reaches (a target of 1e-300 made the plan's design divide by zero).
+TARGET_FLOOR = 1e-9
+
+
 def _interval(low: float | None, high: float | None, low_open: bool, unit: str) -> str:
     lo = "-inf" if low is None else f"{low:g}"
     hi = "inf" if high is None else f"{high:g}"
@@ -477,7 +482,7 @@ def _sweep_fields() -> tuple[Field, ...]:
               default=None, default_note=ADAPTIVE_ONLY, example='"voigt"', in_defaults=True),
         Field("target_uncertainty", "targets", "Relative standard uncertainty wanted for each "
               "named parameter of the model; the plan stops when every one is met.",
-              default=None, default_note=ADAPTIVE_ONLY, low=0.0, high=1.0,
+              default=None, default_note=ADAPTIVE_ONLY, low=TARGET_FLOOR, high=1.0,
               example="{ K_v = 1e-3, C_v = 2e-3 }", in_defaults=True),
         Field("dwell_limit_s", number, "Rig time an adaptive plan may use at most, first look "
               "included.", default=None, unit="s", low=0.0, low_open=True, high=86_400.0,
