@@ -57,3 +57,15 @@ def test_the_plan_reaches_the_targets_within_the_instruments_limits(rig_model):
     covariance = np.linalg.inv(info.of_points(f, [p.integrate_cycles / p.frequency_hz
                                                   for p in bound.plan]))  # fmt: skip
     assert np.sqrt(covariance[0, 0]) == pytest.approx(bound.relative_stderr["K_v"], rel=1e-6)
+
+
+def test_a_floor_beyond_a_day_lays_out_no_plan(rig_model):
+    """A target of 1e-8 made the forecast lay out the plan point by point: tens of millions of
+    points, and `viscorig plan` did not come back within minutes."""
+    import time
+
+    start = time.perf_counter()
+    bound = _bound(rig_model, {"K_v": 1e-8, "C_v": 1e-8})
+    assert time.perf_counter() - start < 10.0
+    assert bound.integration_floor_s > 86_400.0
+    assert bound.plan == () and bound.plan_time_s == bound.integration_floor_s

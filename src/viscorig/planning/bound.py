@@ -42,6 +42,11 @@ from viscorig.planning.transient import identified_modes
 __all__ = ["DesignBound", "design_bound"]
 
 
+#: Integration floor beyond which no plan is laid out (a day: the longest dwell a step may
+#: have); the bound is then its floor alone.
+PLAN_LIMIT_S = 86_400.0
+
+
 @dataclass(frozen=True)
 class DesignBound:
     """The least rig time for the targets on a known rig.
@@ -53,7 +58,8 @@ class DesignBound:
     design
         The optimal allocation over every candidate frequency.
     plan
-        The design as analyser points, in measurement order.
+        The design as analyser points, in measurement order (none when the floor is beyond
+        :data:`PLAN_LIMIT_S`).
     plan_time_s
         Rig time of ``plan``, settle and controller passes included.
     relative_stderr
@@ -110,6 +116,11 @@ def design_bound(
     index = [names.index(name) for name in targets]
     wanted = np.array([targets[name] for name in targets])
     design = minimum_time_design(candidates, info.rate(candidates), index, wanted)
+    if not design.lower_bound_s <= PLAN_LIMIT_S:
+        # no plan to lay out point by point (a target of 1e-7 made tens of millions of them)
+        floor = float(design.lower_bound_s) if np.isfinite(design.lower_bound_s) else PLAN_LIMIT_S
+        return DesignBound(integration_floor_s=floor, design=design, plan=(),
+                           plan_time_s=floor, relative_stderr={})
     support = design.support(1e-4)
     step = resolution_hz or limits.frequency_step_hz
     merged = merge_neighbours(
