@@ -124,9 +124,8 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64],
         return flagged
     with np.errstate(all="ignore"):  # a value no measurement gives is no outlier's evidence
         v = (z.real**2 + z.imag**2) * white
-        ratio = _one_point(z, v)
-        level = np.maximum(running_median(ratio, window) / math.log(2.0), 1.0)
-        ratio = ratio / level
+        raw = _one_point(z, v)
+        ratio = raw / np.maximum(running_median(raw, window) / math.log(2.0), 1.0)
         flagged[1:-1] = (ratio[1:-1] > ratio[:-2]) & (ratio[1:-1] > ratio[2:])
         flagged &= ratio > OUTLIER_LEVEL
         out = flagged.copy()
@@ -136,7 +135,7 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64],
                 out[cluster] = False
                 out[points] = True
         for end in (np.arange(n), np.arange(n)[::-1]):
-            scale = _end_level(ratio[end] * level[end], out[end], window)
+            scale = _end_level(raw[end], out[end], window)
             if _end_glitch(z[end], v[end], out[end], scale):
                 out[end[0]] = True
     return out

@@ -61,7 +61,8 @@ class DesignBound:
         The design as analyser points, in measurement order (none when the floor is beyond
         :data:`PLAN_LIMIT_S`).
     plan_time_s
-        Rig time of ``plan``, settle and controller passes included.
+        Rig time of ``plan``, settle and controller passes included (the integration floor
+        where no plan is laid out).
     relative_stderr
         Predicted relative standard error of each target with ``plan``.
     """
