@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.frf import accelerance_to_dynamic_stiffness, accelerance_to_receptance
-from viscorig.models import Context
+from viscorig.models import Context, table_dynamic_stiffness
 from viscorig.numbers import Estimate
 
 
@@ -32,7 +32,7 @@ def kstar_from_table(
     """
     omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
     z = accelerance_to_dynamic_stiffness(frequency_hz, accelerance_table)
-    return z - (table["K_s"] - (table["M_s"] + disc_mass_kg) * omega**2 + 1j * omega * table["C_s"])
+    return z - table_dynamic_stiffness(omega, table) + disc_mass_kg * omega**2
 
 
 def kstar_from_support(

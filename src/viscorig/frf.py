@@ -42,7 +42,8 @@ def accelerance_to_dynamic_stiffness(
     frequency_hz: ArrayLike, accelerance_m_per_s2_per_n: ArrayLike
 ) -> NDArray[np.complex128]:
     """Dynamic stiffness F/X in N/m from accelerance Ẍ/F in m/s²/N."""
-    return 1.0 / accelerance_to_receptance(frequency_hz, accelerance_m_per_s2_per_n)
+    omega = angular_frequency(frequency_hz)
+    return -(omega**2) / np.asarray(accelerance_m_per_s2_per_n, dtype=np.complex128)
 
 
 def dynamic_stiffness_to_accelerance(

@@ -18,19 +18,14 @@ from numpy.typing import NDArray
 
 from viscorig.errors import InputError
 from viscorig.fitting.data import FrfData
-from viscorig.models import Model, Voigt
-
-
-def dynamic_stiffness(frequency_hz: NDArray, accelerance: NDArray) -> NDArray[np.complex128]:
-    """``F/X = −ω² / (ẍ/F)`` in N/m."""
-    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
-    return -(omega**2) / np.asarray(accelerance, dtype=complex)
+from viscorig.frf import accelerance_to_dynamic_stiffness
+from viscorig.models import Model, Voigt, table_dynamic_stiffness
 
 
 def table_linear_fit(data: FrfData) -> dict[str, float]:
     """``M_s, K_s, C_s`` by weighted linear least squares on the table's dynamic stiffness."""
     omega = 2 * np.pi * data.frequency_hz
-    z = dynamic_stiffness(data.frequency_hz, data.frf("table"))
+    z = accelerance_to_dynamic_stiffness(data.frequency_hz, data.frf("table"))
     voigt = Voigt().start(omega, z, 1.0 / np.abs(z))
     return {"M_s": voigt["M_v"], "K_s": voigt["K_v"], "C_s": voigt["C_v"]}
 
@@ -42,10 +37,9 @@ def disc_stiffness_samples(
     omega = 2 * np.pi * data.frequency_hz
     parts = []
     for name in frfs:
-        z = dynamic_stiffness(data.frequency_hz, data.frf(name))
+        z = accelerance_to_dynamic_stiffness(data.frequency_hz, data.frf(name))
         if name == "table":
-            d_table = table["K_s"] - omega**2 * table["M_s"] + 1j * omega * table["C_s"]
-            parts.append((omega, z - d_table, 1.0 / np.abs(z)))
+            parts.append((omega, z - table_dynamic_stiffness(omega, table), 1.0 / np.abs(z)))
         else:
             parts.append((omega, z, 1.0 / np.abs(z)))
     return tuple(np.concatenate(column) for column in zip(*parts, strict=True))  # type: ignore[return-value]

@@ -20,6 +20,7 @@ from viscorig.models.base import (
     Term,
     register_term,
     stage_methods,
+    table_dynamic_stiffness,
 )
 from viscorig.models.effects import EFFECTS, Amplitude, Drift, Fixture, Frame, LoadCell
 from viscorig.models.modulus import MAXWELL_MAX_ORDER, Fractional, Maxwell, TableOnly, Voigt
@@ -55,4 +56,5 @@ __all__ = [
     "parse_spec",
     "register_term",
     "stage_methods",
+    "table_dynamic_stiffness",
 ]

@@ -102,6 +102,13 @@ class Parameter:
         return float(np.clip(value, self.lower + margin, self.upper - margin))
 
 
+def table_dynamic_stiffness(
+    omega: NDArray[np.float64], values: Mapping[str, float]
+) -> NDArray[np.complex128]:
+    """The table's ``D_t = K_s − ω² M_s + iω C_s`` (N/m) at ``omega`` (rad/s)."""
+    return values["K_s"] - omega**2 * values["M_s"] + 1j * omega * values["C_s"]
+
+
 @dataclass(frozen=True)
 class Context:
     """What a model needs besides its parameters: the measurement points.
@@ -561,13 +568,6 @@ class Model:
             d_disc = d_disc + term.disc_stiffness(ctx, self.local_values(term, values))
         return d_disc
 
-    def table_dynamic_stiffness(
-        self, ctx: Context, values: Mapping[str, float]
-    ) -> NDArray[np.complex128]:
-        """``D_t = K_s − ω² M_s + iω C_s``, N/m."""
-        w = ctx.omega
-        return values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
-
     def predict(
         self, ctx: Context, values: Mapping[str, float]
     ) -> dict[str, NDArray[np.complex128]]:
@@ -579,7 +579,7 @@ class Model:
             raise InputError(f"'{self.spec}' leaves a choice open; fit it first", "model spec")
         w = ctx.omega
         d_disc = self.disc_dynamic_stiffness(ctx, values)
-        d_table = self.table_dynamic_stiffness(ctx, values)
+        d_table = table_dynamic_stiffness(ctx.omega, values)
         if self._frame is not None:
             receptance = self._on_frame(ctx, values, d_table, d_disc)
         elif self._coupler is not None:
@@ -631,7 +631,7 @@ class Model:
                 receptance = {frf: predicted[frf] / -w2 for frf in self.frfs}
             else:
                 d_disc = self.disc_dynamic_stiffness(ctx, values)
-                d_table = self.table_dynamic_stiffness(ctx, values)
+                d_table = table_dynamic_stiffness(ctx.omega, values)
                 receptance = {"table": 1.0 / (d_table + d_disc)}
                 if "support" in self.frfs:
                     receptance["support"] = 1.0 / d_disc
@@ -641,7 +641,7 @@ class Model:
                 chain["support"] = {"d_disc": -(receptance["support"] ** 2)}
         else:
             d_disc = self.disc_dynamic_stiffness(ctx, values)
-            d_table = self.table_dynamic_stiffness(ctx, values)
+            d_table = table_dynamic_stiffness(ctx.omega, values)
             local = self.local_values(self._coupler, values)
             coupled = self._coupler.couple_derivatives(ctx, local, d_table, d_disc)
             if coupled is None:

@@ -37,7 +37,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.models.base import Context, Model, Parameter, Term, register_term
+from viscorig.frf import accelerance_to_dynamic_stiffness
+from viscorig.models.base import (
+    Context,
+    Model,
+    Parameter,
+    Term,
+    register_term,
+    table_dynamic_stiffness,
+)
 
 #: Reference displacement amplitude of the ``amplitude`` term (m): K* parameters of a model with
 #: that term are the values at this amplitude (10 µm, mid-range of the paper's sweeps).
@@ -121,11 +129,10 @@ def compliance_estimate(
         return None
     if not all(name in values for name in ("M_s", "K_s", "C_s")):
         return None
-    w = ctx.omega
-    z_table = -(w**2) / measured["table"]
-    z_support = -(w**2) / measured["support"]
-    d_table = values["K_s"] - w**2 * values["M_s"] + 1j * w * values["C_s"]
     with np.errstate(all="ignore"):
+        z_table = accelerance_to_dynamic_stiffness(ctx.frequency_hz, measured["table"])
+        z_support = accelerance_to_dynamic_stiffness(ctx.frequency_hz, measured["support"])
+        d_table = table_dynamic_stiffness(ctx.omega, values)
         compliance = (1.0 / (z_table - d_table) - 1.0 / z_support).real
     compliance = compliance[np.isfinite(compliance)]
     if compliance.size < 8:
