@@ -43,7 +43,8 @@ def accelerance_to_dynamic_stiffness(
 ) -> NDArray[np.complex128]:
     """Dynamic stiffness F/X in N/m from accelerance Ẍ/F in m/s²/N."""
     omega = angular_frequency(frequency_hz)
-    return -(omega**2) / np.asarray(accelerance_m_per_s2_per_n, dtype=np.complex128)
+    accelerance = np.asarray(accelerance_m_per_s2_per_n, dtype=np.complex128)
+    return np.divide(-(omega**2), accelerance, dtype=np.complex128)
 
 
 def dynamic_stiffness_to_accelerance(
