@@ -424,3 +424,50 @@ def test_summary_of_a_file_without_rig_runs_says_so_and_where_its_dma_sweeps_go(
     assert main(["summary", str(path)]) == 2
     assert "(its DMA sweeps, eca, make a master curve: see viscorig master)" in \
         capsys.readouterr().err
+
+
+#: RepTate's oscillatory-shear layout: a parameter line, names and units separated by tabs
+#: (``Temp`` twice, a blank unit), numbers aligned with spaces and fewer than the names.
+RHEOMETER_OSC = (
+    "T=40;Mw=100;chem=PI;label=sample 1;\n"
+    "Freq\tG'\tG\"\tTemp\tStrain\tTemp\ttan_delta\n"
+    "rad/s\tPa\tPa\t°C\t%\t°C\t \n"
+    "       31.623       2.9E5          77000         40.02        0.99\n"
+    "           10       2.2E5          92000         40.00        0.99\n"
+    "       3.1623       1.5E5       1.09E5         39.99        1.00\n")
+
+
+def test_rheometer_sweep_with_a_parameter_line_and_aligned_numbers(tmp_path):
+    path = tmp_path / "sample_40C.osc"
+    path.write_bytes(RHEOMETER_OSC.encode("cp1252"))
+    table = read_dma_csv(path)
+    assert table.modulus == "G" and table.points == 3
+    assert table.frequency_hz[1] == pytest.approx(10 / (2 * np.pi))
+    assert table.storage_pa.tolist() == [2.9e5, 2.2e5, 1.5e5]
+    assert table.loss_pa[2] == pytest.approx(1.09e5)
+    assert table.temperature_c.tolist() == [40.02, 40.0, 39.99]
+
+
+def test_the_parameter_lines_temperature_stands_for_a_missing_column(tmp_path):
+    path = tmp_path / "sample.osc"
+    path.write_text("T=-12.5;Mw=100;\nw\tG'\tG''\nrad/s\tkPa\tkPa\n1 10 2\n10 20 5\n")
+    table = read_dma_csv(path)
+    assert table.temperature_c.tolist() == [-12.5, -12.5]
+    assert table.storage_pa.tolist() == [10e3, 20e3]
+    path.write_text("T=warm;Mw=100;\nw\tG'\tG''\nrad/s\tkPa\tkPa\n1 10 2\n10 20 5\n")
+    with pytest.raises(InputError, match=r"sample.osc: parameter line: T='warm' is not a number"):
+        read_dma_csv(path)
+    path.write_text("Mw=100;\nw\tG'\tG''\nrad/s\tkPa\tkPa\n1 10 2\n10 20 5\n")
+    with pytest.raises(InputError, match=r"row 2: no temperature column"):
+        read_dma_csv(path)
+
+
+def test_real_rheometer_sweeps_of_a_polymer_melt():
+    """RepTate's polyisoprene sweeps (tests/data/dma/README.md): 14 names over 11 numbers a row,
+    ``G"`` for the loss modulus, frequencies in rad/s, Windows-1252 degree signs."""
+    name = "PI223k-14_40C_FS_PP10.osc"
+    table = read_dma_csv(real_data("dma", name) / name)
+    assert table.modulus == "G" and table.points == 20
+    assert table.frequency_hz[0] == pytest.approx(31.623 / (2 * np.pi))
+    assert table.storage_pa[0] == pytest.approx(2.9008e5) and table.loss_pa[0] == 77694
+    assert table.temperature_c[0] == pytest.approx(40.021)

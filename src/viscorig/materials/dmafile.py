@@ -7,8 +7,12 @@ Layouts read:
 - units inside the names: ``E' [MPa]``, ``Frequency (Hz)``, ``T/°C``;
 - TA Instruments TRIOS text exports ("Export to LIMS"), told by their first lines, each
   ``[Step]`` one set (:mod:`viscorig.materials.trios` describes the layout);
+- RepTate's oscillatory-shear files (``.osc``): a first line of parameters
+  (``T=40;Mw=225.9;...``; its ``T``, in °C, is the temperature of every row when no column
+  gives one), names and units separated by tabs, numbers aligned with spaces;
 - comma, semicolon or tab between cells; decimal point, or decimal comma with semicolons or
-  tabs; a UTF-8 byte-order mark; ``#`` comment lines before the header.
+  tabs; a UTF-8 byte-order mark; ``#`` comment lines before the header. A row holding none of
+  the header's separators is split at runs of spaces.
 
 Columns are found by their usual names: frequency (``f``, ``freq``, ``frequency``; or angular
 frequency ``omega`` in rad/s), temperature (``T``, ``temp``, ``temperature``), storage and loss
@@ -125,6 +129,24 @@ def _role(name: str) -> str | None:
     return None
 
 
+#: A parameter of RepTate's first line (``T=40;Mw=225.9;chem=PI;``).
+_PARAMETER = re.compile(r"[A-Za-z_][\w.]*=[^=\t]*")
+
+
+def _parameter_line(text: str) -> tuple[str, dict[str, str]]:
+    """The text with a leading parameter line blanked (row numbers are kept), and its pairs."""
+    lines = text.split("\n")
+    first = next((i for i, line in enumerate(lines)
+                  if line.strip() and not line.startswith("#")), None)
+    if first is None:
+        return text, {}
+    items = [item.strip() for item in lines[first].strip().split(";") if item.strip()]
+    if not items or not all(_PARAMETER.fullmatch(item) for item in items):
+        return text, {}
+    lines[first] = ""
+    return "\n".join(lines), dict(item.split("=", 1) for item in items)
+
+
 def _dialect(text: str, where: str) -> tuple[str, bool]:
     """Delimiter and whether numbers use a decimal comma, told from the first lines."""
     lines = [line for line in text.splitlines() if line.strip() and not line.startswith("#")][:5]
@@ -176,15 +198,23 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
         raise InputError("not a text table (holds NUL bytes)", where)
     if is_trios_export(text):
         return _from_trios(text, modulus, where)
+    text, parameters = _parameter_line(text)
     delimiter, decimal_comma = _dialect(text, where)
     try:
-        rows = [(number, row) for number, row in enumerate(
+        rows = [(number, _aligned(row, delimiter)) for number, row in enumerate(
             csv.reader(io.StringIO(text), delimiter=delimiter), start=1)
             if row and any(cell.strip() for cell in row)
             and not row[0].lstrip().startswith("#")]
     except csv.Error as error:
         raise InputError(f"not a readable table ({error})", where) from None
-    return _from_rows(rows, decimal_comma, modulus, where)
+    return _from_rows(rows, decimal_comma, modulus, where, parameters)
+
+
+def _aligned(row: list[str], delimiter: str) -> list[str]:
+    """A row read as one cell holding several space-separated fields, split at the spaces."""
+    if len(row) == 1 and delimiter != " " and len(row[0].split()) > 1:
+        return row[0].split()
+    return row
 
 
 def _from_trios(text: str, modulus: str | None, where: str) -> ModulusTable:
@@ -286,8 +316,10 @@ def read_dma_workbook(path: Path, modulus: str | None = None) -> ModulusTable:
 
 
 def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: str | None,
-               where: str) -> ModulusTable:
-    """The table of parsed rows: names, optionally units, then one row per point."""
+               where: str, parameters: dict[str, str] | None = None) -> ModulusTable:
+    """The table of parsed rows: names, optionally units, then one row per point.
+    ``parameters`` are those of a RepTate parameter line (its ``T`` stands for a missing
+    temperature column)."""
     if not rows:
         raise InputError("no table in the file", where)
     header_row, header = rows[0]
@@ -297,6 +329,8 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
         role = _role(name)
         if role is not None and role not in columns:
             columns[role] = _Column(index, cell.strip(), unit, header_row)
+    columns = _needed(columns)
+    constant_temperature = _parameter_temperature(parameters or {}, columns, header_row, where)
     body = rows[1:]
     if body and _is_units_row(body[0][1], columns, decimal_comma):
         units_row_number, units_row = body[0]
@@ -305,19 +339,50 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
             if column.index < len(units_row) and units_row[column.index].strip() not in ("", "-"):
                 columns[role] = _Column(column.index, column.name,
                                         units_row[column.index].strip(), units_row_number)
+    if constant_temperature is not None:
+        columns["temperature"] = _Column(-1, "T", "°C", constant_temperature[0])
     _require(columns, header_row, where)
     if len(body) > MAX_POINTS:
         raise InputError(f"{len(body)} rows; a DMA table holds at most {MAX_POINTS}", where)
     values = {role: np.empty(len(body)) for role in columns}
     for i, (row_number, row) in enumerate(body):
         for role, column in columns.items():
+            if column.index < 0:
+                continue
             cell = row[column.index] if column.index < len(row) else ""
             try:
                 values[role][i] = parse_number(cell, decimal_comma)
             except ValueError:
                 raise InputError(f"{cell.strip()!r} is not a number",
                                  f"{where}: row {row_number}, column {column.name!r}") from None
+    if constant_temperature is not None:
+        values["temperature"][:] = constant_temperature[1]
     return _table(columns, values, body, modulus, where)
+
+
+def _needed(columns: dict[str, _Column]) -> dict[str, _Column]:
+    """The columns the table is made of: storage and loss when both are there (a ``tan δ`` or
+    ``|E*|`` beside them is not read, and may be left empty), the frequency in Hz before the
+    angular one."""
+    drop = set()
+    if "storage" in columns and "loss" in columns:
+        drop |= {"complex", "tan_delta"}
+    if "frequency" in columns:
+        drop.add("angular")
+    return {role: column for role, column in columns.items() if role not in drop}
+
+
+def _parameter_temperature(parameters: dict[str, str], columns: dict[str, _Column],
+                           header_row: int, where: str) -> tuple[int, float] | None:
+    """RepTate's ``T`` (°C) as ``(row, value)`` where no column gives the temperature."""
+    if "temperature" in columns or "T" not in parameters:
+        return None
+    try:
+        value = float(parameters["T"])
+    except ValueError:
+        raise InputError(f"T={parameters['T']!r} is not a number",
+                         f"{where}: parameter line") from None
+    return max(header_row - 1, 1), value
 
 
 def _is_units_row(row: list[str], columns: dict[str, _Column], decimal_comma: bool) -> bool:
