@@ -40,12 +40,18 @@ def modulus(frequency_hz, temperature_c, scale: float = 1.0) -> np.ndarray:
 
 
 def dma_sweep(temperatures_c, frequencies_hz, storage_noise: float = 0.01,
-              loss_noise: float = 0.02, seed: int = 0) -> dict[str, np.ndarray]:
-    """A DMA-like sweep: every frequency at every temperature, multiplicative noise."""
+              loss_noise: float = 0.02, seed: int = 0,
+              entropic: bool = False) -> dict[str, np.ndarray]:
+    """A DMA-like sweep: every frequency at every temperature, multiplicative noise.
+
+    ``entropic`` multiplies the modulus by ``T/T_ref`` (kelvin), as a rubber network's grows
+    with absolute temperature."""
     rng = np.random.default_rng(seed)
     f, t = np.meshgrid(np.asarray(frequencies_hz, float), np.asarray(temperatures_c, float))
     f, t = f.ravel(), t.ravel()
     value = modulus(f, t)
+    if entropic:
+        value = value * (t + 273.15) / (REFERENCE_C + 273.15)
     storage = value.real * np.exp(storage_noise * rng.standard_normal(f.size))
     loss = value.imag * np.exp(loss_noise * rng.standard_normal(f.size))
     sets = np.repeat(np.arange(len(temperatures_c)), len(frequencies_hz))

@@ -242,3 +242,25 @@ def test_lsdyna_card_holds_the_best_series_its_six_cards_allow(campaign, tmp_pat
     master = [int(v) for v in re.findall(r"Prony series: (\d+) terms", text)]
     assert master and master[0] > 5
     assert card[0] < 0.3 and card[1] < 0.7
+
+
+def test_a_card_from_reduced_moduli_states_its_error_against_the_measured_ones(tmp_path, capsys):
+    """With --vertical-shift ferry the card (which holds no vertical factor) is read back and
+    compared with the measured moduli: the error it states is that one, and it says why."""
+    path = tmp_path / "entropic.h5"
+    data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=8, entropic=True)
+    import_dma(path, "rubber", ModulusTable(**data, source="entropic.csv"))
+    out = tmp_path / "card.inp"
+    assert main(["export", str(path), "--run", "rubber", "--material", "abaqus", "--out",
+                 str(out), "--poisson-ratio", str(POISSON), "--reference-temperature", "20",
+                 "--vertical-shift", "ferry"]) == 0
+    capsys.readouterr()
+    text = out.read_text()
+    young, _ = _abaqus(text)
+    storage, loss = _rms(young(data["frequency_hz"], data["temperature_c"]), data)
+    stated = _stated(text)
+    assert storage == pytest.approx(stated[0], abs=2e-3)
+    assert loss == pytest.approx(stated[1], abs=2e-3)
+    assert "this card carries no vertical shift" in text
+    # the T/T_ref the card leaves out is in that error: 0.082 in ln at -30 °C, 0.15 at 70 °C
+    assert storage > 0.04

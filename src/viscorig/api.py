@@ -135,9 +135,11 @@ class Campaign:
         return Fit(self[run], result)
 
     def master(self, *runs: str, reference_temperature_c: float | None = None,
-               disc_mass_kg: float | None = None, kstar: str = "support"):
+               disc_mass_kg: float | None = None, kstar: str = "support",
+               vertical: str = "none"):
         """The master curve of a DMA run, or of rig runs of one specimen at several temperatures
         (as ``viscorig master``): shift factors with ±, WLF and Arrhenius, checks, Prony series.
+        ``vertical="ferry"`` reduces the moduli by ``b_T = T_ref/T`` first.
 
         Returns a :class:`viscorig.materials.master.MasterCurve`; ``.to_json()`` is the object
         ``master --json`` prints, ``.text()`` what it prints without ``--json``.
@@ -146,7 +148,7 @@ class Campaign:
                                                       else group)]
         with np.errstate(all="ignore"):
             return master_curve(self.stored, names, reference_temperature_c, disc_mass_kg,
-                                kstar)
+                                kstar, vertical)
 
     def diagnose(self, run: str, model: str | None = None, *, auto: bool = False,
                  band_hz: tuple[float, float] | None = _DEFAULT_BAND,

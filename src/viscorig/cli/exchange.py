@@ -82,6 +82,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("--kstar", choices=("support", "fit"), default="support",
                         help="with --material and rig runs: K* from the support FRF (Eq. 5) "
                         "or from the newest stored fit")
+    export.add_argument("--vertical-shift", choices=("none", "ferry"), default="none",
+                        help="with --material: as 'viscorig master --vertical-shift'")
     export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
     export.add_argument("--uff-ascii", action="store_true",
                         help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "
@@ -150,7 +152,7 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
     from viscorig.materials.fecards import card_error, write_card
 
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
-                       args.kstar)
+                       args.kstar, args.vertical_shift)
     name = "VISCORIG_" + "_".join(args.run).upper().replace("-", "_").replace(".", "_")
     series = write_card(master, args.material, out, name[:80], args.poisson_ratio)
     # what the card holds: LS-DYNA's six cards take a refitted, shorter series

@@ -18,7 +18,7 @@ import argparse
 from viscorig import jsontext
 from viscorig.cli import summary_of
 from viscorig.cli.arguments import positive_number
-from viscorig.materials.master import MasterCurve
+from viscorig.materials.master import VERTICAL_SHIFTS, MasterCurve
 from viscorig.materials.sources import master_curve
 from viscorig.storage import CampaignFile
 
@@ -39,20 +39,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--kstar", choices=("support", "fit"), default="support",
                         help="rig runs: K* from the support FRF by Eq. 5 (default) or from "
                         "the newest stored fit of a specimen model")
+    add_vertical_shift(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=handler)
 
 
+def add_vertical_shift(parser: argparse.ArgumentParser) -> None:
+    """The ``--vertical-shift`` option (``master`` and ``export --material``)."""
+    parser.add_argument("--vertical-shift", choices=VERTICAL_SHIFTS, default="none",
+                        help="ferry: reduce the moduli by b_T = T_ref/T (kelvin) before "
+                        "shifting, as an entropic network's modulus grows with absolute "
+                        "temperature (rubbery plateau, melts); default none")
+
+
 def master_of(path: str, runs: list[str], reference_c: float | None = None,
-              disc_mass_kg: float | None = None, kstar_source: str = "support") -> MasterCurve:
+              disc_mass_kg: float | None = None, kstar_source: str = "support",
+              vertical: str = "none") -> MasterCurve:
     """The master curve of named runs of a campaign file."""
-    return master_curve(CampaignFile.open(path), runs, reference_c, disc_mass_kg, kstar_source)
+    return master_curve(CampaignFile.open(path), runs, reference_c, disc_mass_kg, kstar_source,
+                        vertical)
 
 
 def handler(args: argparse.Namespace) -> int:
     """Run ``master``."""
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
-                       args.kstar)
+                       args.kstar, args.vertical_shift)
     if args.json:
         print(jsontext.dumps(master.to_json()))
         return 0

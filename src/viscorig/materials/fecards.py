@@ -127,8 +127,10 @@ def card_error(master: MasterCurve, series: PronySeries,
                shifted: bool = True) -> tuple[float, float]:
     """Rms ``ln(card/measured)`` of E' and E'' over every point, as the card reproduces them:
     the series shifted by the shift function (the measured shift factors where none was
-    fitted), or not shifted at all where the card holds no shift (``shifted=False``)."""
+    fitted), or not shifted at all where the card holds no shift (``shifted=False``). A card
+    carries no vertical shift: the moduli compared are those measured, not reduced."""
     table = master.table
+    scale = master.measured_scale()
     if not shifted:
         reduced = table.frequency_hz
     elif master.shift_function is None:
@@ -136,8 +138,8 @@ def card_error(master: MasterCurve, series: PronySeries,
     else:
         reduced = table.frequency_hz * 10.0 ** master.shift_function(table.temperature_c)
     value = series.complex_modulus(2 * np.pi * reduced)
-    return (float(np.sqrt(np.mean(np.log(value.real / table.storage_pa) ** 2))),
-            float(np.sqrt(np.mean(np.log(value.imag / table.loss_pa) ** 2))))
+    return (float(np.sqrt(np.mean(np.log(value.real / (table.storage_pa * scale)) ** 2))),
+            float(np.sqrt(np.mean(np.log(value.imag / (table.loss_pa * scale)) ** 2))))
 
 
 def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str,
@@ -171,6 +173,11 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
                                      *card_error(master, series, shifted)),
         f"Poisson's ratio {poisson} assumed constant (shear and bulk share the relative series)",
     ]
+    if master.vertical == "ferry":
+        lines.append("vertical shift: the moduli were reduced by bT = Tref/T (kelvin) before "
+                     "fitting; this card carries no vertical shift, so at T it gives the modulus "
+                     "at Tref of the shifted frequency (the measured one is T/Tref times it; "
+                     "the rms ln(card/measured) above includes that)")
     if note:
         lines.append(note)
     lines += [f"convention: {line}" for line in conventions]

@@ -1,6 +1,14 @@
 """The master curve of a material: shift factors, shift functions, Prony and fractional models,
 and the checks of superposition and Kramers-Kronig consistency, as one result.
 
+Vertical shift: with ``vertical="ferry"`` the moduli are first reduced by Ferry's factor
+``b_T = T_ref/T`` (absolute temperatures, the density taken as constant): an entropic network's
+modulus is proportional to absolute temperature, so sweeps of a rubbery or melt plateau at
+different temperatures differ by ``T/T_ref`` besides their shift along the frequency axis.
+Ignored, that factor is taken up by the horizontal shifts wherever a modulus is flat. The
+master curve, its series and its checks are then those of the reduced moduli
+``E_p = E · T_ref/T``; the modulus at temperature ``T`` is ``E_p(f·aT) · T/T_ref``.
+
 :func:`build_master` is what ``viscorig master`` and ``open_campaign(...).master(...)`` call;
 :meth:`MasterCurve.to_json` is the JSON contract of ``master --json`` (design.md).
 """
@@ -9,7 +17,7 @@ from __future__ import annotations
 
 import html
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +50,11 @@ from viscorig.numbers import with_uncertainty
 #: Without a shift function, a set within this many kelvin of the reference temperature asked
 #: for is taken as the reference itself (with one, the shifts are moved to it exactly).
 SAME_TEMPERATURE_K = 0.5
+#: Vertical shifts: none, or Ferry's ``b_T = T_ref/T`` (see the module text).
+VERTICAL_SHIFTS = ("none", "ferry")
+#: The other vertical shift is suggested where its scatter about the master curve (storage and
+#: loss together) is below this fraction of the one chosen.
+VERTICAL_EVIDENCE = 0.8
 
 
 @dataclass(frozen=True)
@@ -78,6 +91,13 @@ class MasterCurve:
     left_out
         The points of the data whose storage or loss modulus is not a positive number
         (:meth:`ModulusTable.unusable_points`); ``table`` holds the others.
+    vertical
+        ``"none"``, or ``"ferry"``: ``table`` then holds the reduced moduli ``E · T_ref/T``
+        (:meth:`set_log10_bt`, :meth:`measured_scale`).
+    alternative_scatter
+        The scatter of ``ln E'`` and ``ln E''`` about the master curve the other vertical
+        shift gives (``None`` where its sweeps do not superpose): the evidence for the choice
+        (:meth:`vertical_verdict`).
     """
 
     table: ModulusTable
@@ -99,6 +119,37 @@ class MasterCurve:
     shifts: ShiftFactors
     jointly_refined: bool = False
     left_out: tuple[dict, ...] = ()
+    vertical: str = "none"
+    alternative_scatter: tuple[float, float] | None = None
+
+    def vertical_verdict(self) -> str:
+        """Whether the data superpose better with the other vertical shift, in one sentence."""
+        other = self.alternative_scatter
+        this = (self.shifts.storage_scatter, self.shifts.loss_scatter)
+        if other is None:
+            return ""
+        better = math.hypot(*other) < VERTICAL_EVIDENCE * math.hypot(*this)
+        if self.vertical == "none":
+            if not better:
+                return ""
+            return (f"vertical shift: reduced by b_T = T_ref/T (Ferry), the sweeps superpose "
+                    f"with rms ln {other[0]:.3f}, {other[1]:.3f} instead of {this[0]:.3f}, "
+                    f"{this[1]:.3f}: try --vertical-shift ferry")
+        return (f"vertical shift b_T = T_ref/T: rms ln {this[0]:.3f}, {this[1]:.3f} about the "
+                f"master curve, {other[0]:.3f}, {other[1]:.3f} without"
+                + (" (the data superpose better without: --vertical-shift none)" if better
+                   else ""))
+
+    def set_log10_bt(self) -> NDArray[np.float64]:
+        """``log10 b_T`` of each set (zeros without a vertical shift)."""
+        if self.vertical != "ferry":
+            return np.zeros(self.temperature_c.size)
+        return np.log10((self.reference_temperature_c + 273.15) / (self.temperature_c + 273.15))
+
+    def measured_scale(self) -> NDArray[np.float64]:
+        """The factor ``1/b_T`` of each point of ``table`` back to the moduli measured."""
+        return (self.table.temperature_c + 273.15) / (self.reference_temperature_c + 273.15) if (
+            self.vertical == "ferry") else np.ones(self.table.points)
 
     def log10_at_of(self, temperature_c: float) -> float:
         """``log10 aT`` at any temperature from the shift function (NaN without one)."""
@@ -127,9 +178,13 @@ class MasterCurve:
                  f"{master.temperature_c.size} temperatures, modulus {m}, reference "
                  f"{master.reference_temperature_c:.2f} °C",
                  "shift factors (reduced frequency f·aT):"]
-        for t, a, e in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
-                           strict=True):
-            lines.append(f"  {t:8.2f} °C   log10 aT = {with_uncertainty(a, e, signed=True)}")
+        if master.vertical == "ferry":
+            lines[-1] = ("shift factors (reduced frequency f·aT; moduli reduced by "
+                         "b_T = T_ref/T, Ferry's vertical factor):")
+        for t, a, e, b in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
+                              master.set_log10_bt(), strict=True):
+            line = f"  {t:8.2f} °C   log10 aT = {with_uncertainty(a, e, signed=True)}"
+            lines.append(line + (f"   log10 bT = {b:+.4f}" if master.vertical == "ferry" else ""))
         chosen = master.shift_function
         for function in master.shift_functions:
             data = function.to_json()
@@ -153,6 +208,8 @@ class MasterCurve:
             lines.append(f"left out: {len(master.left_out)} point(s) whose modulus is not "
                          f"a positive number: {named}{more}")
         lines.append(master.superposition.verdict)
+        if master.vertical_verdict():
+            lines.append(master.vertical_verdict())
         flagged = master.flagged_points()
         if flagged:
             named = "; ".join(f"{p['modulus']} at {p['temperature_c']:.1f} °C, "
@@ -201,9 +258,18 @@ class MasterCurve:
                              "the Prony series" if self.jointly_refined
                              else "spline master curve of both moduli"),
             "shift_factors": [
-                {"temperature_c": float(t), "log10_aT": float(a), "log10_aT_stderr": float(e)}
-                for t, a, e in zip(self.temperature_c, self.log10_at, self.log10_at_stderr,
-                                   strict=True)],
+                {"temperature_c": float(t), "log10_aT": float(a), "log10_aT_stderr": float(e),
+                 "log10_bT": float(b)}
+                for t, a, e, b in zip(self.temperature_c, self.log10_at, self.log10_at_stderr,
+                                      self.set_log10_bt(), strict=True)],
+            "vertical_shift": {
+                "kind": self.vertical,
+                "other_storage_scatter": (None if self.alternative_scatter is None
+                                          else self.alternative_scatter[0]),
+                "other_loss_scatter": (None if self.alternative_scatter is None
+                                       else self.alternative_scatter[1]),
+                "verdict": self.vertical_verdict(),
+            },
             "shift_function": (best.to_json() if best is not None
                                else {"kind": "none", "parameters": {}}),
             "shift_functions": [f.to_json() for f in self.shift_functions],
@@ -288,7 +354,7 @@ def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int
 
 def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
                  reference_temperature_c: float | None = None, *,
-                 systematic: ModulusTable | None = None) -> MasterCurve:
+                 systematic: ModulusTable | None = None, vertical: str = "none") -> MasterCurve:
     """Build the master curve of ``table`` (see the module text).
 
     Parameters
@@ -304,6 +370,9 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     systematic
         The same points one standard error of a quantity they share off (the rig's disc mass):
         the change of the shifts it makes is added to their covariance, common to all.
+    vertical
+        ``"none"`` or ``"ferry"``: the moduli reduced by ``b_T = T_ref/T`` first (see the
+        module text).
 
     Raises
     ------
@@ -314,7 +383,7 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        return _build(table, runs, reference_temperature_c, systematic)
+        return _build(table, runs, reference_temperature_c, systematic, vertical)
 
 
 def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
@@ -388,8 +457,31 @@ def _check_rate(shifts: ShiftFactors, member: NDArray[np.int64], where: str) -> 
         "overlap at temperatures further apart", where)
 
 
+def _scaled(table: ModulusTable, factor: NDArray[np.float64] | float) -> ModulusTable:
+    """The table with both moduli times ``factor`` (one number, or one per point)."""
+    return replace(table, storage_pa=table.storage_pa * factor, loss_pa=table.loss_pa * factor)
+
+
+def _reduced(table: ModulusTable, reference_c: float) -> ModulusTable:
+    """The moduli reduced by Ferry's ``b_T = T_ref/T``."""
+    return _scaled(table, (reference_c + 273.15) / (table.temperature_c + 273.15))
+
+
+def _alternative_scatter(table: ModulusTable, reference_set: int) -> tuple[float, float] | None:
+    """The scatter of ``ln E'`` and ``ln E''`` about the master curve of the other vertical
+    shift's moduli (``table``), or ``None`` where those do not superpose."""
+    try:
+        other = estimate_shift_factors(table, reference_set=reference_set)
+    except InputError:
+        return None
+    return other.storage_scatter, other.loss_scatter
+
+
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
-           systematic: ModulusTable | None = None) -> MasterCurve:
+           systematic: ModulusTable | None = None, vertical: str = "none") -> MasterCurve:
+    if vertical not in VERTICAL_SHIFTS:
+        raise InputError(f"{vertical!r} is not a vertical shift ({', '.join(VERTICAL_SHIFTS)})",
+                         "--vertical-shift")
     table.check(table.source or "modulus table")
     left_out = tuple(table.unusable_points())
     if left_out:
@@ -401,7 +493,15 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     temperatures = np.sort(table.set_temperatures_c())
     sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
     anchor = _anchor(temperatures, reference_temperature_c)
+    reduced_at = (float(temperatures[anchor]) if reference_temperature_c is None
+                  else float(reference_temperature_c))
+    other = _reduced(table, reduced_at) if vertical == "none" else table
+    if vertical == "ferry":
+        table = _reduced(table, reduced_at)
+        if systematic is not None:
+            systematic = _reduced(systematic, reduced_at)
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
+    alternative = _alternative_scatter(other, int(sets_sorted[anchor]))
     anchor_c = float(shifts.temperature_c[shifts.reference])
     scatter = (shifts.storage_scatter, shifts.loss_scatter)
     position = {s: i for i, s in enumerate(shifts.sets.tolist())}
@@ -455,6 +555,12 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
                             prony.tau_s * 10.0**offset)
     else:
         reference_c = anchor_c
+    if vertical == "ferry" and reference_c != reduced_at:
+        # reduced at the temperature asked for, the reference is the set's own: b_T with it
+        factor = (reference_c + 273.15) / (reduced_at + 273.15)
+        table = _scaled(table, factor)
+        prony = PronySeries(prony.long_term_modulus_pa * factor, prony.moduli_pa * factor,
+                            prony.tau_s)
     best = best_shift_function(fitted)
     reduced = table.frequency_hz * 10.0 ** (log10_at[member] + shifts.point_offset)
     omega = 2 * np.pi * reduced
@@ -467,5 +573,6 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         fractional_fit=fractional_fit, superposition=check_superposition(table),
         kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
                                             sweep_scatter),
-        shifts=shifts, jointly_refined=refined, left_out=left_out,
+        shifts=shifts, jointly_refined=refined, left_out=left_out, vertical=vertical,
+        alternative_scatter=alternative,
     )

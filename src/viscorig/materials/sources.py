@@ -20,9 +20,10 @@ from viscorig.storage import CampaignFile
 
 def master_curve(campaign: CampaignFile, runs: list[str], reference_temperature_c: float | None
                  = None, disc_mass_kg: float | None = None,
-                 kstar_source: str = "support") -> MasterCurve:
+                 kstar_source: str = "support", vertical: str = "none") -> MasterCurve:
     """The master curve of the named runs (``viscorig master``), with the identified disc
-    mass's error in the shifts' (see the module text).
+    mass's error in the shifts' (see the module text); ``vertical`` as
+    :func:`~viscorig.materials.master.build_master` takes it.
 
     Raises
     ------
@@ -32,7 +33,8 @@ def master_curve(campaign: CampaignFile, runs: list[str], reference_temperature_
         :func:`~viscorig.materials.master.build_master`.
     """
     table, perturbed = _tables(campaign, runs, disc_mass_kg, kstar_source)
-    return build_master(table, tuple(runs), reference_temperature_c, systematic=perturbed)
+    return build_master(table, tuple(runs), reference_temperature_c, systematic=perturbed,
+                        vertical=vertical)
 
 
 def _tables(campaign: CampaignFile, runs: list[str], disc_mass_kg: float | None,
