@@ -471,3 +471,29 @@ def test_real_rheometer_sweeps_of_a_polymer_melt():
     assert table.frequency_hz[0] == pytest.approx(31.623 / (2 * np.pi))
     assert table.storage_pa[0] == pytest.approx(2.9008e5) and table.loss_pa[0] == 77694
     assert table.temperature_c[0] == pytest.approx(40.021)
+
+
+def test_sweeps_saved_one_file_per_temperature_make_one_material_by_their_specimen(
+        tmp_path, capsys):
+    from viscorig.report.materials import candidate_groups
+
+    data = dma_sweep(np.array([0.0, 20.0, 40.0]), np.logspace(-1, 2, 6))
+    path = tmp_path / "lab.h5"
+    for k, temperature in enumerate((0, 20, 40)):
+        rows = ["f,E_stor,E_loss,T", "Hz,MPa,MPa,C"]
+        rows += [f"{f:.17g},{e1 / 1e6:.17g},{e2 / 1e6:.17g},{t:.17g}" for f, e1, e2, t, s in zip(
+            data["frequency_hz"], data["storage_pa"], data["loss_pa"], data["temperature_c"],
+            data["set_index"], strict=True) if s == k]
+        sweep = tmp_path / f"sweep_{temperature}.csv"
+        sweep.write_text("\n".join(rows) + "\n")
+        options = [] if temperature == 40 else ["--specimen", "eca-1"]
+        assert main(["import", str(path), "--run", f"t{temperature}", "--dma", str(sweep),
+                     *options]) == 0
+    capsys.readouterr()
+    campaign = CampaignFile.open(path)
+    assert sorted(candidate_groups(campaign)) == [("t0", "t20"), ("t40",)]
+    assert main(["show", str(path)]) == 0
+    shown = capsys.readouterr().out
+    assert re.search(r"t0 .* G?E?\s+eca-1 ", shown) and re.search(r"t40 .* -\s+sweep_40", shown)
+    assert main(["master", str(path), "--run", "t40"]) == 2
+    assert "--run A --run B" in capsys.readouterr().err

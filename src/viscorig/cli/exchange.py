@@ -113,7 +113,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                          help="station file: its [channels] and [sensitivity] convert "
                          "volt-over-volt SDF responses and say which FRF is which")
     imports.add_argument("--specimen", default="unknown",
-                         help="specimen name; 'none' for a bare-table run (default: unknown)")
+                         help="specimen name; 'none' for a bare-table run (default: unknown); "
+                         "with --dma, the DMA runs of one specimen make one master curve in "
+                         "the report")
     imports.add_argument("--hardness", type=float, default=math.nan, help="Shore A hardness")
     imports.add_argument("--preload-strain", type=float, default=0.0,
                          help="static strain of the specimens (0.104 for 10 %%; default 0)")
@@ -178,7 +180,8 @@ def import_handler(args: argparse.Namespace) -> int:
                          "their units", "--station")
     if args.dma:
         table = read_dma_file(Path(args.dma), args.modulus)
-        points = import_dma(Path(args.file), args.run, table)
+        specimen = None if args.specimen == "unknown" else args.specimen
+        points = import_dma(Path(args.file), args.run, table, specimen)
         print(f"{args.file}: DMA run {args.run} imported from {table.source}: {points} points, "
               f"{table.sets.size} temperature{'s' if table.sets.size != 1 else ''}, "
               f"modulus {table.modulus}")

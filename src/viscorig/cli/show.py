@@ -21,7 +21,7 @@ from viscorig import jsontext
 from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
-from viscorig.materials.dmastore import dma_run_names, read_dma
+from viscorig.materials.dmastore import dma_run_names, dma_specimen, read_dma
 from viscorig.numbers import with_uncertainty
 from viscorig.storage import (
     FLAG_NAMES,
@@ -169,11 +169,11 @@ def listing(path: Path) -> tuple[list[str], list[str]]:
         lines.extend(table(rows))
     if dma:
         lines.extend(["", *table([["DMA run", "points", "temperatures", "°C", "Hz", "modulus",
-                                   "source"]] + [
+                                   "specimen", "source"]] + [
             [d["name"], str(d["points"]), str(d["temperatures"]),
              f"{d['temperature_c'][0]:.1f}..{d['temperature_c'][1]:.1f}",
              f"{d['frequency_hz'][0]:.3g}..{d['frequency_hz'][1]:.3g}", d["modulus"],
-             d["source"]] for d in dma])])
+             d["specimen"] or "-", d["source"]] for d in dma])])
     if plans:
         lines.extend(["", *plans])
     if fits:
@@ -278,6 +278,7 @@ def dma_runs(campaign: CampaignFile, problems: list[str]) -> list[dict[str, Any]
     for name in names:
         try:
             table_ = read_dma(campaign, name)
+            specimen = dma_specimen(campaign, name)
         except InputError as error:
             problems.append(str(error))
             continue
@@ -287,7 +288,7 @@ def dma_runs(campaign: CampaignFile, problems: list[str]) -> list[dict[str, Any]
                                       float(table_.temperature_c.max())],
                     "frequency_hz": [float(table_.frequency_hz.min()),
                                      float(table_.frequency_hz.max())],
-                    "modulus": table_.modulus, "source": table_.source})
+                    "modulus": table_.modulus, "specimen": specimen, "source": table_.source})
     return out
 
 

@@ -37,8 +37,11 @@ COLUMNS = {
 TEMPERATURE_UNITS = {"degC", "°C", "C", "celsius"}
 
 
-def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
-    """Store ``table`` as DMA run ``name`` (the campaign file is created when missing).
+def import_dma(campaign_path: Path, name: str, table: ModulusTable,
+               specimen: str | None = None) -> int:
+    """Store ``table`` as DMA run ``name`` (the campaign file is created when missing), with
+    the name of its ``specimen`` when given (the DMA runs of one specimen, one per temperature,
+    make one master curve in the report).
 
     Returns
     -------
@@ -62,10 +65,22 @@ def import_dma(campaign_path: Path, name: str, table: ModulusTable) -> int:
         run.attrs.update({"kind": "dma", "modulus": table.modulus,
                           "source": table.source[:200], "created": utc_now(),
                           "points": np.int64(table.points)})
+        if specimen is not None:
+            run.attrs["specimen"] = specimen[:200]
         for dataset, (attribute, units, dtype) in COLUMNS.items():
             values = np.asarray(getattr(table, attribute), dtype=dtype)
             run.create_dataset(dataset, data=values).attrs["units"] = units
     return table.points
+
+
+def dma_specimen(campaign: CampaignFile, name: str) -> str | None:
+    """The specimen DMA run ``name`` was imported for, or ``None`` where none was named."""
+    path = campaign.path
+    with campaign.reading() as h5, reading.guarded(path, f"/{layout.DMA_GROUP}/{name}"):
+        run = h5[layout.DMA_GROUP][name]
+        if not isinstance(run, h5py.Group) or "specimen" not in run.attrs:
+            return None
+        return str(reading.text_attribute(run, "specimen", path))
 
 
 def dma_run_names(campaign: CampaignFile) -> list[str]:

@@ -365,9 +365,10 @@ def estimate_shift_factors(
     where = table.source or "modulus table"
     if sets.size < 2:
         raise InputError("one temperature only; a master curve needs isothermal sweeps at two "
-                         "or more (a curve already shifted to one reference temperature, as a "
-                         "DMA program's master export is, cannot be shifted again: import the "
-                         "raw sweeps)", where)
+                         "or more (sweeps saved one file per temperature: import each with one "
+                         "--specimen and give them all, --run A --run B; a curve already "
+                         "shifted to one reference temperature, as a DMA program's master export "
+                         "is, cannot be shifted again: import the raw sweeps)", where)
     counts = np.array([(table.set_index == s).sum() for s in sets])
     if counts.min() < 2:
         bad = float(temperatures[int(np.argmin(counts))])

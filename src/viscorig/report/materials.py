@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from viscorig.errors import InputError
-from viscorig.materials.dmastore import dma_run_names
+from viscorig.materials.dmastore import dma_run_names, dma_specimen
 from viscorig.materials.master import MasterCurve
 from viscorig.materials.shift import temperature_groups
 from viscorig.materials.sources import master_curve
@@ -69,12 +69,21 @@ def _one_level_per_temperature(
 
 
 def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
-    """Each DMA run alone; rig runs of one specimen and preload at two or more temperatures.
+    """Each DMA run alone, or with the other DMA runs of its specimen (imported with
+    ``--specimen``); rig runs of one specimen and preload at two or more temperatures.
 
     At a temperature where the specimen was run at several vibration levels (strain steps, which
     measure the amplitude dependence, not the temperature's), only the runs at the level nearest
     the group's most common one join: a master curve holds one amplitude per temperature."""
-    groups: list[tuple[str, ...]] = [(name,) for name in dma_run_names(campaign)]
+    groups: list[tuple[str, ...]] = []
+    dma_by_specimen: dict[str, list[str]] = {}
+    for name in dma_run_names(campaign):
+        specimen = dma_specimen(campaign, name)
+        if specimen is None:
+            groups.append((name,))
+        else:
+            dma_by_specimen.setdefault(specimen, []).append(name)
+    groups += [tuple(names) for names in dma_by_specimen.values()]
     by_specimen: dict[tuple[str, float], list[tuple[float, float, str]]] = {}
     for name in campaign.run_names:
         attributes = campaign.run_attributes(name)
@@ -204,6 +213,9 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
         words = [f"{master.temperature_c.size} temperatures, reference "
                  f"{master.reference_temperature_c:.1f} °C.",
                  master.superposition.verdict[0].upper() + master.superposition.verdict[1:] + "."]
+        if master.vertical_verdict():
+            words.append(master.vertical_verdict()[0].upper() + master.vertical_verdict()[1:]
+                         + " (viscorig master).")
         if best is not None:
             values = best.parameters_text()
             fits = "describes" if best.to_json()["describes_shifts"] else "does not describe"
