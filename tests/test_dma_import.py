@@ -497,3 +497,69 @@ def test_sweeps_saved_one_file_per_temperature_make_one_material_by_their_specim
     assert re.search(r"t0 .* G?E?\s+eca-1 ", shown) and re.search(r"t40 .* -\s+sweep_40", shown)
     assert main(["master", str(path), "--run", "t40"]) == 2
     assert "--run A --run B" in capsys.readouterr().err
+
+
+def _trios_step_export(data, temperatures, frequencies, separator: str) -> str:
+    """TRIOS's export of every step to text (tabs) or CSV (commas), as public exports show it:
+    name/value header lines, then per step ``[step]``, its name, a names row, a units row and
+    the points, a blank line after each. A peak hold and an amplitude sweep at one frequency
+    stand between the frequency sweeps, as a procedure's other steps do."""
+    j = separator.join
+    lines = [j(["Filename", "generated"]), j(["Instrument name", "RSA-G2"]), "[File Parameters]",
+             j(["Trios version", "5.1.0.46403"]), "[step]", "Peak hold - 1",
+             j(["Stress", "Shear rate", "Temperature"]), j(["Pa", "1/s", "°C"]),
+             j(["0.0", "1e-3", "20.0"]), j(["0.1", "2e-3", "20.0"]), ""]
+    size = len(frequencies)
+    for k, temperature in enumerate(temperatures):
+        lines += ["[step]", f"Frequency sweep - {k + 2}",
+                  j(["Storage modulus", "Loss modulus", "Tan(delta)", "Angular frequency",
+                     "Temperature", "Step time"]), j(["MPa", "MPa", "", "rad/s", "°C", "s"])]
+        for i in range(k * size, (k + 1) * size):
+            f, e1, e2 = data["frequency_hz"][i], data["storage_pa"][i], data["loss_pa"][i]
+            lines.append(j([f"{e1 / 1e6:.17g}", f"{e2 / 1e6:.17g}", f"{e2 / e1:.17g}",
+                            f"{2 * np.pi * f:.17g}", f"{temperature:.2f}", f"{i:.1f}"]))
+        lines.append("")
+        if k == 1:
+            lines += ["[step]", "Amplitude sweep - 9", j(["Storage modulus", "Loss modulus",
+                      "Frequency", "Temperature"]), j(["Pa", "Pa", "Hz", "°C"]),
+                      j(["13.9", "10.2", "1.0", "20.0"]), j(["14.5", "7.6", "1.0", "20.0"]), ""]
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize(("separator", "suffix"), [("\t", ".txt"), (",", ".csv")])
+def test_trios_export_of_every_step_reads_its_frequency_sweeps(tmp_path, separator, suffix):
+    temperatures, frequencies = np.array([-10.0, 10.0, 30.0]), np.logspace(-1, 1, 5)
+    data = dma_sweep(temperatures, frequencies, seed=9)
+    path = tmp_path / f"export{suffix}"
+    path.write_text(_trios_step_export(data, temperatures, frequencies, separator),
+                    encoding="utf-8")
+    table = read_dma_csv(path)
+    assert table.points == 15 and table.sets.size == 3
+    assert np.allclose(table.frequency_hz, data["frequency_hz"])
+    assert np.allclose(table.storage_pa, data["storage_pa"])
+    assert table.set_temperatures_c().tolist() == [-10.0, 10.0, 30.0]
+
+
+def test_trios_export_without_a_frequency_sweep_names_its_steps(tmp_path):
+    path = tmp_path / "export.txt"
+    text = _trios_step_export(dma_sweep([20.0], [1.0, 2.0]), [20.0], [1.0, 2.0], "\t")
+    path.write_text(text.replace("Angular frequency", "Oscillation strain"), encoding="utf-8")
+    with pytest.raises(InputError, match=r"no frequency sweep among the export's steps "
+                       r"\(Peak hold - 1, Frequency sweep - 2\)"):
+        read_dma_csv(path)
+    path.write_text("Filename\tx\n[step]\nPeak hold - 1\n\n1\t2\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"row 4: a \[step\] without its name, column names"):
+        read_dma_csv(path)
+
+
+REAL_TRIOS_STEPS = ("sample_Trios_1.txt", "sample_Trios_2.csv")
+
+
+@pytest.mark.parametrize("name", REAL_TRIOS_STEPS)
+def test_real_trios_exports_of_flow_and_amplitude_steps_are_told_apart(name):
+    """Two real TRIOS exports of every step (tests/data/dma/README.md): flow curves, peak holds,
+    time and amplitude sweeps of a Carbopol gel, no frequency sweep among them."""
+    path = real_data("dma", name) / name
+    with pytest.raises(InputError, match=r"no frequency sweep among the export's steps "
+                       r"\(Peak hold - 1, .*(Time|Peak) .* and \d+ more\)"):
+        read_dma_csv(path)

@@ -5,8 +5,9 @@ Layouts read:
 - one row of column names, then one row of units (the layout pyvisco reads:
   ``f,E_stor,E_loss,T,Set`` / ``Hz,MPa,MPa,C,-``);
 - units inside the names: ``E' [MPa]``, ``Frequency (Hz)``, ``T/°C``;
-- TA Instruments TRIOS text exports ("Export to LIMS"), told by their first lines, each
-  ``[Step]`` one set (:mod:`viscorig.materials.trios` describes the layout);
+- TA Instruments TRIOS text exports ("Export to LIMS", and the export of every step to text
+  or CSV), told by their first lines, each frequency sweep step one set
+  (:mod:`viscorig.materials.trios` describes the layouts);
 - RepTate's oscillatory-shear files (``.osc``): a first line of parameters
   (``T=40;Mw=225.9;...``; its ``T``, in °C, is the temperature of every row when no column
   gives one), names and units separated by tabs, numbers aligned with spaces;
@@ -59,7 +60,13 @@ from viscorig.exchange.units import (
     normalised,
 )
 from viscorig.materials.table import TEMPERATURE_RANGE_C, ModulusTable
-from viscorig.materials.trios import is_trios_export, trios_steps
+from viscorig.materials.trios import (
+    Step,
+    is_trios_export,
+    is_trios_step_export,
+    trios_step_sections,
+    trios_steps,
+)
 
 #: Largest file read (a DMA table of 100 000 points is under 10 MB).
 MAX_FILE_BYTES = 32 * 1024 * 1024
@@ -197,7 +204,10 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
     if "\x00" in text:
         raise InputError("not a text table (holds NUL bytes)", where)
     if is_trios_export(text):
-        return _from_trios(text, modulus, where)
+        return _from_trios(trios_steps(text, where), modulus, where)
+    separator = is_trios_step_export(text)
+    if separator is not None:
+        return _from_trios(trios_step_sections(text, separator, where), modulus, where)
     text, parameters = _parameter_line(text)
     delimiter, decimal_comma = _dialect(text, where)
     try:
@@ -217,10 +227,10 @@ def _aligned(row: list[str], delimiter: str) -> list[str]:
     return row
 
 
-def _from_trios(text: str, modulus: str | None, where: str) -> ModulusTable:
-    """A TRIOS LIMS text export (:mod:`viscorig.materials.trios`): every ``[Step]`` is one set,
-    its columns found by name as in a CSV table with a units row."""
-    steps = trios_steps(text, where)
+def _from_trios(steps: list[Step], modulus: str | None, where: str) -> ModulusTable:
+    """A TRIOS text export's steps (:mod:`viscorig.materials.trios`): every frequency sweep is
+    one set, its columns found by name as in a CSV table with a units row."""
+    steps = _frequency_sweeps(steps, where)
     names = [cell.strip() for cell in steps[0][1][0][1]]
     rows: list[tuple[int, list[str]]] = [
         (steps[0][1][0][0], [*names, "Step"]),
@@ -236,6 +246,35 @@ def _from_trios(text: str, modulus: str | None, where: str) -> ModulusTable:
     decimal_comma = any(re.fullmatch(r"-?\d+,\d+(?:[eE][-+]?\d+)?", cell.strip())
                         for _, cells in rows[2:12] for cell in cells)
     return _from_rows(rows, decimal_comma, modulus, where)
+
+
+def _frequency_sweeps(steps: list[Step], where: str) -> list[Step]:
+    """The steps that are frequency sweeps: a frequency column and both moduli (or ``|E*|``
+    and ``tan δ``), the frequency changing across the step's points. Other steps of the
+    procedure (conditioning, flow, amplitude or time sweeps at one frequency) are left out and
+    named at the info level; a step of one point stays (and is refused as a set later)."""
+    kept, other = [], []
+    for name, rows in steps:
+        roles: dict[str, int] = {}
+        for index, cell in enumerate(rows[0][1]):
+            role = _role(_split_unit(cell)[0])
+            if role is not None:
+                roles.setdefault(role, index)
+        column = roles.get("frequency", roles.get("angular"))
+        moduli = ({"storage", "loss"} <= roles.keys()) or ({"complex", "tan_delta"} <= roles.keys())
+        values = {cells[column].strip() for _, cells in rows[2:]
+                  if column is not None and column < len(cells)}
+        if column is not None and moduli and (len(values) > 1 or len(rows) == 3):
+            kept.append((name, rows))
+        else:
+            other.append(name or "unnamed")
+    if not kept:
+        named = ", ".join(other[:6]) + (f" and {len(other) - 6} more" if len(other) > 6 else "")
+        raise InputError(f"no frequency sweep among the export's steps ({named})", where)
+    if other:
+        log.info("%s: %d step(s) that are not frequency sweeps left out: %s", where, len(other),
+                 ", ".join(other))
+    return kept
 
 
 #: Workbook suffixes read by :func:`read_dma_workbook`.

@@ -1,7 +1,8 @@
-"""The text layout of TA Instruments TRIOS exports ("Export to LIMS", ``.txt``), split into the
-steps of a measurement.
+"""The text layouts of TA Instruments TRIOS exports, split into the steps of a measurement:
+"Export to LIMS" (``.txt``, :func:`trios_steps`), and the export of every step to text or CSV
+(:func:`trios_step_sections`, whose layout that function describes).
 
-The layout, as public TRIOS exports show it: tab-separated lines; a first section
+The LIMS layout, as public TRIOS exports show it: tab-separated lines; a first section
 ``[Version]`` whose next line begins ``TA Instruments LIMS export format version``; header
 sections (``[Header]``, ``[Sample]``, ``[Geometry]``, ``[Procedure]``, ``[Parameters...]``) of
 ``name<TAB>value`` lines; then one ``[Step]`` section per step of the procedure (in a
@@ -17,6 +18,10 @@ from __future__ import annotations
 
 from viscorig.errors import InputError
 
+#: One step: its name, and its rows (file line number, cells): the names row, the units row,
+#: then one row per point.
+Step = tuple[str, list[tuple[int, list[str]]]]
+
 #: The line after ``[Version]`` that marks a TRIOS LIMS text export.
 MARKER = "TA Instruments LIMS export format"
 
@@ -27,7 +32,7 @@ def is_trios_export(text: str) -> bool:
     return len(head) >= 2 and head[0] == "[Version]" and head[1].startswith(MARKER)
 
 
-def trios_steps(text: str, where: str) -> list[tuple[str, list[tuple[int, list[str]]]]]:
+def trios_steps(text: str, where: str) -> list[Step]:
     """The ``[Step]`` sections of a TRIOS export: for each, its name and its rows (file line
     number, cells): the ``Variables`` row, the ``Units`` row, then the ``Data point`` rows.
 
@@ -37,7 +42,7 @@ def trios_steps(text: str, where: str) -> list[tuple[str, list[tuple[int, list[s
         No step holds data, a step lacks its ``Variables`` or ``Units`` line, or its data rows
         are not as many as ``Number of points`` says: one line naming the file and the row.
     """
-    steps: list[tuple[str, list[tuple[int, list[str]]]]] = []
+    steps: list[Step] = []
     current: list[tuple[int, list[str]]] | None = None
     name, declared, declared_at = "", None, 0
 
@@ -88,4 +93,53 @@ def trios_steps(text: str, where: str) -> list[tuple[str, list[tuple[int, list[s
     close()
     if not steps:
         raise InputError("a TRIOS export without any [Step] holding data points", where)
+    return steps
+
+
+def is_trios_step_export(text: str) -> str | None:
+    """The cell separator of a TRIOS export of every step to text or CSV (its first line
+    ``Filename<SEP>...``, a ``[step]`` section), or ``None`` for any other text."""
+    lines = text.splitlines()
+    first = next((line for line in lines[:5] if line.strip()), "")
+    for separator in ("\t", ","):
+        if first.startswith("Filename" + separator):
+            break
+    else:
+        return None
+    return separator if any(line.strip().lower() == "[step]" for line in lines) else None
+
+
+def trios_step_sections(text: str, separator: str, where: str) -> list[Step]:
+    """The ``[step]`` sections of a TRIOS export of every step to text or CSV: each a line
+    with the step's name (``Amplitude sweep - 7``), a row of column names, a row of units
+    aligned with it, then one row per point up to a blank line or the next section.
+
+    Raises
+    ------
+    InputError
+        A step lacks its names or units row: one line naming the file and the row.
+    """
+    steps: list[Step] = []
+    lines = text.splitlines()
+    number = 0
+    while number < len(lines):
+        if lines[number].strip().lower() != "[step]":
+            number += 1
+            continue
+        start = number + 1
+        missing = next((i for i in range(start, start + 3)
+                        if i >= len(lines) or not lines[i].strip()), None)
+        if missing is not None:
+            raise InputError("a [step] without its name, column names and units rows",
+                             f"{where}: row {missing + 1}")
+        name = lines[start].strip()
+        rows = [(i + 1, lines[i].split(separator)) for i in (start + 1, start + 2)]
+        number = start + 3
+        while number < len(lines) and lines[number].strip() and not lines[number].startswith("["):
+            rows.append((number + 1, lines[number].split(separator)))
+            number += 1
+        if len(rows) > 2:
+            steps.append((name, rows))
+    if not steps:
+        raise InputError("a TRIOS export without any [step] holding data points", where)
     return steps
