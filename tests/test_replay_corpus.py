@@ -1,8 +1,9 @@
 """Replay of what real 35670A programs send, over a plain socket to ``viscorig sim serve``.
 
 The corpus (``tests/data/35670a_corpus.jsonl``) holds the programming guide's example
-statements, with their chapter, and the command strings of two real programs (a Prologix FFT
-driver and a remote-lab GPIB driver). Each entry is sent after ``*RST`` in its instrument mode
+statements, with their chapter, and the command strings of four real programs (a Prologix FFT
+driver, a remote-lab GPIB driver, a noise-spectroscopy application's driver and a qudi hardware
+module). Each entry is sent after ``*RST`` in its instrument mode
 (and the setup it needs); then the error queue is read. An entry the instrument accepts must
 leave the queue empty and, for a query, answer in the manual's form (NR1, NR3, quoted string,
 keyword, ``ON|OFF``, definite block or comma-separated numbers). Where the manual says the
@@ -152,8 +153,8 @@ def test_the_corpus_covers_the_manual_and_real_programs() -> None:
     assert {"3", "4", "5", "6", "7", "8", "9", "11", "12", "13", "16", "18", "19", "20", "21",
             "23", "24"} <= chapters
     programs = {e["source"] for e in corpus if e["source"].startswith("program:")}
-    assert len(programs) == 2
-    assert sum(e["source"].startswith("program:") for e in corpus) > 150
+    assert len(programs) == 4
+    assert sum(e["source"].startswith("program:") for e in corpus) > 190
     assert all(e["mode"] in ("FFT", "SINE", "HIST", "CORR") for e in corpus)
 
 

@@ -332,6 +332,24 @@ def test_swept_sine_measures_the_rigs_frequency_response(inst, server) -> None:
 
 # -- FFT mode ------------------------------------------------------------------------------------
 
+def test_fft_resolution_of_1600_lines_with_one_or_two_inputs_only(inst) -> None:
+    """1600-line displays exist "only in 1 or 2 channel mode" (the specifications); the
+    programming guide's table stops at 800. Four inputs on bring the resolution down to 800."""
+    inst.write("*RST;*CLS;:INST:SEL FFT;:FREQ:RES 1600")
+    assert float(inst.query("FREQ:RES?")) == 1600
+    assert inst.query("CALC1:DATA:HEAD:POIN?") == "+1601"
+    inst.write("INP3 ON;:INP4 ON")
+    assert float(inst.query("FREQ:RES?")) == 800
+    inst.write("FREQ:RES 1600")
+    assert codes(inst) == [-222]
+    inst.write("FREQ:RES MAX")
+    assert float(inst.query("FREQ:RES?")) == 800
+    inst.write("INP3 OFF;:INP4 OFF;:FREQ:RES 1000")  # a value between: the next one up
+    assert float(inst.query("FREQ:RES?")) == 1600
+    inst.write(":TCAP:DEL")  # no capture buffer to remove: accepted, as the manual says
+    assert codes(inst) == []
+
+
 def fft_setup(inst, source: str, window: str, averages: int = 20, span: float = 200.0) -> None:
     inst.write("*RST;:INP4 ON;:REF PAIR")
     inst.write(f"FREQ:SPAN:LINK STAR;:FREQ:STAR 0;:FREQ:SPAN {span} HZ;:FREQ:RES 400")

@@ -19,6 +19,7 @@ from rigsim.analyser.limits import (
     DEFAULT_IDN,
     DEFAULT_OPTIONS,
     FREQUENCY_STEP_HZ,
+    fft_lines,
     fft_max_span_hz,
     sine_max_frequency_hz,
 )
@@ -218,6 +219,9 @@ class VirtualAnalyser:
 
     def _clamp_bands(self) -> None:
         count = self.inputs.count()
+        for mode in ("FFT", "CORR"):
+            if int(self.store.get("freq.res", mode=mode)) not in fft_lines(count):
+                self.store.set("freq.res", max(fft_lines(count)), mode=mode)
         for mode in ("SINE", "FFT"):
             start = float(self.store.get("freq.start", mode=mode))
             stop = float(self.store.get("freq.stop", mode=mode))

@@ -21,6 +21,7 @@ __all__ = [
     "MIN_POINTS",
     "POINT_OVERHEAD_S",
     "display_points",
+    "fft_lines",
     "fft_max_span_hz",
     "sine_max_frequency_hz",
     "sine_min_frequency_hz",
@@ -44,7 +45,15 @@ MAX_SOURCE_VPK = 5.0
 #: Shortest integration time of a swept-sine point.
 MIN_DWELL_S = 250e-6
 #: FFT resolutions (lines); displayed points are lines + 1, stored points lines * 1.28 + 1.
-FFT_LINES = (100, 200, 400, 800)
+#: The programming guide's FREQuency:RESolution entry lists 100 to 800; the specifications
+#: (service guide) add 1600-line displays "only available in 1 or 2 channel mode", and real
+#: programs send FREQ:RES 1600 (see :func:`fft_lines`).
+FFT_LINES = (100, 200, 400, 800, 1600)
+
+
+def fft_lines(channels: int) -> tuple[int, ...]:
+    """The FFT resolutions with ``channels`` inputs on: 1600 lines with one or two only."""
+    return FFT_LINES if channels <= 2 else FFT_LINES[:-1]
 #: Time the swept sine spends per point beyond settle and integration: frequency change,
 #: autorange, computation. The specification's 101-point sweep at 100 ms integration takes
 #: about 60 s, i.e. about 0.45 s per point besides the integration **(inferred)**.

@@ -31,6 +31,7 @@ from rigsim.analyser.limits import (
     FREQUENCY_STEP_HZ,
     MAX_POINTS,
     MIN_POINTS,
+    fft_lines,
     fft_max_span_hz,
     sine_max_frequency_hz,
     sine_min_frequency_hz,
@@ -243,7 +244,8 @@ class Frequencies:
 
     def set_resolution(self, call: Call) -> None:
         if not self.sine:
-            self.store.set("freq.res", _fft_lines(call, int(self.store.get("freq.res"))))
+            self.store.set("freq.res", _fft_lines(call, int(self.store.get("freq.res")),
+                                                  fft_lines(self.a.inputs.count())))
             self.a.settings_changed("resolution")
             return
         self.store.set("freq.res", self._sine_resolution(call, "freq.res"))
@@ -339,20 +341,20 @@ class Frequencies:
         return format_real(int(self.store.get("freq.res")) / (stop - start))
 
 
-def _fft_lines(call: Call, current: int) -> int:
+def _fft_lines(call: Call, current: int, allowed: tuple[int, ...]) -> int:
     q = parse_quantity(one(call))
-    index = FFT_LINES.index(current) if current in FFT_LINES else 2
+    index = allowed.index(current) if current in allowed else 2
     if q.keyword == "MAX":
-        return FFT_LINES[-1]
+        return allowed[-1]
     if q.keyword == "MIN":
-        return FFT_LINES[0]
+        return allowed[0]
     if q.keyword == "UP":
-        return FFT_LINES[min(index + 1, len(FFT_LINES) - 1)]
+        return allowed[min(index + 1, len(allowed) - 1)]
     if q.keyword == "DOWN":
-        return FFT_LINES[max(index - 1, 0)]
+        return allowed[max(index - 1, 0)]
     if q.keyword is not None:
         raise ScpiError(-224, q.keyword)
-    fitting = [n for n in FFT_LINES if n >= q.value - 1e-9]
+    fitting = [n for n in allowed if n >= q.value - 1e-9]
     if not fitting or q.value <= 0:
         raise ScpiError(-222, OUT_OF_RANGE)
     return fitting[0]
@@ -631,6 +633,9 @@ def _register_window(t: CommandTree, a: Host, freq: Frequencies) -> None:
           query=lambda c: store.answer("wind.type", c, store.check_call("wind.type", c)))
     action(t, "[SENSe:]AVERage:PREView:ACCept")
     action(t, "[SENSe:]AVERage:PREView:REJect")
+    # removes the time capture buffer (chapter 18); this model keeps none, so there is
+    # nothing to remove, and the manual names no error for an empty buffer
+    action(t, "[SENSe:]TCAPture:DELete")
 
 
 def _register_trigger(t: CommandTree, a: Host, freq: Frequencies) -> None:
