@@ -563,3 +563,18 @@ def test_real_trios_exports_of_flow_and_amplitude_steps_are_told_apart(name):
     with pytest.raises(InputError, match=r"no frequency sweep among the export's steps "
                        r"\(Peak hold - 1, .*(Time|Peak) .* and \d+ more\)"):
         read_dma_csv(path)
+
+
+def test_a_specimen_attribute_that_is_not_text_leaves_its_run_alone(tmp_path, capsys, caplog):
+    import h5py
+
+    from viscorig.report.materials import candidate_groups
+
+    path = tmp_path / "lab.h5"
+    data = dma_sweep(np.array([0.0, 20.0]), np.logspace(-1, 2, 6))
+    for name in ("a", "b", "c"):
+        import_dma(path, name, ModulusTable(**data, source=f"{name}.csv"), specimen="eca-1")
+    with h5py.File(path, "a") as h5:
+        h5["dma/b"].attrs["specimen"] = np.array([1, 2])
+    assert sorted(candidate_groups(CampaignFile.open(path))) == [("a", "c"), ("b",)]
+    assert "/dma/b.specimen: attribute not text" in caplog.text

@@ -11,6 +11,7 @@ cannot be built (what is missing) is one sentence instead.
 from __future__ import annotations
 
 import html
+import logging
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -26,6 +27,8 @@ from viscorig.materials.shift import temperature_groups
 from viscorig.materials.sources import master_curve
 from viscorig.report.figures import SavedFigure, figure_stem, legend_below, save, styled
 from viscorig.storage import CampaignFile
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,11 @@ def candidate_groups(campaign: CampaignFile) -> list[tuple[str, ...]]:
     groups: list[tuple[str, ...]] = []
     dma_by_specimen: dict[str, list[str]] = {}
     for name in dma_run_names(campaign):
-        specimen = dma_specimen(campaign, name)
+        try:
+            specimen = dma_specimen(campaign, name)
+        except InputError as error:  # the run stands alone; its own reading says what is wrong
+            log.warning("%s; DMA run %s taken alone", error, name)
+            specimen = None
         if specimen is None:
             groups.append((name,))
         else:
