@@ -578,3 +578,18 @@ def test_a_specimen_attribute_that_is_not_text_leaves_its_run_alone(tmp_path, ca
         h5["dma/b"].attrs["specimen"] = np.array([1, 2])
     assert sorted(candidate_groups(CampaignFile.open(path))) == [("a", "c"), ("b",)]
     assert "/dma/b.specimen: attribute not text" in caplog.text
+
+
+def test_real_trios_exports_of_a_time_temperature_sweep_and_of_a_mixed_procedure():
+    """3M's hermes-rheo files (tests/data/dma/README.md): a LIMS export of 20 isothermal
+    frequency sweeps (ARES-G2), and a DHR export of every step whose amplitude sweep and flow
+    ramp are left out, its one frequency sweep read."""
+    ares = "test_frequency_sweep_tts_ARES.txt"
+    mixed = "multi_technique.txt"
+    folder = real_data("dma", ares, mixed)
+    table = read_dma_csv(folder / ares)
+    assert table.points == 340 and table.sets.size == 20
+    table = read_dma_csv(folder / mixed)
+    assert table.points == 29 and table.sets.size == 1
+    assert table.frequency_hz.max() == pytest.approx(100.0, rel=1e-6)  # 628.3 rad/s
+    assert table.temperature_c.mean() == pytest.approx(25.0, abs=0.05)
