@@ -41,17 +41,19 @@ def modulus(frequency_hz, temperature_c, scale: float = 1.0) -> np.ndarray:
 
 def dma_sweep(temperatures_c, frequencies_hz, storage_noise: float = 0.01,
               loss_noise: float = 0.02, seed: int = 0,
-              entropic: bool = False) -> dict[str, np.ndarray]:
+              entropic: bool = False, expansion_per_k: float = 0.0) -> dict[str, np.ndarray]:
     """A DMA-like sweep: every frequency at every temperature, multiplicative noise.
 
     ``entropic`` multiplies the modulus by ``T/T_ref`` (kelvin), as a rubber network's grows
-    with absolute temperature."""
+    with absolute temperature, and by the density ratio ``exp(−α (T − T_ref))`` of a volumetric
+    thermal expansion ``α`` = ``expansion_per_k``."""
     rng = np.random.default_rng(seed)
     f, t = np.meshgrid(np.asarray(frequencies_hz, float), np.asarray(temperatures_c, float))
     f, t = f.ravel(), t.ravel()
     value = modulus(f, t)
     if entropic:
-        value = value * (t + 273.15) / (REFERENCE_C + 273.15)
+        value = value * (t + 273.15) / (REFERENCE_C + 273.15) * np.exp(
+            -expansion_per_k * (t - REFERENCE_C))
     storage = value.real * np.exp(storage_noise * rng.standard_normal(f.size))
     loss = value.imag * np.exp(loss_noise * rng.standard_normal(f.size))
     sets = np.repeat(np.arange(len(temperatures_c)), len(frequencies_hz))

@@ -130,6 +130,27 @@ def test_a_network_whose_modulus_grows_with_absolute_temperature_is_reduced_by_f
     assert payload["shift_factors"][0]["log10_bT"] == pytest.approx(math.log10(293.15 / 243.15))
 
 
+def test_the_density_of_ferrys_factor_falls_with_the_thermal_expansion_given():
+    """A network whose density falls by 0.3 %/K over 100 K (three times a rubber's, so that it
+    shows above the noise): with that expansion the shifts are the truth's and the scatter is
+    the noise's; with the density taken constant the scatter is larger."""
+    table = _table(seed=11, entropic=True, expansion_per_k=3e-3)
+    constant = build_master(table, ("generated",), reference_temperature_c=20.0,
+                            vertical="ferry")
+    expanding = build_master(table, ("generated",), reference_temperature_c=20.0,
+                             vertical="ferry", expansion_per_k=3e-3)
+    truth = gen.true_log10_at(expanding.temperature_c, 20.0)
+    free = expanding.log10_at_stderr > 0
+    assert np.all(np.abs(expanding.log10_at - truth)[free] <= 3 * expanding.log10_at_stderr[free])
+    assert expanding.shifts.storage_scatter < 0.7 * constant.shifts.storage_scatter
+    assert expanding.to_json()["vertical_shift"]["thermal_expansion_per_k"] == 3e-3
+    # back to the moduli measured: b_T at 70 °C is (293.15/343.15) e^{0.003 · 50}
+    at = int(np.argmax(expanding.table.temperature_c))
+    assert expanding.measured_scale()[at] == pytest.approx(343.15 / 293.15 * math.exp(-0.15))
+    with pytest.raises(InputError, match="not a volumetric thermal expansion"):
+        build_master(table, vertical="ferry", expansion_per_k=float("nan"))
+
+
 def test_no_vertical_shift_is_suggested_for_a_material_without_one(master):
     assert master.vertical == "none" and master.vertical_verdict() == ""
     assert "vertical" not in master.text()

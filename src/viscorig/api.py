@@ -136,10 +136,11 @@ class Campaign:
 
     def master(self, *runs: str, reference_temperature_c: float | None = None,
                disc_mass_kg: float | None = None, kstar: str = "support",
-               vertical: str = "none"):
+               vertical: str = "none", expansion_per_k: float = 0.0):
         """The master curve of a DMA run, or of rig runs of one specimen at several temperatures
         (as ``viscorig master``): shift factors with ±, WLF and Arrhenius, checks, Prony series.
-        ``vertical="ferry"`` reduces the moduli by ``b_T = T_ref/T`` first.
+        ``vertical="ferry"`` reduces the moduli by Ferry's ``b_T`` first (with the density's
+        volumetric thermal expansion ``expansion_per_k``, 1/K).
 
         Returns a :class:`viscorig.materials.master.MasterCurve`; ``.to_json()`` is the object
         ``master --json`` prints, ``.text()`` what it prints without ``--json``.
@@ -148,7 +149,7 @@ class Campaign:
                                                       else group)]
         with np.errstate(all="ignore"):
             return master_curve(self.stored, names, reference_temperature_c, disc_mass_kg,
-                                kstar, vertical)
+                                kstar, vertical, expansion_per_k)
 
     def diagnose(self, run: str, model: str | None = None, *, auto: bool = False,
                  band_hz: tuple[float, float] | None = _DEFAULT_BAND,

@@ -84,6 +84,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "or from the newest stored fit")
     export.add_argument("--vertical-shift", choices=("none", "ferry"), default="none",
                         help="with --material: as 'viscorig master --vertical-shift'")
+    export.add_argument("--thermal-expansion", type=float, default=0.0, metavar="PER_K",
+                        help="with --material: as 'viscorig master --thermal-expansion'")
     export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
     export.add_argument("--uff-ascii", action="store_true",
                         help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "
@@ -154,7 +156,7 @@ def _export_material(args: argparse.Namespace, out: Path) -> int:
     from viscorig.materials.fecards import card_error, write_card
 
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
-                       args.kstar, args.vertical_shift)
+                       args.kstar, args.vertical_shift, args.thermal_expansion)
     name = "VISCORIG_" + "_".join(args.run).upper().replace("-", "_").replace(".", "_")
     series = write_card(master, args.material, out, name[:80], args.poisson_ratio)
     # what the card holds: LS-DYNA's six cards take a refitted, shorter series

@@ -45,25 +45,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def add_vertical_shift(parser: argparse.ArgumentParser) -> None:
-    """The ``--vertical-shift`` option (``master`` and ``export --material``)."""
+    """The ``--vertical-shift`` and ``--thermal-expansion`` options."""
     parser.add_argument("--vertical-shift", choices=VERTICAL_SHIFTS, default="none",
-                        help="ferry: reduce the moduli by b_T = T_ref/T (kelvin) before "
+                        help="ferry: reduce the moduli by b_T = T_ref rho_ref/(T rho) before "
                         "shifting, as an entropic network's modulus grows with absolute "
                         "temperature (rubbery plateau, melts); default none")
+    parser.add_argument("--thermal-expansion", type=float, default=0.0, metavar="PER_K",
+                        help="with --vertical-shift ferry: volumetric thermal expansion of the "
+                        "density in b_T, 1/K (rubbers about 6.6e-4); default 0, the density "
+                        "constant")
 
 
 def master_of(path: str, runs: list[str], reference_c: float | None = None,
               disc_mass_kg: float | None = None, kstar_source: str = "support",
-              vertical: str = "none") -> MasterCurve:
+              vertical: str = "none", expansion_per_k: float = 0.0) -> MasterCurve:
     """The master curve of named runs of a campaign file."""
     return master_curve(CampaignFile.open(path), runs, reference_c, disc_mass_kg, kstar_source,
-                        vertical)
+                        vertical, expansion_per_k)
 
 
 def handler(args: argparse.Namespace) -> int:
     """Run ``master``."""
     master = master_of(args.file, args.run, args.reference_temperature, args.disc_mass,
-                       args.kstar, args.vertical_shift)
+                       args.kstar, args.vertical_shift, args.thermal_expansion)
     if args.json:
         print(jsontext.dumps(master.to_json()))
         return 0

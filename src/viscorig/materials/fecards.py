@@ -174,10 +174,12 @@ def _comment(master: MasterCurve, series: PronySeries, poisson: float, mark: str
         f"Poisson's ratio {poisson} assumed constant (shear and bulk share the relative series)",
     ]
     if master.vertical == "ferry":
-        lines.append("vertical shift: the moduli were reduced by bT = Tref/T (kelvin) before "
-                     "fitting; this card carries no vertical shift, so at T it gives the modulus "
-                     "at Tref of the shifted frequency (the measured one is T/Tref times it; "
-                     "the rms ln(card/measured) above includes that)")
+        density = (f", rho_ref/rho = exp({master.expansion_per_k:g} (T - Tref))"
+                   if master.expansion_per_k else "")
+        lines.append(f"vertical shift: the moduli were reduced by bT = Tref rho_ref/(T rho) "
+                     f"(kelvin{density}) before fitting; this card carries no vertical shift, so "
+                     "at T it gives the modulus at Tref of the shifted frequency (the measured "
+                     "one is 1/bT times it; the rms ln(card/measured) above includes that)")
     if note:
         lines.append(note)
     lines += [f"convention: {line}" for line in conventions]

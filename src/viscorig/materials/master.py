@@ -2,12 +2,13 @@
 and the checks of superposition and Kramers-Kronig consistency, as one result.
 
 Vertical shift: with ``vertical="ferry"`` the moduli are first reduced by Ferry's factor
-``b_T = T_ref/T`` (absolute temperatures, the density taken as constant): an entropic network's
-modulus is proportional to absolute temperature, so sweeps of a rubbery or melt plateau at
-different temperatures differ by ``T/T_ref`` besides their shift along the frequency axis.
+``b_T = T_ref ρ_ref/(T ρ)`` (:func:`ferry_factor`; absolute temperatures; the density constant,
+or falling with a volumetric thermal expansion ``α_V``): an entropic network's modulus is
+proportional to absolute temperature and density, so sweeps of a rubbery or melt plateau at
+different temperatures differ by ``1/b_T`` besides their shift along the frequency axis.
 Ignored, that factor is taken up by the horizontal shifts wherever a modulus is flat. The
-master curve, its series and its checks are then those of the reduced moduli
-``E_p = E · T_ref/T``; the modulus at temperature ``T`` is ``E_p(f·aT) · T/T_ref``.
+master curve, its series and its checks are then those of the reduced moduli ``E_p = E b_T``;
+the modulus at temperature ``T`` is ``E_p(f·aT) / b_T``.
 
 :func:`build_master` is what ``viscorig master`` and ``open_campaign(...).master(...)`` call;
 :meth:`MasterCurve.to_json` is the JSON contract of ``master --json`` (design.md).
@@ -50,8 +51,10 @@ from viscorig.numbers import with_uncertainty
 #: Without a shift function, a set within this many kelvin of the reference temperature asked
 #: for is taken as the reference itself (with one, the shifts are moved to it exactly).
 SAME_TEMPERATURE_K = 0.5
-#: Vertical shifts: none, or Ferry's ``b_T = T_ref/T`` (see the module text).
+#: Vertical shifts: none, or Ferry's ``b_T`` (see the module text).
 VERTICAL_SHIFTS = ("none", "ferry")
+#: Largest volumetric thermal expansion taken (1/K): rubbers and melts expand by 5e-4 to 1e-3.
+MAX_EXPANSION_PER_K = 0.01
 #: The other vertical shift is suggested where its scatter about the master curve (storage and
 #: loss together) is below this fraction of the one chosen.
 VERTICAL_EVIDENCE = 0.8
@@ -92,7 +95,7 @@ class MasterCurve:
         The points of the data whose storage or loss modulus is not a positive number
         (:meth:`ModulusTable.unusable_points`); ``table`` holds the others.
     vertical
-        ``"none"``, or ``"ferry"``: ``table`` then holds the reduced moduli ``E · T_ref/T``
+        ``"none"``, or ``"ferry"``: ``table`` then holds the reduced moduli ``E b_T``
         (:meth:`set_log10_bt`, :meth:`measured_scale`).
     alternative_scatter
         The scatter of ``ln E'`` and ``ln E''`` about the master curve the other vertical
@@ -121,6 +124,7 @@ class MasterCurve:
     left_out: tuple[dict, ...] = ()
     vertical: str = "none"
     alternative_scatter: tuple[float, float] | None = None
+    expansion_per_k: float = 0.0
 
     def vertical_verdict(self) -> str:
         """Whether the data superpose better with the other vertical shift, in one sentence."""
@@ -132,10 +136,12 @@ class MasterCurve:
         if self.vertical == "none":
             if not better:
                 return ""
-            return (f"vertical shift: reduced by b_T = T_ref/T (Ferry), the sweeps superpose "
+            return (f"vertical shift: reduced by b_T = T_ref ρ_ref/(T ρ) (Ferry), the sweeps "
+                    f"superpose "
                     f"with rms ln {other[0]:.3f}, {other[1]:.3f} instead of {this[0]:.3f}, "
                     f"{this[1]:.3f}: try --vertical-shift ferry")
-        return (f"vertical shift b_T = T_ref/T: rms ln {this[0]:.3f}, {this[1]:.3f} about the "
+        return (f"vertical shift b_T = T_ref ρ_ref/(T ρ): rms ln {this[0]:.3f}, {this[1]:.3f} "
+                f"about the "
                 f"master curve, {other[0]:.3f}, {other[1]:.3f} without"
                 + (" (the data superpose better without: --vertical-shift none)" if better
                    else ""))
@@ -144,12 +150,15 @@ class MasterCurve:
         """``log10 b_T`` of each set (zeros without a vertical shift)."""
         if self.vertical != "ferry":
             return np.zeros(self.temperature_c.size)
-        return np.log10((self.reference_temperature_c + 273.15) / (self.temperature_c + 273.15))
+        return np.log10(ferry_factor(self.temperature_c, self.reference_temperature_c,
+                                     self.expansion_per_k))
 
     def measured_scale(self) -> NDArray[np.float64]:
         """The factor ``1/b_T`` of each point of ``table`` back to the moduli measured."""
-        return (self.table.temperature_c + 273.15) / (self.reference_temperature_c + 273.15) if (
-            self.vertical == "ferry") else np.ones(self.table.points)
+        if self.vertical != "ferry":
+            return np.ones(self.table.points)
+        return 1.0 / ferry_factor(self.table.temperature_c, self.reference_temperature_c,
+                                  self.expansion_per_k)
 
     def log10_at_of(self, temperature_c: float) -> float:
         """``log10 aT`` at any temperature from the shift function (NaN without one)."""
@@ -179,8 +188,10 @@ class MasterCurve:
                  f"{master.reference_temperature_c:.2f} °C",
                  "shift factors (reduced frequency f·aT):"]
         if master.vertical == "ferry":
+            density = (f", ρ_ref/ρ = exp({master.expansion_per_k:g}/K · (T − T_ref))"
+                       if master.expansion_per_k else "")
             lines[-1] = ("shift factors (reduced frequency f·aT; moduli reduced by "
-                         "b_T = T_ref/T, Ferry's vertical factor):")
+                         f"b_T = T_ref ρ_ref/(T ρ), Ferry's vertical factor{density}):")
         for t, a, e, b in zip(master.temperature_c, master.log10_at, master.log10_at_stderr,
                               master.set_log10_bt(), strict=True):
             line = f"  {t:8.2f} °C   log10 aT = {with_uncertainty(a, e, signed=True)}"
@@ -264,6 +275,7 @@ class MasterCurve:
                                       self.set_log10_bt(), strict=True)],
             "vertical_shift": {
                 "kind": self.vertical,
+                "thermal_expansion_per_k": self.expansion_per_k,
                 "other_storage_scatter": (None if self.alternative_scatter is None
                                           else self.alternative_scatter[0]),
                 "other_loss_scatter": (None if self.alternative_scatter is None
@@ -354,7 +366,8 @@ def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int
 
 def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
                  reference_temperature_c: float | None = None, *,
-                 systematic: ModulusTable | None = None, vertical: str = "none") -> MasterCurve:
+                 systematic: ModulusTable | None = None, vertical: str = "none",
+                 expansion_per_k: float = 0.0) -> MasterCurve:
     """Build the master curve of ``table`` (see the module text).
 
     Parameters
@@ -371,8 +384,10 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
         The same points one standard error of a quantity they share off (the rig's disc mass):
         the change of the shifts it makes is added to their covariance, common to all.
     vertical
-        ``"none"`` or ``"ferry"``: the moduli reduced by ``b_T = T_ref/T`` first (see the
-        module text).
+        ``"none"`` or ``"ferry"``: the moduli reduced by ``b_T`` first (see the module text).
+    expansion_per_k
+        With ``"ferry"``: the volumetric thermal expansion ``α_V`` (1/K) of the density in
+        ``b_T``; 0 takes the density as constant.
 
     Raises
     ------
@@ -383,7 +398,8 @@ def build_master(table: ModulusTable, runs: tuple[str, ...] = (),
     """
     # trial steps of the nonlinear fits overflow on the way; their results are checked
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        return _build(table, runs, reference_temperature_c, systematic, vertical)
+        return _build(table, runs, reference_temperature_c, systematic, vertical,
+                      expansion_per_k)
 
 
 def _systematic_covariance(shifts: ShiftFactors, systematic: ModulusTable | None
@@ -462,9 +478,19 @@ def _scaled(table: ModulusTable, factor: NDArray[np.float64] | float) -> Modulus
     return replace(table, storage_pa=table.storage_pa * factor, loss_pa=table.loss_pa * factor)
 
 
-def _reduced(table: ModulusTable, reference_c: float) -> ModulusTable:
-    """The moduli reduced by Ferry's ``b_T = T_ref/T``."""
-    return _scaled(table, (reference_c + 273.15) / (table.temperature_c + 273.15))
+def ferry_factor(temperature_c: NDArray[np.float64] | float, reference_c: float,
+                 expansion_per_k: float = 0.0) -> NDArray[np.float64]:
+    """Ferry's vertical factor ``b_T = T_ref ρ_ref/(T ρ)`` with ``ρ_ref/ρ = exp(α_V (T − T_ref))``
+    (``α_V`` = ``expansion_per_k``, volumetric, 1/K; 0: the density constant). The exponential
+    form keeps a change of reference one common factor."""
+    temperature = np.asarray(temperature_c, dtype=float)
+    return ((reference_c + 273.15) / (temperature + 273.15)
+            * np.exp(expansion_per_k * (temperature - reference_c)))
+
+
+def _reduced(table: ModulusTable, reference_c: float, expansion_per_k: float) -> ModulusTable:
+    """The moduli reduced by Ferry's ``b_T`` (:func:`ferry_factor`)."""
+    return _scaled(table, ferry_factor(table.temperature_c, reference_c, expansion_per_k))
 
 
 def _alternative_scatter(table: ModulusTable, reference_set: int) -> tuple[float, float] | None:
@@ -478,10 +504,14 @@ def _alternative_scatter(table: ModulusTable, reference_set: int) -> tuple[float
 
 
 def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: float | None,
-           systematic: ModulusTable | None = None, vertical: str = "none") -> MasterCurve:
+           systematic: ModulusTable | None = None, vertical: str = "none",
+           expansion_per_k: float = 0.0) -> MasterCurve:
     if vertical not in VERTICAL_SHIFTS:
         raise InputError(f"{vertical!r} is not a vertical shift ({', '.join(VERTICAL_SHIFTS)})",
                          "--vertical-shift")
+    if not (math.isfinite(expansion_per_k) and abs(expansion_per_k) <= MAX_EXPANSION_PER_K):
+        raise InputError(f"{expansion_per_k} is not a volumetric thermal expansion in 1/K "
+                         f"(at most {MAX_EXPANSION_PER_K:g} either way)", "--thermal-expansion")
     table.check(table.source or "modulus table")
     left_out = tuple(table.unusable_points())
     if left_out:
@@ -495,11 +525,11 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     anchor = _anchor(temperatures, reference_temperature_c)
     reduced_at = (float(temperatures[anchor]) if reference_temperature_c is None
                   else float(reference_temperature_c))
-    other = _reduced(table, reduced_at) if vertical == "none" else table
+    other = _reduced(table, reduced_at, expansion_per_k) if vertical == "none" else table
     if vertical == "ferry":
-        table = _reduced(table, reduced_at)
+        table = _reduced(table, reduced_at, expansion_per_k)
         if systematic is not None:
-            systematic = _reduced(systematic, reduced_at)
+            systematic = _reduced(systematic, reduced_at, expansion_per_k)
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
     alternative = _alternative_scatter(other, int(sets_sorted[anchor]))
     anchor_c = float(shifts.temperature_c[shifts.reference])
@@ -557,7 +587,7 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         reference_c = anchor_c
     if vertical == "ferry" and reference_c != reduced_at:
         # reduced at the temperature asked for, the reference is the set's own: b_T with it
-        factor = (reference_c + 273.15) / (reduced_at + 273.15)
+        factor = float(ferry_factor(reduced_at, reference_c, expansion_per_k))
         table = _scaled(table, factor)
         prony = PronySeries(prony.long_term_modulus_pa * factor, prony.moduli_pa * factor,
                             prony.tau_s)
@@ -574,5 +604,5 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         kramers_kronig=check_kramers_kronig(omega, table.storage_pa, table.loss_pa,
                                             sweep_scatter),
         shifts=shifts, jointly_refined=refined, left_out=left_out, vertical=vertical,
-        alternative_scatter=alternative,
+        alternative_scatter=alternative, expansion_per_k=expansion_per_k,
     )

@@ -20,10 +20,11 @@ from viscorig.storage import CampaignFile
 
 def master_curve(campaign: CampaignFile, runs: list[str], reference_temperature_c: float | None
                  = None, disc_mass_kg: float | None = None,
-                 kstar_source: str = "support", vertical: str = "none") -> MasterCurve:
+                 kstar_source: str = "support", vertical: str = "none",
+                 expansion_per_k: float = 0.0) -> MasterCurve:
     """The master curve of the named runs (``viscorig master``), with the identified disc
-    mass's error in the shifts' (see the module text); ``vertical`` as
-    :func:`~viscorig.materials.master.build_master` takes it.
+    mass's error in the shifts' (see the module text); ``vertical`` and ``expansion_per_k`` as
+    :func:`~viscorig.materials.master.build_master` takes them.
 
     Raises
     ------
@@ -34,7 +35,7 @@ def master_curve(campaign: CampaignFile, runs: list[str], reference_temperature_
     """
     table, perturbed = _tables(campaign, runs, disc_mass_kg, kstar_source)
     return build_master(table, tuple(runs), reference_temperature_c, systematic=perturbed,
-                        vertical=vertical)
+                        vertical=vertical, expansion_per_k=expansion_per_k)
 
 
 def _tables(campaign: CampaignFile, runs: list[str], disc_mass_kg: float | None,
