@@ -78,13 +78,15 @@ def test_an_end_glitch_among_others_near_the_end_is_found() -> None:
 def test_a_pair_of_glitches_at_the_band_end_is_mostly_found() -> None:
     """An end point's glitch next to another: the cluster's own short window let a polynomial
     follow the end point (none of 20 pairs on points 0 and 1 found). The end point's glitch is
-    judged two steps from the rest then, which the data cannot always tell."""
+    judged two steps from the rest then, where the polynomial follows it part of the way: at the
+    one-point test's level 26 of these 40 were found (80 % of 600 draws), at the end test's own
+    level 34 (89 %)."""
     rng = np.random.default_rng(19)
     found = 0
     for _ in range(40):
         z, _ = glitched(rng, [0, 1])
         found += np.flatnonzero(outlier_points(z, WHITE, WINDOW)).tolist() == [0, 1]
-    assert found >= 20  # about 70 % over 600 draws
+    assert found >= 32
 
 
 def test_a_mode_near_the_band_end_seldom_costs_it_its_end_point() -> None:
