@@ -40,13 +40,18 @@ def glitched(rng: np.random.Generator, points: list[int]) -> tuple[np.ndarray, n
 
 @pytest.mark.parametrize(
     "offsets",
-    [[0], [0, 1], [0, 2], [0, 1, 9], [0, 2, 20, 21], [0, 1, 2]],
+    [[0], [0, 1], [0, 2], [0, 1, 9], [0, 2, 20, 21], [0, 1, 2], [0, 3], [0, 4], [0, 2, 4],
+     [0, 1, 3], [0, 2, 3]],
     ids=["one", "side by side", "a point apart", "a pair and one", "both kinds",
-         "three in a row"],
+         "three in a row", "two points apart", "three points apart", "three a point apart",
+         "a pair and one a point apart", "one a point apart and a pair"],
 )
 def test_glitches_of_one_to_three_points_are_found_where_they_are(offsets: list[int]) -> None:
     """A pair side by side showed on its two outer neighbours, and a pair a point apart on the
-    good point between: the one-point test flagged good points and kept the glitch."""
+    good point between: the one-point test flagged good points and kept the glitch. Two
+    glitches with two good points between made one peak of the one-point test, on one of
+    them; its cluster was searched two points either side and the other glitch was not found
+    (63 of 100 such pairs found whole, 68 of 100 triples a point apart)."""
     rng = np.random.default_rng(len(offsets))
     for _ in range(20):
         start = int(rng.integers(10, FREQUENCY.size - 40))

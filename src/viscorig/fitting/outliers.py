@@ -42,6 +42,10 @@ NEIGHBOURS = 3
 GLITCH_POINTS = 3
 #: Points either side of a cluster where the points that explain it are looked for.
 SHIFT = 2
+#: ... and where they are looked for again when none within :data:`SHIFT` does: two glitches
+#: three points apart make one peak of the one-point test between them, which may be a
+#: point from either.
+WIDE_SHIFT = NEIGHBOURS + 1
 #: A point whose centred sixth difference is this many times its expectation is an outlier.
 OUTLIER_LEVEL = 30.0
 #: Largest ``−log P`` of the deviance a window keeps without its glitch (a chance of 1 in
@@ -137,6 +141,8 @@ def outlier_points(z: NDArray[np.complex128], white: NDArray[np.float64],
         out = flagged.copy()
         for cluster in _clusters(np.flatnonzero(flagged)):
             points = _glitch(z, v, cluster, flagged)
+            if points is None:
+                points = _glitch(z, v, cluster, flagged, WIDE_SHIFT)
             if points is not None:
                 out[cluster] = False
                 out[points] = True
@@ -191,9 +197,9 @@ def _clusters(points: NDArray[np.int_]) -> list[list[int]]:
 
 
 def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int],
-            flagged: NDArray[np.bool_]) -> list[int] | None:
+            flagged: NDArray[np.bool_], shift: int = SHIFT) -> list[int] | None:
     """The points that explain a cluster of flagged points: the fewest (up to
-    :data:`GLITCH_POINTS`) within :data:`SHIFT` points of it (or of the band's end, where the
+    :data:`GLITCH_POINTS`) within ``shift`` points of it (or of the band's end, where the
     end is within ``NEIGHBOURS`` of them) that, left out, leave the window
     (the candidates' span and ``NEIGHBOURS + 1`` points each side not flagged elsewhere)
     smooth: the rest on one polynomial of degree ``2·NEIGHBOURS − 1`` within the noise
@@ -203,7 +209,7 @@ def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int
     if len(cluster) > GLITCH_POINTS:
         return None
     n = z.size
-    low, high = max(cluster[0] - SHIFT, 0), min(cluster[-1] + SHIFT, n - 1)
+    low, high = max(cluster[0] - shift, 0), min(cluster[-1] + shift, n - 1)
     # within a difference's reach of an end, the glitch may sit on the points it cannot centre
     low = 0 if low <= NEIGHBOURS else low
     high = n - 1 if high >= n - 1 - NEIGHBOURS else high
