@@ -494,3 +494,48 @@ def test_wiring_faults_change_what_an_input_reads(rm, spec, check) -> None:
         return values[0::2] + 1j * values[1::2]
 
     assert check(measure(spec), measure(None))
+
+
+def _linear_and_variance(rm, fault: str | None, start: float, stop: float, points: int,
+                         cycles: int = 100, noiseless: bool = True
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Input 3's linear spectrum (complex volts) and normalized variance over a swept sine."""
+    rig = load_preset("soft-0")
+    with SimulatedAnalyserServer(rig.noiseless() if noiseless else rig, seed=1) as srv:
+        if fault:
+            srv.faults.add(parse_fault_spec(fault))
+        inst = open_socket(rm, srv)
+        run_sweep(inst, points=points, start=start, stop=stop, cycles=cycles)
+        inst.write("FORM REAL,64;:CALC1:FEED 'XFR:POW:LIN 3';:TRAC:DATA D1,TRAC1")
+        values = real64(inst, "TRAC:DATA? D1")[:2 * points]
+        inst.write("CALC2:FEED 'XFR:POW:VAR 3';:TRAC:DATA D2,TRAC2")
+        variance = real64(inst, "TRAC:DATA? D2")[:points]
+        inst.close()
+    return values[0::2] + 1j * values[1::2], variance
+
+
+def test_mains_hum_on_an_input_reads_through_the_integration_window(rm) -> None:
+    """hum=3:V: a 50 Hz sine on input 3, not locked to the source. A point at 50 Hz reads it
+    whole, at a phase of its own; a point 0.5 Hz away, integrating 100 of its cycles (2.02 s at
+    49.5 Hz), reads near the window's null (sinc 1.01: 1 %); 20 Hz away almost nothing. The
+    normalized variance carries its power."""
+    good, good_var = _linear_and_variance(rm, None, 49.0, 51.0, 9)
+    hum, hum_var = _linear_and_variance(rm, "hum=3:0.01", 49.0, 51.0, 9)
+    change = np.abs(hum - good)  # 49.0, 49.25, ..., 51.0 Hz
+    assert change[4] == pytest.approx(0.01, rel=0.05)  # 100 cycles at 50 Hz: exactly 2 s
+    assert change[2] < 0.02 * 0.01 and change[6] < 0.02 * 0.01  # near the window's nulls
+    assert change[3] > 0.5 * 0.01  # 49.75 Hz: sinc(0.5) = 0.64 of it
+    assert hum_var[4] > 1e3 * max(good_var[4], 1e-12)
+    far, _ = _linear_and_variance(rm, "hum=3:0.01", 70.0, 70.0, 1)
+    clean, _ = _linear_and_variance(rm, None, 70.0, 70.0, 1)
+    assert np.abs(far - clean)[0] < 0.02 * 0.01
+
+
+def test_a_wiring_fault_leaves_the_normalized_variance_positive_and_its_own(rm) -> None:
+    """An inverted or amplified input: the variance relative to the signal does not change
+    (it was multiplied by the gain, negative for an inverted input)."""
+    _, good = _linear_and_variance(rm, None, 30.0, 34.0, 5, cycles=20, noiseless=False)
+    assert np.all(good > 0)
+    for fault in ("invert=3", "gain=3:10"):
+        _, faulty = _linear_and_variance(rm, fault, 30.0, 34.0, 5, cycles=20, noiseless=False)
+        assert np.allclose(faulty, good, rtol=1e-6, atol=0.0)

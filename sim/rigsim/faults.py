@@ -34,6 +34,11 @@ cleared, like a bad cable does:
 ``range=N:DBVRMS``
     Input N's range is stuck at that range whatever the analyser selects (so a normal signal
     overloads it when the stuck range is small).
+``hum=N:VPK[:HZ]``
+    Input N picks up mains hum (a ground loop in its cable): a sine of VPK volts peak at HZ
+    (default 50 Hz), not synchronous with the source. In swept sine a point integrating for
+    ``T`` seconds at ``f`` reads it through its integration window, ``sinc((f − HZ) T)``, at a
+    phase of its own; the level control watches the transducer, not the hum.
 
 ``match`` is a case-insensitive substring of the program message (``"CALC1:DATA?"``). Without
 it, ``no_reply`` and ``garble`` fire on the next query, ``drop`` on the next message, and the
@@ -42,7 +47,7 @@ others at once.
 Command-line form (``viscorig sim serve --fault SPEC``): ``KIND[=ARG][@MATCH]``, for example
 ``no_reply@*IDN?``, ``drop@INIT``, ``garble@TRAC:DATA?``, ``error=-310,Hardware fault``,
 ``overload=4`` (channel 4, next sweep) or ``overload=4:10`` (the next 10 points), ``unplug=3``,
-``swap=2,4``, ``gain=3:10``, ``invert=4``, ``range=3:-51``, ``autocal``.
+``swap=2,4``, ``gain=3:10``, ``invert=4``, ``range=3:-51``, ``hum=1:0.005``, ``autocal``.
 """
 
 from __future__ import annotations
@@ -65,11 +70,13 @@ __all__ = [
 ]
 
 FAULT_KINDS = ("no_reply", "drop", "garble", "error", "overload", "autocal", "unplug", "swap",
-               "gain", "invert", "range")
+               "gain", "invert", "range", "hum")
 #: Faults that act on one message's transport; the others act on the instrument.
 MESSAGE_FAULTS = ("no_reply", "drop", "garble")
 #: Faults of the wiring between rig and inputs (they last).
-WIRING_FAULTS = ("unplug", "swap", "gain", "invert", "range")
+WIRING_FAULTS = ("unplug", "swap", "gain", "invert", "range", "hum")
+#: Mains frequency of a hum without one (Hz).
+MAINS_HZ = 50.0
 CHANNELS = 4
 
 
@@ -78,24 +85,50 @@ class FrontEnd:
 
     Input ``n`` reads ``gain[n] ×`` the signal of transducer ``source[n]`` (``None``: nothing
     is connected, the input reads only the analyser's own noise). ``pinned_range_dbvrms[n]``
-    is a range stuck on input ``n``. All indices are inputs 1..4. A healthy wiring is the
-    identity.
+    is a range stuck on input ``n``; ``hum[n]`` the mains hum it picks up, ``(volts peak,
+    Hz)``. All indices are inputs 1..4. A healthy wiring is the identity.
     """
 
     def __init__(self) -> None:
         self.source: dict[int, int | None] = {n: n for n in range(1, CHANNELS + 1)}
         self.gain: dict[int, float] = {n: 1.0 for n in range(1, CHANNELS + 1)}
         self.pinned_range_dbvrms: dict[int, float] = {}
+        self.hum: dict[int, tuple[float, float]] = {}
 
     @property
     def healthy(self) -> bool:
         """No fault in the wiring."""
         return (all(self.source[n] == n and self.gain[n] == 1.0 for n in self.source)
-                and not self.pinned_range_dbvrms)
+                and not self.pinned_range_dbvrms and not self.hum)
 
     def altered(self, channel: int) -> bool:
         """Input ``channel`` does not simply read its own transducer."""
-        return self.source[channel] != channel or self.gain[channel] != 1.0
+        return (self.source[channel] != channel or self.gain[channel] != 1.0
+                or channel in self.hum)
+
+    def add_hum(self, channel: int, volts_peak: float, frequency_hz: float = MAINS_HZ) -> None:
+        """Input ``channel`` picks up a hum of ``volts_peak`` at ``frequency_hz``."""
+        self.hum[channel] = (volts_peak, frequency_hz)
+
+    def hum_phasors(self, frequency_hz: np.ndarray, integrate_s: np.ndarray,
+                    rng: np.random.Generator) -> np.ndarray:
+        """The hum each swept-sine point reads (complex volts peak, points × inputs): through
+        the rectangular integration window of ``integrate_s`` seconds at ``frequency_hz``,
+        ``sinc((f − f_hum) T)`` of its amplitude, at a phase of its own (the hum is not locked
+        to the source)."""
+        out = np.zeros((frequency_hz.size, CHANNELS), complex)
+        for channel, (volts, mains) in self.hum.items():
+            window = np.sinc((frequency_hz - mains) * integrate_s)
+            phase = np.exp(2j * np.pi * rng.random(frequency_hz.size))
+            out[:, channel - 1] = volts * window * phase
+        return out
+
+    def hum_samples(self, times_s: np.ndarray) -> np.ndarray:
+        """The hum in the inputs' samples at ``times_s`` (inputs × samples, volts)."""
+        out = np.zeros((CHANNELS, times_s.size))
+        for channel, (volts, mains) in self.hum.items():
+            out[channel - 1] = volts * np.sin(2 * np.pi * mains * times_s)
+        return out
 
     def unplug(self, channel: int) -> None:
         """Input ``channel`` reads nothing."""
@@ -118,8 +151,10 @@ class FrontEnd:
         """A healthy wiring again."""
         self.__init__()
 
-    def apply(self, values: np.ndarray) -> np.ndarray:
-        """What the inputs read, from what the transducers give (last axis: channels 1..4).
+    def apply(self, values: np.ndarray, scaled: bool = True) -> np.ndarray:
+        """What the inputs read, from what the transducers give (last axis: channels 1..4);
+        ``scaled=False`` routes without the gains (a normalized variance, which a gain leaves
+        as it is).
 
         An unplugged input reads zero here; the caller adds the analyser's own noise.
         """
@@ -127,7 +162,7 @@ class FrontEnd:
         for n in range(1, CHANNELS + 1):
             source = self.source[n]
             if source is not None:
-                out[..., n - 1] = self.gain[n] * values[..., source - 1]
+                out[..., n - 1] = (self.gain[n] if scaled else 1.0) * values[..., source - 1]
         return out
 
     def describe(self) -> list[str]:
@@ -143,6 +178,8 @@ class FrontEnd:
                 lines.append(f"input {n} reads {gain:g} times its transducer")
         lines += [f"input {n} range stuck at {r:g} dBVrms"
                   for n, r in sorted(self.pinned_range_dbvrms.items())]
+        lines += [f"input {n} picks up {volts:g} V peak of {mains:g} Hz hum"
+                  for n, (volts, mains) in sorted(self.hum.items())]
         return lines
 
 
@@ -183,7 +220,10 @@ class Fault:
     other
         The second input of a ``swap``.
     value
-        The factor of a ``gain`` fault, the range (dBVrms) of a ``range`` fault.
+        The factor of a ``gain`` fault, the range (dBVrms) of a ``range`` fault, the volts
+        peak of a ``hum``.
+    frequency_hz
+        The hum's frequency.
     """
 
     kind: str
@@ -194,6 +234,7 @@ class Fault:
     points: int | None = None
     other: int = 2
     value: float = 1.0
+    frequency_hz: float = MAINS_HZ
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
@@ -205,6 +246,10 @@ class Fault:
             raise FaultSpecError("swap needs two different inputs")
         if self.kind == "range" and not -51.0 <= self.value <= 27.0:
             raise FaultSpecError(f"range must be -51..27 dBVrms, got {self.value:g}")
+        if self.kind == "hum" and not (0.0 < self.value <= 100.0
+                                       and 1.0 <= self.frequency_hz <= 1000.0):
+            raise FaultSpecError(f"hum needs 0 < VPK <= 100 and 1 <= HZ <= 1000, got "
+                                 f"{self.value:g} V at {self.frequency_hz:g} Hz")
 
     def triggered_by(self, message: str) -> bool:
         if self.match is not None:
@@ -312,6 +357,8 @@ class FaultInjector:
             wiring.scale(fault.channel, -1.0)
         elif fault.kind == "range":
             wiring.pin_range(fault.channel, fault.value)
+        elif fault.kind == "hum":
+            wiring.add_hum(fault.channel, fault.value, fault.frequency_hz)
 
 
 def garble(response: bytes) -> bytes:
@@ -372,6 +419,12 @@ def parse_fault_spec(spec: str) -> Fault:
         if kind == "gain" and value == 0:
             raise FaultSpecError(f"fault {spec!r}: a gain of 0 is unplug=N")
         return Fault(kind, match or None, channel=int(channel), value=value)
+    if kind == "hum":
+        parts = arg.split(":")
+        numbers = _numbers(spec, ":".join(parts[:3]), ":", max(min(len(parts), 3), 2),
+                           "hum=N:VPK[:HZ] (input, volts peak, Hz)")
+        return Fault("hum", match or None, channel=int(numbers[0]), value=numbers[1],
+                     frequency_hz=numbers[2] if len(numbers) == 3 else MAINS_HZ)
     if kind not in FAULT_KINDS:
         raise FaultSpecError(f"unknown fault {kind!r}; faults: {', '.join(FAULT_KINDS)}")
     if arg:

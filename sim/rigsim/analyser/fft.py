@@ -138,6 +138,8 @@ class _RigStream:
         self.rig = rig
         self.fs = fs
         self.rng = rng
+        #: Samples taken so far (the hum's clock).
+        self.taken = 0
         modal = ModalSystem(build_state_space(rig, 1.0))
         self.modal = modal
         lam = modal.eigenvalues
@@ -420,6 +422,10 @@ class FftMeasurement(Measurement):
         filtered = np.array([bool(self.store.get("inp.filt", (n,)))
                              for n in range(1, CHANNELS + 1)])
         volts = self.front_end.apply(stream.run(force, filtered).T).T
+        if self.front_end.hum:
+            times = (stream.taken + np.arange(samples)) / plan.fs
+            volts = volts + self.front_end.hum_samples(times)
+        stream.taken += samples
         return volts
 
     def _autorange(self, record: np.ndarray) -> np.ndarray:

@@ -372,7 +372,15 @@ class SweptSine(Measurement):
             return
         physical = record.channel_v.copy()
         record.channel_v[:] = wiring.apply(physical)
-        record.variance[:] = wiring.apply(record.variance.copy())
+        record.variance[:] = wiring.apply(record.variance.copy(), scaled=False)
+        if wiring.hum:
+            # the hum is not locked to the source: over its random phase, the estimate varies
+            # by the hum's power (normalized by the signal's)
+            hum = wiring.hum_phasors(record.frequency_hz, integrate_s, self.rng)
+            signal = np.abs(record.channel_v) ** 2
+            record.channel_v[:] += hum
+            with np.errstate(divide="ignore", invalid="ignore"):
+                record.variance[:] += np.where(signal > 0, np.abs(hum) ** 2 / signal, 0.0)
         noise = getattr(self.simulator.rig, "noise", None)
         adc = 0.0 if noise is None else 10.0 ** (noise.adc_noise_db_re_range_per_sqrt_hz / 10)
         for channel in range(1, CHANNELS + 1):

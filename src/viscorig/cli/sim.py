@@ -51,8 +51,8 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--fault", action="append", default=[], metavar="SPEC",
                        help="inject a fault: KIND[=ARG][@MATCH], KIND one of no_reply, drop, "
                        "garble, error=CODE[,TEXT], overload=CH[:POINTS], autocal (once); "
-                       "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS (wiring "
-                       "faults, they last); repeatable")
+                       "unplug=CH, swap=A,B, gain=CH:K, invert=CH, range=CH:DBVRMS, "
+                       "hum=CH:VPK[:HZ] (wiring faults, they last); repeatable")
     serve.add_argument("--max-connections", type=positive_int, default=8, metavar="N",
                        help="clients served at once (default 8); when all are held, a new "
                        "client takes the slot of the one longest without a message")
