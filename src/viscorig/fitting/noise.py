@@ -247,6 +247,10 @@ class FrfNoise:
         estimate; ``None`` when none were looked for. Their white power is the local one: a
         consumer that wants to ignore them must do so itself (a whitened residual there is
         large by construction).
+    interference
+        ``(Hz, ratio)`` of each multiple of the mains frequency where the white noise peaks,
+        ``ratio`` times its median elsewhere (see
+        :func:`~viscorig.fitting.noise_estimation.mains_interference`).
     """
 
     frf: str
@@ -258,6 +262,7 @@ class FrfNoise:
     resolution: float = math.inf
     source: str = "differences"
     outliers: NDArray[np.bool_] | None = field(default=None, repr=False)
+    interference: tuple[tuple[float, float], ...] = ()
     _factors: dict[str, tuple[NDArray[np.float64], bool]] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -398,6 +403,7 @@ class FrfNoise:
             self.resolution,
             self.source,
             None if self.outliers is None else self.outliers[index],
+            self.interference,
         )
 
     def describe(self) -> str:
@@ -412,6 +418,9 @@ class FrfNoise:
         count = 0 if self.outliers is None else int(np.count_nonzero(self.outliers))
         if count:
             text += f", {count} outlier point{'s' if count > 1 else ''}"
+        for frequency, ratio in self.interference:
+            text += (f"; it peaks at {frequency:g} Hz, {ratio:.3g} times its median: mains "
+                     "interference (a ground loop, or pickup in a cable of this FRF's inputs)")
         return text + f" ({self.source})"
 
 

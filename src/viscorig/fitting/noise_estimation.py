@@ -412,6 +412,8 @@ def estimate_frf_noise(
         powers, tau, resolution = _correlated_part(z, white_sorted, axis_sorted, skip)
         if powers[0] + powers[1] > 0:
             white_sorted = _without_leak(white_sorted, powers[0] + powers[1], tau, axis_sorted)
+    interference = () if frequency_hz is None else mains_interference(
+        np.asarray(frequency_hz, dtype=float)[order][~skip], white_sorted[~skip])
     if np.any(skip):
         # An outlier carries its own error: the floor a perfect model reaches includes it.
         own = outlier_power(z, white_sorted, skip)
@@ -424,7 +426,45 @@ def estimate_frf_noise(
     outliers[order] = skip
     axis = np.empty_like(axis_sorted)
     axis[order] = axis_sorted
-    return FrfNoise(name, white, powers, tau, axis, axis_unit, resolution, source, outliers)
+    return FrfNoise(name, white, powers, tau, axis, axis_unit, resolution, source, outliers,
+                    interference)
+
+
+#: Mains frequencies (Hz) whose multiples are looked at for interference.
+MAINS_HZ = (50.0, 60.0)
+#: Harmonics of the mains looked at.
+MAINS_HARMONICS = 4
+#: The noise's peak must lie this close to a mains multiple (Hz): within the main lobe of the
+#: analyser's integration window at the paper's 100 cycles (±0.5 Hz at 50 Hz).
+MAINS_TOLERANCE_HZ = 0.5
+#: ... stand this many times above the noise's median farther than :data:`MAINS_REACH_HZ`
+#: (a clean run's white power peaks at most 11 times its median within 1 Hz of 50, 60, 100
+#: or 120 Hz on the paper campaign, where a table resonance is near) ...
+MAINS_RATIO = 100.0
+#: ... and be the largest within this distance of it.
+MAINS_REACH_HZ = 5.0
+
+
+def mains_interference(frequency_hz: NDArray[np.float64], white: NDArray[np.float64]
+                       ) -> tuple[tuple[float, float], ...]:
+    """The multiples of the mains frequency where the white noise peaks (``(Hz, peak over
+    median elsewhere)``): a hum picked up by an input (a ground loop, a cable beside a mains
+    lead) is not locked to the source, so the points a sweep measures near its frequency
+    scatter by its power through the integration window, and nowhere else. Outlier points
+    (a glitch on one to three points, which carries its own error) are not given."""
+    found = []
+    for mains in MAINS_HZ:
+        for k in range(1, MAINS_HARMONICS + 1):
+            target = k * mains
+            distance = np.abs(frequency_hz - target)
+            near, local = distance <= MAINS_TOLERANCE_HZ, distance < MAINS_REACH_HZ
+            if not near.any() or np.count_nonzero(~local) < 2 * WHITE_WINDOW:
+                continue
+            peak = float(np.max(white[near]))
+            base = float(np.median(white[~local]))
+            if peak >= np.max(white[local]) and base > 0 and peak >= MAINS_RATIO * base:
+                found.append((target, peak / base))
+    return tuple(found)
 
 
 def estimate_noise(data, frfs: Sequence[str] | None = None, *, correlated: bool = True):
@@ -469,7 +509,8 @@ def shared_drift(noises: Sequence[FrfNoise]) -> list[FrfNoise]:
             continue
         out.append(FrfNoise(noise.frf, noise.white_power, strongest.correlated_power,
                             strongest.correlation_length, noise.axis, noise.axis_unit,
-                            noise.resolution, noise.source, noise.outliers))
+                            noise.resolution, noise.source, noise.outliers,
+                            noise.interference))
     return out
 
 
