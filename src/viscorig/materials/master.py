@@ -101,6 +101,8 @@ class MasterCurve:
         The scatter of ``ln E'`` and ``ln E''`` about the master curve the other vertical
         shift gives (``None`` where its sweeps do not superpose): the evidence for the choice
         (:meth:`vertical_verdict`).
+    expansion_per_k
+        The volumetric thermal expansion in ``b_T`` (1/K; 0: the density constant).
     """
 
     table: ModulusTable
@@ -137,14 +139,12 @@ class MasterCurve:
             if not better:
                 return ""
             return (f"vertical shift: reduced by b_T = T_ref ρ_ref/(T ρ) (Ferry), the sweeps "
-                    f"superpose "
-                    f"with rms ln {other[0]:.3f}, {other[1]:.3f} instead of {this[0]:.3f}, "
-                    f"{this[1]:.3f}: try --vertical-shift ferry")
+                    f"superpose with rms ln {other[0]:.3f}, {other[1]:.3f} instead of "
+                    f"{this[0]:.3f}, {this[1]:.3f}: try --vertical-shift ferry")
+        better_without = " (the data superpose better without: --vertical-shift none)"
         return (f"vertical shift b_T = T_ref ρ_ref/(T ρ): rms ln {this[0]:.3f}, {this[1]:.3f} "
-                f"about the "
-                f"master curve, {other[0]:.3f}, {other[1]:.3f} without"
-                + (" (the data superpose better without: --vertical-shift none)" if better
-                   else ""))
+                f"about the master curve, {other[0]:.3f}, {other[1]:.3f} without"
+                + (better_without if better else ""))
 
     def set_log10_bt(self) -> NDArray[np.float64]:
         """``log10 b_T`` of each set (zeros without a vertical shift)."""
