@@ -24,6 +24,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.fitting import FitResult
+from viscorig.fitting.noise_estimation import mains_multiple
 from viscorig.models.effects import edge_held_median
 from viscorig.numbers import significant
 
@@ -143,9 +144,12 @@ def _describe(residual: FrfResidual, part: slice) -> str:
     if f[-1] - f[0] < NARROW_HZ or (
         excess[peak] > PEAK_DOMINANCE * np.median(excess) and np.ptp(wide) < NARROW_HZ
     ):
+        mains = mains_multiple(float(f[peak]))
         return (
             f"a narrow peak at {f[peak]:.1f} Hz not in the model "
             f"({significant(100 * excess[peak])} % of |K*|)"
+            + ("" if mains is None else f"; at {mains:g} Hz, a multiple of the mains "
+               "frequency: interference more likely than a mode (see the noise)")
         )
     phase = np.unwrap(np.angle(ratio))
     magnitude = np.log(np.abs(ratio))

@@ -445,6 +445,16 @@ MAINS_RATIO = 100.0
 MAINS_REACH_HZ = 5.0
 
 
+def mains_multiple(frequency_hz: float) -> float | None:
+    """The multiple of a mains frequency within :data:`MAINS_TOLERANCE_HZ` of
+    ``frequency_hz``, or ``None``."""
+    for mains in MAINS_HZ:
+        k = round(frequency_hz / mains)
+        if 1 <= k <= MAINS_HARMONICS and abs(frequency_hz - k * mains) <= MAINS_TOLERANCE_HZ:
+            return k * mains
+    return None
+
+
 def mains_interference(frequency_hz: NDArray[np.float64], white: NDArray[np.float64]
                        ) -> tuple[tuple[float, float], ...]:
     """The multiples of the mains frequency where the white noise peaks (``(Hz, peak over
