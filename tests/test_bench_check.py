@@ -52,6 +52,7 @@ def test_the_embedded_simulated_rig_passes_every_check() -> None:
     ("invert=4", "FAIL  input 4 (disc accelerometer): reads with the wrong sign; the "
                  "transducer is mounted upside down or its cable's polarity is reversed"),
     ("range=3:-51", "FAIL  overload: input 3 (device force) during the fixed-drive sine"),
+    ("hum=3:0.005", "FAIL  input 3 noise: noise "),
 ])
 def test_an_injected_fault_is_named(tmp_path: Path, fault: str, named: str) -> None:
     with sim_serve("--preset", "soft-0", "--seed", "2", "--fault", fault) as (_, _, resource, _):
@@ -60,9 +61,11 @@ def test_an_injected_fault_is_named(tmp_path: Path, fault: str, named: str) -> N
         status, out, err = cli(["bench", "check", "--station", station])
     assert status == 1, out + err
     assert any(line.startswith(named) for line in fails(out)), out
+    if fault.startswith("hum"):  # 5 mV peak over 0.01124 V/N
+        assert "mains lines at 50 Hz (0.31 N rms); mains hum" in out, out
     # the culprit is named, no healthy input is blamed
     culprit = {"unplug=3": "3", "gain=3:10": "3", "gain=2:0.1": "2", "invert=4": "4",
-               "range=3:-51": "3"}.get(fault)
+               "range=3:-51": "3", "hum=3:0.005": "3"}.get(fault)
     if culprit is not None:
         blamed = {line.split()[2].rstrip(":") for line in fails(out)
                   if line.startswith("FAIL  input ")}
@@ -161,3 +164,26 @@ def test_a_noisy_input_and_a_loop_that_does_not_close_are_named() -> None:
     assert "hum" in failed["input 3 noise"].advice
     assert math.isclose(float(failed["level loop"].found.split("(")[1].split()[0]),
                         20 * math.log10(0.2 / 0.5), abs_tol=0.05)
+
+
+def test_mains_lines_are_read_off_a_hann_power_spectrum() -> None:
+    """A spectrum made here with scipy (Hann window, scaled so that a sine's peak line holds
+    its power): 0.2 N rms at 50 Hz and 0.05 N rms at 150 Hz over white noise of 1e-3 N/√Hz are
+    found with their rms; the noise alone gives no line."""
+    from scipy.signal import periodogram
+
+    from viscorig.benchcheck.checks import mains_lines
+
+    rng = np.random.default_rng(5)
+    fs, seconds = 1024.0, 8.0
+    t = np.arange(int(fs * seconds)) / fs
+    noise = 1e-3 * np.sqrt(fs / 2) * rng.standard_normal(t.size)
+    hum = 0.2 * np.sqrt(2) * np.sin(2 * np.pi * 50 * t) + 0.05 * np.sqrt(2) * np.sin(
+        2 * np.pi * 150 * t + 1.0)
+    for signal, expected in ((noise + hum, [(50.0, 0.2), (150.0, 0.05)]), (noise, [])):
+        frequency, power = periodogram(signal, fs, window="hann", scaling="spectrum")
+        keep = (frequency >= 5) & (frequency <= 400)
+        found = mains_lines(frequency[keep], power[keep], frequency[1])
+        assert [hz for hz, _ in found] == [hz for hz, _ in expected]
+        for (_, rms), (_, truth) in zip(found, expected, strict=True):
+            assert rms == pytest.approx(truth, rel=0.02)

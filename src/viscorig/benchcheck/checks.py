@@ -27,8 +27,10 @@ from itertools import combinations
 import numpy as np
 
 from viscorig.acquisition.sweep import Wiring
+from viscorig.fitting.noise_estimation import MAINS_HARMONICS, MAINS_HZ
 
-__all__ = ["Limits", "Readings", "RigFacts", "Verdict", "assess", "transducer_names"]
+__all__ = ["Limits", "Readings", "RigFacts", "Verdict", "assess", "mains_lines",
+           "transducer_names"]
 
 #: A healthy input reads its transducer within these bounds (magnitude ratio, phase).
 GAIN_TOLERANCE = (0.7, 1.4)
@@ -39,6 +41,29 @@ BALANCE_TOLERANCE = 0.15
 MAX_VARIANCE = 0.01
 #: The name of the fixed-drive measurement in :attr:`Readings.overloads`.
 FIXED_DRIVE = "the fixed-drive sine"
+#: A line at a multiple of the mains frequency this many times the median line's power, with
+#: the source off, is hum (30 dB: a sine's line stands alone there; broadband noise does not).
+HUM_POWER_RATIO = 1000.0
+
+
+def mains_lines(frequency_hz: np.ndarray, power: np.ndarray, line_width_hz: float
+                ) -> list[tuple[float, float]]:
+    """``(Hz, rms)`` of the mains multiples (:data:`~viscorig.fitting.noise_estimation.MAINS_HZ`,
+    their first :data:`~viscorig.fitting.noise_estimation.MAINS_HARMONICS` multiples) where a
+    power spectrum taken with the source off has a line :data:`HUM_POWER_RATIO` times its
+    median line: the line's power within one and a half lines of it (a Hann window spreads a
+    sine over three lines, its peak line holding the sine's power)."""
+    median = float(np.nanmedian(power))
+    found = []
+    for mains in MAINS_HZ:
+        for k in range(1, MAINS_HARMONICS + 1):
+            near = np.abs(frequency_hz - k * mains) <= 1.5 * line_width_hz
+            if not near.any() or not median > 0:
+                continue
+            peak = float(np.nanmax(power[near]))
+            if peak >= HUM_POWER_RATIO * median:
+                found.append((k * mains, math.sqrt(peak)))
+    return found
 
 
 @dataclass(frozen=True)
@@ -105,6 +130,9 @@ class Readings:
         The level loop: what the reference input held, the target, the tolerance, the input.
     overloads
         Input -> the measurements during which it overloaded.
+    hum
+        Input -> the mains lines in its noise spectrum, ``(Hz, rms in its unit)``
+        (:func:`mains_lines`).
     """
 
     identity: str
@@ -121,6 +149,7 @@ class Readings:
     tolerance_db: float
     level_input: int
     overloads: Mapping[int, list[str]] = field(default_factory=dict)
+    hum: Mapping[int, list[tuple[float, float]]] = field(default_factory=dict)
 
 
 def assess(readings: Readings, wiring: Wiring, rig: RigFacts,
@@ -174,7 +203,15 @@ def _noise(readings: Readings, wiring: Wiring, limits: Limits) -> list[Verdict]:
         range_db = readings.noise_range_dbvrms[number]
         found = (f"noise {density:.2g} {unit}/√Hz with the source off, on the "
                  f"{range_db:+g} dBVrms range")
-        if range_db > limits.quiet_range_dbvrms:
+        lines = readings.hum.get(number, [])
+        if lines:
+            heard = ", ".join(f"{hz:g} Hz ({rms:.2g} {unit} rms)" for hz, rms in lines)
+            verdicts.append(Verdict(
+                f"input {number} noise", False, f"{found}; mains lines at {heard}",
+                "mains hum: look for a ground loop (INP:LOW FLOat), a cable beside a mains "
+                "lead or the amplifier's supply; swept-sine points near those lines will "
+                "scatter"))
+        elif range_db > limits.quiet_range_dbvrms:
             verdicts.append(Verdict(
                 f"input {number} noise", False, found,
                 "a large signal with the source off: look for hum, a ground loop (INP:LOW), a "

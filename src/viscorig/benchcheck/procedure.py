@@ -1,8 +1,8 @@
 """Measuring for the bench check: what the analyser is asked, in about a minute of rig time.
 
 1. ``*IDN?``, ``*OPT?``.
-2. FFT, source off: each input's power spectrum (0-400 Hz, 400 lines, Hann, 8 averages) and the
-   range autorange chose.
+2. FFT, source off: each input's power spectrum (0-400 Hz, 400 lines, Hann, 8 averages), the
+   range autorange chose, and the lines at multiples of the mains frequency (hum).
 3. Swept sine, manual points at 10, 25 and 45 Hz, a fixed small source amplitude, ``REF SING``
    so that every input's response is read against input 1 (one phase reference).
 4. The level loop closed (auto level) at 10 Hz on the reference accelerometer at a low level.
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from viscorig.acquisition.sweep import Wiring
-from viscorig.benchcheck.checks import FIXED_DRIVE, Readings
+from viscorig.benchcheck.checks import FIXED_DRIVE, Readings, mains_lines
 
 __all__ = ["CheckSettings", "measure"]
 
@@ -91,12 +91,14 @@ def measure(analyser: Any, wiring: Wiring, source_limit_v: float, force_limit_n:
     spectra = analyser.measure_spectra(span_hz=settings.noise_span_hz, lines=400,
                                        averages=settings.noise_averages, window="HANN")
     _record_overloads(overloads, spectra.overload_channels, "the noise measurement")
-    density = {}
+    density, hum = {}, {}
     band = spectra.frequency_hz >= 5.0
     for channel, power in spectra.power.items():
         # Hann window: a line's noise bandwidth is 1.5 lines
         per_hz = power[band] / (1.5 * spectra.line_width_hz)
         density[channel] = float(math.sqrt(np.nanmedian(per_hz)))
+        hum[channel] = mains_lines(spectra.frequency_hz[band], power[band],
+                                   spectra.line_width_hz)
     # 2. a fixed small drive, every input read against input 1
     analyser.instrument_mode = "SINE"
     analyser.channels_in_use = (1, 2, 3, 4)
@@ -124,5 +126,5 @@ def measure(analyser: Any, wiring: Wiring, source_limit_v: float, force_limit_n:
         source_vpk=start_vpk, sensitivity=dict(wiring.sensitivities_v_per_eu),
         level_reached_m_per_s2=held if math.isfinite(held) else 0.0,
         level_m_per_s2=settings.level_m_per_s2, tolerance_db=settings.tolerance_db,
-        level_input=wiring.device_acceleration, overloads=overloads,
+        level_input=wiring.device_acceleration, overloads=overloads, hum=hum,
     )
