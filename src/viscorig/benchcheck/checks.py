@@ -27,7 +27,7 @@ from itertools import combinations
 import numpy as np
 
 from viscorig.acquisition.sweep import Wiring
-from viscorig.fitting.noise_estimation import MAINS_HARMONICS, MAINS_HZ
+from viscorig.mains import mains_multiples
 
 __all__ = ["Limits", "Readings", "RigFacts", "Verdict", "assess", "mains_lines",
            "transducer_names"]
@@ -48,21 +48,18 @@ HUM_POWER_RATIO = 1000.0
 
 def mains_lines(frequency_hz: np.ndarray, power: np.ndarray, line_width_hz: float
                 ) -> list[tuple[float, float]]:
-    """``(Hz, rms)`` of the mains multiples (:data:`~viscorig.fitting.noise_estimation.MAINS_HZ`,
-    their first :data:`~viscorig.fitting.noise_estimation.MAINS_HARMONICS` multiples) where a
-    power spectrum taken with the source off has a line :data:`HUM_POWER_RATIO` times its
-    median line: the line's power within one and a half lines of it (a Hann window spreads a
-    sine over three lines, its peak line holding the sine's power)."""
+    """``(Hz, rms)`` of the mains multiples (:mod:`viscorig.mains`) where a power spectrum
+    taken with the source off has a line :data:`HUM_POWER_RATIO` times its median line: the
+    line's power within one and a half lines of it (a Hann window spreads a sine over three
+    lines, its peak line holding the sine's power)."""
     median = float(np.nanmedian(power))
     found = []
-    for mains in MAINS_HZ:
-        for k in range(1, MAINS_HARMONICS + 1):
-            near = np.abs(frequency_hz - k * mains) <= 1.5 * line_width_hz
-            if not near.any() or not median > 0:
-                continue
+    for target in mains_multiples(float(np.max(frequency_hz))):
+        near = np.abs(frequency_hz - target) <= 1.5 * line_width_hz
+        if near.any() and median > 0:
             peak = float(np.nanmax(power[near]))
             if peak >= HUM_POWER_RATIO * median:
-                found.append((k * mains, math.sqrt(peak)))
+                found.append((target, math.sqrt(peak)))
     return found
 
 

@@ -24,7 +24,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.significance import FAMILY_ALPHA
 from viscorig.diagnosis.weighted import Likelihood
 from viscorig.fitting import FitResult
-from viscorig.fitting.noise_estimation import mains_multiple
+from viscorig.mains import mains_multiple
 from viscorig.models.effects import edge_held_median
 from viscorig.numbers import significant
 

@@ -79,6 +79,7 @@ from viscorig.analyser import FREQUENCY_STEP_HZ
 from viscorig.fitting.data import MIN_POINTS
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 from viscorig.fitting.outliers import outlier_points, outlier_power, running_median
+from viscorig.mains import MAINS_TOLERANCE_HZ, mains_multiples
 
 #: Order of the lag-1 difference that estimates the white part (exact on a quadratic ``Z``).
 WHITE_ORDER = 3
@@ -430,50 +431,33 @@ def estimate_frf_noise(
                     interference)
 
 
-#: Mains frequencies (Hz) whose multiples are looked at for interference.
-MAINS_HZ = (50.0, 60.0)
-#: Harmonics of the mains looked at.
-MAINS_HARMONICS = 4
-#: The noise's peak must lie this close to a mains multiple (Hz): within the main lobe of the
-#: analyser's integration window at the paper's 100 cycles (±0.5 Hz at 50 Hz).
-MAINS_TOLERANCE_HZ = 0.5
-#: ... stand this many times above the noise's median farther than :data:`MAINS_REACH_HZ`
-#: (a clean run's white power peaks at most 11 times its median within 1 Hz of 50, 60, 100
-#: or 120 Hz on the paper campaign, where a table resonance is near) ...
+#: Mains interference: the white noise's peak within ``MAINS_TOLERANCE_HZ`` of a mains multiple
+#: stands this many times above its median farther than :data:`MAINS_REACH_HZ` (a clean run's
+#: white power peaks at most 11 times its median within 1 Hz of 50, 60, 100 or 120 Hz on the
+#: paper campaign, where a table resonance is near) ...
 MAINS_RATIO = 100.0
-#: ... and be the largest within this distance of it.
+#: ... and is the largest within this distance of it.
 MAINS_REACH_HZ = 5.0
-
-
-def mains_multiple(frequency_hz: float) -> float | None:
-    """The multiple of a mains frequency within :data:`MAINS_TOLERANCE_HZ` of
-    ``frequency_hz``, or ``None``."""
-    for mains in MAINS_HZ:
-        k = round(frequency_hz / mains)
-        if 1 <= k <= MAINS_HARMONICS and abs(frequency_hz - k * mains) <= MAINS_TOLERANCE_HZ:
-            return k * mains
-    return None
 
 
 def mains_interference(frequency_hz: NDArray[np.float64], white: NDArray[np.float64]
                        ) -> tuple[tuple[float, float], ...]:
-    """The multiples of the mains frequency where the white noise peaks (``(Hz, peak over
-    median elsewhere)``): a hum picked up by an input (a ground loop, a cable beside a mains
-    lead) is not locked to the source, so the points a sweep measures near its frequency
-    scatter by its power through the integration window, and nowhere else. Outlier points
-    (a glitch on one to three points, which carries its own error) are not given."""
+    """The multiples of the mains frequency (:mod:`viscorig.mains`) where the white noise
+    peaks (``(Hz, peak over median elsewhere)``): a hum picked up by an input (a ground loop, a
+    cable beside a mains lead) is not locked to the source, so the points a sweep measures
+    near its frequency scatter by its power through the integration window, and nowhere
+    else. Outlier points (a glitch on one to three points, which carries its own error) are
+    not given."""
     found = []
-    for mains in MAINS_HZ:
-        for k in range(1, MAINS_HARMONICS + 1):
-            target = k * mains
-            distance = np.abs(frequency_hz - target)
-            near, local = distance <= MAINS_TOLERANCE_HZ, distance < MAINS_REACH_HZ
-            if not near.any() or np.count_nonzero(~local) < 2 * WHITE_WINDOW:
-                continue
-            peak = float(np.max(white[near]))
-            base = float(np.median(white[~local]))
-            if peak >= np.max(white[local]) and base > 0 and peak >= MAINS_RATIO * base:
-                found.append((target, peak / base))
+    for target in mains_multiples(float(np.max(frequency_hz))):
+        distance = np.abs(frequency_hz - target)
+        near, local = distance <= MAINS_TOLERANCE_HZ, distance < MAINS_REACH_HZ
+        if not near.any() or np.count_nonzero(~local) < 2 * WHITE_WINDOW:
+            continue
+        peak = float(np.max(white[near]))
+        base = float(np.median(white[~local]))
+        if peak >= np.max(white[local]) and base > 0 and peak >= MAINS_RATIO * base:
+            found.append((target, peak / base))
     return tuple(found)
 
 
