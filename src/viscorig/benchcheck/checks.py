@@ -55,9 +55,9 @@ def mains_lines(frequency_hz: np.ndarray, power: np.ndarray, line_width_hz: floa
     median = float(np.nanmedian(power))
     found = []
     for target in mains_multiples(float(np.max(frequency_hz))):
-        near = np.abs(frequency_hz - target) <= 1.5 * line_width_hz
-        if near.any() and median > 0:
-            peak = float(np.nanmax(power[near]))
+        lines = power[np.abs(frequency_hz - target) <= 1.5 * line_width_hz]
+        if median > 0 and np.isfinite(lines).any():
+            peak = float(np.nanmax(lines))
             if peak >= HUM_POWER_RATIO * median:
                 found.append((target, math.sqrt(peak)))
     return found
