@@ -7,6 +7,7 @@ import math
 
 from viscorig.errors import InputError
 from viscorig.executor import default_jobs
+from viscorig.materials.vertical import VERTICAL_SHIFTS
 
 
 def positive_number(text: str) -> float:
@@ -71,3 +72,16 @@ def parse_band(text: str | None) -> tuple[float, float] | None:
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
         raise InputError(f"'{text}' needs 0 <= LO < HI", "--band")
     return lo, hi
+
+
+def add_vertical_shift(parser: argparse.ArgumentParser, prefix: str = "") -> None:
+    """The ``--vertical-shift`` and ``--thermal-expansion`` options of a master curve
+    (``prefix`` opens their help: "with --material: ")."""
+    parser.add_argument("--vertical-shift", choices=VERTICAL_SHIFTS, default="none",
+                        help=f"{prefix}ferry: reduce the moduli by b_T = T_ref rho_ref/(T rho) "
+                        "before shifting, as an entropic network's modulus grows with absolute "
+                        "temperature (rubbery plateau, melts); default none")
+    parser.add_argument("--thermal-expansion", type=float, default=0.0, metavar="PER_K",
+                        help=f"{prefix}with --vertical-shift ferry: volumetric thermal "
+                        "expansion of the density in b_T, 1/K (rubbers about 6.6e-4); default 0, "
+                        "the density constant")

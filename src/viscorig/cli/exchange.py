@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from viscorig.cli import summary_of
+from viscorig.cli.arguments import add_vertical_shift
 from viscorig.errors import InputError
 from viscorig.exchange import (
     ImportSettings,
@@ -82,10 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("--kstar", choices=("support", "fit"), default="support",
                         help="with --material and rig runs: K* from the support FRF (Eq. 5) "
                         "or from the newest stored fit")
-    export.add_argument("--vertical-shift", choices=("none", "ferry"), default="none",
-                        help="with --material: as 'viscorig master --vertical-shift'")
-    export.add_argument("--thermal-expansion", type=float, default=0.0, metavar="PER_K",
-                        help="with --material: as 'viscorig master --thermal-expansion'")
+    add_vertical_shift(export, "with --material: ")
     export.add_argument("--out", required=True, help="file to write (replaced if it exists)")
     export.add_argument("--uff-ascii", action="store_true",
                         help="plain ASCII dataset 58 (12 significant digits, frequencies 6) "

@@ -17,8 +17,8 @@ import argparse
 
 from viscorig import jsontext
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import positive_number
-from viscorig.materials.master import VERTICAL_SHIFTS, MasterCurve
+from viscorig.cli.arguments import add_vertical_shift, positive_number
+from viscorig.materials.master import MasterCurve
 from viscorig.materials.sources import master_curve
 from viscorig.storage import CampaignFile
 
@@ -42,18 +42,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_vertical_shift(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=handler)
-
-
-def add_vertical_shift(parser: argparse.ArgumentParser) -> None:
-    """The ``--vertical-shift`` and ``--thermal-expansion`` options."""
-    parser.add_argument("--vertical-shift", choices=VERTICAL_SHIFTS, default="none",
-                        help="ferry: reduce the moduli by b_T = T_ref rho_ref/(T rho) before "
-                        "shifting, as an entropic network's modulus grows with absolute "
-                        "temperature (rubbery plateau, melts); default none")
-    parser.add_argument("--thermal-expansion", type=float, default=0.0, metavar="PER_K",
-                        help="with --vertical-shift ferry: volumetric thermal expansion of the "
-                        "density in b_T, 1/K (rubbers about 6.6e-4); default 0, the density "
-                        "constant")
 
 
 def master_of(path: str, runs: list[str], reference_c: float | None = None,

@@ -10,6 +10,7 @@ Small modules, one job each:
 - :mod:`~viscorig.materials.sources`: the table of named runs;
 - :mod:`~viscorig.materials.shift`: shift factors (spline master curve);
 - :mod:`~viscorig.materials.shiftfunctions`: WLF, Arrhenius;
+- :mod:`~viscorig.materials.vertical`: Ferry's vertical shift factor;
 - :mod:`~viscorig.materials.prony`: Prony series and the fractional model;
 - :mod:`~viscorig.materials.joint`: shifts refined together with the Prony series;
 - :mod:`~viscorig.materials.kkcheck`: Kramers-Kronig check;

@@ -2,13 +2,10 @@
 and the checks of superposition and Kramers-Kronig consistency, as one result.
 
 Vertical shift: with ``vertical="ferry"`` the moduli are first reduced by Ferry's factor
-``b_T = T_ref ρ_ref/(T ρ)`` (:func:`ferry_factor`; absolute temperatures; the density constant,
-or falling with a volumetric thermal expansion ``α_V``): an entropic network's modulus is
-proportional to absolute temperature and density, so sweeps of a rubbery or melt plateau at
-different temperatures differ by ``1/b_T`` besides their shift along the frequency axis.
-Ignored, that factor is taken up by the horizontal shifts wherever a modulus is flat. The
-master curve, its series and its checks are then those of the reduced moduli ``E_p = E b_T``;
-the modulus at temperature ``T`` is ``E_p(f·aT) / b_T``.
+``b_T`` (:mod:`~viscorig.materials.vertical`). Ignored where the data carry it, that factor is
+taken up by the horizontal shifts wherever a modulus is flat. The master curve, its series and
+its checks are then those of the reduced moduli ``E_p = E b_T``; the modulus at temperature
+``T`` is ``E_p(f·aT) / b_T``.
 
 :func:`build_master` is what ``viscorig master`` and ``open_campaign(...).master(...)`` call;
 :meth:`MasterCurve.to_json` is the JSON contract of ``master --json`` (design.md).
@@ -46,15 +43,12 @@ from viscorig.materials.shiftfunctions import (
 )
 from viscorig.materials.superposition import SuperpositionCheck, check_superposition
 from viscorig.materials.table import ModulusTable
+from viscorig.materials.vertical import MAX_EXPANSION_PER_K, VERTICAL_SHIFTS, ferry_factor
 from viscorig.numbers import with_uncertainty
 
 #: Without a shift function, a set within this many kelvin of the reference temperature asked
 #: for is taken as the reference itself (with one, the shifts are moved to it exactly).
 SAME_TEMPERATURE_K = 0.5
-#: Vertical shifts: none, or Ferry's ``b_T`` (see the module text).
-VERTICAL_SHIFTS = ("none", "ferry")
-#: Largest volumetric thermal expansion taken (1/K): rubbers and melts expand by 5e-4 to 1e-3.
-MAX_EXPANSION_PER_K = 0.01
 #: The other vertical shift is suggested where its scatter about the master curve (storage and
 #: loss together) is below this fraction of the one chosen.
 VERTICAL_EVIDENCE = 0.8
@@ -476,16 +470,6 @@ def _check_rate(shifts: ShiftFactors, member: NDArray[np.int64], where: str) -> 
 def _scaled(table: ModulusTable, factor: NDArray[np.float64] | float) -> ModulusTable:
     """The table with both moduli times ``factor`` (one number, or one per point)."""
     return replace(table, storage_pa=table.storage_pa * factor, loss_pa=table.loss_pa * factor)
-
-
-def ferry_factor(temperature_c: NDArray[np.float64] | float, reference_c: float,
-                 expansion_per_k: float = 0.0) -> NDArray[np.float64]:
-    """Ferry's vertical factor ``b_T = T_ref ρ_ref/(T ρ)`` with ``ρ_ref/ρ = exp(α_V (T − T_ref))``
-    (``α_V`` = ``expansion_per_k``, volumetric, 1/K; 0: the density constant). The exponential
-    form keeps a change of reference one common factor."""
-    temperature = np.asarray(temperature_c, dtype=float)
-    return ((reference_c + 273.15) / (temperature + 273.15)
-            * np.exp(expansion_per_k * (temperature - reference_c)))
 
 
 def _reduced(table: ModulusTable, reference_c: float, expansion_per_k: float) -> ModulusTable:
