@@ -531,6 +531,16 @@ def test_mains_hum_on_an_input_reads_through_the_integration_window(rm) -> None:
     assert np.abs(far - clean)[0] < 0.02 * 0.01
 
 
+@pytest.mark.parametrize("spec", ["hum=3", "hum=3:x", "hum=3:0", "hum=3:0.005:60:1",
+                                  "hum=5:0.005", "hum=3:0.005:2000"])
+def test_a_hum_that_is_no_hum_is_refused_by_name(spec) -> None:
+    from rigsim.faults import FaultSpecError
+
+    with pytest.raises(FaultSpecError, match="hum"):
+        parse_fault_spec(spec)
+    assert parse_fault_spec("hum=3:0.005:60").frequency_hz == 60.0
+
+
 def test_a_wiring_fault_leaves_the_normalized_variance_positive_and_its_own(rm) -> None:
     """An inverted or amplified input: the variance relative to the signal does not change
     (it was multiplied by the gain, negative for an inverted input)."""

@@ -420,8 +420,7 @@ def parse_fault_spec(spec: str) -> Fault:
             raise FaultSpecError(f"fault {spec!r}: a gain of 0 is unplug=N")
         return Fault(kind, match or None, channel=int(channel), value=value)
     if kind == "hum":
-        parts = arg.split(":")
-        numbers = _numbers(spec, ":".join(parts[:3]), ":", max(min(len(parts), 3), 2),
+        numbers = _numbers(spec, arg, ":", 3 if arg.count(":") == 2 else 2,
                            "hum=N:VPK[:HZ] (input, volts peak, Hz)")
         return Fault("hum", match or None, channel=int(numbers[0]), value=numbers[1],
                      frequency_hz=numbers[2] if len(numbers) == 3 else MAINS_HZ)
