@@ -17,6 +17,7 @@ from viscorig.diagnosis.data import DiagnosisData, combine, from_campaign
 from viscorig.diagnosis.explain import explain, extra_runs
 from viscorig.diagnosis.findings import (
     Finding,
+    Optima,
     candidate_fits,
     candidate_spec,
     carried_values,
@@ -86,6 +87,8 @@ class DiagnosisResult:
     advice: list[str] = field(default_factory=list)
     together: Likelihood | None = None
     """Likelihood fit of the model with every significant finding added."""
+    optima: Optima = field(default_factory=dict, repr=False)
+    """The models fitted at this rung and those before it (:data:`~.findings.Optima`)."""
 
     @property
     def model(self) -> str:
@@ -189,12 +192,12 @@ class DiagnosisResult:
         if "+" in text:
             return diagnose(self.data, text)
         candidate_spec(self.fit.model, text)  # checks the term
-        return analyse(self.data, fit_with(self.fit, self.data, text))
+        return analyse(self.data, fit_with(self.fit, self.data, text), optima=self.optima)
 
     def _with_finding(self, finding: Finding) -> DiagnosisResult:
         if finding.fit is None:
             finding.fit = identify_fit(finding.likelihood, self.data)
-        return analyse(self.data, finding.fit, finding.likelihood)
+        return analyse(self.data, finding.fit, finding.likelihood, self.optima)
 
     def with_significant(self) -> DiagnosisResult:
         """The diagnosis of this model with its best finding added, and with every mechanical
@@ -215,7 +218,7 @@ class DiagnosisResult:
             start.update({k: v for k, v in carried_values(finding.likelihood, spec).items()
                           if k not in start})
         held = self.together if self.together.model.spec == spec.spec else None
-        return analyse(self.data, refit(spec, self.data, start), held)
+        return analyse(self.data, refit(spec, self.data, start), held, self.optima)
 
     def auto(self, max_steps: int = MAX_AUTO_STEPS) -> list[DiagnosisResult]:
         """Add the significant effects and refit, until nothing significant is left.
@@ -259,10 +262,10 @@ class DiagnosisResult:
     def in_other_family(self) -> DiagnosisResult | None:
         """The diagnosis of this model with its Maxwell K* replaced by the fractional one when
         the data prefer it (:func:`~viscorig.diagnosis.findings.other_family`), or ``None``."""
-        swapped = other_family(self.likelihood, self.data)
+        swapped = other_family(self.likelihood, self.data, self.optima)
         if swapped is None:
             return None
-        return analyse(self.data, identify_fit(swapped, self.data), swapped)
+        return analyse(self.data, identify_fit(swapped, self.data), swapped, self.optima)
 
     def without_unpaid(self) -> DiagnosisResult | None:
         """The diagnosis of this model less the effect term that no longer pays for itself in
@@ -272,7 +275,7 @@ class DiagnosisResult:
         if found is None:
             return None
         _, reduced = found
-        return analyse(self.data, identify_fit(reduced, self.data))
+        return analyse(self.data, identify_fit(reduced, self.data), optima=self.optima)
 
     def to_json(self, ladder: Sequence[DiagnosisResult] | None = None) -> dict[str, object]:
         """The ``diagnose --json`` object of design.md (plus ``runs``, ``advice``, ``noise``,
@@ -357,11 +360,13 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
 
 
 def analyse(
-    data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None
+    data: DiagnosisData, result: FitResult, likelihood: Likelihood | None = None,
+    optima: Optima | None = None,
 ) -> DiagnosisResult:
     """Failures, screening and confirmed findings of a fit already made on ``data``.
 
-    ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here).
+    ``likelihood``: the model's maximum-likelihood fit when already made (else it is made here);
+    ``optima``: the models the ladder fitted before (:data:`~.findings.Optima`).
     """
     recentred = recentred_modes(result, data)
     if recentred is not result:
@@ -378,12 +383,15 @@ def analyse(
     candidates = screen(current, data, residual)
     # on the workers while this process scans
     frame = fit_all_later(screen_family_frame, [(current, data, residual)], fewest=1)
-    early = candidate_fits(current, data, candidates)
+    optima = dict(optima or {})
+    early = candidate_fits(current, data, candidates, optima)
     existing = tuple(v for k, v in current.values.items() if k.startswith("f_n"))
     peaks = scan(current, data, existing)
     scanned = [*frame()[0], *screen_fixtures(peaks)]
-    late = candidate_fits(current, data, scanned)
-    findings, together = confirm(current, data, candidates + scanned, early() + late())
+    late = candidate_fits(current, data, scanned, optima)
+    fitted = early() + late()
+    optima.update((fit.model.spec, fit.values) for fit in (current, *fitted) if fit is not None)
+    findings, together = confirm(current, data, candidates + scanned, fitted)
     best = next((finding for finding in findings if finding.significant), None)
     if best is not None and best.fit is None:
         best.fit = identify_fit(best.likelihood, data)
@@ -396,7 +404,8 @@ def analyse(
             for text in extra_runs(finding, data):
                 if text not in advice:
                     advice.append(text)
-    diagnosis = DiagnosisResult(data, result, current, peaks, findings, [], advice, together)
+    diagnosis = DiagnosisResult(data, result, current, peaks, findings, [], advice, together,
+                                optima)
     # where outliers pull the uniform fit off the other points, its bands are theirs
     diagnosis.failures = failure_bands(current if diagnosis.pulled_by_outliers else result, data)
     return diagnosis

@@ -3,9 +3,10 @@
 Fits. Every candidate is fitted by maximum likelihood on the whitened residual
 (:mod:`viscorig.diagnosis.weighted`), warm-started from the current model and the start
 screening found (a K* that replaces the current one is first fitted by ``identify``'s fitter,
-from its linear start). Its ``χ²`` drop ``Δχ²`` against the current model, and ``delta_bic =
-−Δχ² + k ln n`` (``k`` added parameters, ``n`` the independent observations the noise model
-says the data are worth), rank the candidates, best first. The fits stop first at a looser
+from its linear start, or from its optimum at an earlier rung of the ladder). Its ``χ²`` drop
+``Δχ²`` against the current model, and ``delta_bic = −Δχ² + k ln n`` (``k`` added parameters,
+``n`` the independent observations the noise model says the data are worth), rank the
+candidates, best first. The fits stop first at a looser
 tolerance (:data:`FIRST_TOLERANCE`), where each ``Δχ²`` is a lower bound of the finished fit's,
 by a fraction of the misfit ``φ`` as a rule; the candidates whose test, rank or name could still
 change are finished (:func:`_near_decision`).
@@ -34,7 +35,7 @@ would.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -257,7 +258,7 @@ def _broad(model: Model) -> set[str]:
 
 def fit_term(
     current: Likelihood, data: DiagnosisData, term_text: str, start: dict[str, float],
-    tolerance: float = TOLERANCE,
+    tolerance: float = TOLERANCE, earlier: Mapping[str, float] | None = None,
 ) -> Likelihood:
     """Maximum-likelihood fit of the current model with ``term_text`` added (or as its K*).
 
@@ -268,7 +269,11 @@ def fit_term(
     whitening), so that where it stops moves its ``χ²`` one way only: a fit weighing each point
     by its own noise alone, judged on the whole noise model, moved the candidates' ``Δχ²`` by
     tens of ``φ`` either way with its stopping point, and the ladders with them.
-    ``tolerance``: :func:`~viscorig.diagnosis.weighted.ml_fit`'s.
+    ``tolerance``: :func:`~viscorig.diagnosis.weighted.ml_fit`'s. ``earlier``: the values of
+    the same model fitted at an earlier rung of the ladder (:data:`Optima`); a new K* or load
+    cell starts its fitted parameters there in place of ``identify``'s fit from the linear
+    start (the optimum of the same model under a prior weighed a little differently, a few
+    solver steps from this one), the others at the current model's values.
     """
     model = parse_spec(candidate_spec(current.model, term_text))
     only = _broad(model) | added_parameters(model, term_text)
@@ -284,9 +289,16 @@ def fit_term(
             or term_text == "load_cell"):
         # A new K*, or a new coupling of table and disc, reshapes the whole band: the current
         # K* is no start for it. Fit it as identify does (linear start), then by likelihood.
-        first = fit_with(current, data, term_text, start)
-        result = ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
-        if result.chi2 <= current.chi2 and not outlier_heavy(first):
+        if earlier is not None:
+            values = {**model.defaults(), **carried_values(current, model),
+                      **{name: value for name, value in earlier.items() if name in only}}
+            result = ml_fit(model, data, values, only=only, tolerance=tolerance)
+            heavy = False
+        else:
+            first = fit_with(current, data, term_text, start)
+            result = ml_fit(first.model, data, first.values, only=only, tolerance=tolerance)
+            heavy = outlier_heavy(first)
+        if result.chi2 <= current.chi2 and not heavy:
             return result
         # That start minimises every point's error alike: a few outlier points can drag it
         # where the likelihood ends worse than the model without the term, or in a valley far
@@ -327,10 +339,11 @@ NEAR_SHARE_OF_BEST = 0.2
 
 
 def _fit_term_or_none(current: Likelihood, data: DiagnosisData, term_text: str,
-                      start: dict[str, float], tolerance: float = TOLERANCE) -> Likelihood | None:
+                      start: dict[str, float], tolerance: float = TOLERANCE,
+                      earlier: Mapping[str, float] | None = None) -> Likelihood | None:
     """:func:`fit_term`, or ``None`` where the term cannot be fitted to these data."""
     try:
-        return fit_term(current, data, term_text, start, tolerance)
+        return fit_term(current, data, term_text, start, tolerance, earlier)
     except (InputError, ValueError, np.linalg.LinAlgError):
         return None
 
@@ -390,13 +403,30 @@ def _inside(result: Likelihood, term_text: str, data: DiagnosisData) -> bool:
     return bool(f.min() + margin < f_n < f.max() - margin)
 
 
+Optima = Mapping[str, Mapping[str, float]]
+"""The values of the models fitted at the earlier rungs of a ladder, by spec: a K* that replaces
+the current one starts from its own optimum when the ladder fitted the same model before (a
+fractional K* tried again once the Maxwell one has an arm more)."""
+
+
+def _earlier(optima: Optima, current: Model, term_text: str) -> Mapping[str, float] | None:
+    try:
+        return optima.get(candidate_spec(current, term_text))
+    except InputError:
+        return None
+
+
 def candidate_fits(
-    current: Likelihood, data: DiagnosisData, candidates: list[Candidate]
+    current: Likelihood, data: DiagnosisData, candidates: list[Candidate],
+    optima: Optima | None = None,
 ) -> Callable[[], list[Likelihood | None]]:
     """Start the fits of every candidate's term and alternatives (:func:`fit_term`, ``None``
-    where one cannot be fitted), in that order; what is returned gives their results."""
+    where one cannot be fitted), in that order; what is returned gives their results.
+    ``optima``: the models the ladder fitted before this step."""
+    optima = optima or {}
     return fit_all_later(_fit_term_or_none, [
-        (current, data, term, candidate.start, FIRST_TOLERANCE)
+        (current, data, term, candidate.start, FIRST_TOLERANCE,
+         _earlier(optima, current.model, term))
         for candidate in candidates for term in (candidate.term, *candidate.alternatives)])
 
 
@@ -542,7 +572,8 @@ def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
     return ml_fit(result.model, data, result.values)
 
 
-def other_family(current: Likelihood, data: DiagnosisData) -> Likelihood | None:
+def other_family(current: Likelihood, data: DiagnosisData,
+                 optima: Optima | None = None) -> Likelihood | None:
     """The fit of ``current`` with its Maxwell K* replaced by the fractional one, every other
     term kept, when the data prefer it by the Bayesian criterion (:func:`clearly_better`, with
     no margin); else ``None``.
@@ -550,12 +581,14 @@ def other_family(current: Likelihood, data: DiagnosisData) -> Likelihood | None:
     The ladder picks a K* family at its first rungs, far from the noise, where a local mode or
     the load cell not yet added weighs as much as the family's shape, and only adds arms to a
     Maxwell K* after that. With every effect in place, the four parameters of a fractional K*
-    may describe the same data as many arms do.
+    may describe the same data as many arms do. ``optima``: the models the ladder fitted
+    before (:data:`Optima`).
     """
     if maxwell_order(current.model) is None:
         return None
     try:
-        other = _exact(fit_term(current, data, "fractional", {}), data)
+        earlier = _earlier(optima or {}, current.model, "fractional")
+        other = _exact(fit_term(current, data, "fractional", {}, earlier=earlier), data)
     except (InputError, ValueError, np.linalg.LinAlgError):
         return None
     return other if clearly_better(other, current, 0.0, data) else None
