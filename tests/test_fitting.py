@@ -13,7 +13,7 @@ from viscorig.errors import InputError
 from viscorig.estimates import equivalent_damping, loss_factor, measured_resonance, storage_modulus
 from viscorig.fitting import FrfData, fit, linear_start, local_noise_power, noise_floor
 from viscorig.fitting.starts import table_linear_fit
-from viscorig.models import Model, Voigt, parse_spec
+from viscorig.models import Fixture, Model, Voigt, parse_spec
 from viscorig.models.modulus import prony_nnls
 from viscorig.rig import RigDescription, geometry_factor
 
@@ -244,6 +244,30 @@ def test_analytic_derivatives_match_finite_differences_of_the_prediction(
             scale = np.max(np.abs(predicted[frf])) / abs(point[name])
             error = np.max(np.abs(derivatives[frf][:, j] - numeric))
             assert error < 1e-6 * scale, (frf, name)
+
+
+def test_derivatives_of_some_parameters_are_those_columns_of_all_of_them() -> None:
+    """A fit that holds the local modes asks for the other columns only: they are the same
+    numbers, and the held modes' own derivatives are not needed for them."""
+    model = parse_spec("fractional+load_cell+fixture(38)+fixture(92)")
+    ctx = FrfData(FREQUENCY, np.ones(FREQUENCY.size)).context()
+    point = {**model.defaults(), "M_s": 3.4, "K_s": 50194.0, "C_s": 5.05, "K_0": 1.5e5,
+             "K_inf": 6e5, "tau": 2e-3, "alpha": 0.45, "M_v": 0.2, "K_c": 3e6, "m_1": 4e-3}
+    every = model.derivatives(ctx, point, model.names)
+    some = ("K_0", "alpha", "M_v", "K_c")
+    asked = model.derivatives(ctx, point, some)
+    assert every is not None and asked is not None
+    columns = [model.names.index(name) for name in some]
+    for frf in model.frfs:
+        np.testing.assert_allclose(asked[frf], every[frf][:, columns], rtol=1e-12)
+
+    class Opaque(Fixture):
+        def disc_stiffness_derivatives(self, ctx, p):
+            return None
+
+    held = Model([*parse_spec("fractional+load_cell").terms, Opaque(38.0)])
+    assert held.derivatives(ctx, {**held.defaults(), **point}, held.names) is None
+    assert held.derivatives(ctx, {**held.defaults(), **point}, some) is not None
 
 
 def test_terms_without_derivatives_fall_back_to_finite_differences() -> None:

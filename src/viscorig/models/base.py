@@ -620,7 +620,10 @@ class Model:
         by_disc: dict[str, NDArray[Any] | complex] = self._global(term, own)
         if term.has_disc:
             by_disc["M_v"] = -w2
+        asked = set(names)
         for effect in self._stage_terms["disc_stiffness"]:
+            if asked.isdisjoint(self._names[id(effect)].values()):
+                continue  # held: its addition to D_v reaches the others through D_v alone
             own = effect.disc_stiffness_derivatives(ctx, self.local_values(effect, values))
             if own is None:
                 return None
@@ -646,7 +649,8 @@ class Model:
             coupled = self._coupler.couple_derivatives(ctx, local, d_table, d_disc)
             if coupled is None:
                 return None
-            receptance = self._coupler.couple(ctx, local, d_table, d_disc)
+            if self._stage_terms["measure"]:
+                receptance = self._coupler.couple(ctx, local, d_table, d_disc)
             names_of = self._names[id(self._coupler)]  # "d_table", "d_disc" are kept as they are
             chain = {frf: {names_of.get(key, key): d for key, d in by.items()}
                      for frf, by in coupled.items()}
