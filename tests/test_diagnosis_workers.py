@@ -27,7 +27,7 @@ QUIET = {key: value / 10 for key, value in DEFAULT_NOISE.items()}
 
 def summary(steps) -> list:
     return [(step.model, step.rms_error,
-             [(f.effect, f.term, f.delta_chi2, f.significant) for f in step.findings])
+             [(f.effect, f.term, f.delta_chi2, f.significant, f.note) for f in step.findings])
             for step in steps]
 
 
@@ -112,3 +112,22 @@ def test_a_worker_that_dies_costs_no_result(caplog) -> None:
         assert fit_all(square_here_only, [(3,), (4,), (5,)]) == [9, 16, 25]
         assert fit_all(square_here_only, [(6,), (7,)]) == [36, 49]  # the rest made here
     assert "worker process stopped" in caplog.text
+
+
+@pytest.mark.slow
+def test_forward_tests_made_together_are_those_made_one_after_another() -> None:
+    """A rung whose forward tests accept several effects after the lead (the load cell and
+    three local modes next to a Maxwell K*): the tests that follow one base are fitted two at a
+    time on the workers, those after an accepted one again, and the ladder is the same."""
+    from ladder_reference import measured_run
+
+    from viscorig.diagnosis.data import combine
+
+    data = combine([("medium-10", measured_run("medium-10"))], table=TABLE)
+    with np.errstate(all="ignore"):
+        here = summary(diagnose(data, "voigt").auto())
+        with LocalExecutor(2) as workers, fitting_on(workers):
+            there = summary(diagnose(data, "voigt").auto())
+    accepted_after_lead = max(sum(1 for f in rung[2] if f[3]) - 1 for rung in here)
+    assert accepted_after_lead >= 2
+    assert there == here

@@ -44,7 +44,7 @@ from viscorig.diagnosis.data import DiagnosisData
 from viscorig.diagnosis.screening import Candidate
 from viscorig.diagnosis.significance import alpha_of, dispersion, judge, threshold
 from viscorig.diagnosis.weighted import TOLERANCE, Likelihood, evaluate, ml_fit
-from viscorig.diagnosis.workers import fit_all, fit_all_later
+from viscorig.diagnosis.workers import fit_all, fit_all_later, fits_at_once
 from viscorig.errors import InputError
 from viscorig.fitting import FitResult, fit
 from viscorig.fitting.arms import extended_start, maxwell_order
@@ -610,15 +610,34 @@ def clearly_better(other: Likelihood, first: Likelihood, margin: float,
     return bic(other) < bic(first) - margin
 
 
+def _next_to(base: Likelihood, data: DiagnosisData, term: str, found: Likelihood
+             ) -> Likelihood | None:
+    """The fit of ``base`` with ``term`` added, started from ``base`` and the term's own fit
+    ``found`` (the new term's parameters and the broad ones free); ``None`` where the term does
+    not combine with ``base``."""
+    try:
+        model = parse_spec(candidate_spec(base.model, term))
+    except InputError:
+        return None
+    start = {**model.defaults(), **carried_values(found, model), **carried_values(base, model)}
+    return ml_fit(model, data, start, only=_broad(model) | added_parameters(model, term))
+
+
 def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) -> Likelihood:
     """Mark significant the findings that pay for themselves next to those before them; the fit
-    of the model with all of them."""
+    of the model with all of them.
+
+    Each test is against the model of the findings accepted before it, so the tests that follow
+    one base are independent: as many as there are workers (:func:`~.workers.fits_at_once`)
+    are fitted together, and those after a finding that is accepted are fitted again against
+    the new base. The numbers are those of testing one after the other."""
     base, accepted = current, list[Finding]()
     lead = findings[0] if findings else None
     if lead is None or lead.passes_alone or lead.delta_chi2 <= 0 or lead.effect == (
             "fixture_resonance"):
         lead = None
-    for finding in findings:
+    tested: dict[int, Likelihood | None] = {}  # by position in findings, against ``base``
+    for index, finding in enumerate(findings):
         if not finding.passes_alone:
             continue
         if not accepted and lead is not None:
@@ -633,20 +652,21 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             continue
         if finding is lead:
             continue
-        try:
-            spec = candidate_spec(base.model, finding.term)
-            model = parse_spec(spec)
-        except InputError:
+        if index not in tested:
+            waiting = [i for i in range(index, len(findings))
+                       if findings[i].passes_alone and findings[i] is not lead][:fits_at_once()]
+            results = fit_all(_next_to, [(base, data, findings[i].term, findings[i].likelihood)
+                                         for i in waiting])
+            tested = dict(zip(waiting, results, strict=True))
+        result = tested[index]
+        if result is None:
             continue
-        start = {**model.defaults(), **carried_values(finding.likelihood, model),
-                 **carried_values(base, model)}
-        result = ml_fit(model, data, start,
-                        only=_broad(model) | added_parameters(model, finding.term))
         delta, phi, passes = judge(base, result, finding.threshold, data, finding.term)
         if passes:
             finding.significant = True
             accepted.append(finding)
             base = _exact(result, data)
+            tested = {}
         else:
             names = ", ".join(f.term for f in accepted)
             finding.note = (

@@ -29,10 +29,13 @@ Result = TypeVar("Result")
 
 class Mapper(Protocol):
     """What a diagnosis needs of an executor: ``start``, which hands work out now and returns
-    what waits for its results, in order."""
+    what waits for its results, in order, and how many ``workers`` work at once."""
 
     def start(self, function: Callable[..., Any], arguments: Sequence[tuple[Any, ...]]
               ) -> Callable[[], list[Any]]: ...
+
+    @property
+    def workers(self) -> int: ...
 
 
 _EXECUTOR: ContextVar[Mapper | None] = ContextVar("viscorig_diagnosis_executor", default=None)
@@ -48,6 +51,13 @@ def fitting_on(executor: Mapper | None) -> Iterator[None]:
         yield
     finally:
         _EXECUTOR.reset(token)
+
+
+def fits_at_once() -> int:
+    """How many fits are made at once: the workers of the executor of :func:`fitting_on`, one
+    without (a fit that may turn out not to be needed is worth starting only beside others)."""
+    executor = _EXECUTOR.get()
+    return 1 if executor is None else max(1, executor.workers)
 
 
 def fit_all(function: Callable[..., Result], arguments: Sequence[tuple[Any, ...]]
