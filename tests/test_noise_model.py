@@ -64,6 +64,20 @@ def test_white_noise_floor_and_no_correlated_part() -> None:
     assert correlated <= 1  # the test for a correlated part has 1 % false alarms
 
 
+def test_the_same_points_give_the_same_estimate_made_once() -> None:
+    data = noisy(21, drift_rms=3e-4, outliers=2)
+    first = estimate_frf_noise(data, FREQUENCY, TIME, name="support")
+    assert estimate_frf_noise(data.copy(), FREQUENCY.copy(), TIME, name="support") is first
+    with pytest.raises(ValueError):
+        first.white_power[0] = 1.0  # shared, so read-only
+    moved = data.copy()
+    moved[200] *= 1.001
+    other = estimate_frf_noise(moved, FREQUENCY, TIME, name="support")
+    assert other is not first
+    assert estimate_frf_noise(data, FREQUENCY, TIME, name="table") is not first
+    assert estimate_frf_noise(data, FREQUENCY, None, name="support") is not first
+
+
 def test_local_white_power_follows_the_band() -> None:
     noise = estimate_frf_noise(noisy(3), FREQUENCY, TIME)
     ratio = np.sqrt(noise.white_power) / WHITE_RMS

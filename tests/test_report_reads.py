@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -33,3 +33,25 @@ def test_each_run_is_read_once_for_tables_figures_and_diagnoses(tmp_path: Path):
     assert [run.name for run in analysis.runs] == ["table", "soft-0", "soft-10"]
     assert all(run.climb is not None for run in analysis.runs if not run.bare)
     assert dict(campaign.reads) == {"table": 1, "soft-0": 1, "soft-10": 1}
+
+
+@pytest.mark.slow
+def test_each_frf_noise_is_estimated_once_for_tables_figures_and_diagnoses(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    from viscorig.fitting import noise_estimation
+
+    path = paper_campaign(tmp_path / "paper.h5", runs=("table", "soft-0", "soft-10"))
+    made: Counter = Counter()
+    estimated = noise_estimation._estimated
+
+    def counted(frf, *arguments):
+        made[(arguments[3], frf.size, complex(frf[0]))] += 1
+        return estimated(frf, *arguments)
+
+    monkeypatch.setattr(noise_estimation, "_estimated", counted)
+    monkeypatch.setattr(noise_estimation, "_estimates", OrderedDict())  # none kept from before
+    with np.errstate(all="ignore"):
+        analyse_campaign(CampaignFile.open(path), ladder=False, jobs=1)
+    # the table FRF of each run, the support FRF of each specimen run
+    assert len(made) >= 5
+    assert set(made.values()) == {1}

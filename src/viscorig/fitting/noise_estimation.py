@@ -69,7 +69,10 @@ the band.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
@@ -337,6 +340,25 @@ def _linear_fit(
     return a, sigma2, (residual**2) @ weight
 
 
+#: Noise estimates kept, by the points they were made from: a report estimates a run's noise for
+#: its residual figures, for its fits and for its diagnosis, from the same points.
+KEPT_ESTIMATES = 64
+_estimates: OrderedDict[bytes, FrfNoise] = OrderedDict()
+_estimates_lock = threading.Lock()
+
+
+def _fingerprint(*parts: object) -> bytes:
+    digest = hashlib.blake2b(digest_size=20)
+    for part in parts:
+        if part is None or isinstance(part, (str, int, bool)):
+            digest.update(repr(part).encode())
+        else:
+            array = np.ascontiguousarray(part)
+            digest.update(f"{array.dtype.str}{array.shape}".encode())
+            digest.update(array.tobytes())
+    return digest.digest()
+
+
 def estimate_frf_noise(
     frf: NDArray[np.complex128],
     frequency_hz: NDArray[np.float64] | None = None,
@@ -348,6 +370,9 @@ def estimate_frf_noise(
     correlated: bool = True,
 ) -> FrfNoise:
     """The noise model of one FRF (see the module text).
+
+    The same points give the same model, made once: the last :data:`KEPT_ESTIMATES` are kept,
+    their arrays read-only.
 
     Parameters
     ----------
@@ -368,6 +393,27 @@ def estimate_frf_noise(
     correlated
         Estimate the correlated part (``False``: white only).
     """
+    key = _fingerprint(np.asarray(frf, dtype=complex), frequency_hz, time_s, variance, name,
+                       window, correlated)
+    with _estimates_lock:
+        kept = _estimates.get(key)
+        if kept is not None:
+            _estimates.move_to_end(key)
+            return kept
+    noise = _estimated(frf, frequency_hz, time_s, variance, name, window, correlated)
+    for array in (noise.white_power, noise.axis, noise.outliers):
+        if array is not None:
+            array.flags.writeable = False
+    with _estimates_lock:
+        _estimates[key] = noise
+        while len(_estimates) > KEPT_ESTIMATES:
+            _estimates.popitem(last=False)
+    return noise
+
+
+def _estimated(frf: NDArray[np.complex128], frequency_hz: NDArray[np.float64] | None,
+               time_s: NDArray[np.float64] | None, variance: NDArray[np.float64] | None,
+               name: str, window: int, correlated: bool) -> FrfNoise:
     frf = np.asarray(frf, dtype=complex)
     if frf.size < MIN_POINTS:
         raise ValueError(f"the noise estimate needs at least {MIN_POINTS} points")
