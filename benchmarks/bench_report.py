@@ -39,6 +39,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from viscorig.cli import main  # noqa: E402
+from viscorig.fitting.noise_estimation import forget_estimates  # noqa: E402
 from viscorig.identify import PAPER_BAND_HZ, summarize  # noqa: E402
 from viscorig.report.analysis import analyse_campaign  # noqa: E402
 from viscorig.report.figures import campaign_figures  # noqa: E402
@@ -58,7 +59,9 @@ def _cpu() -> float:
 
 
 def timed(function):
-    """(result, wall seconds, CPU seconds of this process and its finished children)."""
+    """(result, wall seconds, CPU seconds of this process and its finished children), with no
+    noise estimate kept from before (as in a new process)."""
+    forget_estimates()
     wall, cpu = time.perf_counter(), _cpu()
     result = function()
     return result, time.perf_counter() - wall, _cpu() - cpu

@@ -347,6 +347,13 @@ _estimates: OrderedDict[bytes, FrfNoise] = OrderedDict()
 _estimates_lock = threading.Lock()
 
 
+def forget_estimates() -> None:
+    """Drop the noise estimates kept (:func:`estimate_frf_noise`): the next of each is made
+    again, as in a new process (a benchmark timing a command)."""
+    with _estimates_lock:
+        _estimates.clear()
+
+
 def _fingerprint(*parts: object) -> bytes:
     digest = hashlib.blake2b(digest_size=20)
     for part in parts:
