@@ -6,10 +6,10 @@ screening found (a K* that replaces the current one is first fitted by ``identif
 from its linear start, or from its optimum at an earlier rung of the ladder). Its ``χ²`` drop
 ``Δχ²`` against the current model, and ``delta_bic = −Δχ² + k ln n`` (``k`` added parameters,
 ``n`` the independent observations the noise model says the data are worth), rank the
-candidates, best first. The fits stop first at a looser
-tolerance (:data:`FIRST_TOLERANCE`), where each ``Δχ²`` is a lower bound of the finished fit's,
-by a fraction of the misfit ``φ`` as a rule; the candidates whose test, rank or name could still
-change are finished (:func:`_near_decision`).
+candidates, best first. The fits stop first at a looser tolerance (:data:`FIRST_TOLERANCE`),
+where each ``Δχ²`` is a lower bound of the finished fit's, by a fraction of the misfit ``φ`` as
+a rule; the candidates whose test, rank or name could still change are finished
+(:func:`_near_decision`).
 
 K* family. A Maxwell K* that would take one more arm is also compared with the fractional K*
 in its place (the candidate's alternative), and the ladder's last model with a Maxwell K* once
@@ -404,9 +404,9 @@ def _inside(result: Likelihood, term_text: str, data: DiagnosisData) -> bool:
 
 
 Optima = Mapping[str, Mapping[str, float]]
-"""The values of the models fitted at the earlier rungs of a ladder, by spec: a K* that replaces
-the current one starts from its own optimum when the ladder fitted the same model before (a
-fractional K* tried again once the Maxwell one has an arm more)."""
+"""The values of the models fitted at the earlier rungs of a ladder, by spec: a K* or a load cell
+that replaces the current one starts from its own optimum when the ladder fitted the same model
+before (a fractional K* tried again once the Maxwell one has an arm more)."""
 
 
 def _earlier(optima: Optima, current: Model, term_text: str) -> Mapping[str, float] | None:
