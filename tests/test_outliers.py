@@ -191,3 +191,39 @@ def test_a_crowd_of_glitches_is_read_in_bounded_time() -> None:
     found = outlier_points(z, WHITE, WINDOW)
     assert time.perf_counter() - start < 1.0
     assert found.sum() >= 20
+
+
+def test_the_deviances_of_many_choices_are_each_choices_own_least_squares() -> None:
+    """The glitch search weighs every choice of points left out of a window in one batched
+    solve; each is the residual power of its own weighted polynomial fit through the points
+    kept (numpy's least squares on those points alone), infinite where a kept point has no
+    finite value."""
+    from itertools import combinations
+
+    from viscorig.fitting.outliers import NEIGHBOURS, _deviances
+
+    rng = np.random.default_rng(4)
+    n = 60
+    x = np.arange(n, dtype=float)
+    z = (3.0 + 0.2 * x - 0.01 * x**2 + 1e-4 * x**3) * (1 + 0.3j) + 0.05 * (
+        rng.normal(size=n) + 1j * rng.normal(size=n))
+    z[[20, 23]] += 4.0
+    v = 10 ** rng.uniform(-3, -2, n)
+    z[31] = np.nan
+    for window in (np.arange(15, 30), np.arange(25, 40), np.r_[10:14, 16:27]):
+        choices = [c for size in (1, 2, 3) for c in combinations(range(window.size), size)]
+        left_out = np.zeros((len(choices), window.size), dtype=bool)
+        for row, choice in enumerate(choices):
+            left_out[row, list(choice)] = True
+        batched = _deviances(z, v, window, left_out)
+        for row, choice in enumerate(choices):
+            kept = np.delete(window, list(choice))
+            if not np.isfinite(z[kept]).all():
+                assert batched[row] == np.inf
+                continue
+            weight = 1 / np.sqrt(v[kept])
+            design = np.vander(kept.astype(float) - kept.mean(), 2 * NEIGHBOURS) * weight[:, None]
+            target = z[kept] * weight
+            solution = np.linalg.lstsq(design, target, rcond=None)[0]
+            own = np.sum(np.abs(target - design @ solution) ** 2)
+            assert batched[row] == pytest.approx(own, rel=1e-8, abs=1e-9)

@@ -220,19 +220,20 @@ def _glitch(z: NDArray[np.complex128], v: NDArray[np.float64], cluster: list[int
     right = high + 1 + np.flatnonzero(~elsewhere[high + 1:])[:NEIGHBOURS + 1]
     window = np.concatenate([left, candidates, right]).astype(int)
     whole = _deviance(z, v, window)
+    at = {point: i for i, point in enumerate(window.tolist())}
     for size in range(1, GLITCH_POINTS + 1):
-        best: tuple[float, list[int]] | None = None
-        for left_out in itertools.combinations(candidates, size):
-            kept = np.setdiff1d(window, left_out)
-            if kept.size <= 2 * NEIGHBOURS:
-                break
-            deviance = _deviance(z, v, kept)
-            smooth = (_tail(np.array([deviance]), kept.size - 2 * NEIGHBOURS)[0] < SMOOTH_LEVEL
-                      or deviance < SMOOTH_SHARE * whole)
-            if smooth and (best is None or deviance < best[0]):
-                best = (deviance, list(left_out))
-        if best is not None:
-            return best[1]
+        if window.size - size <= 2 * NEIGHBOURS:
+            break
+        choices = list(itertools.combinations(candidates, size))
+        left_out = np.zeros((len(choices), window.size), dtype=bool)
+        for row, choice in enumerate(choices):
+            left_out[row, [at[point] for point in choice]] = True
+        deviance = _deviances(z, v, window, left_out)
+        with np.errstate(invalid="ignore"):
+            smooth = ((_tail(deviance, window.size - size - 2 * NEIGHBOURS) < SMOOTH_LEVEL)
+                      | (deviance < SMOOTH_SHARE * whole))
+        if smooth.any():
+            return list(choices[int(np.argmin(np.where(smooth, deviance, np.inf)))])
     return None
 
 
@@ -240,16 +241,28 @@ def _deviance(z: NDArray[np.complex128], v: NDArray[np.float64], points: NDArray
               ) -> float:
     """Weighted residual power of the best polynomial of degree ``2·NEIGHBOURS − 1`` through
     the points."""
+    return float(_deviances(z, v, points, np.zeros((1, points.size), dtype=bool))[0])
+
+
+def _deviances(z: NDArray[np.complex128], v: NDArray[np.float64], points: NDArray[np.int_],
+               left_out: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """:func:`_deviance` of ``points`` less those of each row of ``left_out`` (a mask over
+    ``points``), all rows in one batched QR: a point left out weighs nothing. Infinite where a
+    point kept has no finite value."""
     x = points.astype(float)
-    x = (x - x.mean()) / max(np.ptp(x), 1.0)
-    weight = 1.0 / np.sqrt(v[points])
-    design = np.vander(x, 2 * NEIGHBOURS) * weight[:, None]
-    target = z[points] * weight
-    if not (np.isfinite(design).all() and np.isfinite(target).all()):
-        return math.inf
-    solution, *_ = np.linalg.lstsq(design, target, rcond=None)
-    residual = target - design @ solution
-    return float(np.sum(residual.real**2 + residual.imag**2))
+    x = (x - x.mean()) / max(np.ptp(x), 1.0)  # (the polynomials are the same in any affine x)
+    with np.errstate(all="ignore"):
+        weight = 1.0 / np.sqrt(v[points])
+        design = np.vander(x, 2 * NEIGHBOURS) * weight[:, None]
+        target = z[points] * weight
+    bad = ~(np.isfinite(design).all(axis=1) & np.isfinite(target))
+    keep = ~left_out
+    rows = np.where(keep[:, :, None], np.where(bad[:, None], 0.0, design)[None], 0.0)
+    values = np.where(keep, np.where(bad, 0.0, target)[None], 0.0)
+    q, _ = np.linalg.qr(rows)
+    residual = values - np.einsum("spk,sk->sp", q, np.einsum("spk,sp->sk", q, values))
+    power = np.sum(residual.real**2 + residual.imag**2, axis=1)
+    return np.where((keep & bad[None]).any(axis=1), np.inf, power)
 
 
 def outlier_power(z: NDArray[np.complex128], white: NDArray[np.float64],
