@@ -22,6 +22,7 @@ from viscorig.diagnosis.findings import (
     candidate_spec,
     carried_values,
     confirm,
+    exact_fit,
     fit_with,
     identify_fit,
     other_family,
@@ -195,9 +196,16 @@ class DiagnosisResult:
         return analyse(self.data, fit_with(self.fit, self.data, text), optima=self.optima)
 
     def _with_finding(self, finding: Finding) -> DiagnosisResult:
+        """The diagnosis of this model with ``finding``'s effect. Its likelihood fit moved only
+        the new term's parameters and the broad ones; the next rung is judged from the model's
+        own optimum, every parameter free (the forward tests' when they made it)."""
         if finding.fit is None:
             finding.fit = identify_fit(finding.likelihood, self.data)
-        return analyse(self.data, finding.fit, finding.likelihood, self.optima)
+        spec = finding.likelihood.model.spec
+        together = self.together
+        exact = (together if together is not None and together.model.spec == spec
+                 else exact_fit(finding.likelihood, self.data))
+        return analyse(self.data, finding.fit, exact, self.optima)
 
     def with_significant(self) -> DiagnosisResult:
         """The diagnosis of this model with its best finding added, and with every mechanical

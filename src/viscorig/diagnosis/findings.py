@@ -565,7 +565,7 @@ def _ties(findings: list[Finding]) -> list[Finding]:
     return tied
 
 
-def _exact(result: Likelihood, data: DiagnosisData) -> Likelihood:
+def exact_fit(result: Likelihood, data: DiagnosisData) -> Likelihood:
     """``result`` refitted on the exact whitening, every parameter free: a model the next
     candidate is judged against must be at its own optimum, so that what the candidate's fit
     gains is the candidate's and not a better convergence of the rest."""
@@ -588,7 +588,7 @@ def other_family(current: Likelihood, data: DiagnosisData,
         return None
     try:
         earlier = _earlier(optima or {}, current.model, "fractional")
-        other = _exact(fit_term(current, data, "fractional", {}, earlier=earlier), data)
+        other = exact_fit(fit_term(current, data, "fractional", {}, earlier=earlier), data)
     except (InputError, ValueError, np.linalg.LinAlgError):
         return None
     return other if clearly_better(other, current, 0.0, data) else None
@@ -644,11 +644,11 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             # The best-fitting candidate is not significant (the noise, or a drift it cannot
             # be told from, could make it): the others must still pay next to it, or one of
             # them takes the credit for what it explains better.
-            base, accepted = _exact(lead.likelihood, data), [lead]
+            base, accepted = exact_fit(lead.likelihood, data), [lead]
         if not accepted:
             finding.significant = True
             accepted.append(finding)
-            base = _exact(finding.likelihood, data)
+            base = exact_fit(finding.likelihood, data)
             continue
         if finding is lead:
             continue
@@ -665,7 +665,7 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
         if passes:
             finding.significant = True
             accepted.append(finding)
-            base = _exact(result, data)
+            base = exact_fit(result, data)
             tested = {}
         else:
             names = ", ".join(f.term for f in accepted)
