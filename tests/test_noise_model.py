@@ -78,6 +78,30 @@ def test_the_same_points_give_the_same_estimate_made_once() -> None:
     assert estimate_frf_noise(data, FREQUENCY, None, name="support") is not first
 
 
+def test_an_estimate_whitened_through_dense_factors_is_not_kept() -> None:
+    """Points measured out of frequency order (the band's upper half first, then its lower
+    half), with a drift along their time: the whitening needs dense Cholesky factors, n²
+    numbers a part, which would stay with a kept estimate; such an estimate is made afresh
+    each time."""
+    rng = np.random.default_rng(8)
+    upper = FREQUENCY >= 70.0
+    dwell = np.diff(TIME, prepend=0.0)
+    time = np.empty(FREQUENCY.size)
+    time[upper] = np.cumsum(dwell[upper])
+    time[~upper] = time[upper][-1] + np.cumsum(dwell[~upper])
+    order = np.argsort(time)
+    drift = np.empty(FREQUENCY.size)
+    drift[order] = ou_path(rng, time[order], 20.0)
+    eps = WHITE_RMS / np.sqrt(2) * (rng.normal(size=FREQUENCY.size)
+                                    + 1j * rng.normal(size=FREQUENCY.size)) + 2e-3 * drift
+    data = CLEAN * (1 + eps)
+    first = estimate_frf_noise(data, FREQUENCY, time, name="support")
+    assert first.correlated and first.dense
+    assert estimate_frf_noise(data, FREQUENCY, time, name="support") is not first
+    ordered = estimate_frf_noise(noisy(22, drift_rms=2e-3), FREQUENCY, TIME, name="support")
+    assert ordered.correlated and not ordered.dense
+
+
 def test_local_white_power_follows_the_band() -> None:
     noise = estimate_frf_noise(noisy(3), FREQUENCY, TIME)
     ratio = np.sqrt(noise.white_power) / WHITE_RMS

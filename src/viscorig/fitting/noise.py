@@ -105,6 +105,13 @@ def _causal_exponential(s: NDArray[np.float64], x: NDArray[np.float64]) -> NDArr
 WIDE_COLUMNS = 256
 
 
+def monotone(axis: NDArray[np.float64]) -> bool:
+    """The points are in the order of ``axis`` (either way): a drift along it is then whitened
+    in O(n) (:class:`MarkovWhitening`), else through a dense Cholesky factor."""
+    gaps = np.diff(np.asarray(axis, dtype=float))
+    return bool(np.all(gaps >= 0) or np.all(gaps <= 0))
+
+
 @dataclass(frozen=True)
 class MarkovWhitening:
     """``L⁻¹`` of ``Σ = diag(d) + σ² R`` (``R_ij = exp(−|t_i − t_j|/τ)``, ``Σ = L Lᵀ``) for
@@ -137,9 +144,9 @@ class MarkovWhitening:
         """The whitening of ``diag(white) + sigma2 R``; ``None`` when ``axis`` is not monotone
         (the points are then not in the process's order)."""
         axis = np.asarray(axis, dtype=float)
-        gaps = np.diff(axis)
-        if axis.size == 0 or not (np.all(gaps >= 0) or np.all(gaps <= 0)):
+        if axis.size == 0 or not monotone(axis):
             return None
+        gaps = np.diff(axis)
         step = np.concatenate([[0.0], np.exp(-np.abs(gaps) / tau)])
         n = axis.size
         gain, variance = np.empty(n), np.empty(n)
@@ -302,6 +309,12 @@ class FrfNoise:
         """``axis``, which ``__post_init__`` always fills."""
         assert self.axis is not None
         return self.axis
+
+    @property
+    def dense(self) -> bool:
+        """Its drift is whitened through dense Cholesky factors (the points out of the order of
+        their axis), not in O(n)."""
+        return self.correlated and not monotone(self._positions)
 
     def covariance(self, part: str) -> NDArray[np.float64]:
         """Dense covariance matrix of one part of ``ε`` (``n × n``)."""

@@ -341,8 +341,10 @@ def _linear_fit(
 
 
 #: Noise estimates kept, by the points they were made from: a report estimates a run's noise for
-#: its residual figures, for its fits and for its diagnosis, from the same points.
-KEPT_ESTIMATES = 64
+#: its residual figures, for its fits and for its diagnosis, from the same points. (An estimate
+#: whose drift runs along an axis out of the points' order is not kept: the dense Cholesky
+#: factors its whitening builds would stay with it, n² numbers a part.)
+KEPT_ESTIMATES = 256
 _estimates: OrderedDict[bytes, FrfNoise] = OrderedDict()
 _estimates_lock = threading.Lock()
 
@@ -378,8 +380,8 @@ def estimate_frf_noise(
 ) -> FrfNoise:
     """The noise model of one FRF (see the module text).
 
-    The same points give the same model, made once: the last :data:`KEPT_ESTIMATES` are kept,
-    their arrays read-only.
+    The same points give the same model, made once: the last :data:`KEPT_ESTIMATES` are kept
+    (those whose drift is whitened in O(n)), their arrays read-only.
 
     Parameters
     ----------
@@ -408,6 +410,8 @@ def estimate_frf_noise(
             _estimates.move_to_end(key)
             return kept
     noise = _estimated(frf, frequency_hz, time_s, variance, name, window, correlated)
+    if noise.dense:
+        return noise
     for array in (noise.white_power, noise.axis, noise.outliers):
         if array is not None:
             array.flags.writeable = False
