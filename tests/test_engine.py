@@ -4,6 +4,8 @@ thrown into the plan so that its cleanup runs, and the state each ending leaves.
 from __future__ import annotations
 
 import io
+import os
+import signal
 
 import pytest
 
@@ -103,3 +105,25 @@ def test_an_unknown_message_names_the_step_that_sent_it(engine) -> None:
     with pytest.raises(RuntimeError, match="unknown message 'teleport' from adaptive soft-0"):
         engine.run(plan(), signals=False)
     assert engine.state is EngineState.FAULTED
+
+
+def test_ctrl_c_during_a_write_to_the_file_interrupts_once_the_write_has_ended(engine) -> None:
+    def write(campaign: CampaignFile) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # the technician's Ctrl-C, in the middle of a commit
+        campaign.add_journal_entry("note", "written after the signal", "r")
+
+    def plan():
+        try:
+            yield Msg("compute", (write,), step="commit")
+            yield Msg("say", ("never",))
+        except KeyboardInterrupt:
+            yield Msg("say", ("run marked aborted",))
+            raise
+
+    with pytest.raises(KeyboardInterrupt):
+        engine.run(plan(), signals=True)
+    assert engine.state is EngineState.STOPPED
+    assert said(engine) == ["run marked aborted"]
+    assert [(entry.kind, entry.text) for entry in engine.campaign.journal] == [
+        ("note", "written after the signal"), ("abort", "stopped at the terminal (Ctrl-C)")]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -36,11 +36,12 @@ resumes. Each pause, hold and resume is written to the campaign's journal
 
 Stopping. The first Ctrl-C (or SIGTERM) while the analyser measures only asks it to stop: the
 next poll aborts the analyser and the segment in flight is dropped, so no partial segment is
-ever written; at a prompt or a wait it interrupts at once; a second Ctrl-C always does. A plan
-marks where stopping is safe with ``checkpoint`` messages (after each commit); the engine stops
-there when asked. On any ending other than ``done`` the engine throws the exception into the
-plan, whose cleanup (marking its run "aborted" in the file) yields messages like any other;
-then the plan ends. Resuming is reading the file again: plans continue from what it holds.
+ever written; at a prompt or a wait it interrupts at once, during a write to the campaign file
+as the write ends; a second Ctrl-C always does. A plan marks where stopping is safe with
+``checkpoint`` messages (after each commit); the engine stops there when asked. On any ending
+other than ``done`` the engine throws the exception into the plan, whose cleanup (marking its
+run "aborted" in the file) yields messages like any other; then the plan ends. Resuming is
+reading the file again: plans continue from what it holds.
 """
 
 from __future__ import annotations
@@ -146,6 +147,10 @@ class StopRequest:
         self.console = console
         self.requested = threading.Event()
         self.measuring = [False]
+        self.writing = False
+        """True while the campaign file is written: a first signal then waits for the write."""
+        self.deferred = False
+        """A first signal came while the file was written; it interrupts once the write ends."""
         self.signalled = ""
         """The name of the signal that asked for the stop ("" when none did)."""
 
@@ -155,11 +160,28 @@ class StopRequest:
 
     def __call__(self, signum: int, frame: object) -> None:
         self.signalled = self.signalled or signal.Signals(signum).name
+        if self.writing and not self.requested.is_set():
+            self.requested.set()
+            self.deferred = True
+            return
         if self.requested.is_set() or not self.measuring[0]:
             self.requested.set()
             raise KeyboardInterrupt
         self.requested.set()
         self.console.say("Stopping: aborting the analyser; committed segments are kept ...")
+
+    @contextlib.contextmanager
+    def file_written(self) -> Iterator[None]:
+        """Hold a first signal off while the block writes the campaign file (an HDF5 write cut
+        in its middle leaves the engine's record of the file behind it); it interrupts as the
+        block ends."""
+        self.writing = True
+        try:
+            yield
+        finally:
+            self.writing, deferred, self.deferred = False, self.deferred, False
+        if deferred:
+            raise KeyboardInterrupt
 
     @contextlib.contextmanager
     def installed(self) -> Iterator[None]:
@@ -436,7 +458,7 @@ class RunEngine:
                                    f"{msg.step or 'a plan'}")
             try:
                 if msg.command in FILE_COMMANDS:
-                    with self.file_lock:
+                    with self.file_lock, self.stop.file_written():
                         reply = handler(*msg.args, **msg.kwargs)
                 else:
                     reply = handler(*msg.args, **msg.kwargs)
