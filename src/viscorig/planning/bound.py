@@ -38,13 +38,14 @@ from viscorig.planning.instrument import (
 from viscorig.planning.noise import NoiseForecast
 from viscorig.planning.points import PlannedPoint
 from viscorig.planning.transient import identified_modes
+from viscorig.sequences.schema import LONGEST_S
 
 __all__ = ["DesignBound", "design_bound"]
 
 
-#: Integration floor beyond which no plan is laid out (a day: the longest dwell a step may
-#: have); the bound is then its floor alone.
-PLAN_LIMIT_S = 86_400.0
+#: Integration floor beyond which no plan is laid out (the longest dwell a step may have); the
+#: bound is then its floor alone.
+PLAN_LIMIT_S = LONGEST_S
 
 
 @dataclass(frozen=True)

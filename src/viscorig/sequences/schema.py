@@ -23,6 +23,9 @@ from viscorig.sequences.levels import parse_level
 from viscorig.sequences.problems import Path, Problems, did_you_mean, quoted
 from viscorig.storage import layout
 
+#: A day: the longest dwell, wait, retry or time constant a sequence may set.
+LONGEST_S = 86_400.0
+
 #: A field that must be given (in its table, or in ``[defaults]`` where allowed).
 REQUIRED: Any = type("Required", (), {"__repr__": lambda self: "REQUIRED"})()
 
@@ -485,7 +488,7 @@ def _sweep_fields() -> tuple[Field, ...]:
               default=None, default_note=ADAPTIVE_ONLY, low=TARGET_FLOOR, high=1.0,
               example="{ K_v = 1e-3, C_v = 2e-3 }", in_defaults=True),
         Field("dwell_limit_s", number, "Rig time an adaptive plan may use at most, first look "
-              "included.", default=None, unit="s", low=0.0, low_open=True, high=86_400.0,
+              "included.", default=None, unit="s", low=0.0, low_open=True, high=LONGEST_S,
               example="1800", in_defaults=True),
         Field("over_limit", "choice", "A run whose predicted shaker force exceeds the limit: "
               '"refuse" it, or "reduce" its level to 90 % of what the limit allows '
@@ -505,7 +508,7 @@ PROMPT = TableSchema("prompt", "Show an instruction to the operator and wait for
 ))
 WAIT = TableSchema("wait", "Wait a fixed time (thermal settling after mounting, for example); "
                    "not waited on the simulated rig, whose clock is test time.", (
-    Field("seconds", "number", "How long.", unit="s", low=0.0, high=86_400.0, low_open=True,
+    Field("seconds", "number", "How long.", unit="s", low=0.0, high=LONGEST_S, low_open=True,
           example="600"),
     Field("message", "text", "Shown while waiting.", default="Waiting",
           example='"Let the rubber reach room temperature."'),
@@ -663,7 +666,7 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
               example="25.0"),
         Field("specimen_time_constant_s", "number", "How slowly the specimens follow the air "
               "(first-order lag), for `viscorig plan`'s soak times.", default=600.0, unit="s",
-              low=0.0, high=86_400.0, example="600"),
+              low=0.0, high=LONGEST_S, example="600"),
         Field("heating_rate_k_per_min", "number", "How fast the chamber's air can heat, for "
               "`viscorig plan`'s soak times (not set: as fast as the ramp asks).", default=None,
               unit="K/min", low=0.0, low_open=True, high=1000.0, example="5.0"),
@@ -701,6 +704,6 @@ STATION_SECTIONS: tuple[TableSchema, ...] = (
               high=10000, example="3"),
         Field("hold_retry_s", "number", "With hold_resume = \"auto\": wait this long before "
               "trying again after a level, overload or force hold.", default=60.0, unit="s",
-              low=0.0, high=86400.0, example="60.0"),
+              low=0.0, high=LONGEST_S, example="60.0"),
     ), required=False),
 )
