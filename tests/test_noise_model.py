@@ -14,7 +14,15 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
-from viscorig.fitting import FrfData, FrfNoise, NoiseModel, estimate_frf_noise, estimate_noise
+from viscorig.fitting import (
+    FrfData,
+    FrfNoise,
+    NoiseModel,
+    estimate_frf_noise,
+    estimate_noise,
+    noise_estimation,
+    outliers,
+)
 from viscorig.fitting.noise import WIDE_COLUMNS, MarkovWhitening, exponential_kernel_apply
 
 FREQUENCY = np.arange(20.0, 120.0 + 1e-9, 0.25)
@@ -330,3 +338,15 @@ def test_a_jacobian_with_non_finite_entries_gives_no_errors_rather_than_a_crash(
     inverse, full_rank = _inverse(jac)
     assert not full_rank
     assert inverse.shape == (3, 3) and np.all(np.isnan(inverse))
+
+
+def test_a_constant_changed_at_run_time_gives_a_new_estimate(monkeypatch) -> None:
+    data = noisy(23, outliers=2)
+    first = estimate_frf_noise(data, FREQUENCY, TIME, name="support")
+    monkeypatch.setattr(noise_estimation, "REJECT", 4.0)
+    assert estimate_frf_noise(data, FREQUENCY, TIME, name="support") is not first
+    monkeypatch.undo()
+    monkeypatch.setattr(outliers, "OUTLIER_LEVEL", 10.0)
+    assert estimate_frf_noise(data, FREQUENCY, TIME, name="support") is not first
+    monkeypatch.undo()
+    assert estimate_frf_noise(data, FREQUENCY, TIME, name="support") is first

@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import sys
 import threading
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -79,6 +80,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.analyser import FREQUENCY_STEP_HZ
+from viscorig.fitting import outliers as outlier_search
 from viscorig.fitting.data import MIN_POINTS
 from viscorig.fitting.noise import FrfNoise, NoiseModel
 from viscorig.fitting.outliers import outlier_points, outlier_power, running_median
@@ -356,6 +358,16 @@ def forget_estimates() -> None:
         _estimates.clear()
 
 
+def _settings() -> str:
+    """The constants of this module and of the outlier search as they stand: one changed at
+    run time (by a study, or a test) makes a new estimate."""
+    return repr([(name, value.tobytes() if isinstance(value, np.ndarray) else value)
+                 for module in (sys.modules[__name__], outlier_search)
+                 for name, value in sorted(vars(module).items())
+                 if name.lstrip("_").isupper() and name != "KEPT_ESTIMATES"
+                 and isinstance(value, int | float | tuple | np.ndarray)])
+
+
 def _fingerprint(*parts: object) -> bytes:
     digest = hashlib.blake2b(digest_size=20)
     for part in parts:
@@ -381,7 +393,8 @@ def estimate_frf_noise(
     """The noise model of one FRF (see the module text).
 
     The same points give the same model, made once: the last :data:`KEPT_ESTIMATES` are kept
-    (those whose drift is whitened in O(n)), their arrays read-only.
+    (those whose drift is whitened in O(n)), their arrays read-only, each with the constants
+    of this module and of the outlier search it was made with.
 
     Parameters
     ----------
@@ -403,7 +416,7 @@ def estimate_frf_noise(
         Estimate the correlated part (``False``: white only).
     """
     key = _fingerprint(np.asarray(frf, dtype=complex), frequency_hz, time_s, variance, name,
-                       window, correlated)
+                       window, correlated, _settings())
     with _estimates_lock:
         kept = _estimates.get(key)
         if kept is not None:
