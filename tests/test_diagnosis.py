@@ -198,8 +198,8 @@ def test_a_term_screening_leaves_out_far_from_the_noise_could_not_have_passed(
     alpha = alpha_of(current.model, data)
     for term in left_out:
         needed = threshold(1, alpha / 2 if term.startswith("delay(") else alpha)
-        _, _, passes = judge(current, fit_term(current, data, term, {}), needed, data, term)
-        assert not passes, term
+        judgement = judge(current, fit_term(current, data, term, {}), needed, data, term)
+        assert not judgement.passes and judgement.shortfall, term
 
 
 def test_a_family_of_templates_measures_what_its_projected_templates_do() -> None:
@@ -330,6 +330,32 @@ def test_frequency_dependent_modulus_replaces_voigt() -> None:
     assert top(diagnosis) == "frequency_dependent_modulus"
     assert not diagnosis.significant[0].model.startswith("voigt")
     assert_at_floor_after(diagnosis)
+
+
+def test_a_finding_that_does_not_pass_says_which_part_of_its_test_it_fails() -> None:
+    """Far from the noise every test counts ``Δχ²`` in units of the misfit ``φ`` the model with
+    the effect leaves: a candidate whose raw ``Δχ²`` is in the hundreds of thousands may still
+    be within that misfit, or remove too little of it. What the text says matches the numbers
+    the JSON carries (``delta_chi2 / dispersion`` against ``threshold``)."""
+    diagnosis = single(rig_text(FRACTIONAL, noise=QUIET, fixtures=[FIXTURE_58]))
+    said = format_diagnosis(diagnosis, "c.h5")
+    for finding in diagnosis.findings:
+        per_misfit = finding.delta_chi2 / finding.dispersion
+        assert f"Δχ²/φ {per_misfit:.4g} (needs {finding.threshold:.3g})" in said
+        document = finding.to_json()
+        assert document["delta_chi2"] / document["dispersion"] == pytest.approx(per_misfit)
+        if finding.significant:
+            continue
+        text = finding.explanation
+        if finding.passes_alone:  # it failed next to the effect found before it
+            assert "next to fractional it no longer pays for itself" in text
+            continue
+        if per_misfit <= finding.threshold:
+            assert f"(Δχ²/φ {per_misfit:.1f}, needs {finding.threshold:.1f})" in text, text
+        else:
+            assert "within what" not in text and "of the χ² beyond the noise" in text, text
+    assert any(not f.passes_alone and f.delta_chi2 / f.dispersion > f.threshold
+               for f in diagnosis.findings)  # the case a raw Δχ² read wrongly
 
 
 def add_run(

@@ -191,14 +191,15 @@ def diagnosis_lines(
             )
     if d.findings:
         lines.append(
-            "candidate effects (* significant: its χ² drop beyond its threshold, next to the "
-            "ones before it):"
+            "candidate effects (* significant: its χ² drop, in units of the misfit φ it leaves, "
+            "beyond its threshold, next to the ones before it):"
         )
         for finding in d.findings:
             mark = "*" if finding.significant else " "
+            per_misfit = finding.delta_chi2 / finding.dispersion
             lines.append(
                 f" {mark} {finding.effect:<28} {finding.model:<36} rms {finding.rms_error:.3e}"
-                f"  ΔBIC {finding.delta_bic:+.4g}  Δχ² {finding.delta_chi2:.4g}"
+                f"  ΔBIC {finding.delta_bic:+.4g}  Δχ²/φ {per_misfit:.4g}"
                 f" (needs {finding.threshold:.3g})"
             )
     if d.scan is not None:

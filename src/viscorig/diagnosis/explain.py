@@ -116,13 +116,9 @@ def _explain(finding: Finding, data: DiagnosisData) -> str:
     effect = finding.effect
     why = finding.evidence
     if not finding.significant:
-        reason = finding.note or (
-            f"within what noise explains (Δχ² {finding.delta_chi2:.1f}, "
-            f"needs {finding.threshold:.1f})"
-        )
         return (
             f"No clear sign of {effect.replace('_', ' ')}: adding {finding.term} leaves the "
-            f"error at {finding.rms_error:.3g}; {reason}."
+            f"error at {finding.rms_error:.3g}; {finding.note}."
         )
     if effect.startswith("sensor_"):
         return _sensor(finding)

@@ -105,7 +105,8 @@ class Finding:
     passes_alone
         It passes its test against the model diagnosed, before any other effect is added.
     note
-        Why a finding that passes alone is not significant.
+        Why the finding is not significant (its test's shortfall, alone or next to the effects
+        found before it).
     identifiable
         These data can tell the effect apart from the other smooth changes of K* (false for
         amplitude dependence from one level, drift from one sweep direction).
@@ -149,7 +150,8 @@ class Finding:
 
     def to_json(self) -> dict[str, object]:
         """The finding as in the ``diagnose --json`` contract (plus ``delta_chi2``,
-        ``threshold``, ``alternatives``)."""
+        ``threshold``, ``dispersion``, ``alternatives``: the test is ``delta_chi2 / dispersion``
+        against ``threshold``)."""
         return {
             "effect": self.effect,
             "model": self.model,
@@ -157,6 +159,7 @@ class Finding:
             "delta_bic": float(self.delta_bic),
             "delta_chi2": float(self.delta_chi2),
             "threshold": float(self.threshold),
+            "dispersion": float(self.dispersion),
             "significant": bool(self.significant),
             "explanation": self.explanation,
             "parameters": self.parameters(),
@@ -449,7 +452,7 @@ def _near_decision(current: Likelihood, data: DiagnosisData, candidates: list[Ca
         if result is None:
             continue
         candidate = candidates[index]
-        delta, phi, _ = judge(current, result, candidate.threshold, data, term)
+        delta, phi, *_ = judge(current, result, candidate.threshold, data, term)
         ratio = delta / phi / candidate.threshold
         passes = ratio >= 1 - NEAR_SHARE
         if abs(ratio - 1) < NEAR_SHARE or (passes and (
@@ -509,12 +512,12 @@ def confirm(
         result, term = _renamed(result, term, data)
         if candidate.effect == "fixture_resonance" and not _inside(result, term, data):
             continue  # a mode fitted outside the band is a smooth trend there, not a local mode
-        delta, phi, passes = judge(current, result, candidate.threshold, data, term)
+        delta, phi, passes, shortfall = judge(current, result, candidate.threshold, data, term)
         k = len(result.free) - len(current.free)
         findings.append(Finding(
             candidate.effect, result.spec, result, float(delta), float(-delta + k * np.log(n)),
             candidate.threshold, False, candidate.evidence, term, dispersion=phi,
-            passes_alone=passes, identifiable=candidate.identifiable,
+            passes_alone=passes, note=shortfall, identifiable=candidate.identifiable,
         ))
     findings.sort(key=lambda finding: finding.delta_bic)
     ties = _ties(findings)
@@ -660,19 +663,17 @@ def _forward(current: Likelihood, data: DiagnosisData, findings: list[Finding]) 
             tested = dict(zip(waiting, results, strict=True))
         result = tested[index]
         if result is None:
+            finding.note = f"it cannot be fitted next to {', '.join(f.term for f in accepted)}"
             continue
-        delta, phi, passes = judge(base, result, finding.threshold, data, finding.term)
-        if passes:
+        judgement = judge(base, result, finding.threshold, data, finding.term)
+        if judgement.passes:
             finding.significant = True
             accepted.append(finding)
             base = exact_fit(result, data)
             tested = {}
         else:
             names = ", ".join(f.term for f in accepted)
-            finding.note = (
-                f"next to {names} it no longer pays for itself (Δχ² {delta / phi:.1f}, needs "
-                f"{finding.threshold:.1f})"
-            )
+            finding.note = f"next to {names} it no longer pays for itself: {judgement.shortfall}"
     return base
 
 

@@ -32,6 +32,8 @@ of the misfit).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.special import chdtrc, chdtri
 
@@ -176,10 +178,22 @@ def drift_confusion_factor(
     return 1.0 + drift * delta / size2
 
 
+class Judgement(NamedTuple):
+    """What :func:`judge` found."""
+
+    delta: float
+    """``Δχ²``, the drop of ``χ²``."""
+    phi: float
+    """``φ``, the misfit it is counted against."""
+    passes: bool
+    shortfall: str
+    """Why it does not pass, for a technician ("" when it passes)."""
+
+
 def judge(
     before: Likelihood, after: Likelihood, needed: float, data: DiagnosisData, term: str = ""
-):
-    """``(Δχ², φ, passes)`` of ``after`` against ``before`` (``term``: the term tested).
+) -> Judgement:
+    """How ``after`` does against ``before`` (``term``: the term tested).
 
     ``φ``, the misfit the test is made against, is the larger model's (an F test), for a local
     mode the noise next to it if larger (:func:`local_dispersion`), for a smooth effect raised
@@ -192,10 +206,19 @@ def judge(
     # the drift's variance adds to the effect's own (φ s²): Δχ² / (φ + σ² Δχ²/r²)
     phi += drift_confusion_factor(before, after, term, data) - 1.0
     excess = before.chi2 - (n - len(before.free))
-    passes = delta / phi > needed and removes_enough(before.chi2, after.chi2, excess)
-    if passes and term.startswith("fixture"):
-        passes = (delta - single_point_share(before, after, data)) / phi > needed
-    return delta, phi, passes
+    if delta / phi <= needed:
+        against = "noise explains" if phi < 1.5 else f"the misfit left explains (φ {phi:.3g})"
+        why = f"within what {against} (Δχ²/φ {delta / phi:.1f}, needs {needed:.1f})"
+    elif not removes_enough(before.chi2, after.chi2, excess):
+        why = (f"it removes {delta / excess:.1%} of the χ² beyond the noise, under the "
+               f"{MIN_EXCESS_FRACTION:.0%} an effect must remove")
+    elif term.startswith("fixture") and (
+            reduced := (delta - single_point_share(before, after, data)) / phi) <= needed:
+        why = (f"without its best point it does not pay (Δχ²/φ {reduced:.1f}, needs "
+               f"{needed:.1f}): one outlier point is no mode")
+    else:
+        why = ""
+    return Judgement(delta, phi, not why, why)
 
 
 def _has_term(model: Model, keyword: str) -> bool:
