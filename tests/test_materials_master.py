@@ -87,6 +87,16 @@ def test_a_corrupted_point_is_named_by_the_kramers_kronig_check():
     assert flagged[0]["frequency_hz"] == pytest.approx(100.0)
 
 
+def test_a_sweep_at_one_frequency_is_refused_in_one_line():
+    """Every point of a set at the same frequency (a DMA file whose frequency column was lost
+    or repeated): no shift along the frequency axis can place it, where the shift's start
+    search crashed in numpy's least squares."""
+    data = gen.dma_sweep(TEMPERATURES, FREQUENCIES, seed=4)
+    data["frequency_hz"][:] = 1.0
+    with pytest.raises(InputError, match=r"-30.0 °C has its 10 points at one frequency, 1 Hz"):
+        estimate_shift_factors(ModulusTable(**data, source="repeated"))
+
+
 def test_a_temperature_no_specimen_is_measured_at_is_refused_by_point():
     """A rig run's per-point temperature 10⁶ °C too high (a corrupt dataset) was shifted
     like any other sweep."""

@@ -358,7 +358,7 @@ def estimate_shift_factors(
     Raises
     ------
     InputError
-        Fewer than two sets, a set of a single point, or sweeps that do not change with
+        Fewer than two sets, a set at a single frequency, or sweeps that do not change with
         frequency beyond their scatter (:func:`frequency_dependence`).
     """
     sets, temperatures = _ordered_sets(table)
@@ -369,11 +369,14 @@ def estimate_shift_factors(
                          "--specimen and give them all, --run A --run B; a curve already "
                          "shifted to one reference temperature, as a DMA program's master export "
                          "is, cannot be shifted again: import the raw sweeps)", where)
-    counts = np.array([(table.set_index == s).sum() for s in sets])
-    if counts.min() < 2:
-        bad = float(temperatures[int(np.argmin(counts))])
-        raise InputError(f"the sweep at {bad:.1f} °C has a single point; a set needs two or "
-                         "more frequencies", where)
+    frequencies = [np.unique(table.frequency_hz[table.set_index == s]) for s in sets]
+    single = next((i for i, f in enumerate(frequencies) if f.size < 2), None)
+    if single is not None:
+        points = int((table.set_index == sets[single]).sum())
+        measured = "a single point" if points == 1 else (
+            f"its {points} points at one frequency, {frequencies[single][0]:.4g} Hz")
+        raise InputError(f"the sweep at {float(temperatures[single]):.1f} °C has {measured}; a "
+                         "set needs two or more frequencies", where)
     tested = frequency_dependence(table)
     if tested is not None and tested[0] > SLOPE_SIGNIFICANCE:
         chance, storage_scatter, loss_scatter = tested
