@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -219,6 +220,24 @@ def test_summary_leaves_out_a_run_too_short_to_fit_and_marks_one_fitted_over_par
     assert runs["soft-10"]["band_hz"] == [20.0, 29.0]
     assert runs["soft-10"]["measured"]["peak_hz"] is None
     assert runs["soft-0"]["measured"]["peak_hz"] == pytest.approx(39.1, abs=0.5)
+
+
+def test_a_run_whose_every_point_overloaded_is_named_not_mistaken_for_a_bare_table(
+    stopped_campaign: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every point of soft-0 flagged as an input overload: the summary crashed on an empty
+    band, and identify said the run had no table FRF (a bare-table run?)."""
+    path = tmp_path / "overloaded.h5"
+    shutil.copyfile(stopped_campaign, path)
+    with h5py.File(path, "r+") as h5:
+        h5["runs/soft-0/flags"][...] = 2
+    said = "run 'soft-0': every one of its 401 points overloaded an input (flags bit 2)"
+    assert main(["identify", str(path), "--run", "soft-0", "--no-store"]) == 2
+    assert said in capsys.readouterr().err
+    assert main(["summary", str(path), "--json"]) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert [entry["run"] for entry in document["left_out"]] == ["soft-0", "medium-0"]
+    assert said in document["left_out"][0]["reason"]
 
 
 def test_identify_says_what_the_uncertainty_includes(

@@ -401,6 +401,19 @@ def damage(path: Path, how: str) -> str:
         if how == "text for number":
             run.attrs["preload_strain"] = "10 %"
             return "/runs/soft-0.preload_strain: not a number"
+        if how == "infinite level":
+            run.attrs["level_m_per_s2"] = np.inf
+            return "/runs/soft-0.level_m_per_s2: inf; needs a finite number above 0"
+        if how == "negative resolution":
+            run.attrs["resolution_hz"] = -0.25
+            return "/runs/soft-0.resolution_hz: -0.25; needs a finite number above 0"
+        if how == "hardness past the scale":
+            run.attrs["hardness_shore_a"] = 160.0
+            return "/runs/soft-0.hardness_shore_a: 160.0; needs a finite number at least 0 " \
+                "and at most 100"
+        if how == "below absolute zero":
+            run.attrs["temperature_c"] = -300.0
+            return "/runs/soft-0.temperature_c: -300.0; needs a finite number above -273.15"
         if how == "run is a dataset":
             del h5["runs/soft-0"]
             h5["runs/soft-0"] = np.zeros(3)
@@ -412,7 +425,8 @@ DAMAGES = [
     "not hdf5", "truncated 0.5", "truncated 0.9", "truncated 0.01", "no runs group",
     "wrong format", "newer version", "missing dataset", "wrong dtype", "complex as real",
     "wrong shape", "wrong units", "no units", "short dataset", "bad status",
-    "missing attribute", "text for number", "run is a dataset",
+    "missing attribute", "text for number", "infinite level", "negative resolution",
+    "hardness past the scale", "below absolute zero", "run is a dataset",
 ]
 
 

@@ -50,7 +50,11 @@ def run_data(run: RunRecord) -> FrfData:
     points, in frequency order, repeats of one frequency merged (:meth:`RunRecord.merged`), so that
     a run an adaptive plan measured (repeats, any order) is fitted, diagnosed and reported as a
     full sweep is."""
-    run = run.select(~run.flagged(INPUT_OVERLOAD)).merged()
+    kept = ~run.flagged(INPUT_OVERLOAD)
+    if run.points and not kept.any():
+        raise InputError(f"every one of its {run.points} points overloaded an input (flags "
+                         f"bit {INPUT_OVERLOAD}): none can be fitted", f"run '{run.name}'")
+    run = run.select(kept).merged()
     bare = is_bare_table(run)
     return FrfData(
         run.frequency_hz,
@@ -445,9 +449,9 @@ def summarize(
         run = campaign.run(name)
         if not run.points:
             continue
-        data = run_data(run)
         weighted = None
         if is_bare_table(run):
+            data = run_data(run)
             band = None
             if table is not None and table.fit is not None and table.source == f"run '{name}'":
                 result = table.fit
@@ -462,6 +466,7 @@ def summarize(
                     str(campaign.path),
                 )
             try:
+                data = run_data(run)
                 band = _band_within(data, band_hz)
                 result, _ = _identify(
                     campaign, run, "voigt", band_hz=band, frfs=("table",), table=table,

@@ -59,7 +59,7 @@ from viscorig.exchange.units import (
     factor,
     normalised,
 )
-from viscorig.materials.table import TEMPERATURE_RANGE_C, ModulusTable
+from viscorig.materials.table import ModulusTable
 from viscorig.materials.trios import (
     Step,
     is_trios_export,
@@ -67,6 +67,7 @@ from viscorig.materials.trios import (
     trios_step_sections,
     trios_steps,
 )
+from viscorig.storage.layout import TEMPERATURE_RANGE_C
 
 #: Largest file read (a DMA table of 100 000 points is under 10 MB).
 MAX_FILE_BYTES = 32 * 1024 * 1024

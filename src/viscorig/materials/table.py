@@ -14,10 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-
-#: Temperatures a specimen's modulus is measured at (°C): above absolute zero, and at most
-#: where any material has long melted or burnt (a DMA oven reaches 600 °C, a furnace 1500 °C).
-TEMPERATURE_RANGE_C = (-273.15, 1500.0)
+from viscorig.storage.layout import TEMPERATURE_RANGE_C
 
 #: What the modulus is: tensile/Young's ("E") or shear ("G").
 MODULUS_KINDS = ("E", "G")

@@ -27,6 +27,9 @@ SEQUENCE_TEXT = "sequence_toml"
 STATION_TEXT = "station_toml"
 
 RUN_STATUSES = ("running", "complete", "aborted")
+#: Temperatures a specimen is measured at (°C): above absolute zero, and at most where any
+#: material has long melted or burnt (a DMA oven reaches 600 °C, a furnace 1500 °C).
+TEMPERATURE_RANGE_C = (-273.15, 1500.0)
 DIRECTIONS = ("up", "down")
 
 #: Attributes of /rig; all optional.

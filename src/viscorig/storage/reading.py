@@ -139,18 +139,23 @@ def text_attribute(obj: h5py.HLObject, name: str, path: Path) -> str:
 
 @overload
 def read_number(
-    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[True]
+    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[True],
+    low: float | None = None, high: float | None = None, low_open: bool = False,
 ) -> int: ...
 
 
 @overload
 def read_number(
-    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[False] = False
+    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[False] = False,
+    low: float | None = None, high: float | None = None, low_open: bool = False,
 ) -> float: ...
 
 
-def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = False) -> float:
-    """A numeric scalar attribute (NaN allowed for floats)."""
+def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = False,
+                low: float | None = None, high: float | None = None,
+                low_open: bool = False) -> float:
+    """A numeric scalar attribute (NaN allowed for floats); with ``low`` or ``high``, a finite
+    value within them (above ``low`` with ``low_open``)."""
     value = attribute(obj, name, path)
     problem = None
     if value is None:
@@ -159,6 +164,13 @@ def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = Fa
         problem = f"not a number ({type(value).__name__})"
     elif integer and (not math.isfinite(value) or value != int(value)):
         problem = f"not a whole number ({value!r})"
+    elif (low is not None or high is not None) and not math.isnan(value) and not (
+            math.isfinite(value)
+            and (low is None or value > low or (value == low and not low_open))
+            and (high is None or value <= high)):
+        lower = "" if low is None else f"{'above' if low_open else 'at least'} {low:g}"
+        upper = "" if high is None else f"at most {high:g}"
+        problem = f"{value!r}; needs a finite number {' and '.join(filter(None, (lower, upper)))}"
     if problem is not None:
         raise InputError(problem, f"{path}: {obj.name}.{name}")
     return int(value) if integer else float(value)
@@ -257,14 +269,16 @@ def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
         started=text_attribute(group, "started", path),
         finished=text_attribute(group, "finished", path),
         specimen=text_attribute(group, "specimen", path),
-        hardness_shore_a=read_number(group, "hardness_shore_a", path),
-        preload_strain=read_number(group, "preload_strain", path),
-        temperature_c=read_number(group, "temperature_c", path),
-        level_m_per_s2=read_number(group, "level_m_per_s2", path),
+        hardness_shore_a=read_number(group, "hardness_shore_a", path, low=0.0, high=100.0),
+        preload_strain=read_number(group, "preload_strain", path, low=-1.0, high=1.0),
+        temperature_c=read_number(group, "temperature_c", path, low_open=True,
+                                  low=layout.TEMPERATURE_RANGE_C[0],
+                                  high=layout.TEMPERATURE_RANGE_C[1]),
+        level_m_per_s2=read_number(group, "level_m_per_s2", path, low=0.0, low_open=True),
         direction=read_choice(group, "direction", path, layout.DIRECTIONS),
-        settle_cycles=read_number(group, "settle_cycles", path, integer=True),
-        integrate_cycles=read_number(group, "integrate_cycles", path, integer=True),
-        resolution_hz=read_number(group, "resolution_hz", path),
+        settle_cycles=read_number(group, "settle_cycles", path, integer=True, low=0),
+        integrate_cycles=read_number(group, "integrate_cycles", path, integer=True, low=0),
+        resolution_hz=read_number(group, "resolution_hz", path, low=0.0, low_open=True),
         instrument=text_attribute(group, "instrument", path),
         resource=text_attribute(group, "resource", path),
         simulated=read_bool(group, "simulated", path),
