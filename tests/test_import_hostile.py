@@ -161,6 +161,25 @@ def test_a_uff_with_a_repeated_frequency_is_refused(tmp_path: Path, campaign_fil
     assert status == 2 and "is given twice (points 5 and 6 of" in line, line
 
 
+@pytest.mark.parametrize("factor", ["1.0D+400", "0.0D+00", "-3.048D-01"])
+def test_a_uff_unit_factor_no_unit_system_has_is_refused(tmp_path: Path, campaign_file: Path,
+                                                         factor: str) -> None:
+    """A dataset 164 length factor that overflows to infinity divided every value to zero:
+    the run was stored as an FRF of zeros."""
+    run = CampaignFile.open(campaign_file).run("soft-0")
+    path = tmp_path / "factor.uff"
+    pyuff.UFF(str(path)).write_sets(uff_records(run, binary=False), mode="overwrite")
+    lines = path.read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.strip() == "164") + 2
+    fields = lines[at].split()
+    lines[at] = f"{factor:>25}{fields[1]:>25}{fields[2]:>25}"
+    path.write_text("\n".join(lines) + "\n")
+    status, _, err = _import(tmp_path, "--uff", path)
+    line = one_clear_line(err)
+    assert status == 2 and "dataset 164: length factor" in line and "is not a unit's factor to " \
+        "SI" in line, line
+
+
 def test_a_uff_from_high_to_low_frequency_is_stored_rising(tmp_path: Path,
                                                            campaign_file: Path) -> None:
     def change(records):

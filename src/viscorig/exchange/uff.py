@@ -160,16 +160,25 @@ def _label(record: dict[str, Any], key: str) -> str:
     return "" if text.upper() == "NONE" else text
 
 
-def _system_factors(unit_set: dict[str, Any] | None) -> tuple[float, float] | None:
-    """(length, force) factors file units -> SI from dataset 164 (SI = divide by the factor)."""
+#: Factors of a unit system to SI a dataset 164 may state: from nanometres and micronewtons
+#: to kilometres and meganewtons, with room to spare.
+UNIT_FACTOR_RANGE = (1e-12, 1e12)
+
+
+def _system_factors(unit_set: dict[str, Any] | None, where: str) -> tuple[float, float] | None:
+    """(length, force) factors file units -> SI from dataset 164 (SI = divide by the factor);
+    ``None`` without one."""
     if unit_set is None:
         return None
     try:
         length, force = float(unit_set["length"]), float(unit_set["force"])
     except (KeyError, TypeError, ValueError):
         return None
-    if not (length > 0 and force > 0):
-        return None
+    low, high = UNIT_FACTOR_RANGE
+    for name, factor in (("length", length), ("force", force)):
+        if not low <= factor <= high:
+            raise InputError(f"{name} factor {factor:g} is not a unit's factor to SI (from "
+                             f"{low:g} to {high:g})", f"{where}: dataset 164")
     return 1.0 / length, 1.0 / force
 
 
@@ -294,7 +303,7 @@ def read_uff(path: Path) -> FrfSet:
     if not types:
         raise InputError("no universal-file dataset found (not a UFF file?)", where)
     unit_sets = [s for s, t in zip(sets, types, strict=True) if t == 164]
-    system = _system_factors(unit_sets[0] if unit_sets else None)
+    system = _system_factors(unit_sets[0] if unit_sets else None, where)
     frfs: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
     ordered: list[tuple[np.ndarray, np.ndarray, str]] = []
     for index, (record, kind) in enumerate(zip(sets, types, strict=True)):
