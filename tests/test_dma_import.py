@@ -15,7 +15,7 @@ from viscorig.cli import main
 from viscorig.errors import InputError
 from viscorig.materials.dmafile import read_dma_csv
 from viscorig.materials.dmastore import dma_run_names, import_dma, read_dma
-from viscorig.materials.table import ModulusTable
+from viscorig.materials.table import MAX_MASTER_POINTS, ModulusTable
 from viscorig.storage import CampaignFile
 
 SWEEP = "pyvisco_freq_user_raw.csv"
@@ -75,12 +75,19 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
 @pytest.mark.parametrize(("text", "expected"), [
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,x,1,20\n", "row 4, column 'E_stor'"),
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,-3,1,20\n",
-     "1 data row(s) with a positive storage and loss modulus"),
+     "1 data row(s) with a storage and loss modulus in range"),
     ("f,E_stor,T\nHz,MPa,C\n1,10,20\n2,11,20\n", "no storage and loss modulus columns"),
     ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "no unit for modulus"),
     ("f,E_stor,E_loss,T\nHz,furlong,MPa,C\n1,10,1,20\n2,11,1,20\n", "furlong"),
     # a temperature no specimen is measured at was taken (1e6 °C shifted like any other)
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,11,1,1e6\n", "row 4, column 'T'"),
+    # a denormal frequency (a damaged cell) stretched the shifts' knots over 320 decades: the
+    # master curve ran for hours
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n1e-320,11,1,20\n",
+     "row 4, column 'f': frequency must be a number from 1e-09 to 1e+09 Hz"),
+    # a denormal modulus made the Prony fit's residuals NaN: left out, so too few remain
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,1e-320,1,20\n",
+     "1 data row(s) with a storage and loss modulus in range"),
 ])
 def test_bad_tables_name_file_row_and_column(tmp_path, text, expected):
     path = tmp_path / "bad.csv"
@@ -593,3 +600,14 @@ def test_real_trios_exports_of_a_time_temperature_sweep_and_of_a_mixed_procedure
     assert table.points == 29 and table.sets.size == 1
     assert table.frequency_hz.max() == pytest.approx(100.0, rel=1e-6)  # 628.3 rad/s
     assert table.temperature_c.mean() == pytest.approx(25.0, abs=0.05)
+
+
+def test_a_table_larger_than_a_master_curve_is_fitted_on_is_refused(tmp_path, capsys):
+    """100,000 rows (a hostile or mistaken file): the master curve would run for an hour."""
+    rows = "".join(f"{1 + i % 1000},10,1,{20 + i // 1000}\n" for i in range(MAX_MASTER_POINTS + 1))
+    path = tmp_path / "big.csv"
+    path.write_text("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n" + rows)
+    assert main(["import", str(tmp_path / "c.h5"), "--run", "big", "--dma", str(path)]) == 2
+    assert (f"big.csv: {MAX_MASTER_POINTS + 1} points; a master curve is fitted on at most "
+            f"{MAX_MASTER_POINTS}") in capsys.readouterr().err
+    assert not (tmp_path / "c.h5").exists()

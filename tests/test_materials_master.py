@@ -611,3 +611,12 @@ def test_a_reference_temperature_at_or_below_the_wlf_pole_is_refused_not_rerefer
     c1, c2 = colder.shift_function.values
     assert c1 > 0 and c2 > 0
     assert all(f.reaches(vogel + 30.0) for f in colder.shift_functions)
+
+
+@pytest.mark.parametrize("reference_c", [1e6, -300.0, math.nan, math.inf])
+def test_a_reference_temperature_no_specimen_is_measured_at_is_refused(reference_c):
+    """A reference of 10⁶ °C reached the fractional model's fit with residuals that overflow,
+    a traceback."""
+    with pytest.raises(InputError, match=r"--reference-temperature: .* is not a temperature in "
+                                         r"°C above -273.15 and at most 1500"):
+        build_master(_table(), ("generated",), reference_temperature_c=reference_c)

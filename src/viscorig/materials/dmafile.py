@@ -59,7 +59,7 @@ from viscorig.exchange.units import (
     factor,
     normalised,
 )
-from viscorig.materials.table import ModulusTable
+from viscorig.materials.table import FREQUENCY_RANGE_HZ, ModulusTable
 from viscorig.materials.trios import (
     Step,
     is_trios_export,
@@ -549,7 +549,8 @@ def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], wh
     """
     checks = (
         ("frequency" if "frequency" in columns else "angular", table.frequency_hz,
-         "frequency must be a positive finite number"),
+         f"frequency must be a number from {FREQUENCY_RANGE_HZ[0]:g} to "
+         f"{FREQUENCY_RANGE_HZ[1]:g} Hz"),
         ("temperature", table.temperature_c + 273.15, "temperature must be above absolute zero "
          f"and at most {TEMPERATURE_RANGE_C[1]:g} °C"),
     )
@@ -557,6 +558,8 @@ def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], wh
         good = np.isfinite(value) & (value > 0)
         if role == "temperature":
             good &= table.temperature_c <= TEMPERATURE_RANGE_C[1]
+        else:
+            good &= (value >= FREQUENCY_RANGE_HZ[0]) & (value <= FREQUENCY_RANGE_HZ[1])
         bad = np.flatnonzero(~good)
         if bad.size:
             row_number = body[int(bad[0])][0]
@@ -569,8 +572,8 @@ def _check_rows(table: ModulusTable, body: list, columns: dict[str, _Column], wh
         log.warning("%s: row %s, column %r: %s; kept as measured, left out of master curves",
                     where, body[point["point"] - 1][0], columns[role].name, point["why"])
     if len(unusable) > MAX_NAMED_POINTS:
-        log.warning("%s: %d more rows with a modulus that is not a positive number",
+        log.warning("%s: %d more rows with a modulus outside the range a master curve uses",
                     where, len(unusable) - MAX_NAMED_POINTS)
     if int(table.usable().sum()) < 2:
-        raise InputError(f"{int(table.usable().sum())} data row(s) with a positive storage and "
-                         "loss modulus; a master curve needs more", where)
+        raise InputError(f"{int(table.usable().sum())} data row(s) with a storage and "
+                         "loss modulus in range; a master curve needs more", where)

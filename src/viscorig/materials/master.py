@@ -45,6 +45,7 @@ from viscorig.materials.superposition import SuperpositionCheck, check_superposi
 from viscorig.materials.table import ModulusTable
 from viscorig.materials.vertical import MAX_EXPANSION_PER_K, VERTICAL_SHIFTS, ferry_factor
 from viscorig.numbers import with_uncertainty
+from viscorig.storage.layout import TEMPERATURE_RANGE_C
 
 #: Without a shift function, a set within this many kelvin of the reference temperature asked
 #: for is taken as the reference itself (with one, the shifts are moved to it exactly).
@@ -86,7 +87,8 @@ class MasterCurve:
         that made the fit worse); their errors are then at least the spline estimate's where
         the refinement stayed near it (:func:`_joint_covariance`).
     left_out
-        The points of the data whose storage or loss modulus is not a positive number
+        The points of the data whose storage or loss modulus is not a number within
+        :data:`~viscorig.materials.table.MODULUS_RANGE_PA`
         (:meth:`ModulusTable.unusable_points`); ``table`` holds the others.
     vertical
         ``"none"``, or ``"ferry"``: ``table`` then holds the reduced moduli ``E b_T``
@@ -500,10 +502,10 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     left_out = tuple(table.unusable_points())
     if left_out:
         table = table.select(table.usable())
-    if not (reference_temperature_c is None or (math.isfinite(reference_temperature_c)
-                                                and reference_temperature_c > -273.15)):
-        raise InputError(f"{reference_temperature_c} is not a temperature in °C",
-                         "--reference-temperature")
+    low, high = TEMPERATURE_RANGE_C
+    if not (reference_temperature_c is None or low < reference_temperature_c <= high):
+        raise InputError(f"{reference_temperature_c} is not a temperature in °C above {low:g} "
+                         f"and at most {high:g}", "--reference-temperature")
     temperatures = np.sort(table.set_temperatures_c())
     sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
     anchor = _anchor(temperatures, reference_temperature_c)

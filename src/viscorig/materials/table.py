@@ -18,6 +18,17 @@ from viscorig.storage.layout import TEMPERATURE_RANGE_C
 
 #: What the modulus is: tensile/Young's ("E") or shear ("G").
 MODULUS_KINDS = ("E", "G")
+#: Frequencies a modulus is measured at (Hz): from a creep test's decades of hours to an
+#: ultrasonic one's megahertz, with room to spare; outside them a number is a unit or a file
+#: gone wrong.
+FREQUENCY_RANGE_HZ = (1e-9, 1e9)
+#: Moduli a master curve uses (Pa): from the loss modulus of a thin liquid to ten times
+#: diamond's; outside them (a denormal 1e-320, an instrument's overflow marker) a value is
+#: kept as measured and left out (:meth:`ModulusTable.usable`).
+MODULUS_RANGE_PA = (1e-6, 1e13)
+#: Points a master curve is fitted on at most: about a minute of fitting. Isothermal sweeps
+#: hold tens to a few thousand.
+MAX_MASTER_POINTS = 10_000
 
 
 @dataclass(frozen=True)
@@ -82,8 +93,14 @@ class ModulusTable:
             A non-finite or non-positive frequency, a non-finite temperature, or fewer than two
             usable points.
         """
+        if self.points > MAX_MASTER_POINTS:
+            raise InputError(f"{self.points} points; a master curve is fitted on at most "
+                             f"{MAX_MASTER_POINTS} (isothermal sweeps hold a few thousand: "
+                             "import the sweeps of one specimen, or fewer temperatures)", where)
+        low, high = FREQUENCY_RANGE_HZ
         checks = (
-            ("frequency_hz", self.frequency_hz > 0, "frequency must be a positive number"),
+            ("frequency_hz", (self.frequency_hz >= low) & (self.frequency_hz <= high),
+             f"frequency must be a number from {low:g} to {high:g} Hz"),
             ("temperature_c", np.isfinite(self.temperature_c)
              & (self.temperature_c > TEMPERATURE_RANGE_C[0])
              & (self.temperature_c <= TEMPERATURE_RANGE_C[1]),
@@ -98,13 +115,13 @@ class ModulusTable:
                                  f"{where}: {name}")
         usable = int(self.usable().sum())
         if usable < 2:
-            raise InputError(f"{usable} point(s) with a positive storage and loss modulus; a "
+            raise InputError(f"{usable} point(s) with a storage and loss modulus in range; a "
                              "master curve needs more", where)
 
     def usable(self) -> NDArray[np.bool_]:
-        """Points whose storage and loss moduli are both positive numbers."""
-        return (np.isfinite(self.storage_pa) & (self.storage_pa > 0)
-                & np.isfinite(self.loss_pa) & (self.loss_pa > 0))
+        """Points whose storage and loss moduli are both numbers within
+        :data:`MODULUS_RANGE_PA`."""
+        return _within_moduli(self.storage_pa) & _within_moduli(self.loss_pa)
 
     def unusable_points(self) -> list[dict]:
         """Every point :meth:`usable` leaves out: its number (from 1), set, temperature,
@@ -113,12 +130,14 @@ class ModulusTable:
         for index in np.flatnonzero(~self.usable()).tolist():
             storage, loss = float(self.storage_pa[index]), float(self.loss_pa[index])
             bad = [name for name, value in (("storage", storage), ("loss", loss))
-                   if not (np.isfinite(value) and value > 0)]
+                   if not _within_moduli(np.array(value))]
+            low, high = MODULUS_RANGE_PA
             out.append({"point": index + 1, "set": int(self.set_index[index]),
                         "temperature_c": float(self.temperature_c[index]),
                         "frequency_hz": float(self.frequency_hz[index]),
                         "storage_pa": storage, "loss_pa": loss,
-                        "why": " and ".join(bad) + " modulus not a positive number"})
+                        "why": " and ".join(bad) + f" modulus not a number from {low:g} to "
+                        f"{high:g} Pa"})
         return out
 
     def select(self, keep: NDArray[np.bool_]) -> ModulusTable:
@@ -129,6 +148,12 @@ class ModulusTable:
             set_index=self.set_index[keep], modulus=self.modulus, source=self.source,
             set_names=self.set_names,
         )
+
+
+def _within_moduli(values: NDArray[np.float64]) -> NDArray[np.bool_]:
+    low, high = MODULUS_RANGE_PA
+    with np.errstate(invalid="ignore"):
+        return np.asarray((values >= low) & (values <= high))
 
 
 def concatenate(tables: list[ModulusTable], source: str) -> ModulusTable:
