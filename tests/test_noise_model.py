@@ -180,6 +180,24 @@ def test_estimate_noise_takes_the_frfs_of_a_run() -> None:
     assert model.floor == pytest.approx(truth_floor(), rel=0.12)
 
 
+@pytest.mark.parametrize("damage", [1e308, np.inf, -1.0, 0.0])
+def test_a_damaged_analyser_variance_is_not_used(damage: float) -> None:
+    """A variance dataset of 1e308 at every point (a damaged file) overflowed in the whitening:
+    every fit of the run ended in 'residuals are not finite'. Such a variance is set aside and
+    the noise estimated from the points, as without one."""
+    table, support = noisy(1), noisy(2)
+    variance = np.full(FREQUENCY.size, 2 * WHITE_RMS**2)
+    variance[100] = damage
+    damaged = FrfData(FREQUENCY, table, support, TIME, name="run", variance_table=variance,
+                      variance_support=np.full_like(variance, damage))
+    model = estimate_noise(damaged)
+    plain = estimate_noise(FrfData(FREQUENCY, table, support, TIME, name="run"))
+    assert [block.source for frf in model.frfs for block in model.blocks[frf]] == [
+        "differences", "differences"]
+    assert model.floor == plain.floor
+    assert np.isfinite(model.whiten({"table": table, "support": support})).all()
+
+
 # -- what consumers get -----------------------------------------------------------------------
 
 def _model(rng: np.random.Generator, n: int = 60) -> tuple[FrfNoise, np.ndarray]:
