@@ -159,3 +159,25 @@ def test_a_damaged_journal_is_named_and_the_runs_still_listed(campaign_path: Pat
     captured = capsys.readouterr()
     assert "soft-10" in captured.out and "\njournal\n" not in captured.out
     assert "/journal: columns of different lengths" in captured.err
+
+
+@pytest.mark.parametrize(("damage", "said"), [
+    (lambda h5: h5.__delitem__("journal/kind"), "/journal/kind: missing or not a 1-D string"),
+    (lambda h5: (h5.__delitem__("journal"), h5.create_dataset("journal", data=[1, 2])),
+     "/journal: not a group"),
+    (lambda h5: (h5.__delitem__("journal/text"),
+                 h5.create_dataset("journal/text", data=["first"], dtype=h5py.string_dtype())),
+     "/journal/text: a column of fixed length"),
+])
+def test_a_note_is_refused_by_a_damaged_journal_and_writes_nothing(
+        campaign_path: Path, capsys, damage, said: str) -> None:
+    """A note added to a journal missing a column made that column anew, one entry long beside
+    the others' (a journal no reader takes); one of the wrong kind ended in h5py's traceback."""
+    with CampaignFile.open(campaign_path, "a", durable=False) as campaign:
+        campaign.add_journal_entry("note", "first")
+    with h5py.File(campaign_path, "r+") as h5:
+        damage(h5)
+    before = campaign_path.read_bytes()
+    assert main(["note", str(campaign_path), "bolt re-tightened"]) == 2
+    assert said in capsys.readouterr().err
+    assert campaign_path.read_bytes() == before

@@ -61,7 +61,20 @@ def check_entry(kind: str, text: str, where: str) -> str:
 
 
 def append(h5: h5py.File, entry: JournalEntry, path: Path) -> int:
-    """Append one entry inside a commit; return the number of entries after it."""
+    """Append one entry inside a commit; return the number of entries after it.
+
+    Raises
+    ------
+    InputError
+        The journal is not as :func:`read` describes it, or its columns cannot grow (named).
+    """
+    existing = h5.get(JOURNAL_GROUP)
+    if existing is not None and not (isinstance(existing, h5py.Group) and len(existing) == 0):
+        read(h5, path)
+        for name in COLUMNS:
+            if h5[JOURNAL_GROUP][name].maxshape[0] is not None:
+                raise InputError("a column of fixed length: no entry can be added",
+                                 f"{path}: /{JOURNAL_GROUP}/{name}")
     group = h5.require_group(JOURNAL_GROUP)
     for name in COLUMNS:
         if name not in group:
