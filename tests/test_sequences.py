@@ -20,6 +20,7 @@ from viscorig.sequences import (
     parse_level,
     parse_sequence,
 )
+from viscorig.sequences.station import parse_station
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -208,3 +209,14 @@ def test_paper_level_brings_the_hardest_specimen_close_to_but_below_the_shaker_l
     assert 90.0 < force < 100.0
     soft = shaker_force_n(sequence.sweep("soft-0"), 20.0, 149_986.61, 114.59, device_mass_kg)
     assert 10.0 < soft < 15.0
+
+
+@pytest.mark.parametrize("nested", ["x = " + "[" * 600 + "]" * 600,
+                                    "x = " + "{a = " * 600 + "1" + "}" * 600])
+def test_toml_nested_past_the_reader_s_depth_is_one_input_error(nested: str) -> None:
+    """tomllib recurses once per level: 500 levels ended in a RecursionError traceback from
+    check, plan, run and import --station."""
+    with pytest.raises(InputError, match=r"deep\.toml: arrays or tables nested too deeply"):
+        parse_sequence(nested + "\n", "deep.toml")
+    with pytest.raises(InputError, match=r"deep\.toml: arrays or tables nested too deeply"):
+        parse_station(nested + "\n", "deep.toml")

@@ -107,6 +107,8 @@ def parse_toml(text: str, source: str) -> dict[str, Any]:
         return tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as error:
         raise InputError(f"not valid TOML: {error}", source) from None
+    except RecursionError:  # tomllib's parser recurses once per level of nesting
+        raise InputError("arrays or tables nested too deeply to read", source) from None
 
 
 def parse_sequence(text: str, source: str = "sequence") -> Sequence:
