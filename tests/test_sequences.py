@@ -12,6 +12,7 @@ from tomlwrite import dumps
 
 from viscorig.errors import InputError
 from viscorig.sequences import (
+    FileCheckError,
     IdentifyTableStep,
     PromptStep,
     SweepStep,
@@ -220,3 +221,18 @@ def test_toml_nested_past_the_reader_s_depth_is_one_input_error(nested: str) -> 
         parse_sequence(nested + "\n", "deep.toml")
     with pytest.raises(InputError, match=r"deep\.toml: arrays or tables nested too deeply"):
         parse_station(nested + "\n", "deep.toml")
+
+
+@pytest.mark.parametrize(("field", "value", "said"), [
+    ("steps.4.specimen", "a\u0000b", "steps[4].specimen: holds the control character U+0000"),
+    ("steps.4.specimen", "S" * 100_000, "steps[4].specimen: 100000 characters; at most 4096"),
+    ("steps.0.message", "\u001b[2JRemove", "steps[0].message: holds the control character U+001B"),
+])
+def test_a_text_no_campaign_file_or_terminal_takes_is_refused_by_check(field, value, said):
+    """A specimen with a NUL passed the check and crashed the run in h5py; one of 100,000
+    characters was measured, then stored where no reader takes it; a prompt's escape sequences
+    reached the terminal raw."""
+    with pytest.raises(FileCheckError) as caught:
+        parse(change(document(), field, value))
+    assert said in str(caught.value)
+    parse(change(document(), "steps.0.message", "Remove the device.\n\tThen press Enter."))

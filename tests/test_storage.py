@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -221,6 +222,12 @@ def test_lifecycle_errors_name_the_run(campaign_path: Path) -> None:
         campaign.start_run("soft-0", SETTINGS)
     with pytest.raises(InputError, match="not a valid name"):
         campaign.start_run("a/b", SETTINGS)
+    # a text the file's readers refuse is not written (a run's attributes half set)
+    with pytest.raises(InputError, match="specimen: text of 70000 bytes; at most 65536"):
+        campaign.start_run("long", replace(SETTINGS, specimen="S" * 70_000))
+    with pytest.raises(InputError, match="specimen: text with a NUL character"):
+        campaign.start_run("nul", replace(SETTINGS, specimen="a\x00b"))
+    assert "long" not in campaign.run_names and "nul" not in campaign.run_names
     with pytest.raises(InputError, match="no such run"):
         campaign.fits("hard-10")
     assert campaign.resume_run("soft-0") == 40

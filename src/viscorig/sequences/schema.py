@@ -25,6 +25,9 @@ from viscorig.storage import layout
 
 #: A day: the longest dwell, wait, retry or time constant a sequence may set.
 LONGEST_S = 86_400.0
+#: Longest text a field may hold (a specimen's name, a prompt's instruction): the campaign file
+#: stores it as an attribute, which readers take up to 64 KiB.
+MAX_TEXT_CHARACTERS = 4096
 
 #: A field that must be given (in its table, or in ``[defaults]`` where allowed).
 REQUIRED: Any = type("Required", (), {"__repr__": lambda self: "REQUIRED"})()
@@ -140,6 +143,12 @@ class Field:
                              f"write it in quotes, e.g. {self.name} = {self.example}")
         if not value.strip() and self.default != "":
             raise FieldError("must not be empty")
+        if len(value) > MAX_TEXT_CHARACTERS:
+            raise FieldError(f"{len(value)} characters; at most {MAX_TEXT_CHARACTERS}")
+        control = next((c for c in value if (c < " " and c not in "\n\t") or c == "\x7f"), None)
+        if control is not None:
+            raise FieldError(f"holds the control character U+{ord(control):04X} at "
+                             f"{value.index(control) + 1}", "text, line breaks and tabs only")
         return value
 
     def _choice(self, value: object) -> str:

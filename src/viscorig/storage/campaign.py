@@ -747,6 +747,11 @@ def _settings_attributes(settings: RunSettings) -> dict[str, object]:
     values["simulated"] = np.bool_(values["simulated"])
     for key in ("specimen", "instrument", "resource"):
         values[key] = str(values[key])
+        size = len(values[key].encode("utf-8", "surrogatepass"))
+        if size > layout.MAX_ATTRIBUTE_BYTES or "\x00" in values[key]:
+            what = (f"text of {size} bytes; at most {layout.MAX_ATTRIBUTE_BYTES}"
+                    if size > layout.MAX_ATTRIBUTE_BYTES else "text with a NUL character")
+            raise InputError(f"{what}, which no reader of the file takes", key)
     return values
 
 
