@@ -22,6 +22,7 @@ from viscorig.exchange import (
     write_csv,
     write_uff,
 )
+from viscorig.exchange.cells import parse_number
 from viscorig.storage import CampaignFile
 
 
@@ -161,6 +162,20 @@ def test_csv_saved_by_a_spreadsheet_with_a_decimal_comma_reads_the_same(
     back = read_csv(regional)
     for name in ("frequency_hz", "accelerance_table", "accelerance_support", "flags", "time_s"):
         assert np.array_equal(getattr(back, name), getattr(run, name)), name
+
+
+@pytest.mark.parametrize(("cell", "value"), [
+    ("-1,234.25", -1234.25), ("1.234,5", 1234.5), ("-0,0997", -0.0997), ("12,345,678.9",
+    12345678.9), ("1.234.567,8", 1234567.8), ("-1,5e-3", -1.5e-3), ("1,23.4", None),
+    ("1.2,3", None), ("1,2,3", None)])
+def test_a_cell_with_both_marks_groups_thousands_by_the_one_before_the_decimal(cell, value):
+    """A tab-separated export with thousands grouped the English way ('-1,234.25') was read
+    as -1.23425: every value 1000 times too small, without a word."""
+    if value is None:
+        with pytest.raises(ValueError):
+            parse_number(cell, decimal_comma=True)
+    else:
+        assert parse_number(cell, decimal_comma=True) == pytest.approx(value, rel=1e-15)
 
 
 F = np.arange(20.0, 120.0 + 1e-9, 0.25)
