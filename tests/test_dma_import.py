@@ -79,6 +79,9 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
     ("f,E_stor,T\nHz,MPa,C\n1,10,20\n2,11,20\n", "no storage and loss modulus columns"),
     ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "no unit for modulus"),
     ("f,E_stor,E_loss,T\nHz,furlong,MPa,C\n1,10,1,20\n2,11,1,20\n", "furlong"),
+    # millipascal was read as megapascal, case folded away: every modulus 1e9 times too large
+    ("f,E_stor,E_loss,T\nHz,mPa,mPa,C\n1,10,1,20\n2,11,1,20\n",
+     "row 2, column 'E_stor': unit 'mPa' is not a unit of modulus"),
     # a temperature no specimen is measured at was taken (1e6 °C shifted like any other)
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,11,1,1e6\n", "row 4, column 'T'"),
     # a denormal frequency (a damaged cell) stretched the shifts' knots over 320 decades: the

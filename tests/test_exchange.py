@@ -23,6 +23,7 @@ from viscorig.exchange import (
     write_uff,
 )
 from viscorig.exchange.cells import parse_number
+from viscorig.exchange.units import ACCELERATION_UNITS, FREQUENCY_UNITS, MODULUS_UNITS, lookup
 from viscorig.storage import CampaignFile
 
 
@@ -336,3 +337,14 @@ def test_an_export_that_cannot_be_written_says_why_once(campaign_file, tmp_path,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err and "cannot write (" not in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder"]
+
+
+@pytest.mark.parametrize(("label", "factor"), [
+    ("MPa", 1e6), ("MPA", 1e6), ("mpa", 1e6), ("M Pa", 1e6), ("kPa", 1e3), ("mPa", None),
+    ("Mpa", None), ("GPa", 1e9), ("pa", 1.0)])
+def test_a_unit_in_mixed_case_is_read_as_written(label, factor):
+    """Labels were compared in lower case: mPa (millipascal) read as MPa, 1e9 times off. A
+    label in one case (as instruments write them) still matches any spelling."""
+    assert lookup(label, MODULUS_UNITS) == factor
+    assert lookup("Mm/s^2", ACCELERATION_UNITS) is None
+    assert lookup("M/S2", ACCELERATION_UNITS) == 1.0 and lookup("HZ", FREQUENCY_UNITS) == 1.0

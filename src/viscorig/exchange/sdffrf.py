@@ -69,7 +69,7 @@ class SdfFrf:
 
     def in_volts(self) -> bool:
         """True when either channel is in volts (no engineering unit set on the analyser)."""
-        return any(units.normalised(unit) in units.VOLTAGE_UNITS
+        return any(units.lookup(unit, units.VOLTAGE_UNITS) is not None
                    for unit in (self.response_unit, self.reference_unit))
 
     def accelerance(self, where: str, station: Station | None = None) -> NDArray[np.complex128]:
@@ -95,7 +95,7 @@ class SdfFrf:
         """Factor from the channel's unit to m/s² (response) or N (reference)."""
         quantity, table = (("acceleration", units.ACCELERATION_UNITS) if side == "response"
                            else ("force", units.FORCE_UNITS))
-        volts = units.VOLTAGE_UNITS.get(units.normalised(unit))
+        volts = units.lookup(unit, units.VOLTAGE_UNITS)
         if volts is None:
             return units.factor(unit, table, quantity, f"{where}: {side} channel unit")
         if station is None:

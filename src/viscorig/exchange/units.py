@@ -1,8 +1,11 @@
 """Unit labels met in exchange files, and their factors to the SI units viscorig stores.
 
 Instruments and other programs spell units freely (``M/S2``, ``m/s^2``, ``g``, ``N``, ``lbf``).
-A label is compared without spaces and case-insensitively; a label that is not in these tables
-is refused rather than guessed, because a wrong unit would make every value silently wrong.
+A label is compared without spaces, as written; one written in a single case (``MPA``, ``hz``,
+as instruments and old programs write them) is also compared case-insensitively. One in mixed
+case that is not a known spelling (``mPa``, millipascal, is no ``MPa``) is refused, as is any
+label not in these tables, rather than guessed: a wrong unit would make every value silently
+wrong.
 """
 
 from __future__ import annotations
@@ -23,16 +26,27 @@ VELOCITY_UNITS = {"m/s": 1.0, "mm/s": 1e-3, "ms^-1": 1.0}
 #: displacement label -> factor to m
 DISPLACEMENT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 #: force label -> factor to N
-FORCE_UNITS = {"n": 1.0, "kn": 1e3, "lbf": POUND_FORCE_N, "lb": POUND_FORCE_N}
+FORCE_UNITS = {"N": 1.0, "kN": 1e3, "lbf": POUND_FORCE_N, "lb": POUND_FORCE_N}
 #: voltage label -> factor to V (an analyser channel with no engineering unit set)
-VOLTAGE_UNITS = {"v": 1.0, "mv": 1e-3}
+VOLTAGE_UNITS = {"V": 1.0, "mV": 1e-3}
 #: frequency label -> factor to Hz
-FREQUENCY_UNITS = {"hz": 1.0, "khz": 1e3, "1/s": 1.0}
+FREQUENCY_UNITS = {"Hz": 1.0, "kHz": 1e3, "1/s": 1.0}
 
 
 def normalised(label: str) -> str:
     """A label without spaces, in lower case (``"M/S2 "`` -> ``"m/s2"``)."""
     return "".join(str(label).split()).lower()
+
+
+def lookup(label: str, table: dict[str, float]) -> float | None:
+    """The factor of ``label`` in ``table`` as the module text compares labels, or ``None``."""
+    key = "".join(str(label).split())
+    if key in table:
+        return table[key]
+    if key not in (key.lower(), key.upper()):
+        return None
+    return next((value for known, value in table.items() if known.lower() == key.lower()),
+                None)
 
 
 def factor(label: str, table: dict[str, float], quantity: str, where: str) -> float:
@@ -43,17 +57,17 @@ def factor(label: str, table: dict[str, float], quantity: str, where: str) -> fl
     InputError
         The label is not a unit of ``quantity`` that viscorig knows.
     """
-    key = normalised(label)
-    for known, value in table.items():
-        if normalised(known) == key:
-            return value
+    value = lookup(label, table)
+    if value is not None:
+        return value
     known = ", ".join(sorted({k for k in table}))
-    raise InputError(f"unit {label!r} is not a unit of {quantity} (known: {known})", where)
+    raise InputError(f"unit {label!r} is not a unit of {quantity} (known: {known}; case "
+                     "counts where it is mixed: mPa is no MPa)", where)
 
 #: modulus (stress) label -> factor to Pa
 MODULUS_UNITS = {
-    "pa": 1.0, "kpa": 1e3, "mpa": 1e6, "gpa": 1e9, "n/m^2": 1.0, "n/m2": 1.0, "n/mm^2": 1e6,
-    "n/mm2": 1e6, "n/mm²": 1e6, "psi": 6894.757293168, "ksi": 6894757.293168,
+    "Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9, "N/m^2": 1.0, "N/m2": 1.0, "N/mm^2": 1e6,
+    "N/mm2": 1e6, "N/mm²": 1e6, "psi": 6894.757293168, "ksi": 6894757.293168,
 }
 #: temperature label -> offset to °C (value + offset); kelvin is the only offset scale known
 TEMPERATURE_OFFSETS = {"c": 0.0, "°c": 0.0, "degc": 0.0, "deg.c": 0.0, "celsius": 0.0,
