@@ -79,6 +79,9 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
     ("f,E_stor,T\nHz,MPa,C\n1,10,20\n2,11,20\n", "no storage and loss modulus columns"),
     ("f,E_stor,E_loss,T\n1,10,1,20\n2,11,1,20\n", "no unit for modulus"),
     ("f,E_stor,E_loss,T\nHz,furlong,MPa,C\n1,10,1,20\n2,11,1,20\n", "furlong"),
+    # a row with a cell too many was read shifted: E'' as the temperature, without a word
+    ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,5,11,1,20\n",
+     "row 4: 5 cells where the header names 4"),
     # millipascal was read as megapascal, case folded away: every modulus 1e9 times too large
     ("f,E_stor,E_loss,T\nHz,mPa,mPa,C\n1,10,1,20\n2,11,1,20\n",
      "row 2, column 'E_stor': unit 'mPa' is not a unit of modulus"),

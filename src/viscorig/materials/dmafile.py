@@ -384,8 +384,13 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
     _require(columns, header_row, where)
     if len(body) > MAX_POINTS:
         raise InputError(f"{len(body)} rows; a DMA table holds at most {MAX_POINTS}", where)
+    width = max(index + 1 for index, cell in enumerate(header) if cell.strip())
     values = {role: np.empty(len(body)) for role in columns}
     for i, (row_number, row) in enumerate(body):
+        filled = max((index + 1 for index, cell in enumerate(row) if cell.strip()), default=0)
+        if filled > width:
+            raise InputError(f"{filled} cells where the header names {width}: a cell too many "
+                             "shifts every value after it", f"{where}: row {row_number}")
         for role, column in columns.items():
             if column.index < 0:
                 continue
