@@ -161,6 +161,19 @@ def test_a_uff_with_a_repeated_frequency_is_refused(tmp_path: Path, campaign_fil
     assert status == 2 and "is given twice (points 5 and 6 of" in line, line
 
 
+def test_a_uff_with_two_records_named_for_one_frf_is_refused(tmp_path: Path,
+                                                              campaign_file: Path) -> None:
+    """Both records named 'viscorig soft-0 accelerance_table': the second was stored as the
+    support's FRF."""
+    def change(records):
+        records[2]["id1"] = records[1]["id1"]
+
+    status, _, err = _import(tmp_path, "--uff", _uff(tmp_path, campaign_file, change))
+    line = one_clear_line(err)
+    assert status == 2 and "dataset 3 (58, 'viscorig soft-0 accelerance_table'): a second " \
+        "record named accelerance_table, after dataset 2" in line, line
+
+
 @pytest.mark.parametrize("factor", ["1.0D+400", "0.0D+00", "-3.048D-01"])
 def test_a_uff_unit_factor_no_unit_system_has_is_refused(tmp_path: Path, campaign_file: Path,
                                                          factor: str) -> None:

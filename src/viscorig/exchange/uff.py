@@ -305,6 +305,7 @@ def read_uff(path: Path) -> FrfSet:
     unit_sets = [s for s, t in zip(sets, types, strict=True) if t == 164]
     system = _system_factors(unit_sets[0] if unit_sets else None, where)
     frfs: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
+    first: dict[str, int] = {}  # the dataset that named each
     ordered: list[tuple[np.ndarray, np.ndarray, str]] = []
     for index, (record, kind) in enumerate(zip(sets, types, strict=True)):
         if kind != 58 or int(record.get("func_type", -1)) != FRF_FUNCTION_TYPE:
@@ -324,7 +325,10 @@ def read_uff(path: Path) -> FrfSet:
         entry = (frequency, values, here)
         named = _label(record, "id1").split()
         if len(named) == 3 and named[0] == "viscorig" and named[2] in _NODES:
-            frfs[named[2]] = entry
+            if named[2] in frfs:
+                raise InputError(f"a second record named {named[2]}, after dataset "
+                                 f"{first[named[2]]}: which FRF each is cannot be told", here)
+            frfs[named[2]], first[named[2]] = entry, index + 1
         ordered.append(entry)
     if not ordered:
         raise InputError("holds no frequency response (dataset 58, function type 4)", where)
