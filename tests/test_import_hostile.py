@@ -264,6 +264,26 @@ def test_an_sdf_frequency_word_no_analyser_writes_is_refused_naming_the_point(
     assert not (tmp_path / "c.h5").exists()
 
 
+@pytest.mark.parametrize(("point", "value"), [(0, 0.0), (86, 0.0), (0, -20.0), (200, -41.5)])
+def test_an_sdf_point_at_or_below_0_hz_is_refused_unless_an_fft_s_first_line(
+        tmp_path: Path, point: int, value: float) -> None:
+    """A damaged axis (a negative start, a log step of 0 or below) gave points at or below
+    0 Hz, which were dropped as if DC lines: a run of 1 or 201 of its 401 points was stored
+    without a word. A first point at 0 Hz is an FFT's DC line, dropped."""
+    x = F.copy()
+    x[point] = value
+    path = _sdf(tmp_path, x, _table(F))
+    status, _, err = _import(tmp_path, "--sdf", path)
+    if point == 0 and value == 0.0:
+        assert status == 0, err
+        assert CampaignFile.open(tmp_path / "c.h5").run("x").points == F.size - 1
+        return
+    line = one_clear_line(err)
+    assert status == 2 and f"1 valid point(s) at or below 0 Hz or not a number, the first " \
+        f"point {point + 1} of 401 at {value:g} Hz" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> None:
     falling = F[::-1].copy()
     status, _, err = _import(tmp_path, "--sdf", _sdf(tmp_path, falling, _table(falling)))

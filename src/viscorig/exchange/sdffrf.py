@@ -20,8 +20,9 @@ the second ẍ_v/F_v. One FRF alone makes a run whose ẍ_v/F_v is missing (NaN)
 run's is.
 
 Points. Only the points the analyser marks valid are kept (a sweep stopped early saves fewer;
-an FFT trace keeps its alias-protected lines), and a point at 0 Hz (an FFT trace's DC line) is
-dropped, since an accelerance there means nothing.
+an FFT trace keeps its alias-protected lines), and a first point at 0 Hz (an FFT trace's DC
+line) is dropped, since an accelerance there means nothing; any other point at or below 0 Hz
+is a damaged axis, refused.
 """
 
 from __future__ import annotations
@@ -149,6 +150,15 @@ def _frf(trace: SdfTrace, where: str, origin: str) -> SdfFrf:
         raise InputError("a frequency response must be complex; this one is real", where)
     scale = units.factor(trace.x_unit or "Hz", units.FREQUENCY_UNITS, "frequency",
                          f"{where}: X unit")
+    valid = np.flatnonzero(trace.valid)
+    x = np.asarray(trace.x)[valid]
+    dc = x.size > 0 and x[0] == 0.0  # an FFT trace's first line
+    wrong = np.flatnonzero(~(x > 0.0))[1 if dc else 0:]
+    if wrong.size:
+        at = int(valid[wrong[0]])
+        raise InputError(f"{wrong.size} valid point(s) at or below 0 Hz or not a number, the "
+                         f"first point {at + 1} of {trace.x.size} at {trace.x[at]:g} "
+                         f"{trace.x_unit or 'Hz'}: a frequency axis no analyser writes", where)
     keep = trace.valid & (trace.x > 0)
     if not np.any(keep):
         raise InputError("holds no valid point above 0 Hz", where)
