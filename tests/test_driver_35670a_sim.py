@@ -180,6 +180,20 @@ def test_arbitrary_frequencies_with_their_own_timing(server) -> None:
             np.testing.assert_allclose(points.frf_43[k], band.frf_43[nearest], rtol=0.02)
 
 
+def test_points_far_apart_and_at_the_top_frequency_keep_the_sweep_s_resolution(server) -> None:
+    """A run's probe measures the band's two ends one by one. Moving the band from 20 Hz to
+    2 kHz passed through 20 Hz-2 kHz, over 801 points at 1 Hz: the analyser grew its
+    resolution and the driver's read-back refused the sweep as an instrument fault. At the
+    top frequency the band's second point lay above the analyser's range, and 25599.984375 Hz
+    was sent rounded up past it."""
+    with connect(server) as analyser:
+        configure(analyser, cycles=10, resolution_hz=1.0, start_hz=20.0, stop_hz=820.0)
+        for frequency in (20.0, 2000.0, 25600.0, 20.0):
+            point = analyser.measure_point(frequency, poll_interval_s=0.01)
+            assert point.frequency_hz[0] == pytest.approx(frequency)
+        assert analyser.sweep.resolution_hz == 1.0
+
+
 def test_no_data_in_a_trace_becomes_nan_and_is_flagged() -> None:
     """An input that reads exactly nothing (unplugged, no noise) makes the response it divides
     by hold the analyser's no-data marker: NaN points, flagged."""

@@ -125,7 +125,7 @@ def change(doc: dict, path: str, value: object) -> dict:
         ("steps.4.direction", "sideways", "steps[4].direction", "not one of up, down"),
         ("steps.4.band_hz", [30, 20], "steps[4].band_hz", "high to low; write band_hz = [20, 30]"
          ' and direction = "down"'),
-        ("steps.4.band_hz", [20, 20], "steps[4].band_hz", "0 < low < high"),
+        ("steps.4.band_hz", [20, 20], "steps[4].band_hz", "0.015625 <= low < high"),
         ("steps.4.band_hz", [20], "steps[4].band_hz", "expected [low, high]"),
         ("steps.4.band_hz", [20, 30000], "steps[4].band_hz", "25600"),
         ("defaults.resolution_hz", 0.3, "defaults.resolution_hz", "whole number of"),
@@ -236,3 +236,13 @@ def test_a_text_no_campaign_file_or_terminal_takes_is_refused_by_check(field, va
         parse(change(document(), field, value))
     assert said in str(caught.value)
     parse(change(document(), "steps.0.message", "Remove the device.\n\tThen press Enter."))
+
+
+def test_a_band_below_the_analyser_s_lowest_frequency_is_refused_by_check():
+    """[1e-300, 1e-299] Hz passed the check; plan predicted hours with 300 digits and the run
+    ended as an instrument fault."""
+    with pytest.raises(FileCheckError) as caught:
+        parse(change(document(), "defaults.band_hz", [1e-300, 1e-299]))
+    assert "defaults.band_hz: [1e-300, 1e-299] Hz must satisfy 0.015625 <= low < high <= " \
+        "25600" in str(caught.value)
+    assert parse(change(document(), "defaults.band_hz", [0.015625, 2.015625])).sweeps

@@ -546,6 +546,8 @@ class Agilent35670A(Subsystem):
             strict_range(0.015625, self.max_frequency_hz, "Hz")(frequency, self)
         sweep = self.sweep
         low, high = round_down(min(frequencies)), max(frequencies)
+        # the band needs two grid points: below the top frequency when a point is at it
+        low = min(low, self.max_frequency_hz - 0.015625)
         sweep.set_band(low, max(high, low + 0.015625))
         sweep.sweep_mode = "MAN"
         if settle_cycles is not None or integrate_cycles is not None:

@@ -46,8 +46,10 @@ Validator = Callable[[Any, Any], Any]
 
 
 def number_text(value: float) -> str:
-    """Format a number for SCPI: up to 10 significant digits, no locale, no padding."""
-    return format(float(value), ".10g")
+    """Format a number for SCPI: up to 12 significant digits (every frequency of the
+    analyser's 15.625 mHz grid up to 102.4 kHz exactly: 25599.984375 Hz needs 11), no locale,
+    no padding."""
+    return format(float(value), ".12g")
 
 
 def on_off_text(value: bool) -> str:
@@ -107,7 +109,7 @@ def strict_range(low: float, high: float, unit: str, *, low_inclusive: bool = Tr
         if not (above_low and number <= high):
             bracket = "[" if low_inclusive else "("
             raise SettingOutOfRange(
-                f"{number:g} {unit} is outside {bracket}{low:g}, {high:g}] {unit}"
+                f"{number:.10g} {unit} is outside {bracket}{low:g}, {high:g}] {unit}"
             )
         return number
 

@@ -153,18 +153,32 @@ class SweptSine(Subsystem):
         self.max_frequency_hz = max_frequency_hz
 
     def set_band(self, start_hz: float, stop_hz: float) -> None:
-        """Start and stop, written in the order that keeps start below stop throughout."""
+        """Start and stop, written in the order that keeps start below stop throughout.
+
+        Between the two writes the band is the old start to the new stop (or the new start to
+        the old stop). Where that band holds more than :data:`MAX_POINTS` at the resolution
+        sent, the analyser grows its resolution (a linear sweep's quirk): the resolution is
+        then asked for again, where the new band holds it.
+        """
         if stop_hz <= start_hz:
             raise SettingOutOfRange(f"sweep: stop {stop_hz:g} Hz must be above start {start_hz:g}")
         current_stop = self.sent.get("stop_frequency_hz")
         if current_stop is None:
             current_stop = self.stop_frequency_hz
         if start_hz >= float(current_stop):
+            between = (self.sent.get("start_frequency_hz"), stop_hz)
             self.stop_frequency_hz = stop_hz
             self.start_frequency_hz = start_hz
         else:
+            between = (start_hz, float(current_stop))
             self.start_frequency_hz = start_hz
             self.stop_frequency_hz = stop_hz
+        resolution = self.sent.get("resolution_hz")
+        if resolution is None or between[0] is None:
+            return
+        if (float(between[1]) - float(between[0])) / float(resolution) + 1 > MAX_POINTS \
+                and (stop_hz - start_hz) / float(resolution) + 1 <= MAX_POINTS:
+            self.resolution_hz = resolution
 
     def set_linear_sweep(self, start_hz: float, stop_hz: float, resolution_hz: float,
                          direction: str = "UP") -> None:

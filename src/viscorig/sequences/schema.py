@@ -36,6 +36,8 @@ REQUIRED: Any = type("Required", (), {"__repr__": lambda self: "REQUIRED"})()
 MAX_FREQUENCY_HZ = ANALYSER_MAX_FREQUENCY_HZ
 #: Frequencies are set in steps of 15.625 mHz.
 MIN_RESOLUTION_HZ = FREQUENCY_STEP_HZ
+#: The analyser's lowest frequency, Hz (its frequency step).
+MIN_FREQUENCY_HZ = FREQUENCY_STEP_HZ
 #: Beyond any shaker rig, m/s² peak.
 MAX_LEVEL_M_PER_S2 = 500.0
 #: Rig preset names (``sim/rigs/<name>.toml``).
@@ -200,9 +202,10 @@ class Field:
                              f"e.g. {self.name} = {self.example}")
         lo, hi = float(value[0]), float(value[1])
         high = MAX_FREQUENCY_HZ if self.high is None else self.high
-        if not (math.isfinite(lo) and math.isfinite(hi) and min(lo, hi) > 0.0
+        if not (math.isfinite(lo) and math.isfinite(hi) and min(lo, hi) >= MIN_FREQUENCY_HZ
                 and max(lo, hi) <= high):
-            raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy 0 < low < high <= {high:g}")
+            raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy {MIN_FREQUENCY_HZ:g} <= low < "
+                             f"high <= {high:g}", "the analyser's lowest and highest frequency")
         if lo > hi:
             sweep = self.in_defaults  # a sweep's band: its direction says which end is first
             raise FieldError(
@@ -211,7 +214,8 @@ class Field:
                 + (" and direction = \"down\" to sweep downwards" if sweep else ""),
             )
         if lo == hi:
-            raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy 0 < low < high <= {high:g}",
+            raise FieldError(f"[{lo:g}, {hi:g}] Hz must satisfy {MIN_FREQUENCY_HZ:g} <= low < "
+                             f"high <= {high:g}",
                              "a band needs two different frequencies")
         return lo, hi
 
@@ -320,7 +324,7 @@ class Field:
         if self.kind == "targets":
             return "each " + _interval(self.low, self.high, True, "")
         if self.kind == "band":
-            return f"0 < low < high <= {MAX_FREQUENCY_HZ:g}"
+            return f"{MIN_FREQUENCY_HZ:g} <= low < high <= {MAX_FREQUENCY_HZ:g}"
         if self.kind == "level":
             return f"(0, {MAX_LEVEL_M_PER_S2:g}] m/s^2 peak"
         if self.kind == "name":
