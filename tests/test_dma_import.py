@@ -82,6 +82,11 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
     # a row with a cell too many was read shifted: E'' as the temperature, without a word
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,5,11,1,20\n",
      "row 4: 5 cells where the header names 4"),
+    # a viscosity named eta was taken for the loss factor: E' 0.63 Pa where it is 8.1 GPa
+    ("f,E*,Eta,T\nHz,MPa,Pa.s,C\n1,10,0.5,20\n2,11,0.4,20\n",
+     "row 2, column 'Eta': unit 'Pa.s' for a loss factor"),
+    ("f,E*,tan delta,T\nHz,MPa,°,C\n1,10,5,20\n2,11,4,20\n",
+     "row 2, column 'tan delta': unit '°' for a loss factor"),
     # millipascal was read as megapascal, case folded away: every modulus 1e9 times too large
     ("f,E_stor,E_loss,T\nHz,mPa,mPa,C\n1,10,1,20\n2,11,1,20\n",
      "row 2, column 'E_stor': unit 'mPa' is not a unit of modulus"),

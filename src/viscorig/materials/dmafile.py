@@ -502,6 +502,11 @@ def _table(columns: dict[str, _Column], values: dict[str, np.ndarray], body: lis
     else:
         magnitude = values["complex"] * _unit_factor(columns["complex"], MODULUS_UNITS,
                                                      "modulus", where, None)
+        column = columns["tan_delta"]
+        if column.unit not in (None, "", "-", "1"):
+            raise InputError(f"unit {column.unit!r} for a loss factor, which is a ratio without "
+                             "one (a viscosity in Pa.s, or a phase angle in degrees, is no "
+                             "tan δ)", column.where(where))
         delta = np.arctan(values["tan_delta"])
         storage, loss = magnitude * np.cos(delta), magnitude * np.sin(delta)
         named = columns["complex"].name
