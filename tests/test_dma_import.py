@@ -622,3 +622,19 @@ def test_a_table_larger_than_a_master_curve_is_fitted_on_is_refused(tmp_path, ca
     assert (f"big.csv: {MAX_MASTER_POINTS + 1} points; a master curve is fitted on at most "
             f"{MAX_MASTER_POINTS}") in capsys.readouterr().err
     assert not (tmp_path / "c.h5").exists()
+
+
+def test_a_trios_step_in_other_units_than_the_first_is_refused(tmp_path):
+    """Each [step] has its own units row, and only the first's was read: a later sweep in
+    Pa where the first is in MPa was stored a million times too stiff."""
+    temperatures, frequencies = np.array([-10.0, 10.0, 30.0]), np.logspace(-1, 1, 5)
+    text = _trios_step_export(dma_sweep(temperatures, frequencies, seed=9), temperatures,
+                              frequencies, "\t")
+    lines = text.splitlines()
+    third = [i for i, line in enumerate(lines) if line.startswith("Frequency sweep")][2]
+    lines[third + 2] = lines[third + 2].replace("MPa", "Pa")
+    path = tmp_path / "export.txt"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    with pytest.raises(InputError, match=rf"export.txt: row {third + 3}: column 'Storage "
+                       r"modulus' in 'Pa', where the first frequency sweep gives 'MPa'"):
+        read_dma_csv(path)

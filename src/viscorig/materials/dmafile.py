@@ -237,9 +237,18 @@ def _from_trios(steps: list[Step], modulus: str | None, where: str) -> ModulusTa
         (steps[0][1][0][0], [*names, "Step"]),
         (steps[0][1][1][0], [*steps[0][1][1][1], *[""] * (len(names) - len(steps[0][1][1][1])),
                              "-"])]
+    first_units = {name: unit.strip() for name, unit in zip(names, rows[1][1], strict=False)
+                   if _role(_split_unit(name)[0]) is not None}
     for ordinal, (_, step) in enumerate(steps):
-        (_, variables), _units = step[0], step[1]
+        (_, variables), (units_row, units) = step[0], step[1]
         position = {cell.strip(): i for i, cell in enumerate(variables)}
+        for name, i in position.items():
+            unit = units[i].strip() if i < len(units) else ""
+            if name in first_units and unit != first_units[name]:
+                raise InputError(f"column {name!r} in {unit or 'no unit'!r}, where the first "
+                                 f"frequency sweep gives {first_units[name] or 'no unit'!r}: "
+                                 "steps in different units are not read", f"{where}: row "
+                                 f"{units_row}")
         for number, cells in step[2:]:
             mapped = [cells[position[name]] if name in position and position[name] < len(cells)
                       else "" for name in names]
