@@ -161,6 +161,20 @@ def test_a_uff_with_a_repeated_frequency_is_refused(tmp_path: Path, campaign_fil
     assert status == 2 and "is given twice (points 5 and 6 of" in line, line
 
 
+def test_a_uff_response_along_a_negative_axis_is_read_with_its_sign(
+        tmp_path: Path, campaign_file: Path) -> None:
+    """Record 6's response direction -3 (-Z) was ignored: the FRF stored 180° off."""
+    def change(records):
+        records[1]["rsp_dir"] = -3
+
+    status, _, err = _import(tmp_path, "--uff", _uff(tmp_path, campaign_file, change))
+    assert status == 0, err
+    run = CampaignFile.open(campaign_file).run("soft-0")
+    back = CampaignFile.open(tmp_path / "c.h5").run("x")
+    np.testing.assert_allclose(back.accelerance_table, -run.accelerance_table, rtol=1e-6)
+    np.testing.assert_allclose(back.accelerance_support, run.accelerance_support, rtol=1e-6)
+
+
 def test_a_uff_with_two_records_named_for_one_frf_is_refused(tmp_path: Path,
                                                               campaign_file: Path) -> None:
     """Both records named 'viscorig soft-0 accelerance_table': the second was stored as the

@@ -165,6 +165,22 @@ def _label(record: dict[str, Any], key: str) -> str:
 UNIT_FACTOR_RANGE = (1e-12, 1e12)
 
 
+def _direction_sign(record: dict[str, Any], where: str) -> float:
+    """+1, or -1 where the response or the reference is along a negative axis (record 6's
+    directions ``-1..-6``): the response to a force along +X is minus that along -X."""
+    sign = 1.0
+    for key, name in (("rsp_dir", "response"), ("ref_dir", "reference")):
+        try:
+            direction = int(record.get(key, 0))
+        except (TypeError, ValueError):
+            raise InputError(f"{name} direction {record.get(key)!r} is not a number",
+                             where) from None
+        if not -6 <= direction <= 6:
+            raise InputError(f"{name} direction {direction} is none of -6..6", where)
+        sign *= -1.0 if direction < 0 else 1.0
+    return sign
+
+
 def _system_factors(unit_set: dict[str, Any] | None, where: str) -> tuple[float, float] | None:
     """(length, force) factors file units -> SI from dataset 164 (SI = divide by the factor);
     ``None`` without one."""
@@ -318,6 +334,7 @@ def read_uff(path: Path) -> FrfSet:
         ordinate, power = _ordinate_factor(record, system, here)
         denominator = _denominator_factor(record, system, here)
         values = np.asarray(record["data"], dtype=np.complex128) * (ordinate / denominator)
+        values = values * _direction_sign(record, here)
         if values.shape != frequency.shape:
             raise InputError(f"{values.size} values but {frequency.size} frequencies", here)
         if power:
