@@ -249,6 +249,15 @@ def test_an_sdf_response_with_a_nan_point_is_refused_naming_the_point(tmp_path: 
     assert not (tmp_path / "c.h5").exists()
 
 
+def test_one_sdf_file_given_twice_is_refused(tmp_path: Path) -> None:
+    """The same file as both FRFs made a run whose support FRF was the table's."""
+    path = _sdf(tmp_path, F, _table(F))
+    status, _, err = _import(tmp_path, "--sdf", path, "--sdf", tmp_path / "." / path.name)
+    line = one_clear_line(err)
+    assert status == 2 and "given twice; the two files hold the two FRFs" in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_an_sdf_word_that_is_a_signalling_nan_is_refused_without_a_warning(
         tmp_path: Path) -> None:
     table = _table(F)

@@ -194,6 +194,9 @@ def import_handler(args: argparse.Namespace) -> int:
     else:
         if len(args.sdf) > 2:
             raise InputError(f"{len(args.sdf)} files; give one or two", "--sdf")
+        if len(args.sdf) == 2 and Path(args.sdf[0]).resolve() == Path(args.sdf[1]).resolve():
+            raise InputError(f"{args.sdf[0]} given twice; the two files hold the two FRFs",
+                             "--sdf")
         station = load_station(args.station) if args.station else None
         frfs = read_sdf_frfs([Path(p) for p in args.sdf], station)
     settings = ImportSettings(
