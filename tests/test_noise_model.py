@@ -180,10 +180,11 @@ def test_estimate_noise_takes_the_frfs_of_a_run() -> None:
     assert model.floor == pytest.approx(truth_floor(), rel=0.12)
 
 
-@pytest.mark.parametrize("damage", [1e308, np.inf, -1.0, 0.0])
+@pytest.mark.parametrize("damage", [1e308, np.inf, -1.0, 0.0, 5e-324])
 def test_a_damaged_analyser_variance_is_not_used(damage: float) -> None:
-    """A variance dataset of 1e308 at every point (a damaged file) overflowed in the whitening:
-    every fit of the run ended in 'residuals are not finite'. Such a variance is set aside and
+    """A variance dataset of 1e308 (or a denormal 5e-324) at every point, as a damaged file
+    holds, overflowed in the whitening: every fit of the run ended in 'residuals are not
+    finite'. Such a variance is set aside and
     the noise estimated from the points, as without one."""
     table, support = noisy(1), noisy(2)
     variance = np.full(FREQUENCY.size, 2 * WHITE_RMS**2)

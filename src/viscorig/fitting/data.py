@@ -23,10 +23,11 @@ ABSURD_RATIO = 1e8
 #: 0.01 Hz, stays decades inside it (beyond it, squares of dynamic stiffness overflow).
 ACCELERANCE_RANGE = (1e-15, 1e15)
 #: Optional real per-point fields.
-#: Largest normalized variance (relative power) an analyser reports for a measured point: a
-#: scatter a million times the value measured. Beyond it a dataset is damaged (its squares
-#: overflow in the whitening), and the noise is estimated from the points' differences.
-MAX_NORMALIZED_VARIANCE = 1e12
+#: Normalized variances (relative power) an analyser reports for a measured point: from a
+#: scatter a millionth of the single-precision resolution to a million times the value
+#: measured. Outside them a dataset is damaged (its squares overflow or underflow in the
+#: whitening), and the noise is estimated from the points' differences.
+NORMALIZED_VARIANCE_RANGE = (1e-24, 1e12)
 _REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support",
                 "temperature_c")
 
@@ -124,9 +125,10 @@ class FrfData:
 
     def variance(self, name: str) -> NDArray[np.float64] | None:
         """The analyser's normalized variance of one FRF, or ``None`` when not every value is
-        a positive number up to :data:`MAX_NORMALIZED_VARIANCE`."""
+        within :data:`NORMALIZED_VARIANCE_RANGE`."""
         value = getattr(self, f"variance_{name}", None)
-        if value is None or not np.all((value > 0) & (value <= MAX_NORMALIZED_VARIANCE)):
+        low, high = NORMALIZED_VARIANCE_RANGE
+        if value is None or not np.all((value >= low) & (value <= high)):
             return None
         return value
 
