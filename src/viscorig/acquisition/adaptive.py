@@ -52,6 +52,7 @@ from viscorig.acquisition.sweep import (
     point_times_s,
     segment_of,
 )
+from viscorig.fitting.data import NORMALIZED_VARIANCE_RANGE
 from viscorig.planning import (
     ANALYSER,
     AdaptivePlan,
@@ -376,11 +377,14 @@ def _slice(points: MeasuredPoints, start: int, stop: int) -> MeasuredPoints:
 
 
 def _usable(values: ArrayLike | None) -> np.ndarray | None:
-    """A variance the plan can use (every value finite and positive), else ``None``."""
+    """A variance the plan can use (every value within
+    :data:`~viscorig.fitting.data.NORMALIZED_VARIANCE_RANGE`, as the fits take it), else
+    ``None``."""
     if values is None:
         return None
     values = np.asarray(values, dtype=float)
-    return values if np.all(np.isfinite(values) & (values > 0)) else None
+    low, high = NORMALIZED_VARIANCE_RANGE
+    return values if np.all((values >= low) & (values <= high)) else None
 
 
 def _as_points(source: Segment | RunRecord, settle, integrate, durations_s, bare: bool
