@@ -118,7 +118,7 @@ def _explain(finding: Finding, data: DiagnosisData) -> str:
     if not finding.significant:
         return (
             f"No clear sign of {effect.replace('_', ' ')}: adding {finding.term} leaves the "
-            f"error at {finding.rms_error:.3g}; {finding.note}."
+            f"error at {finding.rms_error:.3g}; {finding.note or 'it is not significant'}."
         )
     if effect.startswith("sensor_"):
         return _sensor(finding)

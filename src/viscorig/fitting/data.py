@@ -22,12 +22,12 @@ ABSURD_RATIO = 1e8
 #: moves at 1 m/s² per N, and a rig of a gram to ten tonnes, stiffness-controlled down to
 #: 0.01 Hz, stays decades inside it (beyond it, squares of dynamic stiffness overflow).
 ACCELERANCE_RANGE = (1e-15, 1e15)
-#: Optional real per-point fields.
 #: Normalized variances (relative power) an analyser reports for a measured point: from a
 #: scatter a millionth of the single-precision resolution to a million times the value
 #: measured. Outside them a dataset is damaged (its squares overflow or underflow in the
 #: whitening), and the noise is estimated from the points' differences.
 NORMALIZED_VARIANCE_RANGE = (1e-24, 1e12)
+#: Optional real per-point fields.
 _REAL_FIELDS = ("time_s", "reference_amplitude", "variance_table", "variance_support",
                 "temperature_c")
 

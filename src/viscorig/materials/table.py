@@ -90,8 +90,9 @@ class ModulusTable:
         Raises
         ------
         InputError
-            A non-finite or non-positive frequency, a non-finite temperature, or fewer than two
-            usable points.
+            More than :data:`MAX_MASTER_POINTS` points, a frequency outside
+            :data:`FREQUENCY_RANGE_HZ`, a temperature outside the range a specimen is measured
+            at, or fewer than two usable points.
         """
         if self.points > MAX_MASTER_POINTS:
             raise InputError(f"{self.points} points; a master curve is fitted on at most "
