@@ -348,3 +348,12 @@ def test_a_unit_in_mixed_case_is_read_as_written(label, factor):
     assert lookup(label, MODULUS_UNITS) == factor
     assert lookup("Mm/s^2", ACCELERATION_UNITS) is None
     assert lookup("M/S2", ACCELERATION_UNITS) == 1.0 and lookup("HZ", FREQUENCY_UNITS) == 1.0
+
+
+def test_a_run_of_one_point_is_not_written_to_a_uff_file(campaign_file: Path, tmp_path: Path):
+    """A run stopped after its first point ended in pyuff's 'Error writing data-set #58'."""
+    run = CampaignFile.open(campaign_file).run("soft-0")
+    one = run.select(np.arange(run.points) == 0)
+    with pytest.raises(InputError, match="run 'soft-0': 1 point\\(s\\); a universal file's "):
+        write_uff(one, tmp_path / "one.uff")
+    assert not (tmp_path / "one.uff").exists()

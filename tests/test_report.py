@@ -8,6 +8,7 @@ import re
 import shutil
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from browser import CHROMIUM, console_problems, dump_dom, screenshot
@@ -501,3 +502,19 @@ def test_runs_measured_beyond_the_band_are_said_so_with_the_command_for_all_of_i
     paper = paper_campaign(tmp_path / "paper.h5", runs=("table", "soft-0"), step_hz=1.0)
     assert not [note for note in analyse_campaign(CampaignFile.open(paper), diagnosis=False,
                                                   jobs=1).notes if "measured over" in note]
+
+
+def test_a_stored_table_fit_no_suspension_has_is_said_not_a_traceback(campaign_file: Path,
+                                                                      tmp_path: Path):
+    """A table fit stored with K_s = -1 N/m (a damaged file) ended the report in a math
+    domain error, M_s = 0 in a division by zero."""
+    path = tmp_path / "damaged.h5"
+    path.write_bytes(campaign_file.read_bytes())
+    assert main(["identify", str(path), "--run", "table"]) == 0
+    with h5py.File(path, "r+") as h5:
+        fits = h5["runs/table/fits"]
+        fits[sorted(fits)[0]]["K_s"][()] = -1.0
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out), "--no-diagnosis"]) == 0
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "K_s = -1 N/m, which no suspension has: identify the table run again." in page

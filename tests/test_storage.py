@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -472,3 +473,20 @@ def test_a_name_is_refused_unless_it_is_plain_to_its_end(name: str) -> None:
 
     with pytest.raises(InputError, match="not a valid name"):
         check_name(name, "run name")
+
+
+@pytest.mark.parametrize(("name", "value", "said"), [
+    ("table_mass_kg", -3.4, "-3.4; needs a finite number above 0"),
+    ("table_stiffness_n_per_m", 0.0, "0.0; needs a finite number above 0"),
+    ("table_damping_ns_per_m", -50.0, "-50.0; needs a finite number at least 0"),
+    ("geometry_factor_m", np.inf, "inf; needs a finite number above 0")])
+def test_a_rig_value_no_rig_has_is_refused(tmp_path: Path, name: str, value: float,
+                                           said: str) -> None:
+    """A negative table mass in /rig was held fixed in every specimen fit ('M_s = -3.4
+    fixed'), and an infinite geometry factor was dropped without a word."""
+    path = tmp_path / "c.h5"
+    CampaignFile.create(path, sequence_text="", durable=False).close()
+    with h5py.File(path, "r+") as h5:
+        h5.require_group("rig").attrs[name] = value
+    with pytest.raises(InputError, match=re.escape(f"/rig.{name}: {said}")):
+        assert CampaignFile.open(path).rig is None

@@ -145,6 +145,9 @@ def uff_records(run: RunRecord, campaign_name: str = "",
 
 def write_uff(run: RunRecord, path: Path, campaign_name: str = "", *, binary: bool = True) -> int:
     """Write a run's FRFs to a universal file (replaced atomically); return the FRF count."""
+    if run.points < 2:
+        raise InputError(f"{run.points} point(s); a universal file's frequency response holds "
+                         "two or more", f"run '{run.name}'")
     records = uff_records(run, campaign_name, binary)
 
     def write(temporary: Path) -> None:

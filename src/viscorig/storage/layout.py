@@ -45,6 +45,9 @@ RIG_FLOAT_ATTRIBUTES = (
     "table_damping_stderr_ns_per_m",
 )
 RIG_INT_ATTRIBUTES = ("specimen_count",)
+#: Of those, the ones that may be 0 (the others are above 0; any may be NaN, unknown).
+RIG_MAY_BE_ZERO = frozenset({"table_damping_ns_per_m", "table_mass_stderr_kg",
+                             "table_stiffness_stderr_n_per_m", "table_damping_stderr_ns_per_m"})
 
 #: Dataset of a fit group holding the correlation matrix of its parameters.
 FIT_CORRELATION = "correlation"

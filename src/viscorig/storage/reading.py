@@ -233,8 +233,9 @@ def read_rig(h5: h5py.File, path: Path) -> dict[str, float | int]:
             raise InputError("not a group", f"{path}: /{layout.RIG_GROUP}")
         rig: dict[str, float | int] = {}
         for name in layout.RIG_FLOAT_ATTRIBUTES:
-            if name in group.attrs:
-                rig[name] = read_number(group, name, path)
+            if name in group.attrs:  # a mass, stiffness or length above 0; a damping or ± 0 too
+                rig[name] = read_number(group, name, path, low=0.0,
+                                        low_open=name not in layout.RIG_MAY_BE_ZERO)
         for name in layout.RIG_INT_ATTRIBUTES:
             if name in group.attrs:
                 rig[name] = read_number(group, name, path, integer=True)
