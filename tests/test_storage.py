@@ -490,3 +490,7 @@ def test_a_rig_value_no_rig_has_is_refused(tmp_path: Path, name: str, value: flo
         h5.require_group("rig").attrs[name] = value
     with pytest.raises(InputError, match=re.escape(f"/rig.{name}: {said}")):
         assert CampaignFile.open(path).rig is None
+    # and the writer writes no file its reader refuses
+    with pytest.raises(InputError, match=f"{name} = {value!r}, which no reader of the file"):
+        CampaignFile.create(tmp_path / "d.h5", sequence_text="", rig={name: value})
+    assert not (tmp_path / "d.h5").exists()

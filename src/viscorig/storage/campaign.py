@@ -759,7 +759,14 @@ def _checked_rig(rig: Mapping[str, Any], where: str) -> dict[str, object]:
     checked: dict[str, object] = {}
     for key, value in rig.items():
         if key in layout.RIG_FLOAT_ATTRIBUTES:
-            checked[key] = np.float64(value)
+            number = np.float64(value)
+            checked[key] = number
+            low_open = key not in layout.RIG_MAY_BE_ZERO
+            if not (np.isnan(number) or (np.isfinite(number) and (
+                    number > 0 or (number == 0 and not low_open)))):
+                raise InputError(f"{key} = {value!r}, which no reader of the file takes (a "
+                                 f"finite number {'above' if low_open else 'at least'} 0)",
+                                 where)
         elif key in layout.RIG_INT_ATTRIBUTES:
             checked[key] = np.int64(value)
         else:
