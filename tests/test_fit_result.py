@@ -97,3 +97,29 @@ def test_a_stored_fit_that_is_not_whole_is_refused_in_one_line(tmp_path: Path):
     assert "\n" not in str(error.value) and "run 'soft-0'" in str(error.value)
     with pytest.raises(InputError):
         read_fit(unknown)
+
+
+@pytest.mark.parametrize(("name", "value", "said"), [
+    ("K_v", -1.0, "K_v = -1 N/m, which is above 0"),
+    ("M_v", 0.0, "M_v = 0 kg, which is above 0"),
+    ("C_v", -1e-3, "C_v = -0.001 N·s/m, which is above 0"),
+])
+def test_a_stored_fit_with_a_value_of_the_wrong_sign_is_refused(
+        tmp_path: Path, name: str, value: float, said: str) -> None:
+    path = tmp_path / "c.h5"
+    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
+        settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
+                               settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
+                               simulated=True)
+        f = np.linspace(20.0, 30.0, 3)
+        campaign.add_run("soft-0", settings, Segment(
+            f, f, np.ones(3, complex), np.ones(3, complex), np.ones(3), np.ones(3),
+            np.ones(3), np.zeros(3, np.uint16)))
+        parameters = {"K_v": (1e5, 1e3, "N/m"), "C_v": (50.0, 1.0, "N·s/m"),
+                      "M_v": (0.07, 0.01, "kg"), "M_s": (3.4, 0.01, "kg"),
+                      "K_s": (5e4, 1.0, "N/m"), "C_s": (5.0, 0.1, "N·s/m")}
+        campaign.add_fit("soft-0", model="voigt", band_hz=(20.0, 30.0), rms_error=0.01,
+                         noise_floor=0.01, parameters={**parameters, name: (value, 1.0, "")})
+        (record,) = campaign.fits("soft-0")
+    with pytest.raises(InputError, match=f"stored fit 0001 gives {said} in every voigt model"):
+        read_fit(record)

@@ -282,7 +282,9 @@ def test_a_frequency_no_analyser_measures_is_named_not_fitted(
         status, _, err = run_cli([command[0], str(path), "--run", "soft-0", *command[1:]])
         assert_clean_outcome(status, err)
         assert status == 2 and "soft-0" in err
-        assert "1 frequency lies outside 1e-06 to 1e+06 Hz" in err and f"{frequency_hz:g}" in err
+        assert "/runs/soft-0/frequency_hz: 1 of " in err
+        assert "frequencies are not numbers from 1e-06 to 1e+06 Hz" in err
+        assert f"{frequency_hz:g}" in err
 
 
 def test_a_report_names_a_value_no_analyser_can_measure_and_draws_the_rest(

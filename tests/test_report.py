@@ -507,7 +507,8 @@ def test_runs_measured_beyond_the_band_are_said_so_with_the_command_for_all_of_i
 def test_a_stored_table_fit_no_suspension_has_is_said_not_a_traceback(campaign_file: Path,
                                                                       tmp_path: Path):
     """A table fit stored with K_s = -1 N/m (a damaged file) ended the report in a math
-    domain error, M_s = 0 in a division by zero."""
+    domain error, M_s = 0 in a division by zero. The page says why the stored fit is not
+    shown, and shows the table fitted here."""
     path = tmp_path / "damaged.h5"
     path.write_bytes(campaign_file.read_bytes())
     assert main(["identify", str(path), "--run", "table"]) == 0
@@ -516,5 +517,28 @@ def test_a_stored_table_fit_no_suspension_has_is_said_not_a_traceback(campaign_f
         fits[sorted(fits)[0]]["K_s"][()] = -1.0
     out = tmp_path / "report"
     assert main(["report", str(path), "--out", str(out), "--no-diagnosis"]) == 0
-    page = (out / "index.html").read_text(encoding="utf-8")
-    assert "K_s = -1 N/m, which no suspension has: identify the table run again." in page
+    page = html.unescape((out / "index.html").read_text(encoding="utf-8"))
+    assert ("stored fit not shown: run 'table': stored fit 0001 gives K_s = -1 N/m, which is "
+            "above 0 in every table model") in page
+    assert "The table suspension rings at 19." in page
+
+
+def test_a_damaged_stored_fit_is_said_and_the_runs_measurements_still_reported(
+        campaign_file: Path, tmp_path: Path):
+    """A stored fit whose band reads [nan, nan], or whose K_v is negative, was shown as the
+    run's model with those numbers; the run is now reported from its measurements, and the
+    page says why its stored fit is not shown."""
+    path = tmp_path / "damaged.h5"
+    path.write_bytes(campaign_file.read_bytes())
+    assert main(["identify", str(path), "--run", "soft-0", "--model", "voigt"]) == 0
+    assert main(["identify", str(path), "--run", "soft-10", "--model", "voigt"]) == 0
+    with h5py.File(path, "r+") as h5:
+        h5["runs/soft-0/fits/0001"].attrs["band_hz"] = [np.nan, np.nan]
+        h5["runs/soft-10/fits/0001/K_v"][()] = -1.0
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out), "--no-diagnosis"]) == 0
+    page = html.unescape((out / "index.html").read_text(encoding="utf-8"))
+    assert ("stored fit not shown: " f"{path}: /runs/soft-0/fits/0001.band_hz: band_hz [nan, nan] "
+            "is not a band from 0 to 1e+06 Hz, low end first") in page
+    assert ("stored fit not shown: run 'soft-10': stored fit 0001 gives K_v = -1 N/m, which is "
+            "above 0 in every voigt model") in page

@@ -82,6 +82,43 @@ def test_a_damaged_run_is_reported_and_the_others_still_listed(
     )
 
 
+@pytest.mark.parametrize("value", [np.nan, -20.0, 0.0, 1e308])
+def test_a_frequency_no_analyser_measures_is_named_with_its_point(
+    campaign_path: Path, capsys: pytest.CaptureFixture, value: float
+) -> None:
+    with h5py.File(campaign_path, "r+") as h5:
+        h5["runs/soft-10/frequency_hz"][3] = value
+    assert main(["show", str(campaign_path)]) == 2
+    captured = capsys.readouterr()
+    assert any(line.split()[:2] == ["table", "complete"] for line in captured.out.splitlines())
+    assert captured.err.strip() == (
+        f"viscorig: {campaign_path}: /runs/soft-10/frequency_hz: 1 of 6 frequencies are not "
+        f"numbers from 1e-06 to 1e+06 Hz (the first, point 4, is {value:g})")
+
+
+@pytest.mark.parametrize(("damage", "message"), [
+    (lambda fit: fit.attrs.__setitem__("band_hz", [np.nan, np.nan]),
+     "0001.band_hz: band_hz [nan, nan] is not a band from 0 to 1e+06 Hz, low end first"),
+    (lambda fit: fit.attrs.__setitem__("band_hz", [16.75, 12.0]),
+     "0001.band_hz: band_hz [16.75, 12] is not a band from 0 to 1e+06 Hz, low end first"),
+    (lambda fit: (fit.__delitem__("M_s"), fit.create_dataset("M_s", data="3.41")),
+     "0001/M_s: a parameter's value is a real number, not text"),
+    (lambda fit: fit["M_s"].write_direct(np.array(np.inf)),
+     "0001/M_s: value inf is not a finite number"),
+])
+def test_a_damaged_fit_is_named_and_its_run_still_listed(
+    campaign_path: Path, capsys: pytest.CaptureFixture, damage, message: str
+) -> None:
+    with h5py.File(campaign_path, "r+") as h5:
+        damage(h5["runs/table/fits/0001"])
+    assert main(["show", str(campaign_path)]) == 2
+    captured = capsys.readouterr()
+    assert any(line.split()[:3] == ["table", "complete", "20"]
+               for line in captured.out.splitlines())
+    assert "table: fits cannot be read:" in captured.out
+    assert captured.err.strip() == f"viscorig: {campaign_path}: /runs/table/fits/{message}"
+
+
 def test_not_a_campaign_is_one_line_and_status_2(tmp_path: Path) -> None:
     path = tmp_path / "notes.h5"
     path.write_bytes(np.arange(100, dtype=np.uint8).tobytes())

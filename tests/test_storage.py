@@ -245,6 +245,24 @@ def test_inconsistent_segment_is_refused_before_any_write(campaign_path: Path) -
         Segment([1.0, 2.0], [1.0], [1j], [1j], [1.0], [1.0], [1.0], [0]).columns()
     with pytest.raises(ValueError, match="16 bits"):
         Segment([1.0], [1.0], [1j], [1j], [1.0], [1.0], [1.0], [70000]).columns()
+    # a frequency the file's reader refuses is not written
+    for frequency in (0.0, -1.0, 2e6, np.nan):
+        with pytest.raises(ValueError, match=r"1 of 2 frequencies are not numbers from 1e-06 "
+                                             r"to 1e\+06 Hz \(the first, point 2"):
+            Segment([1.0, frequency], [1.0, 2.0], [1j, 1j], [1j, 1j], [1.0, 1.0], [1.0, 1.0],
+                    [1.0, 1.0], [0, 0]).columns()
+
+
+def test_a_fit_the_reader_refuses_is_not_written(campaign_path: Path) -> None:
+    campaign = CampaignFile.open(campaign_path, mode="a", durable=False)
+    before = digest(campaign_path)
+    with pytest.raises(InputError, match="parameter K_v = nan, which no reader"):
+        campaign.add_fit("soft-0", model="voigt", band_hz=(20.0, 40.0), rms_error=0.01,
+                         noise_floor=0.01, parameters={"K_v": (np.nan, 1.0, "N/m")})
+    with pytest.raises(InputError, match=r"is not 0 <= lo < hi <= 1e\+06 Hz"):
+        campaign.add_fit("soft-0", model="voigt", band_hz=(20.0, 2e6), rms_error=0.01,
+                         noise_floor=0.01, parameters={"K_v": (1.0, 1.0, "N/m")})
+    assert campaign.fits("soft-0") == [] and digest(campaign_path) == before
 
 
 def write_plain_campaign(path: Path, *, real_imag_names: tuple[str, str] = ("r", "i")) -> None:

@@ -90,7 +90,7 @@ CRASHER = textwrap.dedent(
                        settle_cycles=1, integrate_cycles=1, resolution_hz=0.25))
     resource.setrlimit(resource.RLIMIT_FSIZE, (60 * 1024, resource.RLIM_INFINITY))
     for index in range(1000):
-        f = 1000.0 * index + np.arange(50)
+        f = 1.0 + 1000.0 * index + np.arange(50)
         try:
             campaign.append_segment("r", Segment(f, f, f * 1j, f * 1j, f, f, f, np.zeros(50)))
         except InputError as error:

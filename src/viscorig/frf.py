@@ -17,6 +17,20 @@ from numpy.typing import ArrayLike, NDArray
 FREQUENCY_RANGE_HZ = (1e-6, 1e6)
 
 
+def frequency_problem(frequency_hz: ArrayLike) -> str | None:
+    """What is wrong with the frequencies of a measured response (a number that is not finite
+    or lies outside :data:`FREQUENCY_RANGE_HZ`), in words naming the first such point in the
+    given order; ``None`` when nothing is."""
+    f = np.asarray(frequency_hz, dtype=float).ravel()
+    low, high = FREQUENCY_RANGE_HZ
+    bad = ~((f >= low) & (f <= high))
+    if not bad.any():
+        return None
+    index = int(np.flatnonzero(bad)[0])
+    return (f"{int(bad.sum())} of {f.size} frequencies are not numbers from {low:g} to "
+            f"{high:g} Hz (the first, point {index + 1}, is {f[index]:g})")
+
+
 def angular_frequency(frequency_hz: ArrayLike) -> NDArray[np.float64]:
     """Angular frequency ω = 2πf in rad/s."""
     return 2.0 * np.pi * np.asarray(frequency_hz, dtype=float)

@@ -267,7 +267,8 @@ def read_fit(record: FitRecord) -> FitResult:
     Raises
     ------
     InputError
-        The stored spec is not a model, or the fit lacks some of its parameters.
+        The stored spec is not a model, the fit lacks some of its parameters, or gives one a
+        value of the wrong sign (a negative stiffness).
     """
     where = f"run '{record.run}'"
     model = parse_spec(record.model)
@@ -275,6 +276,13 @@ def read_fit(record: FitRecord) -> FitResult:
     missing = sorted(set(model.names) - set(values))
     if missing:
         raise InputError(f"stored fit {record.id} lacks {', '.join(missing)}", where)
+    for name in model.names:
+        parameter, value = model.by_name[name], values[name]
+        if value < 0 <= parameter.lower or (parameter.log and value <= 0):
+            floor = "above" if parameter.log else "at least"
+            raise InputError(f"stored fit {record.id} gives {name} = {value:g} "
+                             f"{parameter.unit}, which is {floor} 0 in every "
+                             f"{record.model} model".replace("  ", " "), where)
     known = {name: float(p.stderr) for name, p in record.parameters.items()
              if math.isfinite(p.stderr) and p.stderr > 0}
     names = tuple(known)

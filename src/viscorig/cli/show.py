@@ -154,10 +154,15 @@ def listing(path: Path) -> tuple[list[str], list[str]]:
             plan = plan_line(run, campaign.run_attributes(name))
             if plan:
                 plans.append(plan)
+        except InputError as error:
+            rows.append([name, f"cannot be read: {error.detail}"])
+            problems.append(str(error))
+            continue
+        try:
             for fit in campaign.fits(name):
                 fits.extend(fit_lines(fit))
         except InputError as error:
-            rows.append([name, f"cannot be read: {error.detail}"])
+            fits.append(f"  {name}: fits cannot be read: {error.detail}")
             problems.append(str(error))
     dma = dma_runs(campaign, problems)
     for joint in joint_fits(campaign, problems):

@@ -488,12 +488,12 @@ def _first_look(campaign: CampaignFile, analysis: RunAnalysis, table: TableSourc
     run = analysis.run
     if run.points < MIN_POINTS:
         return None
-    stored = campaign.fits(run.name)
-    if stored:
-        try:
+    try:
+        stored = campaign.fits(run.name)
+        if stored:
             analysis.shown = read_fit(stored[-1])
-        except InputError as error:
-            analysis.notes.append(f"stored fit not shown: {error}")
+    except InputError as error:  # a damaged fit: the run's measurements still count
+        analysis.notes.append(f"stored fit not shown: {error}")
     if analysis.bare or not use_diagnosis:
         return None
     if table is None:

@@ -125,13 +125,8 @@ def finding(run: RunAnalysis) -> str:
             return "Too few points to identify the table."
         values = shown.values
         if {"M_s", "K_s"} <= set(values):
-            mass, stiffness = values["M_s"], values["K_s"]
-            if not (math.isfinite(mass) and math.isfinite(stiffness) and mass > 0
-                    and stiffness > 0):
-                return (f"The table's stored fit gives M_s = {mass:g} kg and K_s = "
-                        f"{stiffness:g} N/m, which no suspension has: identify the table "
-                        "run again.")
-            f_n = math.sqrt(stiffness / mass) / (2 * math.pi)
+            # a stored fit is shown only with values of the right sign (identify.read_fit)
+            f_n = math.sqrt(values["K_s"] / values["M_s"]) / (2 * math.pi)
             return (f"The table suspension rings at {f_n:.2f} Hz; its M_s, K_s and C_s are held "
                     "fixed in every specimen fit.")
         return "The table suspension, identified on its own."

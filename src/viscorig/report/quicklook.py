@@ -36,12 +36,11 @@ def plot_run(campaign_path: Path, run_name: str, out: Path) -> Path:
     if not run.points:
         raise InputError("has no measured point yet", f"run '{run_name}'")
     analysis = RunAnalysis(run, is_bare_table(run), (0.0, 0.0))
-    stored = campaign.fits(run_name)
-    if stored:
-        try:
-            analysis.shown = read_fit(stored[-1])
-        except InputError:
-            analysis.shown = None
+    try:
+        stored = campaign.fits(run_name)
+        analysis.shown = read_fit(stored[-1]) if stored else None
+    except InputError:  # a damaged fit: the measurements are still drawn
+        analysis.shown = None
     figure = frf_figure(analysis)
     try:
         figure.savefig(out, format="png", dpi=100)

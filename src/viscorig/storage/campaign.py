@@ -67,6 +67,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from viscorig.errors import InputError
+from viscorig.frf import FREQUENCY_RANGE_HZ
 from viscorig.storage import journal, layout, reading, room, untrusted, writelock
 from viscorig.storage.atomic import atomic_commit
 from viscorig.storage.records import (
@@ -598,8 +599,9 @@ class CampaignFile:
         """
         where = f"{self.path}: fit of {run_name}"
         lo, hi = (float(value) for value in band_hz)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo < hi", where)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi <= FREQUENCY_RANGE_HZ[1]):
+            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo < hi <= "
+                             f"{FREQUENCY_RANGE_HZ[1]:g} Hz", where)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
         checked, names, matrix = _checked_parameters(parameters, correlation, where)
@@ -653,8 +655,9 @@ class CampaignFile:
         if len(set(names)) < 2:
             raise InputError("a joint fit names two or more runs", where)
         lo, hi = (float(value) for value in band_hz)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi):
-            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo <= hi", where)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi <= FREQUENCY_RANGE_HZ[1]):
+            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo <= hi <= "
+                             f"{FREQUENCY_RANGE_HZ[1]:g} Hz", where)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
         checked, order, matrix = _checked_parameters(parameters, correlation, where)
@@ -830,6 +833,9 @@ def _checked_parameters(parameters: Mapping[str, tuple[float, float, str]],
     checked = {}
     for key, (value, stderr, unit) in parameters.items():
         check_name(key, f"{where}: parameter")
+        if not math.isfinite(float(value)):
+            raise InputError(f"parameter {key} = {value!r}, which no reader of the file takes "
+                             "(a finite number)", where)
         checked[key] = (float(value), float(stderr), str(unit))
     names: tuple[str, ...] = ()
     matrix = None

@@ -20,6 +20,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
+from viscorig import frf
 from viscorig.errors import InputError
 from viscorig.numbers import Estimate
 from viscorig.storage import layout, untrusted
@@ -366,6 +367,9 @@ def read_run(h5: h5py.File, name: str, path: Path) -> RunRecord:
                 units = attribute(item, "units", path)
                 extra[key] = (_values(item) if item.dtype.names else item[()],
                               str(units if units is not None else ""))
+        problem = frf.frequency_problem(columns["frequency_hz"])
+        if problem is not None:
+            raise InputError(problem, where + "frequency_hz")
         for values in (*columns.values(), *(value for value, _ in extra.values())):
             if values is not None:
                 values.setflags(write=False)
@@ -440,6 +444,10 @@ def _pair(fit: h5py.Group, name: str, path: Path) -> tuple[float, float]:
         pair = np.empty(0)
     if pair.shape != (2,):
         raise InputError(f"{name} is not [lo, hi]", f"{path}: {fit.name}.{name}")
+    high = frf.FREQUENCY_RANGE_HZ[1]
+    if not 0 <= pair[0] <= pair[1] <= high:
+        raise InputError(f"{name} [{pair[0]:g}, {pair[1]:g}] is not a band from 0 to {high:g} "
+                         "Hz, low end first", f"{path}: {fit.name}.{name}")
     return float(pair[0]), float(pair[1])
 
 
@@ -506,12 +514,18 @@ def _read_parameter(item: h5py.HLObject, path: Path) -> Estimate | None:
     """A parameter stored as a scalar dataset (attrs stderr, units) or a group (attrs value,
     stderr, units); other objects in a fit group are not parameters."""
     if isinstance(item, h5py.Dataset):
-        if item.size != 1 or untrusted.number_kind(item.dtype) not in ("real", "integer"):
+        if item.size != 1:
             return None
+        if untrusted.number_kind(item.dtype) not in ("real", "integer"):
+            held = "text" if h5py.check_string_dtype(item.dtype) else f"dtype {item.dtype}"
+            raise InputError(f"a parameter's value is a real number, not {held}",
+                             f"{path}: {item.name}")
         untrusted.check_values_dataset(item, path, scalar=True)
         value = float(np.asarray(item[()]).reshape(()))
     else:
         value = read_number(item, "value", path)
+    if not math.isfinite(value):
+        raise InputError(f"value {value} is not a finite number", f"{path}: {item.name}")
     stderr = read_number(item, "stderr", path) if "stderr" in item.attrs else math.nan
     unit = text_attribute(item, "units", path) if "units" in item.attrs else ""
     return Estimate(value=value, stderr=stderr, unit=unit)

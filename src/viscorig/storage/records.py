@@ -81,7 +81,8 @@ class Segment:
     Raises
     ------
     ValueError
-        Arrays of different lengths, not 1-D, no point, or a non-finite frequency.
+        Arrays of different lengths, not 1-D, no point, or a frequency that is not finite or
+        lies outside :data:`~viscorig.frf.FREQUENCY_RANGE_HZ`.
     """
 
     frequency_hz: ArrayLike
@@ -135,8 +136,9 @@ class Segment:
             raise ValueError(f"segment arrays differ in length: {lengths}")
         if lengths["frequency_hz"] == 0:
             raise ValueError("a segment holds at least one point")
-        if not np.all(np.isfinite(result["frequency_hz"][0])):
-            raise ValueError("segment frequencies must be finite")
+        problem = frf.frequency_problem(result["frequency_hz"][0])
+        if problem is not None:
+            raise ValueError(f"segment: {problem}")
         return result
 
 
