@@ -49,7 +49,7 @@ WRITER = textwrap.dedent(
                        settle_cycles=1, integrate_cycles=1, resolution_hz=0.25))
     for index in range(10_000):
         size = 1 + (index * 7) % 23
-        frequency = 1000.0 * index + np.arange(size)
+        frequency = 1.0 + 50.0 * index + np.arange(size)
         campaign.append_segment("kill", Segment(
             frequency, frequency, frequency * (1 + 1j), frequency * 1j, frequency, frequency,
             frequency, np.full(size, index % 16)))
@@ -67,7 +67,7 @@ def check_whole_segments(path: Path) -> int:
         if campaign.run_names == []:
             return 0
         run = campaign.run("kill")
-    expected = [1000.0 * index + np.arange(segment_size(index)) for index in range(10_000)]
+    expected = [1.0 + 50.0 * index + np.arange(segment_size(index)) for index in range(10_000)]
     count, total = 0, 0
     while total < run.points:
         total += segment_size(count)
