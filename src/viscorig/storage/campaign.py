@@ -742,11 +742,11 @@ def _settings_attributes(settings: RunSettings) -> dict[str, object]:
     values = {key: values[key] for key in RunSettings.__dataclass_fields__}
     if values["direction"] not in layout.DIRECTIONS:
         raise ValueError(f"direction must be 'up' or 'down', not {values['direction']!r}")
-    for key in ("settle_cycles", "integrate_cycles"):
-        values[key] = np.int64(values[key])
-    for key in ("level_m_per_s2", "resolution_hz", "hardness_shore_a", "preload_strain",
-                "temperature_c"):
-        values[key] = np.float64(values[key])
+    for key, held in layout.RUN_NUMBERS.items():
+        if not held.holds(float(values[key])):
+            raise InputError(f"{values[key]!r}, which no reader of the file takes "
+                             f"({held.describe()})", key)
+        values[key] = np.int64(values[key]) if held.integer else np.float64(values[key])
     values["simulated"] = np.bool_(values["simulated"])
     for key in ("specimen", "instrument", "resource"):
         values[key] = str(values[key])
@@ -761,20 +761,14 @@ def _settings_attributes(settings: RunSettings) -> dict[str, object]:
 def _checked_rig(rig: Mapping[str, Any], where: str) -> dict[str, object]:
     checked: dict[str, object] = {}
     for key, value in rig.items():
-        if key in layout.RIG_FLOAT_ATTRIBUTES:
-            number = np.float64(value)
-            checked[key] = number
-            low_open = key not in layout.RIG_MAY_BE_ZERO
-            if not (np.isnan(number) or (np.isfinite(number) and (
-                    number > 0 or (number == 0 and not low_open)))):
-                raise InputError(f"{key} = {value!r}, which no reader of the file takes (a "
-                                 f"finite number {'above' if low_open else 'at least'} 0)",
-                                 where)
-        elif key in layout.RIG_INT_ATTRIBUTES:
-            checked[key] = np.int64(value)
-        else:
-            known = ", ".join((*layout.RIG_FLOAT_ATTRIBUTES, *layout.RIG_INT_ATTRIBUTES))
-            raise InputError(f"unknown /rig attribute {key!r} (known: {known})", where)
+        held = layout.RIG_NUMBERS.get(key)
+        if held is None:
+            raise InputError(f"unknown /rig attribute {key!r} (known: "
+                             f"{', '.join(layout.RIG_NUMBERS)})", where)
+        if not held.holds(float(value)):
+            raise InputError(f"{key} = {value!r}, which no reader of the file takes "
+                             f"({held.describe()})", where)
+        checked[key] = np.int64(value) if held.integer else np.float64(value)
     return checked
 
 

@@ -5,6 +5,7 @@ Reading and writing both use these tables, so the contract is written down once.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -32,22 +33,58 @@ RUN_STATUSES = ("running", "complete", "aborted")
 TEMPERATURE_RANGE_C = (-273.15, 1500.0)
 DIRECTIONS = ("up", "down")
 
-#: Attributes of /rig; all optional.
-RIG_FLOAT_ATTRIBUTES = (
-    "table_mass_kg",
-    "table_stiffness_n_per_m",
-    "table_damping_ns_per_m",
-    "specimen_diameter_m",
-    "specimen_height_m",
-    "geometry_factor_m",
-    "table_mass_stderr_kg",
-    "table_stiffness_stderr_n_per_m",
-    "table_damping_stderr_ns_per_m",
-)
-RIG_INT_ATTRIBUTES = ("specimen_count",)
-#: Of those, the ones that may be 0 (the others are above 0; any may be NaN, unknown).
-RIG_MAY_BE_ZERO = frozenset({"table_damping_ns_per_m", "table_mass_stderr_kg",
-                             "table_stiffness_stderr_n_per_m", "table_damping_stderr_ns_per_m"})
+
+@dataclass(frozen=True)
+class NumberRange:
+    """The values a run attribute that is a number may hold: from ``low`` (excluded when
+    ``low_open``) to ``high``, a whole number when ``integer``; NaN ("unknown") for the others.
+    The bounds lie beyond any rig, so that only a damaged number falls outside."""
+
+    low: float
+    high: float
+    low_open: bool = False
+    integer: bool = False
+
+    def holds(self, value: float) -> bool:
+        """``value`` is one the attribute may hold."""
+        if math.isnan(value):
+            return not self.integer
+        above = value > self.low or (value == self.low and not self.low_open)
+        whole = not self.integer or value == int(value)
+        return bool(math.isfinite(value) and above and value <= self.high and whole)
+
+    def describe(self) -> str:
+        """``a finite number above 0 and at most 10000`` (for messages)."""
+        kind = "a whole number" if self.integer else "a finite number"
+        return (f"{kind} {'above' if self.low_open else 'at least'} {self.low:g} and at most "
+                f"{self.high:g}")
+
+
+#: The run attributes that are numbers, and the values each may hold.
+RUN_NUMBERS = {
+    "hardness_shore_a": NumberRange(0.0, 100.0),
+    "preload_strain": NumberRange(-1.0, 1.0),
+    "temperature_c": NumberRange(*TEMPERATURE_RANGE_C, low_open=True),
+    "level_m_per_s2": NumberRange(0.0, 1e4, low_open=True),  # 1,000 g
+    "settle_cycles": NumberRange(0, 1e9, integer=True),
+    "integrate_cycles": NumberRange(0, 1e9, integer=True),
+    "resolution_hz": NumberRange(0.0, 1e6, low_open=True),
+}
+
+#: Attributes of /rig, all optional, and the values each may hold: a mass, stiffness or length
+#: above 0, a damping or ± at least 0 (any of them NaN, unknown); beyond any vibration table.
+RIG_NUMBERS = {
+    "table_mass_kg": NumberRange(0.0, 1e5, low_open=True),
+    "table_stiffness_n_per_m": NumberRange(0.0, 1e12, low_open=True),
+    "table_damping_ns_per_m": NumberRange(0.0, 1e9),
+    "specimen_diameter_m": NumberRange(0.0, 10.0, low_open=True),
+    "specimen_height_m": NumberRange(0.0, 10.0, low_open=True),
+    "geometry_factor_m": NumberRange(0.0, 1e6, low_open=True),
+    "table_mass_stderr_kg": NumberRange(0.0, 1e5),
+    "table_stiffness_stderr_n_per_m": NumberRange(0.0, 1e12),
+    "table_damping_stderr_ns_per_m": NumberRange(0.0, 1e9),
+    "specimen_count": NumberRange(0, 1e6, integer=True),
+}
 
 #: Dataset of a fit group holding the correlation matrix of its parameters.
 FIT_CORRELATION = "correlation"

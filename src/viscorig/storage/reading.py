@@ -232,15 +232,8 @@ def read_rig(h5: h5py.File, path: Path) -> dict[str, float | int]:
     with guarded(path, f"/{layout.RIG_GROUP}"):
         if not isinstance(group, h5py.Group):
             raise InputError("not a group", f"{path}: /{layout.RIG_GROUP}")
-        rig: dict[str, float | int] = {}
-        for name in layout.RIG_FLOAT_ATTRIBUTES:
-            if name in group.attrs:  # a mass, stiffness or length above 0; a damping or ± 0 too
-                rig[name] = read_number(group, name, path, low=0.0,
-                                        low_open=name not in layout.RIG_MAY_BE_ZERO)
-        for name in layout.RIG_INT_ATTRIBUTES:
-            if name in group.attrs:
-                rig[name] = read_number(group, name, path, integer=True)
-        return rig
+        return {name: _number(group, name, path, held)
+                for name, held in layout.RIG_NUMBERS.items() if name in group.attrs}
 
 
 def run_group(h5: h5py.File, name: str, path: Path) -> h5py.Group:
@@ -264,6 +257,14 @@ def run_group(h5: h5py.File, name: str, path: Path) -> h5py.Group:
     return group
 
 
+def _number(obj: h5py.HLObject, name: str, path: Path, held: layout.NumberRange
+            ) -> int | float:
+    """A numeric attribute within ``held``."""
+    if held.integer:
+        return read_number(obj, name, path, integer=True, low=held.low, high=held.high)
+    return read_number(obj, name, path, low=held.low, high=held.high, low_open=held.low_open)
+
+
 def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
     """Every attribute of a run, checked."""
     return RunMetadata(
@@ -271,16 +272,9 @@ def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
         started=text_attribute(group, "started", path),
         finished=text_attribute(group, "finished", path),
         specimen=text_attribute(group, "specimen", path),
-        hardness_shore_a=read_number(group, "hardness_shore_a", path, low=0.0, high=100.0),
-        preload_strain=read_number(group, "preload_strain", path, low=-1.0, high=1.0),
-        temperature_c=read_number(group, "temperature_c", path, low_open=True,
-                                  low=layout.TEMPERATURE_RANGE_C[0],
-                                  high=layout.TEMPERATURE_RANGE_C[1]),
-        level_m_per_s2=read_number(group, "level_m_per_s2", path, low=0.0, low_open=True),
         direction=read_choice(group, "direction", path, layout.DIRECTIONS),
-        settle_cycles=read_number(group, "settle_cycles", path, integer=True, low=0),
-        integrate_cycles=read_number(group, "integrate_cycles", path, integer=True, low=0),
-        resolution_hz=read_number(group, "resolution_hz", path, low=0.0, low_open=True),
+        **{name: _number(group, name, path, held)
+           for name, held in layout.RUN_NUMBERS.items()},  # type: ignore[arg-type]
         instrument=text_attribute(group, "instrument", path),
         resource=text_attribute(group, "resource", path),
         simulated=read_bool(group, "simulated", path),
