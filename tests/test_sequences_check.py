@@ -104,6 +104,29 @@ def test_check_json_lists_problems_with_file_line_field_message_and_hint(tmp_pat
         "hint": "did you mean 'specimen'?"}
 
 
+@pytest.mark.parametrize(("name", "content", "said"), [
+    ("missing.toml", None, "no such file"),
+    ("folder", "", "not a file"),
+    ("latin1.toml", b'specimen = "Gr\xfcn"\n', "not UTF-8 text (byte 0xfc at offset 14)"),
+])
+def test_a_file_check_cannot_read_is_one_line_and_with_json_still_json(
+        tmp_path, capsys, name: str, content: bytes | str | None, said: str) -> None:
+    """A missing sequence printed Python's own words ('FileNotFoundError: [Errno 2]...'), and
+    with --json no JSON at all."""
+    path = tmp_path / name
+    if content == "":
+        path.mkdir()
+    elif content is not None:
+        path.write_bytes(content)
+    assert main(["check", str(path)]) == 2
+    assert capsys.readouterr().err == f"viscorig: {path}: {said}\n"
+    assert main(["check", str(path), "--json"]) == 2
+    report = json.loads(capsys.readouterr().out)
+    assert report["ok"] is False and report["runs"] == []
+    assert report["problems"] == [
+        {"file": str(path), "line": None, "field": "", "message": said, "hint": ""}]
+
+
 def test_the_paper_sequence_checks_clean_on_the_simulated_rig_and_with_a_station(capsys) -> None:
     assert main(["check", str(PAPER), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)

@@ -22,9 +22,7 @@ from viscorig import jsontext
 from viscorig.acquisition import format_duration
 from viscorig.cli import summary_of
 from viscorig.errors import InputError
-from viscorig.sequences import (
-    FileCheckError,
-)
+from viscorig.sequences import FileCheckError, Problem
 from viscorig.sequences.reference import reference_markdown
 from viscorig.stations.checking import Checked, check_files
 
@@ -67,7 +65,13 @@ def check_command(args: argparse.Namespace) -> int:
     if args.sequence is None:
         raise InputError("give a sequence file to check (or --fields for the reference)",
                          "SEQUENCE.toml")
-    checked = check_files(args.sequence, args.station)
+    try:
+        checked = check_files(args.sequence, args.station)
+    except InputError as error:
+        if not args.json:
+            raise
+        # a file that cannot be read is one more problem: the answer is still JSON
+        checked = Checked(problems=[Problem(error.where or "", None, "", error.detail)])
     sequence = checked.sequence
     runs = [] if sequence is None else list(sequence.run_names)
     test_time_s = None if sequence is None else sequence.duration_s()

@@ -76,8 +76,15 @@ def read_text(path: str | Path) -> str:
     """
     try:
         return Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot be read ({type(error).__name__}: {error})", str(path)) from None
+    except FileNotFoundError:
+        raise InputError("no such file", str(path)) from None
+    except IsADirectoryError:
+        raise InputError("not a file", str(path)) from None
+    except UnicodeDecodeError as error:
+        raise InputError(f"not UTF-8 text (byte 0x{error.object[error.start]:02x} at offset "
+                         f"{error.start})", str(path)) from None
+    except OSError as error:
+        raise InputError(f"cannot be read ({error.strerror or error})", str(path)) from None
 
 
 def load_sequence(path: str | Path) -> Sequence:
