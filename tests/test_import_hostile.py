@@ -249,6 +249,21 @@ def test_an_sdf_response_with_a_nan_point_is_refused_naming_the_point(tmp_path: 
     assert not (tmp_path / "c.h5").exists()
 
 
+@pytest.mark.parametrize("factor", [0.0, 1e-45, 1e-39])
+def test_an_sdf_eu_factor_no_analyser_writes_is_refused(tmp_path: Path, factor: float) -> None:
+    """A subnormal EU correction factor (damaged exponent bits) scaled every value by 1e43."""
+    from sdfwrite import FOUR_CHANNELS, Channel, SdfLayout, Trace, sdf_bytes
+
+    channels = list(FOUR_CHANNELS)
+    channels[1] = Channel("xdd_s", "m/s2", factor)
+    path = tmp_path / "FRF.DAT"
+    path.write_bytes(sdf_bytes(SdfLayout(F, channels, [Trace(1, 0, _table(F))])))
+    status, _, err = _import(tmp_path, "--sdf", path)
+    line = one_clear_line(err)
+    assert status == 2 and "channel header 2: EU correction factor" in line, line
+    assert "is not usable" in line and not (tmp_path / "c.h5").exists()
+
+
 def test_one_sdf_file_given_twice_is_refused(tmp_path: Path) -> None:
     """The same file as both FRFs made a run whose support FRF was the table's."""
     path = _sdf(tmp_path, F, _table(F))

@@ -458,8 +458,9 @@ def _channels(b: _Bytes, at: int, count: int) -> list[SdfChannel]:
         size = b.record(at, CHANNEL_HDR, what)
         (factor,) = b.unpack("f", at + 138, what)
         (narrow_band,) = b.unpack("f", at + 84, what)
-        if not np.isfinite(factor) or factor == 0:
-            raise InputError(f"{what}: EU correction factor {factor} is not usable", b.where)
+        if not np.isfinite(factor) or abs(factor) < np.finfo(np.float32).tiny:
+            # 0, or a subnormal: what damaged exponent bits read as, no analyser's sensitivity
+            raise InputError(f"{what}: EU correction factor {factor:g} is not usable", b.where)
         label = b.text(at + 10, 30, what)
         named = CHANNEL_LABEL.match(label)
         channels.append(SdfChannel(int(named.group(1)) if named else index + 1, label,
