@@ -146,6 +146,18 @@ def test_csv_with_flags_survives_and_bad_cell_is_named(tmp_path: Path, campaign_
         read_csv(out)
 
 
+@pytest.mark.parametrize("cell", ["1_0", "１２", "٣", "0x10", "1e"])
+def test_a_cell_only_python_reads_as_a_number_is_refused(cell: str) -> None:
+    """float() reads '1_0' as 10 and full-width or Arabic-Indic digits as numbers: a typo or
+    a stray character became a value."""
+    from viscorig.exchange.cells import parse_number
+
+    for decimal_comma in (False, True):
+        with pytest.raises(ValueError, match="could not convert"):
+            parse_number(cell, decimal_comma)
+    assert parse_number(" -1.5e3 ", False) == -1500.0 and parse_number("2,5", True) == 2.5
+
+
 @pytest.mark.parametrize("delimiter", [";", "\t"])
 def test_csv_saved_by_a_spreadsheet_with_a_decimal_comma_reads_the_same(
         tmp_path: Path, campaign_file: Path, delimiter: str):

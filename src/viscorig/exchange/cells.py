@@ -8,12 +8,17 @@ import re
 
 #: Cell separators a spreadsheet's CSV export uses, the decimal comma's two first.
 DELIMITERS = ("\t", ";", ",")
+#: A number as a spreadsheet or a program writes one: ASCII digits, an optional exponent, or a
+#: NaN or infinity; not Python's own additions (``1_000``, digits of other scripts: ``１２``).
+NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf(?:inity)?)",
+                    re.IGNORECASE | re.ASCII)
 
 
 def parse_number(cell: str, decimal_comma: bool) -> float:
     """The number in ``cell``; with ``decimal_comma``, ``,`` is the decimal mark unless a
     ``.`` follows it, and the other mark, before the decimal one, groups thousands. Raises
-    ``ValueError`` as :class:`float` does, also for marks that group no thousands."""
+    ``ValueError`` as :class:`float` does, also for marks that group no thousands and for what
+    only Python reads as a number (:data:`NUMBER`)."""
     text = cell.strip()
     if decimal_comma and "," in text:
         if "." in text:
@@ -25,4 +30,6 @@ def parse_number(cell: str, decimal_comma: bool) -> float:
             text = f"{whole.replace(grouping, '')}.{fraction}"
         else:
             text = text.replace(",", ".")
+    if not NUMBER.fullmatch(text):
+        raise ValueError(f"could not convert string to float: {cell!r}")
     return float(text)
