@@ -146,6 +146,18 @@ def test_csv_with_flags_survives_and_bad_cell_is_named(tmp_path: Path, campaign_
         read_csv(out)
 
 
+def test_a_csv_column_given_twice_is_refused(tmp_path: Path, campaign_file: Path) -> None:
+    """The second of two ẍ_s/F_e real-part columns was ignored without a word."""
+    out = tmp_path / "t.csv"
+    write_csv(CampaignFile.open(campaign_file).run("soft-0"), out)
+    lines = out.read_text().splitlines()
+    column = "accelerance_table_real_m_per_s2_per_n"
+    lines = [f"{lines[0]},{column}"] + [f"{line},1.0" for line in lines[1:]]
+    out.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=f"t.csv:1: column {column} given twice"):
+        read_csv(out)
+
+
 @pytest.mark.parametrize("cell", ["1_0", "１２", "٣", "0x10", "1e"])
 def test_a_cell_only_python_reads_as_a_number_is_refused(cell: str) -> None:
     """float() reads '1_0' as 10 and full-width or Arabic-Indic digits as numbers: a typo or

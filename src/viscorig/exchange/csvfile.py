@@ -206,8 +206,8 @@ def read_csv(path: Path) -> FrfSet:
     Raises
     ------
     InputError
-        Missing file, missing or unknown columns, a value that is not a number, an overlong
-        line, more rows than a run holds.
+        Missing file, missing, unknown or repeated columns, a value that is not a number, an
+        overlong line, more rows than a run holds.
     """
     path = Path(path)
     where = str(path)
@@ -226,6 +226,10 @@ def read_csv(path: Path) -> FrfSet:
             header = cells
             missing = [name for name in COLUMNS if name not in header]
             unknown = [name for name in header if name not in COLUMNS]
+            twice = sorted({name for name in header if header.count(name) > 1})
+            if twice:
+                raise InputError(f"column {', '.join(twice)} given twice; which one holds the "
+                                 "values cannot be told", f"{where}:{number}")
             if missing or unknown:
                 raise InputError(
                     (f"missing columns {', '.join(missing)}" if missing else "")
