@@ -61,6 +61,14 @@ def test_units_in_names_semicolons_decimal_comma_and_bom(tmp_path):
     assert table.set_index.tolist() == [0, 0, 1, 1]  # grouped by temperature
 
 
+def test_a_quantity_logged_twice_alike_or_once_reads(tmp_path):
+    """A rheometer that logs the temperature twice (the second column often left empty)."""
+    path = tmp_path / "twice.csv"
+    path.write_text("f,E_stor,E_loss,T,T\nHz,MPa,MPa,C,C\n1,10,1,20,20\n2,11,1,30,\n")
+    table = read_dma_csv(path)
+    assert table.temperature_c == pytest.approx([20.0, 30.0])
+
+
 def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
     path = tmp_path / "trios.txt"
     path.write_text("omega (rad/s)\tT (K)\t|E*| (MPa)\ttan delta\n"
@@ -99,6 +107,14 @@ def test_complex_modulus_and_tan_delta_with_kelvin_and_rad_per_s(tmp_path):
     # a denormal modulus made the Prony fit's residuals NaN: left out, so too few remain
     ("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,1e-320,1,20\n",
      "1 data row(s) with a storage and loss modulus in range"),
+    # the first of two storage columns was read, the second ignored without a word
+    ("f,E_stor,E_loss,T,E'\nHz,MPa,MPa,C,MPa\n1,10,1,20,10\n2,11,1,20,12\n",
+     "row 4: columns 'E_stor' and \"E'\" give the same quantity and differ (11 and 12)"),
+    ("f,E_stor,E_loss,T,E'\nHz,MPa,MPa,C,GPa\n1,10,1,20,10\n2,11,1,20,11\n",
+     "row 2, column \"E'\": columns 'E_stor' (MPa) and \"E'\" (GPa) give the same quantity"),
+    # a unit in the name was overridden by the units row's
+    ("f,E_stor [Pa],E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,11,1,20\n",
+     "row 1, column 'E_stor [Pa]': unit 'Pa' in the name and 'MPa' in the units row"),
 ])
 def test_bad_tables_name_file_row_and_column(tmp_path, text, expected):
     path = tmp_path / "bad.csv"

@@ -42,6 +42,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -373,10 +374,13 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
         raise InputError("no table in the file", where)
     header_row, header = rows[0]
     columns: dict[str, _Column] = {}
+    repeated: list[tuple[str, _Column]] = []  # a second column of a quantity
     for index, cell in enumerate(header):
         name, unit = _split_unit(cell)
         role = _role(name)
-        if role is not None and role not in columns:
+        if role is not None and role in columns:
+            repeated.append((role, _Column(index, cell.strip(), unit, header_row)))
+        elif role is not None:
             columns[role] = _Column(index, cell.strip(), unit, header_row)
     columns = _needed(columns)
     constant_temperature = _parameter_temperature(parameters or {}, columns, header_row, where)
@@ -384,10 +388,10 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
     if body and _is_units_row(body[0][1], columns, decimal_comma):
         units_row_number, units_row = body[0]
         body = body[1:]
-        for role, column in list(columns.items()):
-            if column.index < len(units_row) and units_row[column.index].strip() not in ("", "-"):
-                columns[role] = _Column(column.index, column.name,
-                                        units_row[column.index].strip(), units_row_number)
+        columns = {role: _with_units_row(column, units_row, units_row_number, where)
+                   for role, column in columns.items()}
+        repeated = [(role, _with_units_row(column, units_row, units_row_number, where))
+                    for role, column in repeated]
     if constant_temperature is not None:
         columns["temperature"] = _Column(-1, "T", "°C", constant_temperature[0])
     _require(columns, header_row, where)
@@ -411,7 +415,46 @@ def _from_rows(rows: list[tuple[int, list[str]]], decimal_comma: bool, modulus: 
                                  f"{where}: row {row_number}, column {column.name!r}") from None
     if constant_temperature is not None:
         values["temperature"][:] = constant_temperature[1]
+    for role, column in repeated:
+        if role in columns:
+            _same_values(columns[role], column, values[role], body, decimal_comma, where)
     return _table(columns, values, body, modulus, where)
+
+
+def _with_units_row(column: _Column, units_row: list[str], row_number: int,
+                    where: str) -> _Column:
+    """``column`` with the unit its cell of the units row gives, if any; a unit in the name
+    that the units row contradicts is refused."""
+    unit = units_row[column.index].strip() if column.index < len(units_row) else ""
+    if unit in ("", "-"):
+        return column
+    if column.unit is not None and column.unit != unit:
+        raise InputError(f"unit {column.unit!r} in the name and {unit!r} in the units row; "
+                         "which one holds cannot be told", column.where(where))
+    return _Column(column.index, column.name, unit, row_number)
+
+
+def _same_values(first: _Column, second: _Column, values: np.ndarray, body: list,
+                 decimal_comma: bool, where: str) -> None:
+    """A quantity given by two columns (an instrument that logs the temperature twice):
+    refused where the two give other units, or both hold a value and the values differ, for
+    which one holds cannot be told."""
+    if second.unit is not None and second.unit != first.unit:
+        raise InputError(f"columns {first.name!r} ({first.unit}) and {second.name!r} "
+                         f"({second.unit}) give the same quantity in other units; which one "
+                         "holds cannot be told", second.where(where))
+    for i, (row_number, row) in enumerate(body):
+        cell = row[second.index].strip() if second.index < len(row) else ""
+        if not cell:
+            continue
+        try:
+            value = parse_number(cell, decimal_comma)
+        except ValueError:
+            value = math.nan
+        if not math.isclose(value, values[i], rel_tol=1e-9, abs_tol=0.0):
+            raise InputError(f"columns {first.name!r} and {second.name!r} give the same "
+                             f"quantity and differ ({values[i]:g} and {cell}); which one holds "
+                             "cannot be told", f"{where}: row {row_number}")
 
 
 def _needed(columns: dict[str, _Column]) -> dict[str, _Column]:
