@@ -329,3 +329,15 @@ def test_an_sdf_from_high_to_low_frequency_is_stored_rising(tmp_path: Path) -> N
     run = CampaignFile.open(tmp_path / "c.h5").run("x")
     np.testing.assert_allclose(run.frequency_hz, F, rtol=1e-12)
     np.testing.assert_allclose(run.accelerance_table, _table(F), rtol=1e-12)
+
+
+@pytest.mark.parametrize("option", ["--csv", "--uff", "--sdf", "--dma"])
+def test_a_folder_or_a_missing_path_to_import_is_named_alike(tmp_path: Path, option: str) -> None:
+    """A folder given to --uff was 'no such file', to --csv 'cannot read the CSV file (Is a
+    directory)': each reader said it in its own words."""
+    folder = tmp_path / "exports"
+    folder.mkdir()
+    for path, said in ((folder, "not a file"), (tmp_path / "gone.dat", "no such file")):
+        status, _, err = _import(tmp_path, option, path)
+        assert status == 2 and one_clear_line(err) == f"viscorig: {path}: {said}", err
+    assert not (tmp_path / "c.h5").exists()

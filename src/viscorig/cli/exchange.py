@@ -178,6 +178,9 @@ def import_handler(args: argparse.Namespace) -> int:
     if args.station and not args.sdf:
         raise InputError("a station converts SDF files only; the other formats carry "
                          "their units", "--station")
+    for given in (args.dma, args.uff, args.csv, args.station, *(args.sdf or ())):
+        if given is not None and not Path(given).is_file():
+            raise InputError("not a file" if Path(given).exists() else "no such file", given)
     if args.dma:
         table = read_dma_file(Path(args.dma), args.modulus)
         specimen = None if args.specimen == "unknown" else args.specimen
