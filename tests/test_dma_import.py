@@ -61,6 +61,19 @@ def test_units_in_names_semicolons_decimal_comma_and_bom(tmp_path):
     assert table.set_index.tolist() == [0, 0, 1, 1]  # grouped by temperature
 
 
+@pytest.mark.parametrize("end", ["\r", "\r\n"])
+def test_lines_ended_by_a_carriage_return_read_as_any(tmp_path, end):
+    """A table saved with CR line ends (classic Mac OS) was 'not a readable table (new-line
+    character seen in unquoted field...)'."""
+    path = tmp_path / "cr.csv"
+    path.write_bytes("f,E_stor,E_loss,T\nHz,MPa,MPa,C\n1,10,1,20\n2,11,x,20\n"
+                     .replace("\n", end).encode())
+    with pytest.raises(InputError, match="row 4, column 'E_loss'"):
+        read_dma_csv(path)
+    path.write_bytes(path.read_bytes().replace(b",x,", b",1,"))
+    assert read_dma_csv(path).frequency_hz == pytest.approx([1.0, 2.0])
+
+
 def test_a_quantity_logged_twice_alike_or_once_reads(tmp_path):
     """A rheometer that logs the temperature twice (the second column often left empty)."""
     path = tmp_path / "twice.csv"

@@ -205,6 +205,7 @@ def read_dma_csv(path: Path, modulus: str | None = None) -> ModulusTable:
         raise InputError(f"cannot be read ({error.strerror})", where) from None
     if "\x00" in text:
         raise InputError("not a text table (holds NUL bytes)", where)
+    text = text.replace("\r\n", "\n").replace("\r", "\n")  # lines ended the old Mac way too
     if is_trios_export(text):
         return _from_trios(trios_steps(text, where), modulus, where)
     separator = is_trios_step_export(text)
