@@ -300,3 +300,10 @@ def test_terms_without_derivatives_fall_back_to_finite_differences() -> None:
         assert numeric.stderr[name] == pytest.approx(analytic.stderr[name], rel=1e-3)
     framed = fit(with_effect, data, fixed=table)
     assert framed.values["K_v"] == pytest.approx(analytic.values["K_v"], rel=1e-3)
+
+
+@pytest.mark.parametrize(("points", "said"), [(1, "1 point, a fit"), (3, "3 points, a fit")])
+def test_too_few_points_are_counted_in_words(points: int, said: str) -> None:
+    data = FrfData(np.linspace(20.0, 21.0, points), table=np.ones(points, complex), name="x")
+    with pytest.raises(InputError, match=f"x: {said} needs at least 10"):
+        data.checked(("table",), None)

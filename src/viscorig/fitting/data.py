@@ -160,7 +160,8 @@ class FrfData:
         where = f"{self.name}, band {band_hz[0]:g}:{band_hz[1]:g} Hz" if band_hz else self.name
         if data.frequency_hz.size < MIN_POINTS:
             raise InputError(
-                f"{data.frequency_hz.size} points, a fit needs at least {MIN_POINTS}", where
+                f"{data.frequency_hz.size} point{'s' if data.frequency_hz.size != 1 else ''}, "
+                f"a fit needs at least {MIN_POINTS}", where
             )
         low, high = FREQUENCY_RANGE_HZ
         outside = np.flatnonzero(~((data.frequency_hz >= low) & (data.frequency_hz <= high)))
