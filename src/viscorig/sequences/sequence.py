@@ -66,16 +66,26 @@ SWEEP_FIELDS = SWEEP.names
 MAX_RUN_POINTS = layout.MAX_RUN_POINTS
 
 
+#: Largest sequence or station file, bytes (the paper's sequence is under 4 kB).
+MAX_FILE_BYTES = 1 << 20
+
+
 def read_text(path: str | Path) -> str:
     """A file's text.
 
     Raises
     ------
     InputError
-        The file is missing, unreadable or not UTF-8.
+        The file is missing, unreadable, larger than :data:`MAX_FILE_BYTES` or not UTF-8.
     """
     try:
-        return Path(path).read_text(encoding="utf-8")
+        with Path(path).open("rb") as handle:
+            data = handle.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise InputError(f"over {MAX_FILE_BYTES} bytes; a sequence or station file is "
+                             "text of a few kilobytes", str(path))
+        # as text mode reads it: Windows and classic Mac line ends become "\n"
+        return data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
         raise InputError("no such file", str(path)) from None
     except IsADirectoryError:
