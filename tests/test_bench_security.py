@@ -168,3 +168,95 @@ def test_served_on_loopback_unless_the_station_allows_another_address(tmp_path) 
         process.communicate(timeout=30)
     assert first.startswith("http://127.0.0.2:")
     assert second.startswith("WARNING: served on 127.0.0.2 as the station's [bench] address")
+
+
+def test_idle_connections_from_anyone_neither_block_commands_nor_stay(tmp_path) -> None:
+    """70 connections opened by anyone and left silent made every request, a pause and an abort
+    included, a plain-text 503 for as long as they were held."""
+    import socket
+
+    from viscorig.bench.app import REQUEST_HEAD_S
+
+    small_sequence(tmp_path)
+    with bench_server(tmp_path) as server:
+        owner = Client(server, "owner")
+        held = [socket.create_connection(("127.0.0.1", server.port)) for _ in range(70)]
+        trickle = held[0]
+        trickle.sendall(b"GET /api/state HTTP/1.1\r\n")  # a head never finished
+        try:
+            started = time.monotonic()
+            assert owner.state()["state"] == "idle"
+            assert owner.post("/api/pause").status_code in (200, 409)
+            assert owner.post("/api/abort").status_code in (200, 409)
+            assert time.monotonic() - started < 2.0
+            for connection in held:  # closed by the server once their head is overdue
+                connection.settimeout(REQUEST_HEAD_S + 5.0)
+                assert connection.recv(1) == b""
+        finally:
+            for connection in held:
+                connection.close()
+        owner.close()
+
+
+@pytest.mark.parametrize(("path", "body", "said"), [
+    ("/api/notes", b"[" * 5000 + b"]" * 5000, "JSON nested too deep"),
+    ("/api/notes", b'{"text": ' + b"[" * 20000 + b"]" * 20000 + b"}", "JSON nested too deep"),
+    ("/api/queue", b'{"sequence": "small.toml", "out": "\\ud800.h5"}', "lone surrogate"),
+    ("/api/notes", b'{"text": "a\\u0000b"}', "control character"),
+    ("/api/queue", b'{"sequence": "small.toml", "out": "' + b"x" * 300 + b'.h5"}',
+     "File name too long"),
+])
+def test_bodies_no_file_or_note_can_hold_are_refused(tmp_path, path: str, body: bytes,
+                                                     said: str) -> None:
+    """Each of these was a 500 with a traceback; a lone surrogate in a queued file name made
+    every later GET /api/state a 500."""
+    small_sequence(tmp_path)
+    with bench_server(tmp_path) as server:
+        owner = Client(server, "owner")
+        if path == "/api/notes":  # a note needs a campaign file
+            with CampaignFile.create(tmp_path / "c.h5", sequence_text="", durable=False):
+                pass
+            server.service.campaign_path = tmp_path / "c.h5"
+        answer = owner.http.post(path, content=body,
+                                 headers={"Content-Type": "application/json"})
+        assert said in one_line_error(answer, 400)
+        assert owner.state()["queue"] == []
+        owner.close()
+
+
+@pytest.mark.slow
+def test_a_pause_is_answered_while_a_queued_sequence_is_planned(tmp_path) -> None:
+    """A queued sequence is checked and planned before the answer (seconds for many adaptive
+    sweeps): a pause sent meanwhile, during a run, got no answer within 10 s."""
+    sweep = ('[[steps]]\ntype = "sweep"\nrun = "soft-{i}"\nspecimen = "soft"\n'
+             'hardness_shore_a = 25.0\nplan = "adaptive"\nmodel = "voigt"\n'
+             'target_uncertainty = {{ K_v = 2e-3, C_v = 2e-3 }}\ndwell_limit_s = 1800\n'
+             'resolution_hz = 0.25\nsettle_cycles = 400\n')
+    (tmp_path / "many.toml").write_text(
+        'name = "many"\n[defaults]\nband_hz = [20.0, 120.0]\nlevel = "1.4 m/s^2"\n'
+        '[[steps]]\ntype = "prompt"\nmessage = "Mount the soft specimens."\n'
+        'simulated_rig = "soft-0"\n' + "".join(sweep.format(i=i) for i in range(60)))
+    small_sequence(tmp_path)
+    with bench_server(tmp_path, sim_pace=60.0) as server:
+        owner = Client(server, "owner")
+        assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
+                          ).status_code == 200
+        assert owner.post("/api/start").status_code == 200
+        prompt = wait_until(lambda: owner.state()["prompt"], what="a prompt")
+        assert owner.post("/api/answer", {"prompt_id": prompt["id"], "answer": "done"}
+                          ).status_code == 200
+        wait_until(lambda: owner.state()["points_done"] > 0, what="measuring")
+        with ThreadPoolExecutor(1) as beside:
+            started = time.monotonic()
+            queued = beside.submit(owner.post, "/api/queue",
+                                   {"sequence": "many.toml", "out": "many.h5"})
+            time.sleep(0.3)
+            asked = time.monotonic()
+            assert owner.post("/api/pause").status_code == 200
+            answered = time.monotonic() - asked
+            answer = queued.result()
+            planned = time.monotonic() - started
+        assert answer.status_code == 200 and answer.json()["problems"] == [], answer.text
+        assert planned > 1.0 and answered < 1.0, (planned, answered)
+        assert owner.post("/api/abort").status_code == 200
+        owner.close()

@@ -34,12 +34,14 @@ from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import HTMLResponse, JSONResponse, Response
 from starlette.routing import Route
 
 from viscorig import jsontext
 from viscorig.bench.service import BenchError, BenchService
+from viscorig.errors import InputError
 from viscorig.storage import CampaignFile
 from viscorig.watch.server import page_html as live_html
 from viscorig.watch.snapshot import Snapshots
@@ -54,6 +56,9 @@ RATE_PER_S = 50
 MAX_BODY_BYTES = 64 * 1024
 #: A controlling client silent this long loses control, s.
 CONTROL_LEASE_S = 15.0
+#: A connection that has sent no whole request head this long after it opened (or after its
+#: last answer) is closed, s: idle or trickling connections from anyone cannot pile up.
+REQUEST_HEAD_S = 10.0
 #: The page's and the live view's policies: nothing from elsewhere, frames only from here.
 _PAGE_POLICY = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
                 "connect-src 'self'; img-src data:; frame-src 'self'; base-uri 'none'; "
@@ -67,6 +72,16 @@ _LIVE_POLICY = ("default-src 'none'; script-src 'unsafe-inline'; style-src 'unsa
 def page_html() -> str:
     """The bench page, as shipped with the package."""
     return resources.files("viscorig.bench").joinpath("page.html").read_text(encoding="utf-8")
+
+
+def _is_unicode(text: str) -> bool:
+    """``text`` can be written as UTF-8 (JSON's ``"\\ud800"`` reads to a lone surrogate, which
+    no file name, note or HDF5 attribute can hold)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def error(status: int, message: str) -> JSONResponse:
@@ -254,8 +269,15 @@ def create_app(service: BenchService, token: str, port: int,
             value = json.loads(raw)
         except (ValueError, UnicodeDecodeError):
             raise BenchError("body: not JSON", 400) from None
+        except RecursionError:
+            raise BenchError("body: JSON nested too deep", 400) from None
         if not isinstance(value, dict):
             raise BenchError("body: a JSON object", 400)
+        for key, item in value.items():
+            for text in (key, item):
+                if isinstance(text, str) and not _is_unicode(text):
+                    raise BenchError(f"body: {key!r} holds a lone surrogate (\\ud800..\\udfff), "
+                                     "not text", 400)
         return value
 
     async def page(request: Request) -> Response:
@@ -279,9 +301,13 @@ def create_app(service: BenchService, token: str, port: int,
                 data = await body(request)
                 if not control.take(client_of(request)):
                     return error(409, "read-only: another client controls the bench")
-                result = action(request, data)
+                # off the event loop: checking and planning a queued sequence takes seconds,
+                # in which a pause or an abort must still be answered
+                result = await run_in_threadpool(action, request, data)
             except BenchError as refused:
                 return error(refused.status, str(refused))
+            except InputError as refused:  # the campaign file refuses (locked, journal full)
+                return error(409, str(refused))
             return JSONResponse(result or {"ok": True}, headers={"Cache-Control": "no-store"})
         return endpoint
 
@@ -390,6 +416,33 @@ def _exception_handlers() -> dict[Any, Callable[[Request, Exception], Awaitable[
     return {404: not_found, 405: not_allowed, BenchError: refused, Exception: failed}
 
 
+def _protocol() -> type:
+    """uvicorn's HTTP/1.1 protocol (h11) closing a connection that has sent no whole request
+    head :data:`REQUEST_HEAD_S` after it opened or after its last answer."""
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class Protocol(H11Protocol):
+        def connection_made(self, transport: Any) -> None:
+            super().connection_made(transport)
+            self._head_due = self.loop.call_later(REQUEST_HEAD_S, self._head_overdue)
+
+        def on_response_complete(self) -> None:
+            super().on_response_complete()
+            self._head_due.cancel()
+            self._head_due = self.loop.call_later(REQUEST_HEAD_S, self._head_overdue)
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            self._head_due.cancel()
+            super().connection_lost(exc)
+
+        def _head_overdue(self) -> None:
+            waiting = self.cycle is None or self.cycle.response_complete
+            if waiting and not self.transport.is_closing():
+                self.transport.close()
+
+    return Protocol
+
+
 #: The signals that stop ``bench serve`` (Ctrl-C, and a service manager's stop).
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -424,9 +477,11 @@ class BenchServer:
         self.token = secrets.token_urlsafe(24)
         # lifespan off: the app has no startup or shutdown work, and uvicorn's lifespan task
         # could be collected mid-protocol when a server thread stopped just as it started
+        # no limit on connections (uvicorn's answers 503 to every request once that many are
+        # open, a pause and an abort included): the protocol closes the idle ones instead
         config = uvicorn.Config(create_app(service, self.token, self.port, address),
                                 log_level="warning", access_log=False, server_header=False,
-                                limit_concurrency=64, timeout_keep_alive=5, lifespan="off")
+                                http=_protocol(), timeout_keep_alive=5, lifespan="off")
         self.server = uvicorn.Server(config)
         self._thread: threading.Thread | None = None
 

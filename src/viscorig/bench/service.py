@@ -14,6 +14,7 @@ import contextlib
 import itertools
 import math
 import threading
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -124,15 +125,19 @@ class BenchService:
         """
         sequence_path = self._path(sequence, "sequence")
         out_path = self._path(out, "out")
-        if sequence_path.is_dir():
-            raise BenchError(f"sequence {sequence_path}: a folder, not a sequence file", 400)
-        if not sequence_path.is_file():
-            raise BenchError(f"sequence {sequence_path}: no such file", 400)
-        if out_path.suffix != ".h5":
-            raise BenchError(f"out {out_path}: a campaign file ends with .h5", 400)
-        if not out_path.parent.is_dir():
-            raise BenchError(f"out {out_path}: folder does not exist", 400)
-        if out_path.exists():
+        try:
+            if sequence_path.is_dir():
+                raise BenchError(f"sequence {sequence_path}: a folder, not a sequence file", 400)
+            if not sequence_path.is_file():
+                raise BenchError(f"sequence {sequence_path}: no such file", 400)
+            if out_path.suffix != ".h5":
+                raise BenchError(f"out {out_path}: a campaign file ends with .h5", 400)
+            if not out_path.parent.is_dir():
+                raise BenchError(f"out {out_path}: folder does not exist", 400)
+            exists = out_path.exists()
+        except OSError as error:  # a name longer than the file system takes, say
+            raise BenchError(f"{error.filename or out_path}: {error.strerror}", 400) from None
+        if exists:
             self._continuable(sequence_path, out_path)
         with self._lock:
             taken = [item.out for item in self.queue]
@@ -386,6 +391,11 @@ class BenchService:
             raise BenchError("text: the note, not empty", 400)
         if len(text) > MAX_TEXT:
             raise BenchError(f"text: {len(text)} characters; at most {MAX_TEXT}", 400)
+        control = next((c for c in text if unicodedata.category(c) == "Cc" and c not in "\n\t"),
+                       None)
+        if control is not None:
+            raise BenchError(f"text: holds the control character {control!r}; a note holds "
+                             "text, line breaks and tabs", 400)
         path = self.campaign_path
         if path is None or not path.exists():
             raise BenchError("no campaign file yet: a note is stored in the file of a run")
