@@ -112,7 +112,17 @@ class BenchService:
         if not isinstance(text, str) or not text.strip() or len(text) > 1000 or "\0" in text:
             raise BenchError(f"{what}: a file path (text, at most 1000 characters)", 400)
         path = Path(text.strip())
-        return path if path.is_absolute() else self.root / path
+        path = path if path.is_absolute() else self.root / path
+        folder = self.root.resolve()
+        try:
+            inside = path.resolve().is_relative_to(folder)
+        except (OSError, RuntimeError) as error:  # a name too long, a symbolic-link loop
+            raise BenchError(f"{what} {text.strip()}: {getattr(error, 'strerror', None) or error}",
+                             400) from None
+        if not inside:
+            raise BenchError(f"{what} {text.strip()}: not in the bench's folder {folder}; the "
+                             "bench reads and writes files there and below only", 400)
+        return path
 
     def add(self, sequence: object, out: object) -> QueueItem:
         """Queue a sequence and the campaign file to create; check and plan it now.
