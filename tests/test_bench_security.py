@@ -61,6 +61,10 @@ def refuse_everything(server, owner: Client) -> None:
                        403)
         one_line_error(anyone.post("/api/abort", headers={
             **bearer, "Sec-Fetch-Site": "cross-site"}), 403)
+        # a foreign origin before this server's own: only the last one was checked
+        assert "'origin' given twice" in one_line_error(anyone.post("/api/abort", headers=[
+            *bearer.items(), ("Origin", "http://evil.example"),
+            ("Origin", f"http://127.0.0.1:{server.port}")]), 400)
         # 10 MB: declared, and streamed without a length
         big = b"{" + b" " * (10 * 1024 * 1024) + b"}"
         one_line_error(anyone.post("/api/notes", content=big, headers=bearer), 413)

@@ -197,6 +197,11 @@ class Guard:
             bucket = self.rate
         if not bucket.take():
             return error(429, f"too many requests: at most {RATE_PER_S} a second")
+        names = [name.decode("latin-1").lower() for name, _ in scope.get("headers", [])]
+        twice = next((name for name in ("host", "origin", "authorization", "cookie")
+                      if names.count(name) > 1), None)
+        if twice is not None:  # only the last would be checked
+            return error(400, f"header {twice!r} given twice")
         host = headers.get("host", "").strip().lower()
         if host not in self.hosts:
             return error(403, f"host {host!r} is not this server")
