@@ -76,6 +76,7 @@ def refuse_everything(server, owner: Client) -> None:
         one_line_error(anyone.post("/api/notes", content=chunks(), headers=bearer), 413)
         one_line_error(owner.http.post("/api/notes", content=b"not json"), 400)
         one_line_error(owner.http.post("/api/nothing"), 404)
+        one_line_error(owner.http.get("/api/state/"), 404)  # was an empty 307
         one_line_error(owner.http.put("/api/state"), 405)
 
     # a second client may read, not command, and is told so

@@ -351,6 +351,7 @@ def create_app(service: BenchService, token: str, port: int,
     if address == "127.0.0.1":
         hosts.add(f"localhost:{port}")
     app = Starlette(routes=routes, exception_handlers=_exception_handlers())
+    app.router.redirect_slashes = False  # '/api/state/' is no endpoint: a JSON 404, not a 307
     return Guard(app, token, hosts, cookie, control, client_cookie)
 
 
