@@ -108,20 +108,24 @@ class BenchService:
         self._checking = False
 
     # -- the queue --------------------------------------------------------------------------
-    def _path(self, text: object, what: str) -> Path:
+    def _path(self, text: object, what: str, *, inside: bool = False) -> Path:
+        """The path ``text`` names (relative to the bench's folder); with ``inside``, one in
+        that folder or below it."""
         if not isinstance(text, str) or not text.strip() or len(text) > 1000 or "\0" in text:
             raise BenchError(f"{what}: a file path (text, at most 1000 characters)", 400)
         path = Path(text.strip())
         path = path if path.is_absolute() else self.root / path
+        if not inside:
+            return path
         folder = self.root.resolve()
         try:
-            inside = path.resolve().is_relative_to(folder)
+            within = path.resolve().is_relative_to(folder)
         except (OSError, RuntimeError) as error:  # a name too long, a symbolic-link loop
             raise BenchError(f"{what} {text.strip()}: {getattr(error, 'strerror', None) or error}",
                              400) from None
-        if not inside:
+        if not within:
             raise BenchError(f"{what} {text.strip()}: not in the bench's folder {folder}; the "
-                             "bench reads and writes files there and below only", 400)
+                             "bench writes campaign files there and below only", 400)
         return path
 
     def add(self, sequence: object, out: object) -> QueueItem:
@@ -134,7 +138,7 @@ class BenchService:
             queue.
         """
         sequence_path = self._path(sequence, "sequence")
-        out_path = self._path(out, "out")
+        out_path = self._path(out, "out", inside=True)
         try:
             if sequence_path.is_dir():
                 raise BenchError(f"sequence {sequence_path}: a folder, not a sequence file", 400)
