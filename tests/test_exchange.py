@@ -381,3 +381,24 @@ def test_a_run_of_one_point_is_not_written_to_a_uff_file(campaign_file: Path, tm
     with pytest.raises(InputError, match="run 'soft-0': 1 point\\(s\\); a universal file's "):
         write_uff(one, tmp_path / "one.uff")
     assert not (tmp_path / "one.uff").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder", "empty"])
+def test_export_never_replaces_what_is_not_a_file(tmp_path: Path, campaign_file: Path,
+                                                  kind: str) -> None:
+    """--out /dev/null was replaced by a regular file (the rename of the finished export),
+    and its metadata written beside it in /dev; --out '' ended in a ValueError traceback."""
+    import os
+
+    target = tmp_path / "target"
+    if kind == "fifo":
+        os.mkfifo(target)
+    elif kind == "folder":
+        target.mkdir()
+    out = "" if kind == "empty" else str(target)
+    for format_ in ("csv", "uff"):
+        assert main(["export", str(campaign_file), "--run", "soft-0", "--format", format_,
+                     "--out", out]) == 2
+    if kind == "fifo":
+        assert target.is_fifo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["target"] if kind != "empty" else [])

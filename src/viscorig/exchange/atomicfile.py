@@ -23,7 +23,17 @@ def _temporary_name(path: Path) -> Path:
 
 
 def _create(path: Path) -> tuple[int, Path]:
-    """A new, empty hidden file next to ``path`` (mode 0666 less the umask)."""
+    """A new, empty hidden file next to ``path`` (mode 0666 less the umask); refused where
+    ``path`` names no file, or something that is not one (the rename would replace a device
+    such as ``/dev/null`` by a file)."""
+    if not path.name or path.name in (".", ".."):
+        raise InputError("names no file", str(path) or "''")
+    try:
+        if path.exists() and not path.is_file():
+            raise InputError("exists and is not a file: it would be replaced by one, not "
+                             "written to", str(path))
+    except OSError as error:
+        raise InputError(cause(error, path), str(path)) from None
     temporary = _temporary_name(path)
     try:
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
