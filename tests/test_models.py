@@ -77,6 +77,12 @@ def test_parameter_names_follow_the_design(spec: str, names: tuple[str, ...]) ->
         ("voigt+delay(F_v)+delay(x_v)", "through 1 combination only"),
         ("voigt+delay+delay(x_s)+delay(x_v)", "through 2 combinations only"),
         ("table+delay(x_v)", "'delay(x_v)' acts on no FRF the model predicts (x_s/F_e)"),
+        # int(inf) and int(nan) ended in OverflowError and ValueError tracebacks
+        ("maxwell(inf)", "whole number of arms 1..20, got inf"),
+        ("maxwell(nan)", "whole number of arms 1..20, got nan"),
+        ("maxwell(1e999)", "whole number of arms 1..20, got inf"),
+        # a frame lighter than the table was fitted into K_v = 0 ± 2.6e18 N/m
+        ("voigt+frame(1e-3)", "frame(M) needs the frame's mass in kg, 1 to 1e+07, got 0.001"),
     ],
 )
 def test_bad_specs_name_what_is_wrong(spec: str, words: str) -> None:

@@ -274,6 +274,11 @@ def edge_held_median(values: NDArray[np.float64], half: int) -> NDArray[np.float
     return np.median(windows, axis=1)
 
 
+#: Masses an inertial frame under a vibration table may have, kg: at least the table's own
+#: order (a frame lighter than the moving body is no inertial reference).
+FRAME_MASS_KG = (1.0, 1e7)
+
+
 @register_term
 class Frame(Term):
     """The inertial frame under the table: its rigid-body mode on its isolators.
@@ -294,9 +299,10 @@ class Frame(Term):
     keyword = "frame"
 
     def __init__(self, argument: float | None = None) -> None:
-        if argument is not None and not (np.isfinite(argument) and 0 < argument <= 1e7):
-            raise InputError(f"frame(M) needs the frame's mass in kg, got {argument}",
-                             "model spec")
+        low, high = FRAME_MASS_KG
+        if argument is not None and not (np.isfinite(argument) and low <= argument <= high):
+            raise InputError(f"frame(M) needs the frame's mass in kg, {low:g} to {high:g}, got "
+                             f"{argument:g}", "model spec")
         self.argument = argument
 
     def parameters(self) -> tuple[Parameter, ...]:
@@ -307,7 +313,8 @@ class Frame(Term):
         if self.argument is not None:
             return own
         return (
-            Parameter("M_f", "kg", 1.0, 1e7, 1000.0, description="mass of the inertial frame"),
+            Parameter("M_f", "kg", *FRAME_MASS_KG, 1000.0,
+                      description="mass of the inertial frame"),
             *own,
         )
 

@@ -84,7 +84,7 @@ class Maxwell(ModulusTerm):
     keyword = "maxwell"
 
     def __init__(self, argument: float | None = None) -> None:
-        if argument is not None and (argument != int(argument) or not 1 <= argument <= 20):
+        if argument is not None and not (1 <= argument <= 20 and argument == int(argument)):
             raise InputError(
                 f"maxwell(N) needs a whole number of arms 1..20, got {argument}", "model spec"
             )
