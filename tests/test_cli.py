@@ -110,3 +110,18 @@ def test_verbosity_sets_the_logging_level_and_goes_to_stderr(
     main(["-q", "show", str(path)])
     logging.getLogger("viscorig.report").warning("hidden")
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("command", [["run", "{paper}", "--yes", "--out", "{long}.h5"]])
+def test_a_path_the_file_system_refuses_is_one_line(tmp_path, capsys, command) -> None:
+    """A name longer than the file system takes ended 'run --out' and 'report --out' in an
+    OSError traceback."""
+    from pathlib import Path
+
+    paper = Path(__file__).resolve().parents[1] / "sequences" / "paper.toml"
+    long = str(tmp_path / ("a" * 300))
+    words = [word.format(paper=paper, long=long) for word in command]
+    assert main(words) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"viscorig: {long}")
+    assert err.rstrip().endswith(": File name too long") and "Traceback" not in err

@@ -230,3 +230,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         # the reader of our output went away (``viscorig show FILE | head``): not an error
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115  (stays open until the process exits)
         return 0
+    except OSError as error:
+        if error.filename is None:
+            raise
+        # a path the file system refuses where no reader checked it first (a name longer than
+        # it takes, say): the path and the system's reason, in one line
+        print(f"viscorig: {one_line(os.fsdecode(error.filename))}: "
+              f"{error.strerror or error}", file=sys.stderr)
+        return 2
