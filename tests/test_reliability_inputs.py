@@ -339,13 +339,19 @@ BAD_VALUES = [
     (["sim", "serve", "--pace", "-1"], "pace"),
     (["sim", "serve", "--fault", "explode"], "explode"),
     (["no-such-command"], "invalid choice"),
+    # numpy's 'expected non-negative integer' traceback; a pace so slow its times overflowed,
+    # reported as an instrument fault (exit 3) with a campaign file left behind
+    (["run", "{sequence}", "--yes", "--out", "{missing}", "--sim-seed", "-1"], "--sim-seed"),
+    (["run", "{sequence}", "--yes", "--out", "{missing}", "--sim-pace", "1e-12"], "--sim-pace"),
+    (["run", "{sequence}", "--yes", "--out", "{missing}", "--sim-pace", "inf"], "--sim-pace"),
 ]
 
 
 @pytest.fixture
 def files(good_campaign: bytes, tmp_path: Path) -> dict[str, Path]:
     paths = {"file": tmp_path / "campaign.h5", "missing": tmp_path / "missing.h5",
-             "folder": tmp_path / "folder.h5", "text": tmp_path / "notes.txt"}
+             "folder": tmp_path / "folder.h5", "text": tmp_path / "notes.txt",
+             "sequence": Path(__file__).resolve().parents[1] / "sequences" / "paper.toml"}
     paths["file"].write_bytes(good_campaign)
     paths["folder"].mkdir()
     paths["text"].write_text("not a campaign = [\n")

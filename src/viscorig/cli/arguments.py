@@ -32,6 +32,32 @@ def positive_int(text: str) -> int:
     return value
 
 
+#: Simulated seconds per wall-clock second ``--sim-pace`` may ask for: a thousand times slower
+#: than real time (a paper campaign would take four months) to as fast as the computer allows.
+SIM_PACE_RANGE = (1e-3, 1e9)
+
+
+def sim_pace(text: str) -> float:
+    """An ``argparse`` type: the simulated rig's pace, within :data:`SIM_PACE_RANGE`."""
+    value = positive_number(text)
+    low, high = SIM_PACE_RANGE
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(f"must be {low:g} to {high:g} simulated seconds per "
+                                         f"second, got {text}")
+    return value
+
+
+def seed(text: str) -> int:
+    """An ``argparse`` type: a seed of the simulated rig's noise, 0 to 2**63 − 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"must be 0 to 2**63 - 1, got {text}")
+    return value
+
+
 #: Worker processes per core that ``--jobs`` may ask for: the fits are CPU-bound, so more run
 #: no faster, and local workers are forked all at once (a mistyped 99999 forked for minutes).
 JOBS_PER_CORE = 4

@@ -22,7 +22,7 @@ from viscorig.bench import BenchService
 from viscorig.benchcheck import assess, measure
 from viscorig.benchcheck.checks import RigFacts
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import port_number, positive_number
+from viscorig.cli.arguments import port_number, sim_pace
 from viscorig.cli.watch import open_in_browser
 from viscorig.errors import InputError, InstrumentError
 from viscorig.sequences import PromptStep, Sequence, load_station
@@ -67,7 +67,7 @@ def register(subparsers: Any) -> None:
                        help=f"TCP port (default {DEFAULT_SERVE_PORT}; 0: any free one)")
     serve.add_argument("--no-browser", action="store_true",
                        help="only serve and print the address; open no browser")
-    serve.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
+    serve.add_argument("--sim-pace", type=sim_pace, default=None, metavar="X",
                        help="embedded simulated rig only: simulated seconds per wall-clock "
                        "second (default: as fast as the computer allows)")
     serve.add_argument("--hold-resume", choices=("auto", "technician"), default=None,

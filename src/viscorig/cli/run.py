@@ -43,7 +43,7 @@ from viscorig.acquisition import (
 from viscorig.acquisition.notebox import NoteCarrier
 from viscorig.acquisition.terminal import PauseSignals, signal_help
 from viscorig.cli import summary_of
-from viscorig.cli.arguments import positive_number
+from viscorig.cli.arguments import seed, sim_pace
 from viscorig.cli.check import refuse
 from viscorig.cli.watch import live_view
 from viscorig.errors import InputError, InstrumentError
@@ -69,10 +69,10 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         "(as 'viscorig watch' does) and open it in the browser")
     parser.add_argument("--no-browser", action="store_true",
                         help="with --live: only print the live view's address")
-    parser.add_argument("--sim-pace", type=positive_number, default=None, metavar="X",
+    parser.add_argument("--sim-pace", type=sim_pace, default=None, metavar="X",
                         help="embedded simulated rig only: simulated seconds per wall-clock "
                         "second (default: as fast as the computer allows)")
-    parser.add_argument("--sim-seed", type=int, default=None, metavar="N",
+    parser.add_argument("--sim-seed", type=seed, default=None, metavar="N",
                         help="embedded simulated rig only: seed of its noise, for a campaign "
                         "that repeats exactly (default: fresh noise every run)")
     parser.add_argument("--holds", action="store_true",
