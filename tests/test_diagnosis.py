@@ -113,6 +113,19 @@ def test_fixture_mode_is_found_within_a_hertz() -> None:
     assert_at_floor_after(diagnosis)
 
 
+def test_a_mode_asked_for_far_above_the_band_is_diagnosed_not_refused(tmp_path) -> None:
+    """A mode at 100 kHz (a spec identify fits) stops at the top of its window on the hard
+    rubber; moving the window there built fixture(105000), past what a spec holds: 'fixture(F)
+    needs a frequency in Hz, got 105000.0' from a spec the user never wrote."""
+    from campaigndata import paper_campaign
+
+    from viscorig.diagnosis import diagnose_run
+
+    path = paper_campaign(tmp_path / "c.h5", runs=("table", "hard-10"))
+    diagnosis = diagnose_run(CampaignFile.open(path), "hard-10", "voigt+fixture(1e5)")
+    assert "fixture(100000)" in diagnosis.model  # its window left where it is
+
+
 def test_load_cell_compliance_is_found_from_eq4_against_eq5() -> None:
     diagnosis = single(rig_text(VOIGT, noise=QUIET, load_cell_n_per_m=2.0e6))
     assert top(diagnosis) == "load_cell_compliance"

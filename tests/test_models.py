@@ -83,6 +83,10 @@ def test_parameter_names_follow_the_design(spec: str, names: tuple[str, ...]) ->
         ("maxwell(1e999)", "whole number of arms 1..20, got inf"),
         # a frame lighter than the table was fitted into K_v = 0 ± 2.6e18 N/m
         ("voigt+frame(1e-3)", "frame(M) needs the frame's mass in kg, 1 to 1e+07, got 0.001"),
+        # 'needs a number in parentheses' for terms that take none
+        ("voigt+load_cell(x)", "term 'load_cell' takes no argument, got '(x)'"),
+        # a hundred local modes fitted for minutes
+        ("voigt" + "+fixture" * 13, "'fixture' is given 13 times; a model holds at most 12"),
     ],
 )
 def test_bad_specs_name_what_is_wrong(spec: str, words: str) -> None:
@@ -258,3 +262,8 @@ def test_modifiers_give_kstar_at_their_reference_without_their_covariate() -> No
     moved = parse_spec(spec).kstar(Context(f, np.full(3, 3600.0), np.full(3, 1.0),
                                            np.full(3, 35.0)), values)
     assert np.all(np.abs(moved / voigt - 1) > 0.05)
+
+
+def test_a_plus_inside_parentheses_is_the_number_s_not_a_join() -> None:
+    """'fixture(1e+2)' was split at its exponent's sign: 'malformed term'."""
+    assert parse_spec("voigt+fixture(1e+2)+load_cell").spec == "voigt+load_cell+fixture(100)"

@@ -352,7 +352,10 @@ def recentred_modes(result: FitResult, data: DiagnosisData) -> FitResult:
             lo, hi = term.frequency_bounds()
             narrow = result.values[names["zeta"]] < MODE_NARROW
             if narrow and min(f_n - lo, hi - f_n) < MODE_EDGE * f_n:
-                moved[term.spec] = (type(term)(float(f"{f_n:.4g}")).spec, names)
+                try:
+                    moved[term.spec] = (type(term)(float(f"{f_n:.4g}")).spec, names)
+                except InputError:  # a window centred there is none a mode may have
+                    continue
         if not moved:
             return result
         spec = "+".join([model.require_modulus().spec] + [

@@ -183,6 +183,9 @@ class Term:
         """Build the term from the text inside its parentheses in a spec (``None`` if none)."""
         if text is None:
             return cls()
+        if cls.__init__ is Term.__init__:
+            raise InputError(f"term '{cls.keyword}' takes no argument, got '({text})'",
+                             "model spec")
         try:
             value = float(text)
         except ValueError:

@@ -13,6 +13,11 @@ from viscorig.models.base import TERMS, Model, Term
 from viscorig.models.entry_points import load_entry_point_terms
 
 _TERM_PATTERN = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\(\s*([^()]*?)\s*\))?\s*$")
+#: A ``+`` that joins terms: not one inside parentheses (``fixture(1e+2)``).
+_JOIN = re.compile(r"\+(?![^()]*\))")
+#: Copies of one repeatable term (local modes) a model may hold: far more than a band shows
+#: (the paper's rig has three), and each copy costs every fit a few parameters more.
+MAX_COPIES = 12
 
 
 def parse_spec(spec: str) -> Model:
@@ -26,7 +31,7 @@ def parse_spec(spec: str) -> Model:
     if not isinstance(spec, str) or not spec.strip():
         raise InputError("empty model spec", "model spec")
     terms: list[Term] = []
-    for part in spec.split("+"):
+    for part in _JOIN.split(spec):
         match = _TERM_PATTERN.match(part)
         if match is None:
             raise InputError(f"malformed term '{part.strip()}' in '{spec}'", "model spec")
@@ -40,6 +45,10 @@ def parse_spec(spec: str) -> Model:
                     "model spec",
                 )
         terms.append(TERMS[keyword].from_argument(argument or None))
+        copies = sum(term.keyword == keyword for term in terms)
+        if copies > MAX_COPIES:
+            raise InputError(f"'{keyword}' is given {copies} times; a model holds at most "
+                             f"{MAX_COPIES}", "model spec")
     model = Model(terms)
     if model.modulus_term is None:
         moduli = ", ".join(k for k, cls in TERMS.items() if cls.kind == "modulus")
