@@ -246,3 +246,23 @@ def test_a_full_fits_group_refuses_one_more_and_the_file_still_reads(campaign: P
                                  reduced_chi_square=1.0, points=10, parameters=parameters)
     assert _digest(campaign) == before
     assert CampaignFile.open(campaign).run(RUNS[0]).points == FREQUENCY_HZ.size
+
+
+@pytest.mark.parametrize(("attribute", "value", "said"), [
+    ("specimen", "other", "differ in specimen ('filled' and 'other')"),
+    ("preload_strain", 0.104, "differ in preload (0.0 and 0.104)"),
+    ("temperature_c", 40.0, "differ in temperature (25.0 and 40.0)"),
+    ("level_m_per_s2", None, "are both at"),
+])
+def test_runs_of_other_specimens_or_one_level_are_refused(
+        campaign: Path, capsys: pytest.CaptureFixture[str], attribute: str, value, said: str
+) -> None:
+    """Runs of two specimens (or one specimen at two preloads) were fitted as one specimen's
+    strain dependence: a Payne fit of reduced chi-square 9e7, printed and stored."""
+    with h5py.File(campaign, "r+") as h5:
+        first, second = h5[f"runs/{RUNS[0]}"], h5[f"runs/{RUNS[1]}"]
+        second.attrs[attribute] = value if value is not None else first.attrs[attribute]
+    before = _digest(campaign)
+    assert main(_arguments(campaign)) == 2
+    assert said in capsys.readouterr().err
+    assert _digest(campaign) == before

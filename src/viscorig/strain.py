@@ -120,6 +120,43 @@ def _level(campaign: CampaignFile, name: str, band_hz: tuple[float, float] | Non
     return _Level(name, f[keep], dynamic[keep], sigma[keep], displacement[keep])
 
 
+#: Runs whose temperatures differ by more than this are two material states, K.
+SAME_TEMPERATURE_K = 1.0
+
+
+def _one_specimen_at_several_levels(campaign: CampaignFile, runs: list[str]) -> None:
+    """Refuse runs of different specimens (text, hardness, preload, temperature beyond
+    :data:`SAME_TEMPERATURE_K`) or two at one level: their differences would be fitted as a
+    strain dependence."""
+    metadata = {name: campaign.run_metadata(name) for name in runs}
+    first, reference = runs[0], metadata[runs[0]]
+
+    def same(a: object, b: object, tolerance: float = 0.0) -> bool:
+        if isinstance(a, float) and isinstance(b, float):
+            return (math.isnan(a) and math.isnan(b)) or abs(a - b) <= tolerance
+        return a == b
+
+    for name in runs[1:]:
+        other = metadata[name]
+        for attribute, words, tolerance in (
+                ("specimen", "specimen", 0.0), ("hardness_shore_a", "hardness", 0.0),
+                ("preload_strain", "preload", 0.0),
+                ("temperature_c", "temperature", SAME_TEMPERATURE_K)):
+            a, b = getattr(reference, attribute), getattr(other, attribute)
+            if not same(a, b, tolerance):
+                raise InputError(f"runs '{first}' and '{name}' differ in {words} ({a!r} and "
+                                 f"{b!r}): the Payne effect is fitted from one specimen at "
+                                 "several levels", "runs")
+    by_level: dict[float, str] = {}
+    for name in runs:
+        level = metadata[name].level_m_per_s2
+        if level in by_level:
+            raise InputError(f"runs '{by_level[level]}' and '{name}' are both at {level:g} "
+                             "m/s^2: the Payne effect is fitted between different levels",
+                             "runs")
+        by_level[level] = name
+
+
 def identify_payne(campaign: CampaignFile, runs: Sequence[str],
                    band_hz: tuple[float, float] | None = None) -> PayneFit:
     """Identify Kraus's Payne-effect parameters from runs of one specimen at several levels
@@ -143,6 +180,7 @@ def identify_payne(campaign: CampaignFile, runs: Sequence[str],
 
     if len(set(runs)) < 2:
         raise InputError("needs two or more runs at different levels", "runs")
+    _one_specimen_at_several_levels(campaign, list(dict.fromkeys(runs)))
     levels = [_level(campaign, name, band_hz) for name in dict.fromkeys(runs)]
     levels.sort(key=lambda level: float(np.median(level.displacement_m)))
     x, differences, whitening, frequency = _aligned(levels, str(campaign.path))
