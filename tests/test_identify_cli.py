@@ -465,3 +465,17 @@ def test_a_term_that_needs_what_some_points_lack_is_refused_in_one_line(
     assert "Warning" not in error
     needing = model.split("+")[1]
     assert [f["model"] for f in json.loads(out)["findings"] if needing in f["model"]] == []
+
+
+def test_a_bare_table_fit_that_determines_no_mass_is_refused(tmp_path: Path,
+                                                             capsys) -> None:
+    """A frame of 1 kg under a 3.4 kg table left M_s = 0.0 ± 1.1 kg, which every specimen
+    fit then held fixed: K_v = 0 ± 2.2e9 N/m printed as the result."""
+    from campaigndata import paper_campaign
+
+    path = paper_campaign(tmp_path / "c.h5", runs=("table", "soft-0"))
+    assert main(["identify", str(path), "--run", "soft-0", "--table-model",
+                 "table+frame(1)", "--no-store"]) == 2
+    err = capsys.readouterr().err
+    assert "the bare-table fit (table+frame(1)) leaves M_s undetermined" in err, err
+    assert main(["identify", str(path), "--run", "soft-0", "--no-store"]) == 0

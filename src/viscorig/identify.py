@@ -31,7 +31,7 @@ from viscorig.estimates import (
 from viscorig.estimates import system_properties as voigt_system_properties
 from viscorig.fitting import MISFIT_RATIO, FitResult, FrfData, Known, fit
 from viscorig.models import parse_spec
-from viscorig.numbers import Estimate
+from viscorig.numbers import Estimate, with_uncertainty
 from viscorig.rig import RigDescription
 from viscorig.storage import INPUT_OVERLOAD, CampaignFile, FitRecord, RunMetadata, RunRecord
 
@@ -111,6 +111,11 @@ class TableSource:
         return Known.exact(self.values, self.source)
 
 
+#: A bare-table fit whose M_s or K_s has a larger relative standard error than this has not
+#: determined it (a bare table's resonance gives both to well under 1 %).
+TABLE_RELATIVE_STDERR_MAX = 0.1
+
+
 def table_parameters(campaign: CampaignFile, spec: str = "table") -> TableSource | None:
     """The table's ``M_s, K_s, C_s``: from a bare-table run, else ``/rig``, else ``None``.
 
@@ -130,6 +135,14 @@ def table_parameters(campaign: CampaignFile, spec: str = "table") -> TableSource
         if run.points:
             result = fit(model, run_data(run), weighting="noise")
             values = {n: result.values[n] for n in TABLE_NAMES}
+            for n in ("M_s", "K_s"):  # what every specimen fit holds fixed: known, or refused
+                value, stderr = values[n], result.stderr.get(n, math.nan)
+                if not (value > 0 and stderr < TABLE_RELATIVE_STDERR_MAX * value):
+                    raise InputError(
+                        f"the bare-table fit ({model.spec}) leaves {n} undetermined "
+                        f"({with_uncertainty(value, stderr)} {model.by_name[n].unit}): no "
+                        "specimen fit can hold it fixed; fit the table with another model",
+                        f"run '{name}'")
             return TableSource(values, f"run '{name}'", result)
     rig = RigDescription.from_attributes(campaign.rig)
     if rig.table is not None:

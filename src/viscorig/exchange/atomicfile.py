@@ -29,7 +29,8 @@ def _create(path: Path) -> tuple[int, Path]:
     if not path.name or path.name in (".", ".."):
         raise InputError("names no file", str(path) or "''")
     try:
-        if path.exists() and not path.is_file():
+        # (over a folder the rename fails, and says so)
+        if path.exists() and not path.is_file() and not path.is_dir():
             raise InputError("exists and is not a file: it would be replaced by one, not "
                              "written to", str(path))
     except OSError as error:
