@@ -255,3 +255,12 @@ def test_a_band_below_the_analyser_s_lowest_frequency_is_refused_by_check():
     assert "defaults.band_hz: [1e-300, 1e-299] Hz must satisfy 0.015625 <= low < high <= " \
         "25600" in str(caught.value)
     assert parse(change(document(), "defaults.band_hz", [0.015625, 2.015625])).sweeps
+
+
+@pytest.mark.parametrize(("value", "example"), [
+    (2.0, '"2 m/s^2"'), (math.nan, '"1.4 m/s^2"'), (-1.0, '"1.4 m/s^2"'),
+    (math.inf, '"1.4 m/s^2"')])
+def test_a_level_without_its_unit_is_shown_how_to_write_it(value: float, example: str) -> None:
+    """'level = nan' was told to write "nan m/s^2", which is refused in its turn."""
+    with pytest.raises(ValueError, match=re.escape(f"e.g. {example}, not")):
+        parse_level(value)

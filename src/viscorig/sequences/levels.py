@@ -88,8 +88,8 @@ def parse_level(text: str) -> float:
     1.4
     """
     if not isinstance(text, str):
-        shown = f"\"{text:g} m/s^2\"" if isinstance(text, int | float) and not isinstance(
-            text, bool) else "\"1.4 m/s^2\""
+        number = isinstance(text, int | float) and not isinstance(text, bool)
+        shown = f"\"{text:g} m/s^2\"" if number and 0 < text < math.inf else "\"1.4 m/s^2\""
         raise ValueError(f"a level is text with its unit, e.g. {shown}, not {quoted(text)}")
     match = _LEVEL.match(text)
     if match is None:
