@@ -39,6 +39,17 @@ def flood(request, allowed: set[int], served_code: int) -> None:
     assert 429 in codes, (len(codes), spent)
 
 
+def start_measuring(owner: Client) -> None:
+    """Queue small.toml into run.h5, start it, answer its prompt; return once it measures."""
+    assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
+                      ).status_code == 200
+    assert owner.post("/api/start").status_code == 200
+    prompt = wait_until(lambda: owner.state()["prompt"], what="a prompt")
+    assert owner.post("/api/answer", {"prompt_id": prompt["id"], "answer": "done"}
+                      ).status_code == 200
+    wait_until(lambda: owner.state()["points_done"] > 0, what="measuring")
+
+
 def refuse_everything(server, owner: Client) -> None:
     """Every refusal, one after another; ``owner`` controls the bench already."""
     with httpx.Client(base_url=server.base, timeout=10.0) as anyone:
@@ -119,13 +130,7 @@ def test_refusals_leave_a_run_unharmed(tmp_path) -> None:
     small_sequence(tmp_path)
     with bench_server(tmp_path, sim_pace=60.0) as server:
         owner = Client(server, "owner")
-        assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
-                          ).status_code == 200
-        assert owner.post("/api/start").status_code == 200
-        prompt = wait_until(lambda: owner.state()["prompt"], what="a prompt")
-        assert owner.post("/api/answer", {"prompt_id": prompt["id"], "answer": "done"}
-                          ).status_code == 200
-        wait_until(lambda: owner.state()["points_done"] > 0, what="measuring")
+        start_measuring(owner)
         refuse_everything(server, owner)
         assert owner.state()["state"] in ("measuring", "complete")
         final = wait_until(lambda: (s := owner.state())["state"] not in (
@@ -244,13 +249,7 @@ def test_a_pause_is_answered_while_a_queued_sequence_is_planned(tmp_path) -> Non
     small_sequence(tmp_path)
     with bench_server(tmp_path, sim_pace=60.0) as server:
         owner = Client(server, "owner")
-        assert owner.post("/api/queue", {"sequence": "small.toml", "out": "run.h5"}
-                          ).status_code == 200
-        assert owner.post("/api/start").status_code == 200
-        prompt = wait_until(lambda: owner.state()["prompt"], what="a prompt")
-        assert owner.post("/api/answer", {"prompt_id": prompt["id"], "answer": "done"}
-                          ).status_code == 200
-        wait_until(lambda: owner.state()["points_done"] > 0, what="measuring")
+        start_measuring(owner)
         with ThreadPoolExecutor(1) as beside:
             started = time.monotonic()
             queued = beside.submit(owner.post, "/api/queue",

@@ -77,16 +77,21 @@ def test_a_stored_fit_reads_back_as_the_fit_the_file_keeps(tmp_path: Path, run, 
     assert stored.fits_noise == result.fits_noise
 
 
+def _three_points(path: Path) -> CampaignFile:
+    """A campaign file with a run 'soft-0' of three points, open to add fits."""
+    campaign = CampaignFile.create(path, sequence_text="", durable=False)
+    settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
+                           settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
+                           simulated=True)
+    f = np.linspace(20.0, 30.0, 3)
+    campaign.add_run("soft-0", settings, Segment(
+        f, f, np.ones(3, complex), np.ones(3, complex), np.ones(3), np.ones(3),
+        np.ones(3), np.zeros(3, np.uint16)))
+    return campaign
+
+
 def test_a_stored_fit_that_is_not_whole_is_refused_in_one_line(tmp_path: Path):
-    path = tmp_path / "c.h5"
-    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
-        settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
-                               settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
-                               simulated=True)
-        f = np.linspace(20.0, 30.0, 3)
-        campaign.add_run("soft-0", settings, Segment(
-            f, f, np.ones(3, complex), np.ones(3, complex), np.ones(3), np.ones(3),
-            np.ones(3), np.zeros(3, np.uint16)))
+    with _three_points(tmp_path / "c.h5") as campaign:
         campaign.add_fit("soft-0", model="voigt", band_hz=(20.0, 30.0), rms_error=0.01,
                          noise_floor=0.01, parameters={"K_v": (1e5, 1e3, "N/m")})
         campaign.add_fit("soft-0", model="voigt(3)", band_hz=(20.0, 30.0), rms_error=0.01,
@@ -106,15 +111,7 @@ def test_a_stored_fit_that_is_not_whole_is_refused_in_one_line(tmp_path: Path):
 ])
 def test_a_stored_fit_with_a_value_of_the_wrong_sign_is_refused(
         tmp_path: Path, name: str, value: float, said: str) -> None:
-    path = tmp_path / "c.h5"
-    with CampaignFile.create(path, sequence_text="", durable=False) as campaign:
-        settings = RunSettings(specimen="soft", level_m_per_s2=1.0, direction="up",
-                               settle_cycles=100, integrate_cycles=100, resolution_hz=1.0,
-                               simulated=True)
-        f = np.linspace(20.0, 30.0, 3)
-        campaign.add_run("soft-0", settings, Segment(
-            f, f, np.ones(3, complex), np.ones(3, complex), np.ones(3), np.ones(3),
-            np.ones(3), np.zeros(3, np.uint16)))
+    with _three_points(tmp_path / "c.h5") as campaign:
         parameters = {"K_v": (1e5, 1e3, "N/m"), "C_v": (50.0, 1.0, "N·s/m"),
                       "M_v": (0.07, 0.01, "kg"), "M_s": (3.4, 0.01, "kg"),
                       "K_s": (5e4, 1.0, "N/m"), "C_s": (5.0, 0.1, "N·s/m")}

@@ -21,12 +21,16 @@ def positive_number(text: str) -> float:
     return value
 
 
+def _integer(text: str, noun: str = "a whole number") -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+
+
 def positive_int(text: str) -> int:
     """An ``argparse`` type: a whole number of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = _integer(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
@@ -49,10 +53,7 @@ def sim_pace(text: str) -> float:
 
 def seed(text: str) -> int:
     """An ``argparse`` type: a seed of the simulated rig's noise, 0 to 2**63 − 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = _integer(text)
     if not 0 <= value < 2**63:
         raise argparse.ArgumentTypeError(f"must be 0 to 2**63 - 1, got {text}")
     return value
@@ -75,10 +76,7 @@ def job_count(text: str) -> int:
 
 def port_number(text: str) -> int:
     """An ``argparse`` type: a TCP port, 0 for any free one."""
-    try:
-        port = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
+    port = _integer(text, "a port number")
     if not 0 <= port <= 65535:
         raise argparse.ArgumentTypeError(f"must be 0-65535, got {port}")
     return port
