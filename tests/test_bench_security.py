@@ -281,3 +281,25 @@ def test_campaign_files_are_written_in_the_bench_folder_only(tmp_path, out) -> N
                                          "out": "sub.h5"}).status_code == 200
         owner.close()
     assert not (tmp_path / "run.h5").exists()
+
+
+@pytest.mark.parametrize("request_bytes", [
+    b"GET /api/state HTTP/1.1\r\n\r\n",  # no Host
+    b"POST /api/notes HTTP/1.1\r\nHost: x\r\nContent-Length: ten\r\n\r\n",
+    b"NOT HTTP AT ALL\r\n\r\n",
+])
+def test_a_request_that_is_not_http_is_refused_in_json(tmp_path, request_bytes) -> None:
+    """uvicorn answered these with a plain-text 'Invalid HTTP request received.'"""
+    import json
+    import socket
+
+    with (bench_server(tmp_path) as server,
+          socket.create_connection(("127.0.0.1", server.port), timeout=5) as connection):
+        connection.sendall(request_bytes)
+        answer = b""
+        while chunk := connection.recv(4096):
+            answer += chunk
+    head, _, body = answer.partition(b"\r\n\r\n")
+    assert head.startswith(b"HTTP/1.1 400") and b"application/json" in head.lower(), head
+    message = json.loads(body)["error"]
+    assert message.startswith("not a valid HTTP request") and "\n" not in message

@@ -446,6 +446,20 @@ def _protocol() -> type:
             if waiting and not self.transport.is_closing():
                 self.transport.close()
 
+        def send_400_response(self, msg: str) -> None:
+            # a request that is not HTTP (no Host, a malformed Content-Length): refused in the
+            # JSON every other refusal is written in, not uvicorn's plain text
+            import h11
+
+            body = json.dumps({"error": f"not a valid HTTP request ({' '.join(msg.split())})"}
+                              ).encode()
+            headers = [(b"content-type", b"application/json"), (b"connection", b"close"),
+                       (b"content-length", str(len(body)).encode())]
+            for event in (h11.Response(status_code=400, headers=headers, reason=b"Bad Request"),
+                          h11.Data(data=body), h11.EndOfMessage()):
+                self.transport.write(self.conn.send(event))
+            self.transport.close()
+
     return Protocol
 
 
