@@ -6,10 +6,16 @@ and E'' together, each residual ``ln(model/measured)`` divided by that modulus's
 (its relative error). For ``N = 1, 2, ...`` terms, a non-negative least-squares solve on
 log-spaced ``τ_i`` starts a nonlinear fit of every ``E_i, τ_i`` (in logs, so all stay positive),
 bounded (:func:`prony_bounds`): every ``τ_i`` within the relaxation times the reduced
-frequencies support, ``1/ω_max`` to a decade beyond ``1/ω_min``, every modulus at most
-:data:`MODULUS_CAP` times the largest measured one. (A term faster than ``1/ω_max`` adds only
-``E_i ω τ_i`` to the loss there: the data fix the product, so the faster the term, the larger its
-modulus, and the instantaneous modulus grows without any point asking for it.) Unbounded, a
+frequencies support, ``1/(2 ω_max)`` to a decade beyond ``1/ω_min``, every modulus at most
+:data:`MODULUS_CAP` times the largest measured one. (A term much faster than ``1/ω_max`` adds
+only ``E_i ω τ_i`` to the loss there: the data fix the product, so the faster the term, the
+larger its modulus, and the instantaneous modulus grows without any point asking for it. One
+whose loss peak lies within an octave above ``ω_max`` still shows its flank in the data; stopped
+at ``1/ω_max``, a series could not follow a spectrum that goes on past the window, and the
+shifts, refined with it, took its misfit: on sweeps generated from a 12-term series with 0.1 %
+noise every shift but the reference's was off by 0.02 to 0.08 decade, up to 9 standard errors,
+and the master curve 11 % (E′) and 14 % (E″) off inside the measured range, where now the shifts
+are within 0.003 decade and 1.2 standard errors and the curve within 0.5 %.) Unbounded, a
 term the data do not hold runs away (``τ = 1e-77 s``, ``E = 1e71 Pa`` from six sweeps), and
 where it stopped depended on overflowing trial steps of the Levenberg-Marquardt solver, whose
 next step after one was not repeatable from one process to the next (the same residuals and
@@ -36,9 +42,12 @@ from viscorig.models import Context
 from viscorig.models.modulus import Fractional
 
 MAX_TERMS = 24
-#: How far (a factor) beyond ``1/ω_min`` of the data a relaxation time may go (slow end; the
-#: fast end stops at ``1/ω_max``, see the module text).
+#: How far (a factor) beyond ``1/ω_min`` of the data a relaxation time may go (slow end) ...
 TAU_MARGIN = 10.0
+#: ... and below ``1/ω_max`` (fast end): a term whose loss peak lies up to an octave above the
+#: fastest reduced frequency still shows the flank of that peak in the data (see the module
+#: text).
+FAST_MARGIN = 2.0
 #: Largest modulus of any term (and the long-term one), times the largest measured ``|E*|``.
 MODULUS_CAP = 10.0
 #: Smallest, times the same: a floor for the logs (such a term carries nothing).
@@ -123,7 +132,7 @@ def tau_span(omega: ArrayLike) -> tuple[float, float]:
     """The relaxation times a series fitted at angular frequencies ``omega`` may take (s):
     ``1/ω_max`` to ``1/ω_min`` widened by :data:`TAU_MARGIN`."""
     omega = np.asarray(omega, dtype=float)
-    return 1.0 / float(omega.max()), TAU_MARGIN / float(omega.min())
+    return 1.0 / (FAST_MARGIN * float(omega.max())), TAU_MARGIN / float(omega.min())
 
 
 def prony_bounds(omega: ArrayLike, storage: ArrayLike, loss: ArrayLike,
