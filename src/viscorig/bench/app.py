@@ -451,8 +451,8 @@ def _protocol() -> type:
             # JSON every other refusal is written in, not uvicorn's plain text
             import h11
 
-            body = json.dumps({"error": f"not a valid HTTP request ({' '.join(msg.split())})"}
-                              ).encode()
+            reason = " ".join(msg.split())
+            body = jsontext.dumps({"error": f"not a valid HTTP request ({reason})"}).encode()
             headers = [(b"content-type", b"application/json"), (b"connection", b"close"),
                        (b"content-length", str(len(body)).encode())]
             for event in (h11.Response(status_code=400, headers=headers, reason=b"Bad Request"),
