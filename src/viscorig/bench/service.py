@@ -14,7 +14,6 @@ import contextlib
 import itertools
 import math
 import threading
-import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from viscorig.stations.forecasting import sequence_forecast, simulated_floors
 from viscorig.stations.opening import open_station, runner_options, station_holds
 from viscorig.storage import CampaignFile
 from viscorig.storage.journal import MAX_TEXT
+from viscorig.storage.text import first_control
 
 __all__ = ["API_STATES", "BenchError", "BenchService", "QueueItem"]
 
@@ -405,8 +405,7 @@ class BenchService:
             raise BenchError("text: the note, not empty", 400)
         if len(text) > MAX_TEXT:
             raise BenchError(f"text: {len(text)} characters; at most {MAX_TEXT}", 400)
-        control = next((c for c in text if unicodedata.category(c) == "Cc" and c not in "\n\t"),
-                       None)
+        control = first_control(text)
         if control is not None:
             raise BenchError(f"text: holds the control character {control!r}; a note holds "
                              "text, line breaks and tabs", 400)

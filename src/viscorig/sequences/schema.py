@@ -22,6 +22,7 @@ from viscorig.sequences import segments
 from viscorig.sequences.levels import parse_level
 from viscorig.sequences.problems import Path, Problems, did_you_mean, quoted
 from viscorig.storage import layout
+from viscorig.storage.text import first_control
 
 #: A day: the longest dwell, wait, retry or time constant a sequence may set.
 LONGEST_S = 86_400.0
@@ -147,7 +148,7 @@ class Field:
             raise FieldError("must not be empty")
         if len(value) > MAX_TEXT_CHARACTERS:
             raise FieldError(f"{len(value)} characters; at most {MAX_TEXT_CHARACTERS}")
-        control = next((c for c in value if (c < " " and c not in "\n\t") or c == "\x7f"), None)
+        control = first_control(value)
         if control is not None:
             raise FieldError(f"holds the control character U+{ord(control):04X} at "
                              f"{value.index(control) + 1}", "text, line breaks and tabs only")

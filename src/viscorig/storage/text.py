@@ -38,3 +38,10 @@ def printable(text: str, *, keep: str = "") -> str:
         char for char in text
         if char in keep or unicodedata.category(char) not in _UNSAFE_CATEGORIES
     )
+
+
+def first_control(text: str, *, allowed: str = "\n\t") -> str | None:
+    """The first control character of ``text`` (C0, DEL, C1) other than ``allowed``, or
+    ``None``: what a text field written by a person may not hold."""
+    return next((char for char in text
+                 if char not in allowed and unicodedata.category(char) == "Cc"), None)
