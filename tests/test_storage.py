@@ -464,7 +464,7 @@ def damage(path: Path, how: str) -> str:
                 "at most 10000"
         if how == "cycles past any run":
             run.attrs["settle_cycles"] = np.int64(2**62)
-            return "/runs/soft-0.settle_cycles: 4611686018427387904; needs a finite number " \
+            return "/runs/soft-0.settle_cycles: 4611686018427387904; needs a whole number " \
                 "at least 0 and at most 1e+09"
         if how == "resolution past any analyser":
             run.attrs["resolution_hz"] = 1e308

@@ -36,9 +36,10 @@ DIRECTIONS = ("up", "down")
 
 @dataclass(frozen=True)
 class NumberRange:
-    """The values a run attribute that is a number may hold: from ``low`` (excluded when
-    ``low_open``) to ``high``, a whole number when ``integer``; NaN ("unknown") for the others.
-    The bounds lie beyond any rig, so that only a damaged number falls outside."""
+    """The values a numeric attribute (of a run, of ``/rig``) may hold: from ``low`` (excluded
+    when ``low_open``) to ``high``, a whole number when ``integer``, NaN ("unknown") otherwise.
+    The bounds lie beyond any rig, so that only a damaged number falls outside; the reader and
+    the writer both test with :meth:`holds`."""
 
     low: float
     high: float

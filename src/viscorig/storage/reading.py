@@ -139,24 +139,19 @@ def text_attribute(obj: h5py.HLObject, name: str, path: Path) -> str:
 
 
 @overload
-def read_number(
-    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[True],
-    low: float | None = None, high: float | None = None, low_open: bool = False,
-) -> int: ...
+def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[True],
+                held: layout.NumberRange | None = None) -> int: ...
 
 
 @overload
-def read_number(
-    obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[False] = False,
-    low: float | None = None, high: float | None = None, low_open: bool = False,
-) -> float: ...
+def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: Literal[False] = False,
+                held: layout.NumberRange | None = None) -> float: ...
 
 
 def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = False,
-                low: float | None = None, high: float | None = None,
-                low_open: bool = False) -> float:
-    """A numeric scalar attribute (NaN allowed for floats); with ``low`` or ``high``, a finite
-    value within them (above ``low`` with ``low_open``)."""
+                held: layout.NumberRange | None = None) -> float:
+    """A numeric scalar attribute (NaN allowed for floats); with ``held``, one of the values it
+    holds (:meth:`~.layout.NumberRange.holds`, the writer's test too)."""
     value = attribute(obj, name, path)
     problem = None
     if value is None:
@@ -165,13 +160,8 @@ def read_number(obj: h5py.HLObject, name: str, path: Path, *, integer: bool = Fa
         problem = f"not a number ({type(value).__name__})"
     elif integer and (not math.isfinite(value) or value != int(value)):
         problem = f"not a whole number ({value!r})"
-    elif (low is not None or high is not None) and not math.isnan(value) and not (
-            math.isfinite(value)
-            and (low is None or value > low or (value == low and not low_open))
-            and (high is None or value <= high)):
-        lower = "" if low is None else f"{'above' if low_open else 'at least'} {low:g}"
-        upper = "" if high is None else f"at most {high:g}"
-        problem = f"{value!r}; needs a finite number {' and '.join(filter(None, (lower, upper)))}"
+    elif held is not None and not held.holds(float(value)):
+        problem = f"{value!r}; needs {held.describe()}"
     if problem is not None:
         raise InputError(problem, f"{path}: {obj.name}.{name}")
     return int(value) if integer else float(value)
@@ -261,8 +251,8 @@ def _number(obj: h5py.HLObject, name: str, path: Path, held: layout.NumberRange
             ) -> int | float:
     """A numeric attribute within ``held``."""
     if held.integer:
-        return read_number(obj, name, path, integer=True, low=held.low, high=held.high)
-    return read_number(obj, name, path, low=held.low, high=held.high, low_open=held.low_open)
+        return read_number(obj, name, path, integer=True, held=held)
+    return read_number(obj, name, path, held=held)
 
 
 def read_metadata(group: h5py.Group, path: Path) -> RunMetadata:
