@@ -327,6 +327,8 @@ def test_bad_import_is_one_line_exit_2_and_leaves_the_campaign_unchanged(
     ("--preload-strain", "0.6", "--preload-strain: 0.6 is outside 0..0.5"),
     ("--preload-strain", "nan", "--preload-strain: nan is not a number"),
     ("--level", "-1", "--level: -1.0 must be a positive number"),
+    # read past the option's check, then refused by the writer under its attribute's name
+    ("--level", "1e5", "--level: 100000.0 must be a positive number, at most 10000 m/s^2"),
 ])
 def test_an_imported_run_s_options_are_held_to_a_sequence_s_bounds(
     campaign_file: Path, tmp_path: Path, capsys, option: str, value: str, message: str

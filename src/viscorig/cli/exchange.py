@@ -49,7 +49,7 @@ from viscorig.materials.dmafile import read_dma_file
 from viscorig.materials.dmastore import import_dma
 from viscorig.sequences import load_station
 from viscorig.sequences.schema import SWEEP, TEMPERATURE
-from viscorig.storage import CampaignFile
+from viscorig.storage import CampaignFile, layout
 
 
 def _paragraph(index: int) -> str:
@@ -217,8 +217,10 @@ def _check_run_options(args: argparse.Namespace) -> None:
     """The run's options within the bounds a sequence holds a run's to (a sweep step's
     hardness and preload, a temperature step's set point: a run measured in a chamber records
     that), NaN where an option is not given (unknown), before any file is read."""
-    if not (math.isnan(args.level) or (math.isfinite(args.level) and args.level > 0)):
-        raise InputError(f"{args.level} must be a positive number", "--level")
+    level = layout.RUN_NUMBERS["level_m_per_s2"]  # the bounds the campaign file keeps
+    if not level.holds(args.level):
+        most = "" if args.level <= 0 else f", at most {level.high:g} m/s^2"
+        raise InputError(f"{args.level} must be a positive number{most}", "--level")
     if math.isnan(args.preload_strain):  # (0 when not given)
         raise InputError("nan is not a number", "--preload-strain")
     for option, value, field in (
