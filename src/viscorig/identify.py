@@ -293,9 +293,9 @@ def read_fit(record: FitRecord) -> FitResult:
         parameter, value = model.by_name[name], values[name]
         if value < 0 <= parameter.lower or (parameter.log and value <= 0):
             floor = "above" if parameter.log else "at least"
-            raise InputError(f"stored fit {record.id} gives {name} = {value:g} "
-                             f"{parameter.unit}, which is {floor} 0 in every "
-                             f"{record.model} model".replace("  ", " "), where)
+            shown = f"{value:g} {parameter.unit}".rstrip()
+            raise InputError(f"stored fit {record.id} gives {name} = {shown}, which is {floor} 0 "
+                             f"in every {record.model} model", where)
     known = {name: float(p.stderr) for name, p in record.parameters.items()
              if math.isfinite(p.stderr) and p.stderr > 0}
     names = tuple(known)

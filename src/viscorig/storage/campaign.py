@@ -598,10 +598,7 @@ class CampaignFile:
             The new fit's id.
         """
         where = f"{self.path}: fit of {run_name}"
-        lo, hi = (float(value) for value in band_hz)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi <= FREQUENCY_RANGE_HZ[1]):
-            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo < hi <= "
-                             f"{FREQUENCY_RANGE_HZ[1]:g} Hz", where)
+        lo, hi = _checked_band(band_hz, where, same=False)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
         checked, names, matrix = _checked_parameters(parameters, correlation, where)
@@ -654,10 +651,7 @@ class CampaignFile:
         names = tuple(check_name(run, f"{where}: run") for run in runs)
         if len(set(names)) < 2:
             raise InputError("a joint fit names two or more runs", where)
-        lo, hi = (float(value) for value in band_hz)
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo <= hi <= FREQUENCY_RANGE_HZ[1]):
-            raise InputError(f"band_hz {band_hz!r} is not 0 <= lo <= hi <= "
-                             f"{FREQUENCY_RANGE_HZ[1]:g} Hz", where)
+        lo, hi = _checked_band(band_hz, where, same=True)
         if not isinstance(model, str) or not model.strip():
             raise InputError("model spec is empty", where)
         checked, order, matrix = _checked_parameters(parameters, correlation, where)
@@ -816,6 +810,20 @@ def _write_fit(fits: h5py.Group, where: str, attributes: Mapping[str, object],
         dataset.attrs["parameters"] = " ".join(names)  # one text: names hold no space
         dataset.attrs["units"] = "1"
     return fit_id
+
+
+def _checked_band(band_hz: tuple[float, float], where: str, *, same: bool
+                  ) -> tuple[float, float]:
+    """``band_hz`` as ``(lo, hi)``, refused unless finite with ``0 <= lo < hi`` (``lo <= hi``
+    when ``same``: a fit of several runs at one frequency) and ``hi`` within
+    :data:`~viscorig.frf.FREQUENCY_RANGE_HZ`."""
+    lo, hi = (float(value) for value in band_hz)
+    ordered = lo <= hi if same else lo < hi
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo >= 0 and ordered
+            and hi <= FREQUENCY_RANGE_HZ[1]):
+        raise InputError(f"band_hz {band_hz!r} is not 0 <= lo {'<=' if same else '<'} hi <= "
+                         f"{FREQUENCY_RANGE_HZ[1]:g} Hz", where)
+    return lo, hi
 
 
 def _checked_parameters(parameters: Mapping[str, tuple[float, float, str]],
