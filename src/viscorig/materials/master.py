@@ -21,14 +21,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from viscorig.errors import InputError
-from viscorig.materials.joint import refine_jointly
+from viscorig.materials.joint import JointFit, refine_jointly
 from viscorig.materials.kkcheck import KramersKronigCheck, check_kramers_kronig
 from viscorig.materials.prony import (
+    MAX_TERMS,
+    SCATTER_MARGIN,
     FractionalModel,
     ModelFit,
     PronySeries,
     fit_fractional,
     fit_prony,
+    fit_prony_terms,
     model_fit,
 )
 from viscorig.materials.shift import (
@@ -123,6 +126,16 @@ class MasterCurve:
     vertical: str = "none"
     alternative_scatter: tuple[float, float] | None = None
     expansion_per_k: float = 0.0
+
+    def scatter_text(self) -> str:
+        """The scatter the Prony series was judged against, in words: the data's about the
+        spline master curve, or that scatter named as the spline's own misfit where terms were
+        added past it (:func:`_more_terms`)."""
+        values = f"{self.shifts.storage_scatter:.3f}, {self.shifts.loss_scatter:.3f}"
+        if any(entry.get("shifts_refined") for entry in self.ladder):
+            return (f"scatter about the spline master curve {values}, mostly the spline's own "
+                    "misfit: terms added, the shifts refined with them, while BIC fell")
+        return f"data scatter {values}"
 
     def vertical_verdict(self) -> str:
         """Whether the data superpose better with the other vertical shift, in one sentence."""
@@ -233,9 +246,7 @@ class MasterCurve:
                      f"{master.prony.long_term_modulus_pa:.4g} Pa, {m}_0 = "
                      f"{master.prony.instantaneous_modulus_pa:.4g} Pa; rms log error "
                      f"storage {prony_fit.storage_rms_log_error:.3f}, "
-                     f"loss {prony_fit.loss_rms_log_error:.3f} "
-                     f"(data scatter {master.shifts.storage_scatter:.3f}, "
-                     f"{master.shifts.loss_scatter:.3f})")
+                     f"loss {prony_fit.loss_rms_log_error:.3f} ({master.scatter_text()})")
         frac = master.fractional_fit
         lines.append(f"fractional model (4 parameters): rms log error storage "
                      f"{frac.storage_rms_log_error:.3f}, loss {frac.loss_rms_log_error:.3f}")
@@ -351,6 +362,96 @@ def _sweep_scatter(shifts: ShiftFactors, member: NDArray[np.int64]
                               for k in range(int(member.max()) + 1)])
         out.append(np.maximum(per_sweep, overall)[member])
     return out[0], out[1]
+
+
+#: Terms tried past the last that lowered :func:`_material_criterion` before
+#: :func:`_more_terms` stops.
+MORE_TERMS_PATIENCE = 2
+
+
+def _refined_model(joint: JointFit, table: ModulusTable, member: NDArray[np.int64],
+                   offset: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """The refined series at every point's reduced frequency under the refined shifts."""
+    return joint.series.complex_modulus(
+        2 * np.pi * table.frequency_hz * 10.0 ** (joint.log10_at[member] + offset))
+
+
+def _material_criterion(joint: JointFit, table: ModulusTable, member: NDArray[np.int64],
+                        offset: NDArray[np.float64]) -> float:
+    """BIC of a series refined with the shifts, each modulus's variance estimated from its own
+    residuals: ``n ln(RSS'/n) + n ln(RSS''/n) + k ln(2n)``, ``k`` the series' parameters and
+    the free shifts."""
+    model = _refined_model(joint, table, member, offset)
+    n = table.points
+    with np.errstate(divide="ignore", invalid="ignore"):
+        squares = [float(np.sum(np.log(np.maximum(part, 1e-300) / measured) ** 2))
+                   for part, measured in ((model.real, table.storage_pa),
+                                          (model.imag, table.loss_pa))]
+    k = 2 * joint.series.terms + 1 + joint.log10_at.size - 1
+    if not all(math.isfinite(v) for v in squares):
+        return math.inf
+    return (n * sum(math.log(max(v, 1e-300) / n) for v in squares)
+            + k * math.log(2 * n))
+
+
+def _more_terms(table: ModulusTable, member: NDArray[np.int64], shifts: ShiftFactors,
+                sweep_scatter: tuple[NDArray[np.float64], NDArray[np.float64]],
+                joint: JointFit) -> tuple[JointFit, list[dict]]:
+    """The series refined with the shifts, given more terms while each lowers
+    :func:`_material_criterion`, and the ladder's entries of the counts tried (none where the
+    spline's scatter was reached).
+
+    :func:`~viscorig.materials.prony.fit_prony` stops at the first series that reaches the
+    data's scatter about the spline master curve. With few frequencies per sweep, that scatter
+    is mostly the spline's: its knots, no closer than a sweep's frequency step
+    (:func:`~viscorig.materials.shift.frequency_step`), cannot follow the loss modulus's
+    curvature, and the shifts it puts the sweeps at are off by as much. Refined together with
+    a series, the shifts then follow the data closer than the spline did, and the series
+    stopped short: on sweeps generated from a 12-term series with 0.5 % noise and 5
+    frequencies per sweep, the spline's scatter of ``ln E''`` was 0.07 (14 times the noise),
+    the series stopped at 8 terms and missed the truth by 31 % in E'' inside the measured
+    range. Where the refined series follows either modulus closer than the spline's scatter
+    by more than :data:`~viscorig.materials.prony.SCATTER_MARGIN`, terms are added (the
+    shifts refined anew for each count) while the criterion, which asks nothing of the spline,
+    falls; it stops :data:`MORE_TERMS_PATIENCE` terms after the last fall or at
+    :data:`~viscorig.materials.prony.MAX_TERMS` terms.
+    """
+    spline = (shifts.storage_scatter, shifts.loss_scatter)
+    scatter = (max(spline[0], 1e-4), max(spline[1], 1e-4))
+    fit = model_fit(_refined_model(joint, table, member, shifts.point_offset),
+                    table.storage_pa, table.loss_pa, scatter, 2 * joint.series.terms + 1)
+    if not (fit.storage_rms_log_error * SCATTER_MARGIN < spline[0]
+            or fit.loss_rms_log_error * SCATTER_MARGIN < spline[1]):
+        return joint, []
+    best = (_material_criterion(joint, table, member, shifts.point_offset), joint)
+    entries: list[dict] = []
+    for terms in range(joint.series.terms + 1, MAX_TERMS + 1):
+        if terms - best[1].series.terms > MORE_TERMS_PATIENCE:
+            break
+        omega = 2 * np.pi * table.frequency_hz * 10.0 ** (best[1].log10_at[member]
+                                                          + shifts.point_offset)
+        start, _ = fit_prony_terms(omega, table.storage_pa, table.loss_pa, scatter, terms)
+        try:
+            candidate = refine_jointly(table.frequency_hz, member, shifts.point_offset,
+                                       table.storage_pa, table.loss_pa, sweep_scatter, start,
+                                       best[1].log10_at, shifts.reference)
+        except (ValueError, np.linalg.LinAlgError):
+            break
+        if not np.all(np.isfinite(candidate.covariance)):
+            break
+        tried = model_fit(_refined_model(candidate, table, member, shifts.point_offset),
+                          table.storage_pa, table.loss_pa, scatter, 2 * terms + 1)
+        criterion = _material_criterion(candidate, table, member, shifts.point_offset)
+        entries.append({"terms": terms, "storage_rms_log_error": tried.storage_rms_log_error,
+                        "loss_rms_log_error": tried.loss_rms_log_error,
+                        "bic": tried.bic(2 * table.points),
+                        "reaches_scatter": bool(
+                            tried.storage_rms_log_error <= SCATTER_MARGIN * scatter[0]
+                            and tried.loss_rms_log_error <= SCATTER_MARGIN * scatter[1]),
+                        "shifts_refined": True, "criterion": criterion})
+        if criterion < best[0]:
+            best = (criterion, candidate)
+    return best[1], entries
 
 
 def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int:
@@ -537,6 +638,12 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         2 * prony.terms + 1)
     refined = bool(joint_fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
     if refined:
+        joint, more = _more_terms(table, member, shifts, sweep_scatter, joint)
+        if more:
+            joint_fit = model_fit(_refined_model(joint, table, member, shifts.point_offset),
+                                  table.storage_pa, table.loss_pa, scatter,
+                                  2 * joint.series.terms + 1)
+            ladder = [*ladder, *more]
         prony, prony_fit = joint.series, joint_fit
         log10_at, covariance = joint.log10_at.copy(), _joint_covariance(joint.log10_at,
                                                                          joint.covariance, shifts)

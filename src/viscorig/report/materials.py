@@ -235,8 +235,7 @@ def material_section(materials: list[Material], figures: dict[str, SavedFigure],
             if flagged else ", every point consistent with a linear material") + ".")
         words.append(f"Prony series of {master.prony.terms} terms: rms ln error storage "
                      f"{fit.storage_rms_log_error:.3f}, loss {fit.loss_rms_log_error:.3f} "
-                     f"(data scatter {master.shifts.storage_scatter:.3f}, "
-                     f"{master.shifts.loss_scatter:.3f}); fractional model: "
+                     f"({master.scatter_text()}); fractional model: "
                      f"{master.fractional_fit.storage_rms_log_error:.3f}, "
                      f"{master.fractional_fit.loss_rms_log_error:.3f}.")
         parts.append("<p>" + html.escape(" ".join(words)) + "</p>")
