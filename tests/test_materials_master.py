@@ -15,7 +15,7 @@ import pytest
 
 from viscorig.cli import main
 from viscorig.errors import InputError
-from viscorig.materials.master import build_master
+from viscorig.materials.master import ISOLATED_SWEEP, build_master
 from viscorig.materials.shift import (
     _temperature_slope,
     estimate_shift_factors,
@@ -692,3 +692,37 @@ def test_five_frequencies_per_sweep_give_a_series_that_follows_the_data(seed: in
     added = [entry for entry in master.ladder if entry.get("shifts_refined")]
     assert added and master.prony.terms in {entry["terms"] for entry in added}
     assert "mostly the spline's own misfit" in master.text()
+
+
+def test_a_sweep_that_overlaps_no_other_is_left_out_not_placed_by_extrapolation() -> None:
+    """A sweep 15 K below the rest, its reduced frequencies 2.7 decades past its neighbour's:
+    placed by the spline's extrapolation across the gap, it pulled the next two sweeps' shifts
+    0.15 decade (4 standard errors) off (elsewhere such a sweep came out a decade off, ± 0.06,
+    and the shift function took that as data)."""
+    temperatures = np.array([-30.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0, 25.0])
+    table, _, _ = _truth_sweeps(temperatures, np.logspace(-1, 1, 5), 2e-3, 3)
+    gap = (_truth_log10_at(np.array([-30.0])) - _truth_log10_at(np.array([-15.0])))[0] - 2.0
+    assert gap > 2.5  # decades of reduced frequency between the two coldest sweeps
+    master = build_master(table, ("generated",), reference_temperature_c=25.0)
+    assert master.temperature_c.min() == -15.0
+    left = [point for point in master.left_out if point["temperature_c"] == -30.0]
+    assert len(left) == 5 and {point["why"] for point in left} == {ISOLATED_SWEEP}
+    assert "left out: the sweep(s) at -30.0 °C" in master.text()
+    assert master.to_json()["left_out"] == list(master.left_out)
+    error = master.log10_at - _truth_log10_at(master.temperature_c)
+    free = master.log10_at_stderr > 0
+    assert np.all(np.abs(error[free]) <= 3 * master.log10_at_stderr[free]), (
+        error, master.log10_at_stderr)
+
+
+def test_sweeps_a_frequency_step_apart_still_make_one_master_curve() -> None:
+    """Neighbouring sweeps whose reduced frequencies miss each other by less than a sweep's
+    step (0.43 decade, the step 0.5) are bridged by the curve, as a sweep's own points are:
+    none is left out."""
+    temperatures = np.array([0.0, 15.0, 30.0, 45.0])
+    gap = (_truth_log10_at(np.array([0.0])) - _truth_log10_at(np.array([15.0])))[0] - 1.5
+    assert 0.4 < gap < 0.5
+    table, _, _ = _truth_sweeps(temperatures, np.logspace(-1, 0.5, 4), 2e-3, 4)
+    master = build_master(table, ("generated",), reference_temperature_c=25.0)
+    assert master.left_out == ()
+    assert master.temperature_c.size == temperatures.size

@@ -221,12 +221,17 @@ class MasterCurve:
                              "its fit: its curve over the measured temperatures follows the "
                              "shifts, its parameters are not determined by them")
             lines.append(f"{function.kind}: {values}{fit}{best}")
-        if master.left_out:
+        points = [p for p in master.left_out if p["why"] != ISOLATED_SWEEP]
+        if points:
             named = "; ".join(f"{p['temperature_c']:.1f} °C, {p['frequency_hz']:.4g} Hz "
-                              f"({p['why']})" for p in master.left_out[:8])
-            more = f" and {len(master.left_out) - 8} more" if len(master.left_out) > 8 else ""
-            lines.append(f"left out: {len(master.left_out)} point(s) whose modulus is not "
-                         f"a positive number: {named}{more}")
+                              f"({p['why']})" for p in points[:8])
+            more = f" and {len(points) - 8} more" if len(points) > 8 else ""
+            lines.append(f"left out: {len(points)} point(s): {named}{more}")
+        swept = sorted({p["temperature_c"] for p in master.left_out
+                        if p["why"] == ISOLATED_SWEEP})
+        if swept:
+            named = ", ".join(f"{t:.1f} °C" for t in swept)
+            lines.append(f"left out: the sweep(s) at {named}: {ISOLATED_SWEEP}")
         lines.append(master.superposition.verdict)
         if master.vertical_verdict():
             lines.append(master.vertical_verdict())
@@ -454,6 +459,41 @@ def _more_terms(table: ModulusTable, member: NDArray[np.int64], shifts: ShiftFac
     return best[1], entries
 
 
+#: Why a sweep is left out whose storage moduli overlap no other sweep's (:func:`_isolated_sets`).
+ISOLATED_SWEEP = ("the storage moduli of its sweep overlap no other sweep's (a gap wider than "
+                  "its largest step between frequencies): its shift would rest on the master "
+                  "curve's extrapolation alone")
+
+
+def _isolated_sets(table: ModulusTable, reference: int) -> NDArray[np.int64]:
+    """The sets the ``reference`` set does not reach through sweeps whose ranges of ``ln E'``
+    overlap, each range widened by the sweep's largest change between neighbouring
+    frequencies.
+
+    E' rises with frequency in every linear viscoelastic material, so two sweeps with no storage
+    modulus in common have no reduced frequency in common under any shift: a sweep apart from
+    every other is placed where the spline's extrapolation across the gap meets it, and its
+    standard error, which sees the data alone, does not say so (a sweep at −40 °C generated 2.3
+    decades of reduced frequency past its neighbour came out 1.08 decades off, ± 0.06). Where
+    E' is flat, sweeps share values, and the flat modulus gives their shifts large errors of
+    their own.
+    """
+    sets = table.sets
+    low, high = np.empty(sets.size), np.empty(sets.size)
+    for k, value in enumerate(sets.tolist()):
+        at = table.set_index == value
+        y = np.log(table.storage_pa[at][np.argsort(table.frequency_hz[at])])
+        widen = float(np.max(np.abs(np.diff(y)))) if y.size > 1 else 0.0
+        low[k], high[k] = y.min() - widen, y.max() + widen
+    linked = np.maximum(low[:, None], low[None, :]) <= np.minimum(high[:, None], high[None, :])
+    reached = sets == reference
+    while True:
+        grown = reached | linked[reached].any(axis=0)
+        if np.array_equal(grown, reached):
+            return sets[~reached]
+        reached = grown
+
+
 def _anchor(temperatures: NDArray[np.float64], reference_c: float | None) -> int:
     if reference_c is None:
         middle = 0.5 * (temperatures[0] + temperatures[-1])
@@ -600,9 +640,11 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         raise InputError(f"{expansion_per_k} is not a volumetric thermal expansion in 1/K "
                          f"(at most {MAX_EXPANSION_PER_K:g} either way)", "--thermal-expansion")
     table.check(table.source or "modulus table")
+    given = table
     left_out = tuple(table.unusable_points())
     if left_out:
         table = table.select(table.usable())
+    usable = table
     low, high = TEMPERATURE_RANGE_C
     if not (reference_temperature_c is None or low < reference_temperature_c <= high):
         raise InputError(f"{reference_temperature_c} is not a temperature in °C above {low:g} "
@@ -610,6 +652,22 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     temperatures = np.sort(table.set_temperatures_c())
     sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
     anchor = _anchor(temperatures, reference_temperature_c)
+    isolated = _isolated_sets(table, int(sets_sorted[anchor]))
+    if isolated.size:
+        if table.sets.size - isolated.size < 2:
+            raise InputError(
+                f"no other sweep's storage moduli overlap those of the sweep at "
+                f"{temperatures[anchor]:.1f} °C, the reference: no shift is determined by "
+                "these data; sweeps that overlap, at temperatures closer together, are needed",
+                table.source or "modulus table")
+        kept = _build(usable.select(~np.isin(usable.set_index, isolated)), runs,
+                      reference_temperature_c,
+                      None if systematic is None else systematic.select(
+                          ~np.isin(systematic.set_index, isolated)),
+                      vertical, expansion_per_k)
+        points = [{**point, "why": ISOLATED_SWEEP} for point in given.unusable_points(
+            ~np.isin(given.set_index, isolated) | ~given.usable())]
+        return replace(kept, left_out=left_out + tuple(points))
     reduced_at = (float(temperatures[anchor]) if reference_temperature_c is None
                   else float(reference_temperature_c))
     other = _reduced(table, reduced_at, expansion_per_k) if vertical == "none" else table

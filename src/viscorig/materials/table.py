@@ -124,11 +124,11 @@ class ModulusTable:
         :data:`MODULUS_RANGE_PA`."""
         return _within_moduli(self.storage_pa) & _within_moduli(self.loss_pa)
 
-    def unusable_points(self) -> list[dict]:
-        """Every point :meth:`usable` leaves out: its number (from 1), set, temperature,
-        frequency, both moduli and why."""
+    def unusable_points(self, usable: NDArray[np.bool_] | None = None) -> list[dict]:
+        """Every point :meth:`usable` leaves out (or ``usable``, when given, does): its number
+        (from 1), set, temperature, frequency, both moduli and why."""
         out = []
-        for index in np.flatnonzero(~self.usable()).tolist():
+        for index in np.flatnonzero(~(self.usable() if usable is None else usable)).tolist():
             storage, loss = float(self.storage_pa[index]), float(self.loss_pa[index])
             bad = [name for name, value in (("storage", storage), ("loss", loss))
                    if not _within_moduli(np.array(value))]
