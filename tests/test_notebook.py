@@ -27,5 +27,6 @@ def test_example_notebook_runs_and_says_what_it_should():
     assert "<Diagnosis soft-0 " in text and "rungs" in text
     assert "<Comparison soft-10 against soft-0: K_v +" in text
     assert any("Candidate effects on voigt" in page for page in html)  # the diagnosis's view
-    assert "<MasterCurve eca: 21 temperatures, reference 25.00 °C" in text
+    assert "<MasterCurve eca: 19 temperatures, reference 25.00 °C" in text
+    assert any("left out: the sweep(s) at -50.0 °C, -42.5 °C" in page for page in html)
     assert any("Prony series: " in page and "shift factors" in page for page in html)

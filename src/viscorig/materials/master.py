@@ -459,33 +459,35 @@ def _more_terms(table: ModulusTable, member: NDArray[np.int64], shifts: ShiftFac
     return best[1], entries
 
 
-#: Why a sweep is left out whose storage moduli overlap no other sweep's (:func:`_isolated_sets`).
-ISOLATED_SWEEP = ("the storage moduli of its sweep overlap no other sweep's (a gap wider than "
-                  "its largest step between frequencies): its shift would rest on the master "
-                  "curve's extrapolation alone")
+#: Why a sweep is left out that shares no modulus value with another (:func:`_isolated_sets`).
+ISOLATED_SWEEP = ("its sweep shares no storage modulus and loss factor with another sweep (a "
+                  "gap wider than its largest step between frequencies): its shift would rest "
+                  "on the master curve's extrapolation alone")
 
 
 def _isolated_sets(table: ModulusTable, reference: int) -> NDArray[np.int64]:
     """The sets the ``reference`` set does not reach through sweeps whose ranges of ``ln E'``
-    overlap, each range widened by the sweep's largest change between neighbouring
-    frequencies.
+    and of ``ln tan δ`` both overlap, each range widened by the sweep's largest change between
+    neighbouring frequencies.
 
-    E' rises with frequency in every linear viscoelastic material, so two sweeps with no storage
-    modulus in common have no reduced frequency in common under any shift: a sweep apart from
-    every other is placed where the spline's extrapolation across the gap meets it, and its
-    standard error, which sees the data alone, does not say so (a sweep at −40 °C generated 2.3
-    decades of reduced frequency past its neighbour came out 1.08 decades off, ± 0.06). Where
-    E' is flat, sweeps share values, and the flat modulus gives their shifts large errors of
-    their own.
+    Two sweeps with a reduced frequency in common have, there, the same storage modulus and the
+    same loss factor: where either range misses the other's, no shift lets them meet, and a
+    sweep apart from every other is placed where the spline's extrapolation across the gap
+    meets it, with a standard error that sees the data alone (a sweep at −40 °C generated 2.3
+    decades of reduced frequency past its neighbour came out 1.08 decades off, ± 0.06).
     """
     sets = table.sets
-    low, high = np.empty(sets.size), np.empty(sets.size)
+    ranges = np.empty((2, sets.size, 2))
     for k, value in enumerate(sets.tolist()):
         at = table.set_index == value
-        y = np.log(table.storage_pa[at][np.argsort(table.frequency_hz[at])])
-        widen = float(np.max(np.abs(np.diff(y)))) if y.size > 1 else 0.0
-        low[k], high[k] = y.min() - widen, y.max() + widen
-    linked = np.maximum(low[:, None], low[None, :]) <= np.minimum(high[:, None], high[None, :])
+        order = np.argsort(table.frequency_hz[at])
+        storage, loss = table.storage_pa[at][order], table.loss_pa[at][order]
+        for row, y in enumerate((np.log(storage), np.log(loss / storage))):
+            widen = float(np.max(np.abs(np.diff(y)))) if y.size > 1 else 0.0
+            ranges[row, k] = y.min() - widen, y.max() + widen
+    low, high = ranges[..., 0], ranges[..., 1]
+    linked = np.all(np.maximum(low[:, :, None], low[:, None, :])
+                    <= np.minimum(high[:, :, None], high[:, None, :]), axis=0)
     reached = sets == reference
     while True:
         grown = reached | linked[reached].any(axis=0)
@@ -652,11 +654,18 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     temperatures = np.sort(table.set_temperatures_c())
     sets_sorted = table.sets[np.argsort(table.set_temperatures_c(), kind="stable")]
     anchor = _anchor(temperatures, reference_temperature_c)
+    reduced_at = (float(temperatures[anchor]) if reference_temperature_c is None
+                  else float(reference_temperature_c))
+    other = _reduced(table, reduced_at, expansion_per_k) if vertical == "none" else table
+    if vertical == "ferry":
+        table = _reduced(table, reduced_at, expansion_per_k)
+        if systematic is not None:
+            systematic = _reduced(systematic, reduced_at, expansion_per_k)
     isolated = _isolated_sets(table, int(sets_sorted[anchor]))
     if isolated.size:
         if table.sets.size - isolated.size < 2:
             raise InputError(
-                f"no other sweep's storage moduli overlap those of the sweep at "
+                f"no other sweep shares a storage modulus and loss factor with the sweep at "
                 f"{temperatures[anchor]:.1f} °C, the reference: no shift is determined by "
                 "these data; sweeps that overlap, at temperatures closer together, are needed",
                 table.source or "modulus table")
@@ -668,13 +677,6 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         points = [{**point, "why": ISOLATED_SWEEP} for point in given.unusable_points(
             ~np.isin(given.set_index, isolated) | ~given.usable())]
         return replace(kept, left_out=left_out + tuple(points))
-    reduced_at = (float(temperatures[anchor]) if reference_temperature_c is None
-                  else float(reference_temperature_c))
-    other = _reduced(table, reduced_at, expansion_per_k) if vertical == "none" else table
-    if vertical == "ferry":
-        table = _reduced(table, reduced_at, expansion_per_k)
-        if systematic is not None:
-            systematic = _reduced(systematic, reduced_at, expansion_per_k)
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
     alternative = _alternative_scatter(other, int(sets_sorted[anchor]))
     anchor_c = float(shifts.temperature_c[shifts.reference])
