@@ -134,7 +134,8 @@ class MasterCurve:
         values = f"{self.shifts.storage_scatter:.3f}, {self.shifts.loss_scatter:.3f}"
         if any(entry.get("shifts_refined") for entry in self.ladder):
             return (f"scatter about the spline master curve {values}, mostly the spline's own "
-                    "misfit: terms added, the shifts refined with them, while BIC fell")
+                    "misfit: more terms tried, the shifts refined with each, and kept while "
+                    "BIC fell")
         return f"data scatter {values}"
 
     def vertical_verdict(self) -> str:
@@ -674,8 +675,8 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
                       None if systematic is None else systematic.select(
                           ~np.isin(systematic.set_index, isolated)),
                       vertical, expansion_per_k)
-        points = [{**point, "why": ISOLATED_SWEEP} for point in given.unusable_points(
-            ~np.isin(given.set_index, isolated) | ~given.usable())]
+        points = given.point_records(np.isin(given.set_index, isolated) & given.usable(),
+                                     ISOLATED_SWEEP)
         return replace(kept, left_out=left_out + tuple(points))
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
     alternative = _alternative_scatter(other, int(sets_sorted[anchor]))
@@ -693,9 +694,8 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
     joint = refine_jointly(table.frequency_hz, member, shifts.point_offset, table.storage_pa,
                            table.loss_pa, sweep_scatter, prony, shifts.log10_at,
                            shifts.reference)
-    joint_fit = model_fit(joint.series.complex_modulus(2 * np.pi * table.frequency_hz * 10.0 ** (
-        joint.log10_at[member] + shifts.point_offset)), table.storage_pa, table.loss_pa, scatter,
-        2 * prony.terms + 1)
+    joint_fit = model_fit(_refined_model(joint, table, member, shifts.point_offset),
+                          table.storage_pa, table.loss_pa, scatter, 2 * prony.terms + 1)
     refined = bool(joint_fit.chi2 <= prony_fit.chi2 and np.all(np.isfinite(joint.covariance)))
     if refined:
         joint, more = _more_terms(table, member, shifts, sweep_scatter, joint)

@@ -124,22 +124,30 @@ class ModulusTable:
         :data:`MODULUS_RANGE_PA`."""
         return _within_moduli(self.storage_pa) & _within_moduli(self.loss_pa)
 
-    def unusable_points(self, usable: NDArray[np.bool_] | None = None) -> list[dict]:
-        """Every point :meth:`usable` leaves out (or ``usable``, when given, does): its number
-        (from 1), set, temperature, frequency, both moduli and why."""
+    def point_records(self, which: NDArray[np.bool_], why: str) -> list[dict]:
+        """The points where ``which`` is true, each with its number (from 1), set, temperature,
+        frequency, both moduli and ``why``."""
+        return [self._record(index, why) for index in np.flatnonzero(which).tolist()]
+
+    def unusable_points(self) -> list[dict]:
+        """Every point :meth:`usable` leaves out (as :meth:`point_records` gives them), with
+        why."""
+        low, high = MODULUS_RANGE_PA
         out = []
-        for index in np.flatnonzero(~(self.usable() if usable is None else usable)).tolist():
-            storage, loss = float(self.storage_pa[index]), float(self.loss_pa[index])
-            bad = [name for name, value in (("storage", storage), ("loss", loss))
+        for index in np.flatnonzero(~self.usable()).tolist():
+            bad = [name for name, value in (("storage", self.storage_pa[index]),
+                                            ("loss", self.loss_pa[index]))
                    if not _within_moduli(np.array(value))]
-            low, high = MODULUS_RANGE_PA
-            out.append({"point": index + 1, "set": int(self.set_index[index]),
-                        "temperature_c": float(self.temperature_c[index]),
-                        "frequency_hz": float(self.frequency_hz[index]),
-                        "storage_pa": storage, "loss_pa": loss,
-                        "why": " and ".join(bad) + f" modulus not a number from {low:g} to "
-                        f"{high:g} Pa"})
+            out.append(self._record(index, " and ".join(bad) + f" modulus not a number from "
+                                    f"{low:g} to {high:g} Pa"))
         return out
+
+    def _record(self, index: int, why: str) -> dict:
+        return {"point": index + 1, "set": int(self.set_index[index]),
+                "temperature_c": float(self.temperature_c[index]),
+                "frequency_hz": float(self.frequency_hz[index]),
+                "storage_pa": float(self.storage_pa[index]),
+                "loss_pa": float(self.loss_pa[index]), "why": why}
 
     def select(self, keep: NDArray[np.bool_]) -> ModulusTable:
         """The points where ``keep`` is true."""
