@@ -746,3 +746,18 @@ def test_glassy_sweeps_that_share_a_storage_modulus_but_no_loss_factor_are_left_
     master = build_master(table, ("generated",), reference_temperature_c=25.0)
     assert sorted({p["temperature_c"] for p in master.left_out}) == [-50.0, -42.5]
     assert np.max(np.abs(master.log10_at - _truth_log10_at(master.temperature_c))) < 0.01
+
+
+
+def test_two_sweeps_that_overlap_each_other_but_not_the_rest_are_left_out_for_that() -> None:
+    """Two cold sweeps 2 K apart overlap each other; 15 K separate them from the rest. No chain
+    of shared values joins them to the reference: both are left out, and the reason says
+    so rather than that each overlaps no other sweep."""
+    temperatures = np.array([-32.0, -30.0, -15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0,
+                             25.0])
+    table, _, _ = _truth_sweeps(temperatures, np.logspace(-1, 1, 5), 2e-3, 5)
+    master = build_master(table, ("generated",), reference_temperature_c=25.0)
+    assert sorted({p["temperature_c"] for p in master.left_out}) == [-32.0, -30.0]
+    assert {p["why"] for p in master.left_out} == {ISOLATED_SWEEP}
+    assert ISOLATED_SWEEP.startswith("no chain of sweeps") and "reference's" in ISOLATED_SWEEP
+    assert "left out: the sweep(s) at -32.0 °C, -30.0 °C: no chain" in master.text()

@@ -460,10 +460,11 @@ def _more_terms(table: ModulusTable, member: NDArray[np.int64], shifts: ShiftFac
     return best[1], entries
 
 
-#: Why a sweep is left out that shares no modulus value with another (:func:`_isolated_sets`).
-ISOLATED_SWEEP = ("its sweep shares no storage modulus and loss factor with another sweep (a "
-                  "gap wider than its largest step between frequencies): its shift would rest "
-                  "on the master curve's extrapolation alone")
+#: Why a sweep is left out that no chain of sweeps sharing values joins to the reference's
+#: (:func:`_isolated_sets`).
+ISOLATED_SWEEP = ("no chain of sweeps that share a storage modulus and a loss factor joins its "
+                  "sweep to the reference's (gaps wider than a sweep's largest step between "
+                  "frequencies): its shift would rest on the master curve's extrapolation alone")
 
 
 def _isolated_sets(table: ModulusTable, reference: int) -> NDArray[np.int64]:
