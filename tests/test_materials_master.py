@@ -15,7 +15,7 @@ import pytest
 
 from viscorig.cli import main
 from viscorig.errors import InputError
-from viscorig.materials.master import ISOLATED_SWEEP, build_master
+from viscorig.materials.master import ISOLATED_SWEEP, UNDETERMINED_SWEEP, build_master
 from viscorig.materials.shift import (
     _temperature_slope,
     estimate_shift_factors,
@@ -718,14 +718,16 @@ def test_a_sweep_that_overlaps_no_other_is_left_out_not_placed_by_extrapolation(
 def test_sweeps_a_frequency_step_apart_still_make_one_master_curve() -> None:
     """Neighbouring sweeps whose reduced frequencies miss each other by less than a sweep's
     step (0.43 decade, the step 0.5) are bridged by the curve, as a sweep's own points are:
-    none is left out."""
+    none is left out as isolated."""
     temperatures = np.array([0.0, 15.0, 30.0, 45.0])
     gap = (_truth_log10_at(np.array([0.0])) - _truth_log10_at(np.array([15.0])))[0] - 1.5
     assert 0.4 < gap < 0.5
-    table, _, _ = _truth_sweeps(temperatures, np.logspace(-1, 0.5, 4), 2e-3, 4)
-    master = build_master(table, ("generated",), reference_temperature_c=25.0)
-    assert master.left_out == ()
-    assert master.temperature_c.size == temperatures.size
+    for seed in (4, 5):
+        table, _, _ = _truth_sweeps(temperatures, np.logspace(-1, 0.5, 4), 2e-3, seed)
+        master = build_master(table, ("generated",), reference_temperature_c=25.0)
+        assert not [p for p in master.left_out if p["why"] == ISOLATED_SWEEP]
+    # (with seed 4 the 0 °C sweep's shift is placed to within 1.6 decades only: it is left out
+    # for that, as undetermined)
 
 
 def test_glassy_sweeps_that_share_a_storage_modulus_but_no_loss_factor_are_left_out() -> None:
@@ -761,3 +763,33 @@ def test_two_sweeps_that_overlap_each_other_but_not_the_rest_are_left_out_for_th
     assert {p["why"] for p in master.left_out} == {ISOLATED_SWEEP}
     assert ISOLATED_SWEEP.startswith("no chain of sweeps") and "reference's" in ISOLATED_SWEEP
     assert "left out: the sweep(s) at -32.0 °C, -30.0 °C: no chain" in master.text()
+
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_glassy_sweep_whose_shift_the_data_do_not_place_is_left_out(seed: int) -> None:
+    """A fractional Zener material, five frequencies over three decades, sweeps 15 K apart at
+    3 % noise: the glassy sweep at -20 °C meets its neighbour, but its flat modulus places it
+    to within 2 to 38 decades; kept, it came out 0.6 to 1.3 decade off and steered the Prony
+    series there."""
+    rng = np.random.default_rng(seed)
+    temperatures = np.arange(-35.0, 86.0, 15.0)
+    frequencies = np.logspace(-1, 2, 5)
+    f, t = (a.ravel() for a in np.meshgrid(frequencies, temperatures))
+    iwt = (1j * 2 * np.pi * f * 10.0 ** _truth_log10_at(t) * 1e-3) ** 0.45
+    value = (3e6 + 3e9 * iwt) / (1 + iwt)
+    table = ModulusTable(
+        frequency_hz=f, temperature_c=t,
+        storage_pa=value.real * (1 + 0.03 * rng.standard_normal(f.size)),
+        loss_pa=value.imag * (1 + 0.03 * rng.standard_normal(f.size)),
+        set_index=np.repeat(np.arange(temperatures.size), frequencies.size), modulus="E",
+        source="generated")
+    master = build_master(table, ("generated",), reference_temperature_c=25.0)
+    why = {p["temperature_c"]: p["why"] for p in master.left_out}
+    assert why == {-35.0: ISOLATED_SWEEP, -20.0: UNDETERMINED_SWEEP}
+    assert "left out: the sweep(s) at -20.0 °C: its sweep's shift is not determined" in (
+        master.text())
+    error = master.log10_at - _truth_log10_at(master.temperature_c)
+    free = master.log10_at_stderr > 0
+    assert np.all(np.abs(error[free]) <= 3 * master.log10_at_stderr[free]), (
+        error, master.log10_at_stderr)

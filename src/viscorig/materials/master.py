@@ -222,17 +222,18 @@ class MasterCurve:
                              "its fit: its curve over the measured temperatures follows the "
                              "shifts, its parameters are not determined by them")
             lines.append(f"{function.kind}: {values}{fit}{best}")
-        points = [p for p in master.left_out if p["why"] != ISOLATED_SWEEP]
+        swept_why = (ISOLATED_SWEEP, UNDETERMINED_SWEEP)
+        points = [p for p in master.left_out if p["why"] not in swept_why]
         if points:
             named = "; ".join(f"{p['temperature_c']:.1f} °C, {p['frequency_hz']:.4g} Hz "
                               f"({p['why']})" for p in points[:8])
             more = f" and {len(points) - 8} more" if len(points) > 8 else ""
             lines.append(f"left out: {len(points)} point(s): {named}{more}")
-        swept = sorted({p["temperature_c"] for p in master.left_out
-                        if p["why"] == ISOLATED_SWEEP})
-        if swept:
-            named = ", ".join(f"{t:.1f} °C" for t in swept)
-            lines.append(f"left out: the sweep(s) at {named}: {ISOLATED_SWEEP}")
+        for why in swept_why:
+            swept = sorted({p["temperature_c"] for p in master.left_out if p["why"] == why})
+            if swept:
+                named = ", ".join(f"{t:.1f} °C" for t in swept)
+                lines.append(f"left out: the sweep(s) at {named}: {why}")
         lines.append(master.superposition.verdict)
         if master.vertical_verdict():
             lines.append(master.vertical_verdict())
@@ -467,6 +468,15 @@ ISOLATED_SWEEP = ("no chain of sweeps that share a storage modulus and a loss fa
                   "frequencies): its shift would rest on the master curve's extrapolation alone")
 
 
+#: A sweep whose shift the data place no better than this (standard error, decades) is left
+#: out of the master curve.
+UNDETERMINED_SHIFT_DECADES = 1.0
+#: Why (:data:`UNDETERMINED_SHIFT_DECADES`).
+UNDETERMINED_SWEEP = ("its sweep's shift is not determined by the data (standard error above "
+                      f"{UNDETERMINED_SHIFT_DECADES:g} decade: a flat modulus, or sweeps that "
+                      "barely meet): placed anywhere, it would steer the Prony series there")
+
+
 def _isolated_sets(table: ModulusTable, reference: int) -> NDArray[np.int64]:
     """The sets the ``reference`` set does not reach through sweeps whose ranges of ``ln E'``
     and of ``ln tan δ`` both overlap, each range widened by the sweep's largest change between
@@ -569,8 +579,9 @@ def _check_determined(shifts: ShiftFactors, log10_omega: NDArray[np.float64],
     :data:`MAX_SPAN_DECADES`, naming the sweep whose shift is known worst, and shift factors of
     two sweeps that differ, beyond three standard errors, by more than
     :data:`MAX_SHIFT_RATE_DECADES_PER_K` per kelvin between them (at least
-    :data:`~viscorig.materials.shift.TEMPERATURE_RESOLUTION_K` apart). A single sweep with a large
-    standard error (on a plateau, say) is kept, with its ±."""
+    :data:`~viscorig.materials.shift.TEMPERATURE_RESOLUTION_K` apart). A sweep with a large
+    standard error (on a plateau, say) is kept with its ± up to
+    :data:`UNDETERMINED_SHIFT_DECADES`, and left out beyond (before this check)."""
     span = float(np.ptp(log10_omega)) if np.all(np.isfinite(log10_omega)) else math.inf
     if span <= MAX_SPAN_DECADES:
         _check_rate(shifts, member, where)
@@ -663,6 +674,21 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
         table = _reduced(table, reduced_at, expansion_per_k)
         if systematic is not None:
             systematic = _reduced(systematic, reduced_at, expansion_per_k)
+
+    def without(sets: NDArray[np.int64], why: str) -> MasterCurve:
+        """The master curve of the other sweeps, with these sweeps' points left out."""
+        keep = ~np.isin(usable.set_index, sets)
+        kept = _build(usable.select(keep), runs, reference_temperature_c,
+                      None if systematic is None else systematic.select(
+                          ~np.isin(systematic.set_index, sets)),
+                      vertical, expansion_per_k)
+        # points the master curve of the others left out, numbered as in the table given
+        origin = np.flatnonzero(given.usable())[np.flatnonzero(keep)]
+        inner = tuple({**point, "point": int(origin[point["point"] - 1]) + 1}
+                      for point in kept.left_out)
+        points = given.point_records(np.isin(given.set_index, sets) & given.usable(), why)
+        return replace(kept, left_out=left_out + tuple(points) + inner)
+
     isolated = _isolated_sets(table, int(sets_sorted[anchor]))
     if isolated.size:
         if table.sets.size - isolated.size < 2:
@@ -671,15 +697,11 @@ def _build(table: ModulusTable, runs: tuple[str, ...], reference_temperature_c: 
                 f"{temperatures[anchor]:.1f} °C, the reference: no shift is determined by "
                 "these data; sweeps that overlap, at temperatures closer together, are needed",
                 table.source or "modulus table")
-        kept = _build(usable.select(~np.isin(usable.set_index, isolated)), runs,
-                      reference_temperature_c,
-                      None if systematic is None else systematic.select(
-                          ~np.isin(systematic.set_index, isolated)),
-                      vertical, expansion_per_k)
-        points = given.point_records(np.isin(given.set_index, isolated) & given.usable(),
-                                     ISOLATED_SWEEP)
-        return replace(kept, left_out=left_out + tuple(points))
+        return without(isolated, ISOLATED_SWEEP)
     shifts = estimate_shift_factors(table, reference_set=int(sets_sorted[anchor]))
+    undetermined = shifts.sets[shifts.log10_at_stderr > UNDETERMINED_SHIFT_DECADES]
+    if undetermined.size and table.sets.size - undetermined.size >= 2:
+        return without(undetermined, UNDETERMINED_SWEEP)
     alternative = _alternative_scatter(other, int(sets_sorted[anchor]))
     anchor_c = float(shifts.temperature_c[shifts.reference])
     scatter = (shifts.storage_scatter, shifts.loss_scatter)
