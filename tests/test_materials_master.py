@@ -787,6 +787,9 @@ def test_a_glassy_sweep_whose_shift_the_data_do_not_place_is_left_out(seed: int)
     master = build_master(table, ("generated",), reference_temperature_c=25.0)
     why = {p["temperature_c"]: p["why"] for p in master.left_out}
     assert why == {-35.0: ISOLATED_SWEEP, -20.0: UNDETERMINED_SWEEP}
+    for point in master.left_out:  # numbered as in the table given (from 1)
+        at = point["point"] - 1
+        assert (t[at], f[at]) == (point["temperature_c"], point["frequency_hz"])
     assert "left out: the sweep(s) at -20.0 °C: its sweep's shift is not determined" in (
         master.text())
     error = master.log10_at - _truth_log10_at(master.temperature_c)
