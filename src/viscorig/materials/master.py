@@ -449,12 +449,7 @@ def _more_terms(table: ModulusTable, member: NDArray[np.int64], shifts: ShiftFac
         tried = model_fit(_refined_model(candidate, table, member, shifts.point_offset),
                           table.storage_pa, table.loss_pa, scatter, 2 * terms + 1)
         criterion = _material_criterion(candidate, table, member, shifts.point_offset)
-        entries.append({"terms": terms, "storage_rms_log_error": tried.storage_rms_log_error,
-                        "loss_rms_log_error": tried.loss_rms_log_error,
-                        "bic": tried.bic(2 * table.points),
-                        "reaches_scatter": bool(
-                            tried.storage_rms_log_error <= SCATTER_MARGIN * scatter[0]
-                            and tried.loss_rms_log_error <= SCATTER_MARGIN * scatter[1]),
+        entries.append({**tried.ladder_entry(terms, 2 * table.points, scatter),
                         "shifts_refined": True, "criterion": criterion})
         if criterion < best[0]:
             best = (criterion, candidate)

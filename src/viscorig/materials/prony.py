@@ -117,6 +117,18 @@ class ModelFit:
         """Bayesian information criterion of the weighted fit."""
         return self.chi2 + self.parameters * math.log(points)
 
+    def reaches(self, scatter: tuple[float, float]) -> bool:
+        """Both rms errors within :data:`SCATTER_MARGIN` of the data's ``scatter``."""
+        return (self.storage_rms_log_error <= SCATTER_MARGIN * scatter[0]
+                and self.loss_rms_log_error <= SCATTER_MARGIN * scatter[1])
+
+    def ladder_entry(self, terms: int, points: int, scatter: tuple[float, float]) -> dict:
+        """A rung of :func:`fit_prony`'s ladder: this fit of ``terms`` terms to ``points``
+        points (E' and E'' counted apart)."""
+        return {"terms": terms, "storage_rms_log_error": self.storage_rms_log_error,
+                "loss_rms_log_error": self.loss_rms_log_error, "bic": self.bic(points),
+                "reaches_scatter": self.reaches(scatter)}
+
 
 def model_fit(model: NDArray[np.complex128], storage: NDArray, loss: NDArray,
               scatter: tuple[float, float], parameters: int) -> ModelFit:
@@ -248,14 +260,10 @@ def fit_prony(
         series = _refine(omega, storage, loss, scatter, _start(omega, storage, loss, scatter,
                                                               terms))
         fit = model_fit(series.complex_modulus(omega), storage, loss, scatter, 2 * terms + 1)
-        reached = (fit.storage_rms_log_error <= SCATTER_MARGIN * scatter[0]
-                   and fit.loss_rms_log_error <= SCATTER_MARGIN * scatter[1])
-        ladder.append({"terms": terms, "storage_rms_log_error": fit.storage_rms_log_error,
-                       "loss_rms_log_error": fit.loss_rms_log_error,
-                       "bic": fit.bic(2 * omega.size), "reaches_scatter": reached})
+        ladder.append(fit.ladder_entry(terms, 2 * omega.size, scatter))
         if best is None or fit.bic(2 * omega.size) < best[1].bic(2 * omega.size):
             best = (series, fit)
-        if reached:
+        if fit.reaches(scatter):
             break
         # stop once BIC has not improved for four more terms: the data says no more
         if terms - best[0].terms >= 4:
